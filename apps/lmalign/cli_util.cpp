@@ -1,0 +1,67 @@
+#include "cli_util.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+
+#include "lmalign/core/error.hpp"
+
+namespace lmalign::cli {
+
+std::vector<double> parse_number_list(const std::string& option, const std::string& text,
+                                      std::size_t count, const std::string& expected) {
+  std::vector<double> values;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', start);
+    const std::string tok = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    double v = 0.0;
+    const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), v);
+    if (tok.empty() || r.ec != std::errc() || r.ptr != tok.data() + tok.size() || !std::isfinite(v)) {
+      throw InvalidArgument(option + " \"" + text + "\": '" + tok + "' is not a finite number; expected " + expected);
+    }
+    values.push_back(v);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  if (values.size() != count) {
+    throw InvalidArgument(option + " \"" + text + "\": " + std::to_string(values.size()) +
+                          " values, expected " + expected);
+  }
+  return values;
+}
+
+bool same_file(const std::string& a, const std::string& b) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (fs::equivalent(a, b, ec) && !ec) return true;
+  ec.clear();
+  const fs::path ca = fs::weakly_canonical(a, ec);
+  if (ec) return false;
+  const fs::path cb = fs::weakly_canonical(b, ec);
+  if (ec) return false;
+  return ca == cb;
+}
+
+void refuse_output_over_input(const std::string& option, const std::string& output,
+                              const std::vector<std::string>& inputs) {
+  for (const std::string& in : inputs) {
+    if (same_file(output, in)) {
+      throw InvalidArgument(option + " '" + output + "' is an input file; refusing to overwrite it");
+    }
+  }
+}
+
+nlohmann::json json_number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+nlohmann::json json_matrix(const Isometry3& T) {
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) {
+    nlohmann::json row = nlohmann::json::array();
+    for (int c = 0; c < 4; ++c) row.push_back(T.matrix()(r, c));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+}  // namespace lmalign::cli

@@ -1,0 +1,31 @@
+// Small helpers shared by the CLI subcommands (parsing, output-path checks, JSON values).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "lmalign/core/types.hpp"
+
+namespace lmalign::cli {
+
+/// Parses exactly `count` comma-separated finite numbers, e.g. "0,1,0.4,10,0,22.5".
+/// Throws InvalidArgument("<option> \"<text>\": expected ...").
+std::vector<double> parse_number_list(const std::string& option, const std::string& text,
+                                      std::size_t count, const std::string& expected);
+
+/// True if the two paths name the same file (existing or not).
+bool same_file(const std::string& a, const std::string& b);
+
+/// Throws InvalidArgument if `output` names one of `inputs` (an output must never clobber input).
+void refuse_output_over_input(const std::string& option, const std::string& output,
+                              const std::vector<std::string>& inputs);
+
+/// A double as JSON: a number, or null if not finite (JSON has no inf/NaN).
+nlohmann::json json_number(double v);
+
+/// A 4x4 matrix as a JSON array of 4 rows.
+nlohmann::json json_matrix(const Isometry3& T);
+
+}  // namespace lmalign::cli

@@ -1,0 +1,18 @@
+// Subcommands of the `lmalign` CLI. Each add_*_command() registers its options on `root` and
+// returns the function that runs it after parsing. Commands print; the library never does.
+// A command returns the process exit code; it may throw lmalign::Error, which main() turns into
+// a one-line "lmalign: error: ..." message and exit code 2.
+#pragma once
+
+#include <functional>
+
+#include <CLI/CLI.hpp>
+
+namespace lmalign::cli {
+
+using CommandRunner = std::function<int()>;
+
+CommandRunner add_align_command(CLI::App& root);
+CommandRunner add_split_command(CLI::App& root);
+
+}  // namespace lmalign::cli

@@ -1,0 +1,80 @@
+// The landmark map model of a feature-based visual SLAM session (method.md §1).
+//
+// A Map holds frames (keyframe poses) and landmarks (3-D points with a position covariance and
+// the pixel observations that made them). Everything is expressed in one world frame, the
+// map's own; positions in metres, covariances in m^2, pixels in raw (undistorted-free) pixels.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+
+namespace lmalign {
+
+/// A keyframe. Its pose is camera-to-world: p_world = T_world_camera() * p_camera.
+struct Frame {
+  Id id = 0;
+  /// Rotation camera-to-world, as read from the file (w x y z). Not re-normalised on load so that
+  /// a read/write round trip is exact; use T_world_camera() for a proper rotation.
+  Quat q_world_camera = Quat::Identity();
+  /// Camera centre in the world frame, metres.
+  Vec3 p_world_camera = Vec3::Zero();
+
+  /// The rigid pose camera-to-world, with the quaternion normalised.
+  Isometry3 T_world_camera() const;
+};
+
+/// One pixel measurement of a landmark in a frame.
+struct Observation {
+  Id frame_id = 0;
+  double u_px = 0.0;  ///< column, pixels, raw (no undistortion), origin at the image's top-left
+  double v_px = 0.0;  ///< row, pixels
+};
+
+/// A 3-D landmark.
+struct Landmark {
+  Id id = 0;
+  /// Position in the world frame, metres.
+  Vec3 p_world = Vec3::Zero();
+  /// 3x3 position covariance in the world frame, m^2; symmetric positive semi-definite.
+  Mat3 cov_world_m2 = Mat3::Zero();
+  /// Observations, in file order.
+  std::vector<Observation> observations;
+
+  std::size_t num_observations() const { return observations.size(); }
+};
+
+/// A landmark map: frames and landmarks in one world frame.
+///
+/// Invariants kept by the reader (and checked by validate()): ids are unique within frames and
+/// within landmarks, and every observation refers to a frame of the map.
+class Map {
+ public:
+  std::vector<Frame> frames;
+  std::vector<Landmark> landmarks;
+
+  /// Index of the frame with this id, or nullopt. O(1) after the first call (lazy index).
+  /// The index is rebuilt if `frames` changed size; call invalidate_index() after other edits.
+  std::optional<std::size_t> frame_index(Id id) const;
+  const Frame* find_frame(Id id) const;
+  void invalidate_index() const { frame_index_.clear(); }
+
+  /// Landmark positions in the world frame (N x 3 as a vector of Vec3, metres), in landmark order.
+  Points3 positions() const;
+
+  /// Throws InvalidArgument if an id is negative or duplicated, an observation names an unknown
+  /// frame, a value is not finite, or a frame quaternion is zero. The message names the id.
+  void validate() const;
+
+ private:
+  mutable std::unordered_map<Id, std::size_t> frame_index_;
+};
+
+/// Applies T_new_old to every landmark (position and covariance) and every frame pose of `map`,
+/// giving the map expressed in frame `new`. Observations are unchanged (they are camera-relative).
+Map transform_map(const Map& map, const Isometry3& T_new_old);
+
+}  // namespace lmalign

@@ -1,0 +1,51 @@
+// Reading and writing the map text file (method.md §1; format in docs/map-format.md).
+//
+//   FRAME id tx ty tz qw qx qy qz
+//   LANDMARK id x y z c00 c01 c02 c10 c11 c12 c20 c21 c22 n  f_1 u_1 v_1 ... f_n u_n v_n
+//
+// FRAME: T_world_camera, translation = camera centre (m), quaternion scalar-first (w x y z).
+// LANDMARK: world position (m), row-major 3x3 covariance (m^2), n observations (frame id, u, v px).
+// Blank lines and lines starting with '#' are ignored; CRLF line endings are accepted.
+#pragma once
+
+#include <cstddef>
+#include <iosfwd>
+#include <string>
+
+#include "lmalign/map/map.hpp"
+
+namespace lmalign {
+
+struct MapReadOptions {
+  /// Landmarks with fewer observations are dropped after validation (the paper's loader keeps
+  /// n >= 2). 0 keeps every landmark.
+  std::size_t min_observations = 2;
+  /// Largest accepted | |q| - 1 | for a FRAME quaternion.
+  double quaternion_norm_tolerance = 1e-3;
+  /// Covariance symmetry tolerance: |c_ij - c_ji| <= tol * max(1e-12, max|c|).
+  double covariance_symmetry_tolerance = 1e-6;
+  /// PSD tolerance: smallest eigenvalue >= -tol * max(1e-12, largest |eigenvalue|).
+  double covariance_psd_tolerance = 1e-9;
+};
+
+/// Reads a map file. Strict: every malformed record throws ParseError naming the file, the
+/// 1-based line and what was expected (unknown record type, missing or extra token, non-numeric
+/// value, NaN/inf, quaternion norm off by more than the tolerance, non-symmetric or non-PSD
+/// covariance, observation of an unknown frame, duplicate frame or landmark id).
+/// Throws IoError if the file cannot be opened or read.
+Map read_map(const std::string& path, const MapReadOptions& options = {});
+
+/// Same, from a stream; `name` is used in error messages in place of a path.
+Map read_map(std::istream& in, const std::string& name, const MapReadOptions& options = {});
+
+/// Writes `map` atomically (temporary file in the same directory, then rename). Values are written
+/// in the shortest form that reads back to the same double, so write -> read is exact.
+/// Throws IoError (nothing is left at `path` on failure) or InvalidArgument if map.validate() fails
+/// or the map holds something read_map (default options) would reject: a quaternion whose norm is
+/// off by more than 1e-3, or a covariance that is not symmetric or not positive semi-definite.
+void write_map(const std::string& path, const Map& map);
+
+/// Writes the map text to a stream (no validation, no atomicity).
+void write_map(std::ostream& out, const Map& map);
+
+}  // namespace lmalign

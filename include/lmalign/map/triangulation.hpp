@@ -1,0 +1,46 @@
+// Re-estimating a landmark from pixel observations alone (method.md §6, `split --retriangulate`):
+// linear DLT triangulation, Gauss-Newton refinement of the reprojection error with the pinhole
+// intrinsics, and the covariance (J^T J)^-1 * sigma^2 from the final normal matrix.
+#pragma once
+
+#include <optional>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/map/camera.hpp"
+
+namespace lmalign {
+
+/// One view of a point: the camera pose camera-to-world and the pixel seen in it.
+struct PixelView {
+  Isometry3 T_world_camera;
+  double u_px = 0.0;
+  double v_px = 0.0;
+};
+
+struct TriangulationOptions {
+  PinholeIntrinsics intrinsics = PinholeIntrinsics::tum_fr1();
+  /// Pixel noise standard deviation for the covariance, pixels.
+  double pixel_sigma_px = 1.0;
+  /// Gauss-Newton iterations at most (0: the DLT point, with its covariance).
+  int max_iterations = 20;
+};
+
+struct TriangulatedPoint {
+  Vec3 p_world = Vec3::Zero();       ///< metres
+  Mat3 cov_world_m2 = Mat3::Zero();  ///< (J^T J)^-1 sigma^2, m^2
+  double max_parallax_deg = 0.0;     ///< largest angle between two viewing rays, degrees
+  double rms_reprojection_px = 0.0;  ///< sqrt(mean over views of |residual|^2), after refinement
+};
+
+/// Triangulates from >= 2 views: DLT on normalised image coordinates (2N x 4, SVD), then
+/// Gauss-Newton on the pixel reprojection error in world coordinates, stopping after
+/// max_iterations or when the step is below 1e-12 (1 + |p|) m. cov = (J^T J)^-1 sigma^2 with J the
+/// 2N x 3 Jacobian of the pixel residuals wrt the world point at the final estimate.
+/// Returns nullopt if fewer than 2 views, if the point is behind a camera (z <= 0 in its frame),
+/// if J^T J is singular or ill-conditioned (lambda_min / lambda_max <= 1e-12, e.g. zero
+/// parallax), if the intrinsics or sigma are invalid, or if any input or result is not finite.
+std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views,
+                                             const TriangulationOptions& options = {});
+
+}  // namespace lmalign

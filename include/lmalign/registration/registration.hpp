@@ -1,0 +1,131 @@
+// The registration driver: ICP with pluggable correspondence strategy (method.md §3), mirroring
+// PCL's IterativeClosestPoint<PointXYZ, PointXYZ, double>::computeTransformation.
+//
+// Frames: the result is T_target_source, p_target = T_target_source * p_source.
+#pragma once
+
+#include <cstddef>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/map/map.hpp"
+#include "lmalign/registration/convergence.hpp"
+#include "lmalign/registration/correspondence.hpp"
+#include "lmalign/search/kdtree.hpp"
+#include "lmalign/weights/weights.hpp"
+
+namespace lmalign {
+
+/// The paper's four strategies (its table columns).
+enum class PaperStrategy {
+  kBase,          ///< nearest neighbour, no weights
+  kCovariance,    ///< weighted-kNN with w_cov (Eq. 1)
+  kObservations,  ///< weighted-kNN with w_obs (Eq. 2)
+  kMeanDistance,  ///< weighted-kNN with w_dist (Eqs. 3-4)
+};
+std::string to_string(PaperStrategy strategy);  ///< "base", "covariance", "observations", "distance"
+/// Inverse of to_string (also "none" for base). Throws InvalidArgument listing the names.
+PaperStrategy parse_paper_strategy(const std::string& name);
+/// All four, in the paper's column order.
+std::vector<PaperStrategy> all_paper_strategies();
+
+/// Every setting of one registration. Plain struct; check with is_valid().
+struct RegistrationOptions {
+  CorrespondenceKind correspondence = CorrespondenceKind::kNearest;
+  /// Target weights for kWeightedKnn (ignored by kNearest).
+  WeightKind weight = WeightKind::kUniform;
+  /// Neighbourhood size k for kWeightedKnn; [1, 4096]. The paper's default is 5.
+  int k = 5;
+  /// Maximum correspondence distance, metres; infinite as in the paper.
+  double max_correspondence_distance_m = std::numeric_limits<double>::infinity();
+  /// Iteration budget and PCL's convergence epsilons (ICP defaults).
+  ConvergenceOptions convergence;
+  /// Record per-iteration history (number of correspondences, MSE).
+  bool record_history = false;
+  /// With record_history: also compute the fitness score at every iteration (one extra
+  /// nearest-neighbour pass per iteration, as the paper's timing did).
+  bool history_scores = false;
+  /// Range for the final fitness score, metres (see fitness_score()); infinite by default.
+  double score_max_range_m = std::numeric_limits<double>::infinity();
+
+  /// The paper's setting for a strategy: base = nearest; the others weighted-kNN with its weight.
+  static RegistrationOptions paper(PaperStrategy strategy, int k = 5);
+
+  /// Ceres-style validation: false, and *why names the bad field and its value.
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+/// One ICP iteration, recorded when RegistrationOptions::record_history is set.
+struct IterationRecord {
+  int iteration = 0;                   ///< 1-based
+  std::size_t num_correspondences = 0;
+  double mse_m2 = 0.0;                 ///< mean squared correspondence distance (PCL's MSE), m^2
+  /// Fitness score after this iteration's update (m^2); NaN unless history_scores was set.
+  double score_m2 = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// What a registration returns (after small_gicp's RegistrationResult and Ceres' Summary).
+struct RegistrationResult {
+  /// The estimate, p_target = T_target_source * p_source. Always finite.
+  Isometry3 T_target_source = Isometry3::Identity();
+  /// True when a convergence criterion (transform, absolute or relative MSE) stopped the run.
+  /// Unlike PCL's hasConverged(), reaching max_iterations is reported as not converged.
+  bool converged = false;
+  TerminationReason termination = TerminationReason::kNotTerminated;
+  int iterations = 0;
+  /// Correspondences used in the last iteration.
+  std::size_t num_correspondences = 0;
+  /// Fitness score (method.md §4) of the initial guess and of the final estimate, m^2.
+  double initial_score_m2 = std::numeric_limits<double>::infinity();
+  double final_score_m2 = std::numeric_limits<double>::infinity();
+  std::vector<IterationRecord> history;
+  /// Wall time of the alignment (not of target preparation), seconds.
+  double wall_time_s = 0.0;
+
+  /// One line: termination, iterations, scores, time.
+  std::string brief_report() const;
+};
+
+/// A target prepared once for many alignments: the kd-tree and each kind of confidence weight.
+class PreparedTarget {
+ public:
+  /// From a map: builds the kd-tree over the landmark positions and computes all four weights.
+  /// Throws InvalidArgument if the map is invalid (see Map::validate()).
+  explicit PreparedTarget(const Map& target, const WeightOptions& weight_options = {});
+  /// From bare points: only uniform weights until set_weights() provides others.
+  explicit PreparedTarget(Points3 points);
+
+  /// Sets the weights used for `kind` (one per point, finite, >= 0). Throws InvalidArgument.
+  void set_weights(WeightKind kind, std::vector<double> weights);
+  /// Throws InvalidArgument if no weights of that kind are available.
+  const std::vector<double>& weights(WeightKind kind) const;
+
+  const KdTree& tree() const { return tree_; }
+  const Points3& points() const { return tree_.points(); }
+  std::size_t size() const { return tree_.size(); }
+
+ private:
+  KdTree tree_;
+  std::map<WeightKind, std::vector<double>> weights_;
+};
+
+/// Aligns `source_points` (metres, source frame) to the prepared target, starting from
+/// T_target_source_init. Mirrors PCL ICP's loop: transform the source by the current estimate,
+/// find correspondences, estimate the increment by SVD, compose it, test convergence (see
+/// ConvergenceCriteria). The source is re-transformed from the original points by the full
+/// estimate each iteration (PCL transforms incrementally; see docs/conventions.md).
+/// Deterministic for any thread count. Throws InvalidArgument on invalid options, a non-finite
+/// initial guess or non-finite source points.
+RegistrationResult align(const Points3& source_points, const PreparedTarget& target,
+                         const RegistrationOptions& options,
+                         const Isometry3& T_target_source_init = Isometry3::Identity());
+
+/// Convenience: aligns the landmark positions of two maps (builds a PreparedTarget).
+RegistrationResult align_maps(const Map& source, const Map& target,
+                              const RegistrationOptions& options,
+                              const Isometry3& T_target_source_init = Isometry3::Identity());
+
+}  // namespace lmalign

@@ -1,0 +1,402 @@
+// Strict reader and exact writer of the map text file (method.md §1, docs/map-format.md).
+#include "lmalign/map/map_io.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <istream>
+#include <limits>
+#include <ostream>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/io/atomic_file.hpp"
+
+namespace lmalign {
+namespace {
+
+constexpr std::string_view kFrameSyntax = "FRAME id tx ty tz qw qx qy qz";
+constexpr std::string_view kLandmarkSyntax =
+    "LANDMARK id x y z c00 c01 c02 c10 c11 c12 c20 c21 c22 n f_1 u_1 v_1 ... f_n u_n v_n";
+constexpr std::size_t kFrameTokens = 9;
+constexpr std::size_t kLandmarkFixedTokens = 15;  // LANDMARK id x y z c00..c22 n
+constexpr const char* kCovNames[3][3] = {
+    {"c00", "c01", "c02"}, {"c10", "c11", "c12"}, {"c20", "c21", "c22"}};
+
+/// Shortest round-trip text of a double.
+std::string format_double(double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  return std::string(buffer, result.ptr);
+}
+
+void append_double(std::string& out, double value) {
+  char buffer[32];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out.append(buffer, result.ptr);
+}
+
+void append_id(std::string& out, Id value) {
+  char buffer[24];
+  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
+  out.append(buffer, result.ptr);
+}
+
+/// A 6-significant-digit rendering for human-facing numbers (norms, eigenvalues).
+std::string format_short(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof(buffer), "%.6g", value);
+  return buffer;
+}
+
+/// Quotes a token for an error message, shortening very long ones.
+std::string quote(std::string_view token) {
+  constexpr std::size_t kMax = 64;
+  std::string text = "'";
+  if (token.size() > kMax) {
+    text.append(token.substr(0, kMax));
+    text.append("...");
+  } else {
+    text.append(token);
+  }
+  text.push_back('\'');
+  return text;
+}
+
+bool is_separator(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f'; }
+
+/// Splits `line` on runs of spaces/tabs into `tokens` (views into `line`).
+void split(std::string_view line, std::vector<std::string_view>& tokens) {
+  tokens.clear();
+  std::size_t i = 0;
+  const std::size_t size = line.size();
+  while (i < size) {
+    while (i < size && is_separator(line[i])) ++i;
+    if (i == size) break;
+    const std::size_t start = i;
+    while (i < size && !is_separator(line[i])) ++i;
+    tokens.push_back(line.substr(start, i - start));
+  }
+}
+
+/// Name of a field in error messages: "tx", "c01", or "u_3" for observation 3.
+struct FieldName {
+  std::string_view base;
+  std::size_t index = 0;  ///< 1-based observation index, 0 for none
+  std::string str() const {
+    std::string name(base);
+    if (index > 0) name += "_" + std::to_string(index);
+    return name;
+  }
+};
+
+/// Covariance check shared by the reader (ParseError) and the writer (InvalidArgument).
+/// Returns an empty string if `cov` is symmetric PSD within the tolerances, else the problem.
+std::string covariance_problem(const Mat3& cov, double symmetry_tolerance, double psd_tolerance) {
+  const double scale = std::max(1e-12, cov.cwiseAbs().maxCoeff());
+  for (int i = 0; i < 3; ++i) {
+    for (int j = i + 1; j < 3; ++j) {
+      if (std::abs(cov(i, j) - cov(j, i)) > symmetry_tolerance * scale) {
+        return std::string("covariance is not symmetric: ") + kCovNames[i][j] + "=" +
+               format_double(cov(i, j)) + " but " + kCovNames[j][i] + "=" +
+               format_double(cov(j, i)) + " (row-major c00 c01 c02 c10 c11 c12 c20 c21 c22)";
+      }
+    }
+  }
+  const Mat3 symmetric = 0.5 * (cov + cov.transpose());
+  const Eigen::SelfAdjointEigenSolver<Mat3> solver(symmetric, Eigen::EigenvaluesOnly);
+  const Vec3 eigenvalues = solver.eigenvalues();  // ascending
+  const double largest = std::max(1e-12, eigenvalues.cwiseAbs().maxCoeff());
+  if (eigenvalues(0) < -psd_tolerance * largest) {
+    return "covariance is not positive semi-definite: smallest eigenvalue is " +
+           format_short(eigenvalues(0)) + " (largest " + format_short(eigenvalues(2)) + ")";
+  }
+  return {};
+}
+
+std::string quaternion_problem(const Quat& q, double tolerance) {
+  const double norm = q.norm();
+  if (!(std::abs(norm - 1.0) <= tolerance)) {
+    return "quaternion norm is " + format_short(norm) + ", expected 1 (w x y z, scalar first)";
+  }
+  return {};
+}
+
+/// Parses the records of one file. Holds the current line number for error messages.
+class Reader {
+ public:
+  Reader(const std::string& name, const MapReadOptions& options) : name_(name), options_(options) {}
+
+  Map read(std::istream& in) {
+    std::string line;
+    while (std::getline(in, line)) {
+      ++line_number_;
+      parse_line(line);
+    }
+    if (in.bad()) throw IoError("cannot read map file '" + name_ + "': read error");
+    check_observed_frames();
+    filter();
+    return std::move(map_);
+  }
+
+ private:
+  [[noreturn]] void fail(std::string detail) const {
+    throw ParseError(name_, line_number_, std::move(detail));
+  }
+
+  void parse_line(std::string_view line) {
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    split(line, tokens_);
+    if (tokens_.empty() || tokens_[0].front() == '#') return;
+    const std::string_view type = tokens_[0];
+    if (type == "FRAME") {
+      parse_frame();
+    } else if (type == "LANDMARK") {
+      parse_landmark();
+    } else {
+      fail("unknown record type " + quote(type) + " (expected FRAME or LANDMARK)");
+    }
+  }
+
+  double parse_double(std::string_view token, FieldName field) const {
+    double value = 0.0;
+    const char* end = token.data() + token.size();
+    const auto [ptr, ec] = std::from_chars(token.data(), end, value);
+    if (ec == std::errc::result_out_of_range && ptr == end) {
+      fail("field '" + field.str() + "' is out of the range of a double: " + quote(token));
+    }
+    if (ec != std::errc() || ptr != end) {
+      fail("field '" + field.str() + "' is not a number: " + quote(token));
+    }
+    if (!std::isfinite(value)) {
+      fail("field '" + field.str() + "' is not finite: " + quote(token));
+    }
+    return value;
+  }
+
+  Id parse_id(std::string_view token, FieldName field) const {
+    Id value = 0;
+    const char* end = token.data() + token.size();
+    // from_chars accepts a leading '-', which an id may not have; it never accepts '+'.
+    const auto [ptr, ec] = token.front() == '-'
+                               ? std::from_chars_result{token.data(), std::errc::invalid_argument}
+                               : std::from_chars(token.data(), end, value);
+    if (ec != std::errc() || ptr != end || value < 0) {
+      fail("field '" + field.str() + "' is not a non-negative integer: " + quote(token));
+    }
+    return value;
+  }
+
+  void parse_frame() {
+    if (tokens_.size() != kFrameTokens) {
+      fail("FRAME record has " + std::to_string(tokens_.size()) + " fields, expected " +
+           std::to_string(kFrameTokens) + " (" + std::string(kFrameSyntax) + ")");
+    }
+    Frame frame;
+    frame.id = parse_id(tokens_[1], {"id"});
+    const double tx = parse_double(tokens_[2], {"tx"});
+    const double ty = parse_double(tokens_[3], {"ty"});
+    const double tz = parse_double(tokens_[4], {"tz"});
+    const double qw = parse_double(tokens_[5], {"qw"});
+    const double qx = parse_double(tokens_[6], {"qx"});
+    const double qy = parse_double(tokens_[7], {"qy"});
+    const double qz = parse_double(tokens_[8], {"qz"});
+    frame.p_world_camera = Vec3(tx, ty, tz);
+    frame.q_world_camera = Quat(qw, qx, qy, qz);  // Eigen's constructor is scalar first too
+    if (std::string problem =
+            quaternion_problem(frame.q_world_camera, options_.quaternion_norm_tolerance);
+        !problem.empty()) {
+      fail(std::move(problem));
+    }
+    if (const auto [it, inserted] = frame_lines_.emplace(frame.id, line_number_); !inserted) {
+      fail("duplicate FRAME id " + std::to_string(frame.id) + " (first defined on line " +
+           std::to_string(it->second) + ")");
+    }
+    map_.frames.push_back(frame);
+  }
+
+  void parse_landmark() {
+    if (tokens_.size() < kLandmarkFixedTokens) {
+      fail("LANDMARK record has " + std::to_string(tokens_.size()) + " fields, expected at least " +
+           std::to_string(kLandmarkFixedTokens) + " (" + std::string(kLandmarkSyntax) + ")");
+    }
+    Landmark landmark;
+    landmark.id = parse_id(tokens_[1], {"id"});
+    static constexpr std::string_view kPositionNames[3] = {"x", "y", "z"};
+    for (int i = 0; i < 3; ++i) {
+      landmark.p_world(i) = parse_double(tokens_[2 + i], {kPositionNames[i]});
+    }
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {
+        landmark.cov_world_m2(r, c) = parse_double(tokens_[5 + 3 * r + c], {kCovNames[r][c]});
+      }
+    }
+    const Id n = parse_id(tokens_[14], {"n"});
+    const std::size_t values_after_n = tokens_.size() - kLandmarkFixedTokens;
+    const auto declared = static_cast<std::uint64_t>(n);
+    if (values_after_n % 3 != 0 || values_after_n / 3 != declared) {
+      const std::string expected_values = declared <= std::numeric_limits<std::uint64_t>::max() / 3
+                                              ? std::to_string(3 * declared)
+                                              : "3n";
+      fail("LANDMARK " + std::to_string(landmark.id) + " declares n=" + std::to_string(n) +
+           " observations (" + expected_values + " values) but has " +
+           std::to_string(values_after_n) + " values after n");
+    }
+    if (std::string problem =
+            covariance_problem(landmark.cov_world_m2, options_.covariance_symmetry_tolerance,
+                               options_.covariance_psd_tolerance);
+        !problem.empty()) {
+      fail("LANDMARK " + std::to_string(landmark.id) + ": " + problem);
+    }
+    landmark.observations.resize(declared);
+    for (std::size_t k = 0; k < declared; ++k) {
+      const std::size_t base = kLandmarkFixedTokens + 3 * k;
+      Observation& obs = landmark.observations[k];
+      obs.frame_id = parse_id(tokens_[base], {"f", k + 1});
+      obs.u_px = parse_double(tokens_[base + 1], {"u", k + 1});
+      obs.v_px = parse_double(tokens_[base + 2], {"v", k + 1});
+    }
+    if (const auto [it, inserted] = landmark_lines_.emplace(landmark.id, line_number_); !inserted) {
+      fail("duplicate LANDMARK id " + std::to_string(landmark.id) + " (first defined on line " +
+           std::to_string(it->second) + ")");
+    }
+    map_.landmarks.push_back(std::move(landmark));
+    landmark_line_numbers_.push_back(line_number_);
+  }
+
+  /// Frames may follow the landmarks that observe them, so this runs after the whole file.
+  void check_observed_frames() {
+    for (std::size_t i = 0; i < map_.landmarks.size(); ++i) {
+      const Landmark& landmark = map_.landmarks[i];
+      for (const Observation& obs : landmark.observations) {
+        if (frame_lines_.count(obs.frame_id) == 0) {
+          throw ParseError(name_, landmark_line_numbers_[i],
+                           "LANDMARK " + std::to_string(landmark.id) + " observes unknown frame " +
+                               std::to_string(obs.frame_id));
+        }
+      }
+    }
+  }
+
+  void filter() {
+    const std::size_t min_obs = options_.min_observations;
+    if (min_obs == 0) return;
+    auto& landmarks = map_.landmarks;
+    landmarks.erase(std::remove_if(landmarks.begin(), landmarks.end(),
+                                   [min_obs](const Landmark& landmark) {
+                                     return landmark.num_observations() < min_obs;
+                                   }),
+                    landmarks.end());
+  }
+
+  const std::string& name_;
+  const MapReadOptions& options_;
+  std::size_t line_number_ = 0;
+  std::vector<std::string_view> tokens_;
+  std::unordered_map<Id, std::size_t> frame_lines_;
+  std::unordered_map<Id, std::size_t> landmark_lines_;
+  std::vector<std::size_t> landmark_line_numbers_;
+  Map map_;
+};
+
+}  // namespace
+
+Map read_map(std::istream& in, const std::string& name, const MapReadOptions& options) {
+  return Reader(name, options).read(in);
+}
+
+Map read_map(const std::string& path, const MapReadOptions& options) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    throw IoError("cannot open map file '" + path + "': " + std::strerror(EISDIR));
+  }
+  errno = 0;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    const int err = errno != 0 ? errno : ENOENT;
+    throw IoError("cannot open map file '" + path + "': " + std::strerror(err));
+  }
+  return read_map(in, path, options);
+}
+
+void write_map(std::ostream& out, const Map& map) {
+  std::string line;
+  line.reserve(256);
+  for (const Frame& frame : map.frames) {
+    line.assign("FRAME ");
+    append_id(line, frame.id);
+    for (const double value :
+         {frame.p_world_camera.x(), frame.p_world_camera.y(), frame.p_world_camera.z()}) {
+      line.push_back(' ');
+      append_double(line, value);
+    }
+    const Quat& q = frame.q_world_camera;
+    for (const double value : {q.w(), q.x(), q.y(), q.z()}) {  // scalar first
+      line.push_back(' ');
+      append_double(line, value);
+    }
+    line.push_back('\n');
+    out.write(line.data(), static_cast<std::streamsize>(line.size()));
+  }
+  for (const Landmark& landmark : map.landmarks) {
+    line.assign("LANDMARK ");
+    append_id(line, landmark.id);
+    for (int i = 0; i < 3; ++i) {
+      line.push_back(' ');
+      append_double(line, landmark.p_world(i));
+    }
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) {  // row-major
+        line.push_back(' ');
+        append_double(line, landmark.cov_world_m2(r, c));
+      }
+    }
+    line.push_back(' ');
+    line.append(std::to_string(landmark.observations.size()));
+    for (const Observation& obs : landmark.observations) {
+      line.push_back(' ');
+      append_id(line, obs.frame_id);
+      line.push_back(' ');
+      append_double(line, obs.u_px);
+      line.push_back(' ');
+      append_double(line, obs.v_px);
+    }
+    line.push_back('\n');
+    out.write(line.data(), static_cast<std::streamsize>(line.size()));
+  }
+}
+
+void write_map(const std::string& path, const Map& map) {
+  map.validate();
+  // Refuse what read_map (default options) would reject, so that write -> read always works.
+  const MapReadOptions defaults;
+  for (const Frame& frame : map.frames) {
+    if (std::string problem =
+            quaternion_problem(frame.q_world_camera, defaults.quaternion_norm_tolerance);
+        !problem.empty()) {
+      throw InvalidArgument("FRAME " + std::to_string(frame.id) + ": " + problem);
+    }
+  }
+  for (const Landmark& landmark : map.landmarks) {
+    if (std::string problem =
+            covariance_problem(landmark.cov_world_m2, defaults.covariance_symmetry_tolerance,
+                               defaults.covariance_psd_tolerance);
+        !problem.empty()) {
+      throw InvalidArgument("LANDMARK " + std::to_string(landmark.id) + ": " + problem);
+    }
+  }
+  write_file_atomically(path, [&map](std::ostream& out) { write_map(out, map); });
+}
+
+}  // namespace lmalign

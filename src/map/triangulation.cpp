@@ -1,0 +1,185 @@
+// Triangulation from pixel observations (method.md §6, `split --retriangulate`).
+//
+// 1. Linear DLT on normalised image coordinates: for each view with world-to-camera [R | t] and
+//    normalised pixel (x, y), the rows x * P3 - P1 and y * P3 - P2 of a 2N x 4 homogeneous system.
+//    The world coordinates are first centred on the camera centres and scaled to unit mean
+//    distance (Hartley's conditioning); the null vector comes from a JacobiSVD.
+// 2. Gauss-Newton on the pixel reprojection error (pinhole, raw pixels, no distortion) in world
+//    coordinates, with step halving if a step increases the cost or puts the point behind a camera.
+// 3. Covariance (J^T J)^-1 sigma^2 from the Jacobian at the final point.
+#include "lmalign/map/triangulation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
+
+namespace lmalign {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+/// Normal matrices with lambda_min / lambda_max below this are treated as singular.
+constexpr double kMinReciprocalCondition = 1e-12;
+/// Gauss-Newton stops when the step is below this fraction of (1 + |p|), metres.
+constexpr double kRelativeStepTolerance = 1e-12;
+
+struct WorldToCamera {
+  Mat3 R;  // rotation world -> camera
+  Vec3 t;  // p_camera = R p_world + t
+  Vec3 centre_world;
+};
+
+struct Linearisation {
+  double cost = 0.0;  // sum of squared pixel residuals, px^2
+  Mat3 H = Mat3::Zero();
+  Vec3 g = Vec3::Zero();
+  bool in_front = true;
+};
+
+// Residuals and normal equations at p_world; in_front is false if any camera sees z <= 0.
+Linearisation linearise(const std::vector<WorldToCamera>& cameras,
+                        const std::vector<PixelView>& views, const PinholeIntrinsics& k,
+                        const Vec3& p_world) {
+  Linearisation lin;
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    const Vec3 pc = cameras[i].R * p_world + cameras[i].t;
+    if (!(pc.z() > 0.0)) {
+      lin.in_front = false;
+      return lin;
+    }
+    const double inv_z = 1.0 / pc.z();
+    const Eigen::Vector2d r(k.fx_px * pc.x() * inv_z + k.cx_px - views[i].u_px,
+                            k.fy_px * pc.y() * inv_z + k.cy_px - views[i].v_px);
+    Eigen::Matrix<double, 2, 3> d_proj;
+    d_proj << k.fx_px * inv_z, 0.0, -k.fx_px * pc.x() * inv_z * inv_z,  //
+        0.0, k.fy_px * inv_z, -k.fy_px * pc.y() * inv_z * inv_z;
+    const Eigen::Matrix<double, 2, 3> J = d_proj * cameras[i].R;
+    lin.cost += r.squaredNorm();
+    lin.H += J.transpose() * J;
+    lin.g += J.transpose() * r;
+  }
+  return lin;
+}
+
+bool well_conditioned(const Mat3& H) {
+  if (!H.allFinite()) return false;
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(H, Eigen::EigenvaluesOnly);
+  if (eig.info() != Eigen::Success) return false;
+  const double lmin = eig.eigenvalues()(0);
+  const double lmax = eig.eigenvalues()(2);
+  return lmax > 0.0 && lmin > kMinReciprocalCondition * lmax;
+}
+
+std::optional<Vec3> dlt(const std::vector<WorldToCamera>& cameras,
+                        const std::vector<PixelView>& views, const PinholeIntrinsics& k) {
+  const std::size_t n = cameras.size();
+  // Conditioning: p_world = centroid + scale * p_normalised.
+  Vec3 centroid = Vec3::Zero();
+  for (const auto& c : cameras) centroid += c.centre_world;
+  centroid /= static_cast<double>(n);
+  double mean_distance = 0.0;
+  for (const auto& c : cameras) mean_distance += (c.centre_world - centroid).norm();
+  mean_distance /= static_cast<double>(n);
+  const double scale = mean_distance > 0.0 ? mean_distance : 1.0;
+
+  Eigen::MatrixXd A(2 * n, 4);
+  for (std::size_t i = 0; i < n; ++i) {
+    // Projection of the normalised world point: R (centroid + scale * x) + t.
+    Eigen::Matrix<double, 3, 4> P;
+    P.leftCols<3>() = cameras[i].R * scale;
+    P.col(3) = cameras[i].R * centroid + cameras[i].t;
+    const Vec3 ray = k.unproject(views[i].u_px, views[i].v_px);
+    A.row(2 * i) = ray.x() * P.row(2) - P.row(0);
+    A.row(2 * i + 1) = ray.y() * P.row(2) - P.row(1);
+  }
+  if (!A.allFinite()) return std::nullopt;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(A, Eigen::ComputeFullV);
+  const Eigen::Vector4d X = svd.matrixV().col(3);
+  // A point at (or near) infinity has no Euclidean position.
+  if (!(std::abs(X(3)) > 1e-12 * X.head<3>().norm())) return std::nullopt;
+  const Vec3 p_world = centroid + scale * X.head<3>() / X(3);
+  if (!p_world.allFinite()) return std::nullopt;
+  return p_world;
+}
+
+double max_parallax_deg(const std::vector<WorldToCamera>& cameras, const Vec3& p_world) {
+  double best = 0.0;
+  for (std::size_t i = 0; i < cameras.size(); ++i) {
+    const Vec3 a = p_world - cameras[i].centre_world;
+    for (std::size_t j = i + 1; j < cameras.size(); ++j) {
+      const Vec3 b = p_world - cameras[j].centre_world;
+      // atan2 of |a x b| and a . b is accurate at small and large angles alike.
+      const double angle = std::atan2(a.cross(b).norm(), a.dot(b));
+      best = std::max(best, angle);
+    }
+  }
+  return best * 180.0 / kPi;
+}
+
+}  // namespace
+
+std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views,
+                                             const TriangulationOptions& options) {
+  if (views.size() < 2) return std::nullopt;
+  const PinholeIntrinsics& k = options.intrinsics;
+  if (!k.is_valid() || !(options.pixel_sigma_px > 0.0) || !std::isfinite(options.pixel_sigma_px)) {
+    return std::nullopt;
+  }
+
+  std::vector<WorldToCamera> cameras;
+  cameras.reserve(views.size());
+  for (const PixelView& view : views) {
+    if (!view.T_world_camera.matrix().allFinite() || !std::isfinite(view.u_px) ||
+        !std::isfinite(view.v_px)) {
+      return std::nullopt;
+    }
+    const Isometry3 T_camera_world = view.T_world_camera.inverse();
+    cameras.push_back(
+        {T_camera_world.linear(), T_camera_world.translation(), view.T_world_camera.translation()});
+  }
+
+  const std::optional<Vec3> initial = dlt(cameras, views, k);
+  if (!initial) return std::nullopt;
+  Vec3 p = *initial;
+  Linearisation lin = linearise(cameras, views, k, p);
+  if (!lin.in_front) return std::nullopt;
+
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    if (!well_conditioned(lin.H)) return std::nullopt;
+    const Vec3 step = -lin.H.ldlt().solve(lin.g);
+    if (!step.allFinite()) return std::nullopt;
+    // Accept the full Gauss-Newton step if it does not increase the cost; else halve it.
+    double alpha = 1.0;
+    bool accepted = false;
+    for (int halving = 0; halving < 30; ++halving, alpha *= 0.5) {
+      const Vec3 candidate = p + alpha * step;
+      Linearisation next = linearise(cameras, views, k, candidate);
+      if (next.in_front && next.cost <= lin.cost) {
+        p = candidate;
+        lin = next;
+        accepted = true;
+        break;
+      }
+    }
+    if (!accepted) break;  // no descent along the step: at the minimum to machine precision
+    if (alpha * step.norm() <= kRelativeStepTolerance * (1.0 + p.norm())) break;
+  }
+
+  if (!lin.in_front || !well_conditioned(lin.H)) return std::nullopt;
+  TriangulatedPoint result;
+  result.p_world = p;
+  result.cov_world_m2 = lin.H.inverse() * (options.pixel_sigma_px * options.pixel_sigma_px);
+  result.cov_world_m2 = 0.5 * (result.cov_world_m2 + result.cov_world_m2.transpose()).eval();
+  result.max_parallax_deg = max_parallax_deg(cameras, p);
+  result.rms_reprojection_px = std::sqrt(lin.cost / static_cast<double>(views.size()));
+  if (!result.p_world.allFinite() || !result.cov_world_m2.allFinite() ||
+      !std::isfinite(result.max_parallax_deg) || !std::isfinite(result.rms_reprojection_px)) {
+    return std::nullopt;
+  }
+  return result;
+}
+
+}  // namespace lmalign

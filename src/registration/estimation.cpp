@@ -1,0 +1,62 @@
+#include "lmalign/registration/estimation.hpp"
+
+#include <string>
+
+#include <Eigen/SVD>
+
+#include "lmalign/core/error.hpp"
+
+namespace lmalign {
+
+Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& target_points,
+                                   const Correspondences& correspondences,
+                                   const std::vector<double>* weights) {
+  const std::size_t n = correspondences.size();
+  if (n == 0) throw InvalidArgument("estimate_rigid_transform: no correspondences");
+  if (weights != nullptr && weights->size() != n) {
+    throw InvalidArgument("estimate_rigid_transform: " + std::to_string(weights->size()) +
+                          " weights for " + std::to_string(n) + " correspondences");
+  }
+  auto w = [&](std::size_t i) { return weights == nullptr ? 1.0 : (*weights)[i]; };
+
+  // Pass 1: weighted centroids.
+  double w_sum = 0.0;
+  Vec3 mu_s = Vec3::Zero();
+  Vec3 mu_t = Vec3::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Correspondence& c = correspondences[i];
+    const double wi = w(i);
+    w_sum += wi;
+    mu_s += wi * source_points[c.source_index];
+    mu_t += wi * target_points[c.target_index];
+  }
+  if (!(w_sum > 0.0)) {
+    throw InvalidArgument("estimate_rigid_transform: the weights sum to " + std::to_string(w_sum) +
+                          ", expected > 0");
+  }
+  mu_s /= w_sum;
+  mu_t /= w_sum;
+
+  // Pass 2: cross-covariance of the demeaned points, H = sum w (s - mu_s)(t - mu_t)^T.
+  Mat3 H = Mat3::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Correspondence& c = correspondences[i];
+    H.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
+                   (target_points[c.target_index] - mu_t).transpose();
+  }
+
+  // R = V diag(1, 1, det(V U^T)) U^T maximises trace(R H) over rotations.
+  Eigen::JacobiSVD<Mat3> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Mat3& U = svd.matrixU();
+  const Mat3& V = svd.matrixV();
+  Mat3 D = Mat3::Identity();
+  if ((V * U.transpose()).determinant() < 0.0) D(2, 2) = -1.0;
+  const Mat3 R = V * D * U.transpose();
+
+  Isometry3 T = Isometry3::Identity();
+  T.linear() = R;
+  T.translation() = mu_t - R * mu_s;
+  return T;
+}
+
+}  // namespace lmalign

@@ -1,0 +1,232 @@
+#include "lmalign/registration/registration.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/estimation.hpp"
+#include "lmalign/registration/score.hpp"
+
+namespace lmalign {
+
+std::string to_string(PaperStrategy strategy) {
+  switch (strategy) {
+    case PaperStrategy::kBase:
+      return "base";
+    case PaperStrategy::kCovariance:
+      return "covariance";
+    case PaperStrategy::kObservations:
+      return "observations";
+    case PaperStrategy::kMeanDistance:
+      return "distance";
+  }
+  return "?";
+}
+
+PaperStrategy parse_paper_strategy(const std::string& name) {
+  if (name == "base" || name == "none") return PaperStrategy::kBase;
+  if (name == "covariance") return PaperStrategy::kCovariance;
+  if (name == "observations") return PaperStrategy::kObservations;
+  if (name == "distance" || name == "mean_distance") return PaperStrategy::kMeanDistance;
+  throw InvalidArgument("unknown strategy '" + name +
+                        "' (expected base|none, covariance, observations, distance)");
+}
+
+std::vector<PaperStrategy> all_paper_strategies() {
+  return {PaperStrategy::kBase, PaperStrategy::kCovariance, PaperStrategy::kObservations,
+          PaperStrategy::kMeanDistance};
+}
+
+RegistrationOptions RegistrationOptions::paper(PaperStrategy strategy, int k) {
+  RegistrationOptions o;
+  o.k = k;
+  switch (strategy) {
+    case PaperStrategy::kBase:
+      o.correspondence = CorrespondenceKind::kNearest;
+      o.weight = WeightKind::kUniform;
+      break;
+    case PaperStrategy::kCovariance:
+      o.correspondence = CorrespondenceKind::kWeightedKnn;
+      o.weight = WeightKind::kCovariance;
+      break;
+    case PaperStrategy::kObservations:
+      o.correspondence = CorrespondenceKind::kWeightedKnn;
+      o.weight = WeightKind::kObservations;
+      break;
+    case PaperStrategy::kMeanDistance:
+      o.correspondence = CorrespondenceKind::kWeightedKnn;
+      o.weight = WeightKind::kMeanDistance;
+      break;
+  }
+  return o;
+}
+
+bool RegistrationOptions::is_valid(std::string* why) const {
+  CorrespondenceOptions c;
+  c.kind = correspondence;
+  c.k = k;
+  c.max_distance_m = max_correspondence_distance_m;
+  std::string inner;
+  if (!c.is_valid(&inner)) {
+    // Map the correspondence field names onto this struct's names.
+    if (inner.rfind("max_distance_m", 0) == 0) inner = "max_correspondence_distance_m" + inner.substr(14);
+    if (why != nullptr) *why = inner;
+    return false;
+  }
+  if (!convergence.is_valid(&inner)) {
+    if (why != nullptr) *why = "convergence." + inner;
+    return false;
+  }
+  if (std::isnan(score_max_range_m) || score_max_range_m <= 0.0) {
+    if (why != nullptr) *why = "score_max_range_m must be > 0 (or infinite)";
+    return false;
+  }
+  return true;
+}
+
+std::string RegistrationResult::brief_report() const {
+  char buf[256];
+  std::snprintf(buf, sizeof(buf),
+                "%s after %d iterations (%s); score %.6g -> %.6g m^2; %zu correspondences; "
+                "%.3f ms",
+                converged ? "converged" : "stopped", iterations, to_string(termination).c_str(),
+                initial_score_m2, final_score_m2, num_correspondences, wall_time_s * 1e3);
+  return buf;
+}
+
+namespace {
+Points3 validated_positions(const Map& map) {
+  map.validate();
+  return map.positions();
+}
+}  // namespace
+
+PreparedTarget::PreparedTarget(const Map& target, const WeightOptions& weight_options)
+    : tree_(validated_positions(target)) {
+  for (WeightKind kind : {WeightKind::kUniform, WeightKind::kCovariance, WeightKind::kObservations,
+                          WeightKind::kMeanDistance}) {
+    weights_[kind] = compute_weights(target, kind, weight_options);
+  }
+}
+
+PreparedTarget::PreparedTarget(Points3 points) : tree_(std::move(points)) {
+  weights_[WeightKind::kUniform] = std::vector<double>(tree_.size(), 1.0);
+}
+
+void PreparedTarget::set_weights(WeightKind kind, std::vector<double> weights) {
+  if (weights.size() != tree_.size()) {
+    throw InvalidArgument("set_weights: " + std::to_string(weights.size()) + " weights for " +
+                          std::to_string(tree_.size()) + " target points");
+  }
+  for (std::size_t i = 0; i < weights.size(); ++i) {
+    if (!std::isfinite(weights[i]) || weights[i] < 0.0) {
+      throw InvalidArgument("set_weights: weight " + std::to_string(i) +
+                            " must be finite and >= 0");
+    }
+  }
+  weights_[kind] = std::move(weights);
+}
+
+const std::vector<double>& PreparedTarget::weights(WeightKind kind) const {
+  auto it = weights_.find(kind);
+  if (it == weights_.end()) {
+    throw InvalidArgument("target has no '" + to_string(kind) + "' weights (built from bare points)");
+  }
+  return it->second;
+}
+
+RegistrationResult align(const Points3& source_points, const PreparedTarget& target,
+                         const RegistrationOptions& options,
+                         const Isometry3& T_target_source_init) {
+  const auto t_start = std::chrono::steady_clock::now();
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("registration options: " + why);
+  if (!is_finite(T_target_source_init)) {
+    throw InvalidArgument("registration: the initial guess T_target_source_init is not finite");
+  }
+  for (std::size_t i = 0; i < source_points.size(); ++i) {
+    if (!source_points[i].allFinite()) {
+      throw InvalidArgument("registration: source point " + std::to_string(i) + " is not finite");
+    }
+  }
+
+  CorrespondenceOptions copt;
+  copt.kind = options.correspondence;
+  copt.k = options.k;
+  copt.max_distance_m = options.max_correspondence_distance_m;
+  std::vector<double> weights;
+  if (options.correspondence == CorrespondenceKind::kWeightedKnn) {
+    weights = target.weights(options.weight);
+  }
+  const CorrespondenceFinder finder(target.tree(), std::move(weights), copt);
+  ConvergenceCriteria criteria(options.convergence);
+
+  RegistrationResult result;
+  result.initial_score_m2 =
+      fitness_score(source_points, target.tree(), T_target_source_init, options.score_max_range_m)
+          .mean_sq_m2;
+
+  Isometry3 T = T_target_source_init;
+  Points3 moved;
+  Correspondences correspondences;
+  const std::size_t min_corr = static_cast<std::size_t>(options.convergence.min_correspondences);
+
+  for (;;) {
+    transform_points(T, source_points, moved);
+    finder.find(moved, correspondences);
+    if (correspondences.size() < min_corr) {
+      result.termination = TerminationReason::kNoCorrespondences;
+      result.num_correspondences = correspondences.size();
+      break;
+    }
+    const Isometry3 increment = estimate_rigid_transform(moved, target.points(), correspondences);
+    if (!is_finite(increment)) {
+      // Cannot happen with finite inputs; guard so a result is never NaN.
+      result.termination = TerminationReason::kNoCorrespondences;
+      break;
+    }
+    T = increment * T;
+    ++result.iterations;
+    result.num_correspondences = correspondences.size();
+
+    if (options.record_history) {
+      IterationRecord rec;
+      rec.iteration = result.iterations;
+      rec.num_correspondences = correspondences.size();
+      rec.mse_m2 = correspondence_mse_m2(correspondences);
+      if (options.history_scores) {
+        rec.score_m2 =
+            fitness_score(source_points, target.tree(), T, options.score_max_range_m).mean_sq_m2;
+      }
+      result.history.push_back(rec);
+    }
+
+    const TerminationReason reason = criteria.check(result.iterations, increment, correspondences);
+    if (reason != TerminationReason::kNotTerminated) {
+      result.termination = reason;
+      break;
+    }
+  }
+
+  result.converged = result.termination == TerminationReason::kTransform ||
+                     result.termination == TerminationReason::kAbsoluteMse ||
+                     result.termination == TerminationReason::kRelativeMse;
+  result.T_target_source = T;
+  result.final_score_m2 =
+      fitness_score(source_points, target.tree(), T, options.score_max_range_m).mean_sq_m2;
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return result;
+}
+
+RegistrationResult align_maps(const Map& source, const Map& target,
+                              const RegistrationOptions& options,
+                              const Isometry3& T_target_source_init) {
+  source.validate();
+  const PreparedTarget prepared(target);
+  return align(source.positions(), prepared, options, T_target_source_init);
+}
+
+}  // namespace lmalign

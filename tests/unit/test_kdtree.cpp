@@ -1,0 +1,70 @@
+#include <algorithm>
+#include <numeric>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/search/kdtree.hpp"
+
+namespace lmalign {
+namespace {
+
+Points3 random_points(std::size_t n, std::uint32_t seed, double scale = 1.0) {
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> g(0.0, scale);
+  Points3 p(n);
+  for (auto& x : p) x = Vec3(g(rng), g(rng), 0.3 * g(rng));
+  return p;
+}
+
+class KdTreeVsBruteForce : public ::testing::TestWithParam<std::size_t> {};
+
+TEST_P(KdTreeVsBruteForce, SameNeighboursAndDistances) {
+  const std::size_t k = GetParam();
+  const Points3 pts = random_points(3000, 11);
+  const KdTree tree(pts);
+  const Points3 queries = random_points(300, 12, 1.5);
+  std::vector<PointIndex> idx(k);
+  std::vector<double> d2(k);
+  std::vector<std::size_t> order(pts.size());
+  for (const Vec3& q : queries) {
+    const std::size_t found = tree.knn(q, k, idx.data(), d2.data());
+    ASSERT_EQ(found, std::min(k, pts.size()));
+    std::iota(order.begin(), order.end(), 0);
+    std::partial_sort(order.begin(), order.begin() + found, order.end(),
+                      [&](std::size_t a, std::size_t b) {
+                        return (pts[a] - q).squaredNorm() < (pts[b] - q).squaredNorm();
+                      });
+    for (std::size_t j = 0; j < found; ++j) {
+      EXPECT_EQ(idx[j], order[j]) << "rank " << j;
+      EXPECT_NEAR(d2[j], (pts[order[j]] - q).squaredNorm(), 1e-12);
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(K, KdTreeVsBruteForce, ::testing::Values(1u, 5u, 16u));
+
+TEST(KdTree, KLargerThanSetReturnsAllSorted) {
+  const Points3 pts = {Vec3(0, 0, 0), Vec3(3, 0, 0), Vec3(1, 0, 0)};
+  const KdTree tree(pts);
+  std::vector<PointIndex> idx(10);
+  std::vector<double> d2(10);
+  ASSERT_EQ(tree.knn(Vec3(0.1, 0, 0), 10, idx.data(), d2.data()), 3u);
+  EXPECT_EQ(idx[0], 0u);
+  EXPECT_EQ(idx[1], 2u);
+  EXPECT_EQ(idx[2], 1u);
+  EXPECT_NEAR(d2[2], 2.9 * 2.9, 1e-12);
+}
+
+TEST(KdTree, EmptyAndInvalid) {
+  const KdTree empty{Points3{}};
+  PointIndex i = 0;
+  double d = 0;
+  EXPECT_FALSE(empty.nearest(Vec3::Zero(), &i, &d));
+  EXPECT_EQ(empty.size(), 0u);
+  EXPECT_THROW(KdTree(Points3{Vec3(0, std::nan(""), 0)}), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace lmalign

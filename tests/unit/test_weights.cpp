@@ -1,0 +1,97 @@
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/weights/weights.hpp"
+
+namespace lmalign {
+namespace {
+
+TEST(CovarianceWeight, SpectralNormIsLargestEigenvalue) {
+  Mat3 c;
+  c << 2, 1, 0, 1, 2, 0, 0, 0, 1;  // eigenvalues 3, 1, 1
+  EXPECT_DOUBLE_EQ(covariance_weight(c, CovarianceNorm::kSpectral), 1.0 / (1.0 + 3.0));
+  EXPECT_DOUBLE_EQ(covariance_weight(c, CovarianceNorm::kFrobenius), 1.0 / (1.0 + std::sqrt(11.0)));
+}
+
+TEST(CovarianceWeight, DiagonalAndZero) {
+  const Mat3 d = Vec3(1e-4, 4e-4, 2e-4).asDiagonal();
+  EXPECT_DOUBLE_EQ(covariance_weight(d), 1.0 / (1.0 + 4e-4));
+  EXPECT_DOUBLE_EQ(covariance_weight(Mat3::Zero()), 1.0);
+}
+
+Map two_frame_map() {
+  Map map;
+  Frame a;
+  a.id = 7;
+  a.p_world_camera = Vec3(3, 4, 0);  // 5 m from the origin
+  Frame b;
+  b.id = 9;
+  b.p_world_camera = Vec3(0, 0, 2);  // 2 m from the origin
+  map.frames = {a, b};
+  Landmark l0;
+  l0.id = 1;
+  l0.p_world = Vec3::Zero();
+  l0.cov_world_m2 = Vec3(1e-4, 4e-4, 2e-4).asDiagonal();
+  l0.observations = {{7, 1, 2}, {9, 3, 4}};
+  Landmark l1;
+  l1.id = 2;
+  l1.p_world = Vec3(0, 0, 1);
+  l1.observations = {{9, 5, 6}, {9, 5, 6}, {7, 1, 1}};
+  Landmark l2;  // no observations
+  l2.id = 3;
+  map.landmarks = {l0, l1, l2};
+  return map;
+}
+
+TEST(MeanDistanceWeight, HandComputed) {
+  const Map map = two_frame_map();
+  EXPECT_DOUBLE_EQ(mean_observation_distance_m(map.landmarks[0], map), 3.5);
+  // (1 + 1 + sqrt(9 + 16 + 1)) / 3: a frame observing twice counts twice.
+  const double d1 = (1.0 + 1.0 + std::sqrt(26.0)) / 3.0;
+  EXPECT_DOUBLE_EQ(mean_observation_distance_m(map.landmarks[1], map), d1);
+  const auto w = compute_weights(map, WeightKind::kMeanDistance);
+  ASSERT_EQ(w.size(), 3u);
+  EXPECT_DOUBLE_EQ(w[0], 1.0 / 4.5);
+  EXPECT_DOUBLE_EQ(w[1], 1.0 / (1.0 + d1));
+  EXPECT_EQ(w[2], 0.0);  // no observations, no confidence
+}
+
+TEST(Weights, ObservationsUniformCovariance) {
+  const Map map = two_frame_map();
+  EXPECT_EQ(compute_weights(map, WeightKind::kObservations), (std::vector<double>{2, 3, 0}));
+  EXPECT_EQ(compute_weights(map, WeightKind::kUniform), (std::vector<double>{1, 1, 1}));
+  const auto wc = compute_weights(map, WeightKind::kCovariance);
+  EXPECT_DOUBLE_EQ(wc[0], 1.0 / (1.0 + 4e-4));
+  EXPECT_DOUBLE_EQ(wc[1], 1.0);
+  WeightOptions frob;
+  frob.covariance_norm = CovarianceNorm::kFrobenius;
+  EXPECT_DOUBLE_EQ(compute_weights(map, WeightKind::kCovariance, frob)[0],
+                   1.0 / (1.0 + std::sqrt(1e-8 + 16e-8 + 4e-8)));
+}
+
+TEST(Weights, UnknownFrameThrows) {
+  Map map = two_frame_map();
+  map.landmarks[0].observations.push_back({42, 0, 0});
+  try {
+    compute_weights(map, WeightKind::kMeanDistance);
+    FAIL() << "expected InvalidArgument";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown frame 42"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Weights, NamesRoundTrip) {
+  for (WeightKind k : {WeightKind::kUniform, WeightKind::kCovariance, WeightKind::kObservations,
+                       WeightKind::kMeanDistance}) {
+    EXPECT_EQ(parse_weight_kind(to_string(k)), k);
+  }
+  EXPECT_EQ(parse_weight_kind("none"), WeightKind::kUniform);
+  EXPECT_THROW(parse_weight_kind("cov"), InvalidArgument);
+  EXPECT_EQ(parse_covariance_norm("frobenius"), CovarianceNorm::kFrobenius);
+  EXPECT_THROW(parse_covariance_norm("l1"), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace lmalign
