@@ -14,11 +14,14 @@ std::vector<double> parse_number_list(const std::string& option, const std::stri
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = text.find(',', start);
-    const std::string tok = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    const std::string tok =
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
     double v = 0.0;
     const auto r = std::from_chars(tok.data(), tok.data() + tok.size(), v);
-    if (tok.empty() || r.ec != std::errc() || r.ptr != tok.data() + tok.size() || !std::isfinite(v)) {
-      throw InvalidArgument(option + " \"" + text + "\": '" + tok + "' is not a finite number; expected " + expected);
+    if (tok.empty() || r.ec != std::errc() || r.ptr != tok.data() + tok.size() ||
+        !std::isfinite(v)) {
+      throw InvalidArgument(option + " \"" + text + "\": '" + tok +
+                            "' is not a finite number; expected " + expected);
     }
     values.push_back(v);
     if (comma == std::string::npos) break;
@@ -47,12 +50,15 @@ void refuse_output_over_input(const std::string& option, const std::string& outp
                               const std::vector<std::string>& inputs) {
   for (const std::string& in : inputs) {
     if (same_file(output, in)) {
-      throw InvalidArgument(option + " '" + output + "' is an input file; refusing to overwrite it");
+      throw InvalidArgument(option + " '" + output +
+                            "' is an input file; refusing to overwrite it");
     }
   }
 }
 
-nlohmann::json json_number(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+nlohmann::json json_number(double v) {
+  return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+}
 
 nlohmann::json json_matrix(const Isometry3& T) {
   nlohmann::json rows = nlohmann::json::array();

@@ -76,14 +76,16 @@ int run_align(const AlignArgs& a) {
   Isometry3 T_displace = Isometry3::Identity();
   std::vector<double> disp;
   if (!a.displace.empty()) {
-    disp = parse_number_list("--displace", a.displace, 6, "x,y,z,roll,pitch,yaw (m, m, m, deg, deg, deg)");
+    disp = parse_number_list("--displace", a.displace, 6,
+                             "x,y,z,roll,pitch,yaw (m, m, m, deg, deg, deg)");
     T_displace = pose_from_xyz_rpy_deg(disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
   }
   if (!(a.success_rotation_deg > 0) || !(a.success_translation_m > 0)) {
     throw InvalidArgument("--success-rotation-deg and --success-translation-m must be > 0");
   }
   if (!a.json_path.empty()) refuse_output_over_input("--json", a.json_path, {a.source, a.target});
-  if (!a.ply_path.empty()) refuse_output_over_input("--aligned-out", a.ply_path, {a.source, a.target});
+  if (!a.ply_path.empty())
+    refuse_output_over_input("--aligned-out", a.ply_path, {a.source, a.target});
 
   std::optional<Isometry3> T_gt;  // ground truth for the undisplaced source
   if (a.ground_truth == "identity") {
@@ -96,8 +98,12 @@ int run_align(const AlignArgs& a) {
   ropt.min_observations = a.min_observations;
   const Map source = read_map(a.source, ropt);
   const Map target = read_map(a.target, ropt);
-  if (source.landmarks.empty()) throw InvalidArgument("source map '" + a.source + "' has no landmarks (after the --min-observations filter)");
-  if (target.landmarks.empty()) throw InvalidArgument("target map '" + a.target + "' has no landmarks (after the --min-observations filter)");
+  if (source.landmarks.empty())
+    throw InvalidArgument("source map '" + a.source +
+                          "' has no landmarks (after the --min-observations filter)");
+  if (target.landmarks.empty())
+    throw InvalidArgument("target map '" + a.target +
+                          "' has no landmarks (after the --min-observations filter)");
 
   // The paper displaces the source about the world origin, then starts ICP at the identity.
   const Points3 source_points = transform_points(T_displace, source.positions());
@@ -111,15 +117,19 @@ int run_align(const AlignArgs& a) {
   std::printf("lmalign align: source %s (%zu landmarks) -> target %s (%zu landmarks)\n",
               a.source.c_str(), source.landmarks.size(), a.target.c_str(), target.landmarks.size());
   if (!disp.empty()) {
-    std::printf("source displaced about the world origin by x=%g y=%g z=%g m, roll=%g pitch=%g yaw=%g deg\n",
-                disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
+    std::printf(
+        "source displaced about the world origin by x=%g y=%g z=%g m, roll=%g pitch=%g yaw=%g "
+        "deg\n",
+        disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
   }
-  std::printf("k=%d, max iterations=%d, max correspondence distance=%s m, covariance norm=%s\n", a.k,
-              a.max_iterations, std::isinf(a.max_distance_m) ? "inf" : std::to_string(a.max_distance_m).c_str(),
+  std::printf("k=%d, max iterations=%d, max correspondence distance=%s m, covariance norm=%s\n",
+              a.k, a.max_iterations,
+              std::isinf(a.max_distance_m) ? "inf" : std::to_string(a.max_distance_m).c_str(),
               a.covariance_norm.c_str());
   if (T_true) {
-    std::printf("ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
-                a.ground_truth.c_str(), a.success_rotation_deg, a.success_translation_m);
+    std::printf(
+        "ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
+        a.ground_truth.c_str(), a.success_rotation_deg, a.success_translation_m);
   }
   std::printf("\n");
 
@@ -140,14 +150,15 @@ int run_align(const AlignArgs& a) {
   }
 
   // --- human table
-  std::printf("%-13s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score", "iters",
-              "termination", "time ms");
+  std::printf("%-13s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score",
+              "iters", "termination", "time ms");
   if (T_true) std::printf(" %8s %8s %6s", "rot deg", "trans m", "basin");
   std::printf("\n");
   for (const StrategyRun& r : runs) {
     const bool weighted = r.strategy != PaperStrategy::kBase;
     std::printf("%-13s %3s %12s %12s %6d %-19s %9.2f", to_string(r.strategy).c_str(),
-                weighted ? std::to_string(a.k).c_str() : "-", fmt_score(r.result.initial_score_m2).c_str(),
+                weighted ? std::to_string(a.k).c_str() : "-",
+                fmt_score(r.result.initial_score_m2).c_str(),
                 fmt_score(r.result.final_score_m2).c_str(), r.result.iterations,
                 to_string(r.result.termination).c_str(), r.result.wall_time_s * 1e3);
     if (r.error) {
@@ -157,15 +168,17 @@ int run_align(const AlignArgs& a) {
     std::printf("\n");
   }
   std::printf("\nscores are PCL fitness scores (mean squared nearest-neighbour distance, m^2)\n");
-  std::printf("\nestimated T_target_source (p_target = T * p_source): x y z [m], roll pitch yaw [deg]\n");
+  std::printf(
+      "\nestimated T_target_source (p_target = T * p_source): x y z [m], roll pitch yaw [deg]\n");
   for (const StrategyRun& r : runs) {
     const auto v = xyz_rpy_deg_from_pose(r.result.T_target_source);
-    std::printf("  %-13s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", to_string(r.strategy).c_str(), v[0], v[1],
-                v[2], v[3], v[4], v[5]);
+    std::printf("  %-13s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", to_string(r.strategy).c_str(),
+                v[0], v[1], v[2], v[3], v[4], v[5]);
   }
   if (T_true) {
     const auto v = xyz_rpy_deg_from_pose(*T_true);
-    std::printf("  %-13s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2], v[3], v[4], v[5]);
+    std::printf("  %-13s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2],
+                v[3], v[4], v[5]);
   }
 
   // --- machine-readable outputs
@@ -173,7 +186,8 @@ int run_align(const AlignArgs& a) {
     for (const StrategyRun& r : runs) {
       const std::string path = ply_path_for(a.ply_path, to_string(r.strategy), runs.size() > 1);
       write_ply(path, transform_points(r.result.T_target_source, source_points));
-      std::printf("aligned source (%s) written to %s\n", to_string(r.strategy).c_str(), path.c_str());
+      std::printf("aligned source (%s) written to %s\n", to_string(r.strategy).c_str(),
+                  path.c_str());
     }
   }
   if (!a.json_path.empty()) {
@@ -182,9 +196,10 @@ int run_align(const AlignArgs& a) {
     j["target"] = a.target;
     j["source_landmarks"] = source.landmarks.size();
     j["target_landmarks"] = target.landmarks.size();
-    j["frames"] = "T_target_source maps displaced-source coordinates to target coordinates (metres)";
+    j["frames"] =
+        "T_target_source maps displaced-source coordinates to target coordinates (metres)";
     if (!disp.empty()) {
-      j["displacement"] = {{"x_m", disp[0]}, {"y_m", disp[1]}, {"z_m", disp[2]},
+      j["displacement"] = {{"x_m", disp[0]},      {"y_m", disp[1]},       {"z_m", disp[2]},
                            {"roll_deg", disp[3]}, {"pitch_deg", disp[4]}, {"yaw_deg", disp[5]}};
     }
     j["k"] = a.k;
@@ -271,9 +286,10 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--displace", args->displace,
                   "move the source before aligning: x,y,z,roll,pitch,yaw in metres and degrees, "
                   "about the world origin, R = Rz(yaw) Ry(pitch) Rx(roll) (the paper's protocol)");
-  cmd->add_option("--ground-truth", args->ground_truth,
-                  "true T_target_source of the undisplaced source: 'identity' or a 4x4 matrix file; "
-                  "adds rotation (deg) and translation (m) errors");
+  cmd->add_option(
+      "--ground-truth", args->ground_truth,
+      "true T_target_source of the undisplaced source: 'identity' or a 4x4 matrix file; "
+      "adds rotation (deg) and translation (m) errors");
   cmd->add_option("--success-rotation-deg", args->success_rotation_deg,
                   "right-basin threshold on the rotation error, degrees")
       ->capture_default_str();

@@ -26,9 +26,9 @@ Eigen::Matrix<double, 6, 1> xyz_rpy_deg_from_pose(const Isometry3& T) {
   const Mat3 R = T.linear();
   Eigen::Matrix<double, 6, 1> v;
   v.head<3>() = T.translation();
-  v[3] = std::atan2(R(2, 1), R(2, 2)) * kRadToDeg;                          // roll
-  v[4] = std::asin(std::clamp(-R(2, 0), -1.0, 1.0)) * kRadToDeg;           // pitch
-  v[5] = std::atan2(R(1, 0), R(0, 0)) * kRadToDeg;                          // yaw
+  v[3] = std::atan2(R(2, 1), R(2, 2)) * kRadToDeg;                // roll
+  v[4] = std::asin(std::clamp(-R(2, 0), -1.0, 1.0)) * kRadToDeg;  // pitch
+  v[5] = std::atan2(R(1, 0), R(0, 0)) * kRadToDeg;                // yaw
   return v;
 }
 

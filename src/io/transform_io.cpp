@@ -55,10 +55,12 @@ Isometry3 read_transform(const std::string& path) {
       double v = 0.0;
       auto r = std::from_chars(t.data(), t.data() + t.size(), v);
       if (r.ec != std::errc() || r.ptr != t.data() + t.size()) {
-        throw ParseError(path, line_no, "value " + std::to_string(c + 1) + " is not a number: '" + t + "'");
+        throw ParseError(path, line_no,
+                         "value " + std::to_string(c + 1) + " is not a number: '" + t + "'");
       }
       if (!std::isfinite(v)) {
-        throw ParseError(path, line_no, "value " + std::to_string(c + 1) + " is not finite: '" + t + "'");
+        throw ParseError(path, line_no,
+                         "value " + std::to_string(c + 1) + " is not finite: '" + t + "'");
       }
       M(row, c) = v;
     }
@@ -66,13 +68,15 @@ Isometry3 read_transform(const std::string& path) {
   }
   if (in.bad()) throw IoError("cannot read transform file '" + path + "'");
   if (row != 4) {
-    throw ParseError(path, 0, "expected 4 rows of 4 numbers (a 4x4 matrix), found " + std::to_string(row));
+    throw ParseError(path, 0,
+                     "expected 4 rows of 4 numbers (a 4x4 matrix), found " + std::to_string(row));
   }
   if (M(3, 0) != 0.0 || M(3, 1) != 0.0 || M(3, 2) != 0.0 || M(3, 3) != 1.0) {
     throw ParseError(path, 0, "last row must be 0 0 0 1 (a rigid transform)");
   }
   const Mat3 R = M.topLeftCorner<3, 3>();
-  if (!(R * R.transpose()).isApprox(Mat3::Identity(), 1e-6) || std::abs(R.determinant() - 1.0) > 1e-6) {
+  if (!(R * R.transpose()).isApprox(Mat3::Identity(), 1e-6) ||
+      std::abs(R.determinant() - 1.0) > 1e-6) {
     throw ParseError(path, 0, "the 3x3 rotation block is not a rotation (orthonormal, det +1)");
   }
   Isometry3 T = Isometry3::Identity();

@@ -36,7 +36,8 @@ bool ConvergenceOptions::is_valid(std::string* why) const {
     return fail("transformation_epsilon_m2 must be >= 0, got " +
                 std::to_string(transformation_epsilon_m2));
   }
-  if (std::isnan(transformation_rotation_epsilon_cos) || transformation_rotation_epsilon_cos > 1.0) {
+  if (std::isnan(transformation_rotation_epsilon_cos) ||
+      transformation_rotation_epsilon_cos > 1.0) {
     return fail("transformation_rotation_epsilon_cos must be <= 1, got " +
                 std::to_string(transformation_rotation_epsilon_cos));
   }
@@ -81,7 +82,8 @@ TerminationReason ConvergenceCriteria::check(int iterations, const Isometry3& in
   const Mat3& R = increment.linear();
   const double cos_angle = 0.5 * (R(0, 0) + R(1, 1) + R(2, 2) - 1.0);
   const double translation_sq = increment.translation().squaredNorm();
-  if (cos_angle >= rotation_threshold_cos_ && translation_sq <= options_.transformation_epsilon_m2) {
+  if (cos_angle >= rotation_threshold_cos_ &&
+      translation_sq <= options_.transformation_epsilon_m2) {
     if (similar_iterations_ >= similar_needed) return TerminationReason::kTransform;
     is_similar = true;
   }

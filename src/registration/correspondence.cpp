@@ -50,8 +50,7 @@ CorrespondenceFinder::CorrespondenceFinder(const KdTree& target, std::vector<dou
     }
   }
   // Squared threshold; an infinite (or huge) distance stays infinite.
-  max_distance_sq_m2_ = std::isinf(options_.max_distance_m) ||
-                                options_.max_distance_m > 1e150
+  max_distance_sq_m2_ = std::isinf(options_.max_distance_m) || options_.max_distance_m > 1e150
                             ? std::numeric_limits<double>::infinity()
                             : options_.max_distance_m * options_.max_distance_m;
 }

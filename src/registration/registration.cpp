@@ -71,7 +71,8 @@ bool RegistrationOptions::is_valid(std::string* why) const {
   std::string inner;
   if (!c.is_valid(&inner)) {
     // Map the correspondence field names onto this struct's names.
-    if (inner.rfind("max_distance_m", 0) == 0) inner = "max_correspondence_distance_m" + inner.substr(14);
+    if (inner.rfind("max_distance_m", 0) == 0)
+      inner = "max_correspondence_distance_m" + inner.substr(14);
     if (why != nullptr) *why = inner;
     return false;
   }
@@ -132,7 +133,8 @@ void PreparedTarget::set_weights(WeightKind kind, std::vector<double> weights) {
 const std::vector<double>& PreparedTarget::weights(WeightKind kind) const {
   auto it = weights_.find(kind);
   if (it == weights_.end()) {
-    throw InvalidArgument("target has no '" + to_string(kind) + "' weights (built from bare points)");
+    throw InvalidArgument("target has no '" + to_string(kind) +
+                          "' weights (built from bare points)");
   }
   return it->second;
 }

@@ -23,8 +23,9 @@ struct PointsAdaptor {
   }
 };
 
-using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointsAdaptor>,
-                                                 PointsAdaptor, 3, PointIndex>;
+using Tree =
+    nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, PointsAdaptor>,
+                                        PointsAdaptor, 3, PointIndex>;
 
 }  // namespace
 

@@ -30,10 +30,11 @@ class CliAlign : public test::CliTest {
 
 TEST_F(CliAlign, PrintsOneRowPerStrategyAndWritesJson) {
   write_transform(path("gt.txt"), T_true_);
-  const test::CliRun r = run("align " + source_ + " " + target_ + " --ground-truth " + path("gt.txt") +
-                             " --json " + path("out/result.json") + " --history");
+  const test::CliRun r = run("align " + source_ + " " + target_ + " --ground-truth " +
+                             path("gt.txt") + " --json " + path("out/result.json") + " --history");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  for (const char* s : {"base", "covariance", "observations", "distance", "rot deg", "absolute_mse"}) {
+  for (const char* s :
+       {"base", "covariance", "observations", "distance", "rot deg", "absolute_mse"}) {
     EXPECT_NE(r.out.find(s), std::string::npos) << s << "\n" << r.out;
   }
   const auto j = nlohmann::json::parse(test::read_text(path("out/result.json")));
@@ -53,9 +54,10 @@ TEST_F(CliAlign, PrintsOneRowPerStrategyAndWritesJson) {
 
 TEST_F(CliAlign, DisplaceIsUndoneInTheErrors) {
   write_transform(path("gt.txt"), T_true_);
-  const test::CliRun r = run("align " + source_ + " " + target_ + " --weight none --displace 0,0.1,0,0,0,5" +
-                             " --ground-truth " + path("gt.txt") + " --json " + path("r.json") +
-                             " --aligned-out " + path("aligned.ply"));
+  const test::CliRun r =
+      run("align " + source_ + " " + target_ + " --weight none --displace 0,0.1,0,0,0,5" +
+          " --ground-truth " + path("gt.txt") + " --json " + path("r.json") + " --aligned-out " +
+          path("aligned.ply"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(test::read_text(path("r.json")));
   ASSERT_EQ(j["results"].size(), 1u);
@@ -71,13 +73,14 @@ TEST_F(CliAlign, BadInputGivesOneLineErrorAndNonZeroExit) {
     std::string args;
     std::string expect;
   };
-  for (const Bad& b : {Bad{"align " + path("missing.txt") + " " + target_, "missing.txt"},
-                       Bad{"align " + source_ + " " + target_ + " --displace 1,2,3", "--displace"},
-                       Bad{"align " + source_ + " " + target_ + " --displace 1,2,3,x,0,0", "'x'"},
-                       Bad{"align " + source_ + " " + target_ + " --ground-truth " + path("nope.txt"), "nope.txt"},
-                       Bad{"align " + source_ + " " + target_ + " --json " + source_, "refusing"},
-                       Bad{"align " + source_ + " " + target_ + " --k 0", "--k"},
-                       Bad{"align " + source_ + " " + target_ + " --weight cov", "--weight"}}) {
+  for (const Bad& b :
+       {Bad{"align " + path("missing.txt") + " " + target_, "missing.txt"},
+        Bad{"align " + source_ + " " + target_ + " --displace 1,2,3", "--displace"},
+        Bad{"align " + source_ + " " + target_ + " --displace 1,2,3,x,0,0", "'x'"},
+        Bad{"align " + source_ + " " + target_ + " --ground-truth " + path("nope.txt"), "nope.txt"},
+        Bad{"align " + source_ + " " + target_ + " --json " + source_, "refusing"},
+        Bad{"align " + source_ + " " + target_ + " --k 0", "--k"},
+        Bad{"align " + source_ + " " + target_ + " --weight cov", "--weight"}}) {
     const test::CliRun r = run(b.args);
     EXPECT_NE(r.exit_code, 0) << b.args;
     EXPECT_NE(r.err.find(b.expect), std::string::npos) << b.args << "\nstderr: " << r.err;
@@ -86,9 +89,7 @@ TEST_F(CliAlign, BadInputGivesOneLineErrorAndNonZeroExit) {
     }
   }
   // A malformed map names the file and the line.
-  {
-    std::ofstream(path("bad.txt")) << "FRAME 0 0 0 0 1 0 0 0\nFRAME 1 0 0 0 1 0 0\n";
-  }
+  { std::ofstream(path("bad.txt")) << "FRAME 0 0 0 0 1 0 0 0\nFRAME 1 0 0 0 1 0 0\n"; }
   const test::CliRun r = run("align " + path("bad.txt") + " " + target_);
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.err.find("bad.txt:2:"), std::string::npos) << r.err;
@@ -110,7 +111,8 @@ TEST_F(CliAlign, RealPairDemoRightBasin) {
   LMALIGN_REQUIRE_FILE(a);
   const test::CliRun r = run("align " + test::shell_quote(a) + " " + test::shell_quote(b) +
                              " --weight observations --displace 0,1,0.4,10,0,22.5 "
-                             "--ground-truth identity --json " + path("demo.json"));
+                             "--ground-truth identity --json " +
+                             path("demo.json"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const auto j = nlohmann::json::parse(test::read_text(path("demo.json")));
   EXPECT_TRUE(j["results"][0]["right_basin"].get<bool>());

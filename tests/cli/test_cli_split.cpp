@@ -204,6 +204,10 @@ TEST_F(CliSplit, OtherUsageErrors) {
   r = run("split " + quote(input_) + " --frames 0-5 --min-observations 0 -o " + quote(output));
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.err.find("--min-observations"), std::string::npos) << r.err;
+  r = run("split " + quote(input_) + " --frames 0-5 --retriangulate --min-observations 1 -o " +
+          quote(output));
+  EXPECT_NE(r.exit_code, 0);
+  EXPECT_NE(r.err.find("--min-observations"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(output));
 }
 

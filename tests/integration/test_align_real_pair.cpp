@@ -40,8 +40,8 @@ class RealPair : public ::testing::Test {
   // Error of the recovered map-to-map transform (T_est * D) against the identity.
   static TransformError run(PaperStrategy s, const Case& c, RegistrationResult* out = nullptr) {
     const Isometry3 D = pose_from_xyz_rpy_deg(c.x, c.y, c.z, c.roll, c.pitch, c.yaw);
-    const RegistrationResult r =
-        align(transform_points(D, source_->positions()), *target_, RegistrationOptions::paper(s, 5));
+    const RegistrationResult r = align(transform_points(D, source_->positions()), *target_,
+                                       RegistrationOptions::paper(s, 5));
     if (out != nullptr) *out = r;
     return transform_error(r.T_target_source * D, Isometry3::Identity());
   }
@@ -75,10 +75,10 @@ TEST_F(RealPair, Table1DisplacementLandsInTheRightBasinWithTheMeasuredBias) {
 }
 
 TEST_F(RealPair, BaseAndObservationsConvergeFromNearbyStarts) {
-  for (const Case& c : {Case{"truth", 0, 0, 0, 0, 0, 0}, Case{"yaw10", 0, 0, 0, 0, 0, 10},
-                        Case{"yaw20", 0, 0, 0, 0, 0, 20}, Case{"+x+y0.25", 0.25, 0.25, 0, 0, 0, 0},
-                        Case{"+x-y0.5", 0.5, -0.5, 0, 0, 0, 0},
-                        Case{"-x+y0.5yaw10", -0.5, 0.5, 0, 0, 0, 10}}) {
+  for (const Case& c :
+       {Case{"truth", 0, 0, 0, 0, 0, 0}, Case{"yaw10", 0, 0, 0, 0, 0, 10},
+        Case{"yaw20", 0, 0, 0, 0, 0, 20}, Case{"+x+y0.25", 0.25, 0.25, 0, 0, 0, 0},
+        Case{"+x-y0.5", 0.5, -0.5, 0, 0, 0, 0}, Case{"-x+y0.5yaw10", -0.5, 0.5, 0, 0, 0, 10}}) {
     for (PaperStrategy s : {PaperStrategy::kBase, PaperStrategy::kObservations}) {
       const TransformError e = run(s, c);
       EXPECT_LT(e.rotation_deg, 5.0) << c.name << " " << to_string(s);

@@ -26,13 +26,13 @@ inline bool running_in_ci() {
 }  // namespace lmalign::test
 
 /// Skips (locally) or fails (CI=true) the current test if `path` does not exist.
-#define LMALIGN_REQUIRE_FILE(path)                                                          \
-  do {                                                                                      \
-    if (!std::filesystem::exists(path)) {                                                   \
-      if (::lmalign::test::running_in_ci()) {                                               \
-        FAIL() << "real data missing in CI: " << (path) << " (set LMALIGN_DATA)";           \
-      } else {                                                                              \
-        GTEST_SKIP() << "real data not found: " << (path) << " (set LMALIGN_DATA)";         \
-      }                                                                                     \
-    }                                                                                       \
+#define LMALIGN_REQUIRE_FILE(path)                                                  \
+  do {                                                                              \
+    if (!std::filesystem::exists(path)) {                                           \
+      if (::lmalign::test::running_in_ci()) {                                       \
+        FAIL() << "real data missing in CI: " << (path) << " (set LMALIGN_DATA)";   \
+      } else {                                                                      \
+        GTEST_SKIP() << "real data not found: " << (path) << " (set LMALIGN_DATA)"; \
+      }                                                                             \
+    }                                                                               \
   } while (0)

@@ -7,9 +7,7 @@
 namespace lmalign {
 namespace {
 
-Correspondences pairs_with_mse(double mse) {
-  return {{0, 0, mse * 0.5}, {1, 1, mse * 1.5}};
-}
+Correspondences pairs_with_mse(double mse) { return {{0, 0, mse * 0.5}, {1, 1, mse * 1.5}}; }
 
 const Isometry3 kSmallStep = pose_from_xyz_rpy_deg(1e-3, 0, 0, 0, 0, 0.01);
 
@@ -44,7 +42,8 @@ TEST(ConvergenceCriteria, AbsoluteMseNeedsTwoIterations) {
 TEST(ConvergenceCriteria, RelativeMseDisabledByDefaultEnabledOnRequest) {
   ConvergenceCriteria off{ConvergenceOptions{}};
   EXPECT_EQ(off.check(1, kSmallStep, pairs_with_mse(1.0)), TerminationReason::kNotTerminated);
-  EXPECT_EQ(off.check(2, kSmallStep, pairs_with_mse(1.0 + 1e-9)), TerminationReason::kNotTerminated);
+  EXPECT_EQ(off.check(2, kSmallStep, pairs_with_mse(1.0 + 1e-9)),
+            TerminationReason::kNotTerminated);
   ConvergenceOptions o;
   o.euclidean_fitness_epsilon = 1e-6;
   ConvergenceCriteria on(o);

@@ -47,8 +47,8 @@ TEST(WeightedKnn, PicksLargestWeightAmongKNearest) {
 TEST(WeightedKnn, KEqualOneIsNearest) {
   const Points3 target = test::room_points(2000, 3);
   const KdTree tree(target);
-  const Points3 src = transform_points(pose_from_xyz_rpy_deg(0.1, -0.2, 0.05, 2, 1, 8),
-                                       test::room_points(1500, 4));
+  const Points3 src =
+      transform_points(pose_from_xyz_rpy_deg(0.1, -0.2, 0.05, 2, 1, 8), test::room_points(1500, 4));
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(0.1, 10.0);
   std::vector<double> w(target.size());
@@ -69,7 +69,8 @@ TEST(WeightedKnn, KEqualOneIsNearest) {
   Correspondences k5;
   CorrespondenceFinder(tree, w, weighted(5)).find(src, k5);
   std::size_t differ = 0;
-  for (std::size_t i = 0; i < k5.size(); ++i) differ += k5[i].target_index != nearest[i].target_index;
+  for (std::size_t i = 0; i < k5.size(); ++i)
+    differ += k5[i].target_index != nearest[i].target_index;
   EXPECT_GT(differ, src.size() / 4);
 }
 

@@ -34,7 +34,8 @@ Scene make_scene(const Isometry3& T_true, std::uint32_t seed = 31) {
 TEST(Registration, BaseIcpRecoversAKnownTransformExactly) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.10, -0.08, 0.03, 2, -1, 6));
   const PreparedTarget target(s.target);
-  const RegistrationResult r = align(s.source, target, RegistrationOptions::paper(PaperStrategy::kBase));
+  const RegistrationResult r =
+      align(s.source, target, RegistrationOptions::paper(PaperStrategy::kBase));
   const TransformError e = transform_error(r.T_target_source, s.T_true);
   EXPECT_LT(e.rotation_deg, 1e-6);
   EXPECT_LT(e.translation_m, 1e-8);
@@ -50,8 +51,8 @@ TEST(Registration, WeightedStrategiesReachTheRightBasin) {
   // this dense scene the bias is small.
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.10, -0.08, 0.03, 2, -1, 6));
   const PreparedTarget target(s.target);
-  for (PaperStrategy st : {PaperStrategy::kCovariance, PaperStrategy::kObservations,
-                           PaperStrategy::kMeanDistance}) {
+  for (PaperStrategy st :
+       {PaperStrategy::kCovariance, PaperStrategy::kObservations, PaperStrategy::kMeanDistance}) {
     const RegistrationResult r = align(s.source, target, RegistrationOptions::paper(st, 5));
     const TransformError e = transform_error(r.T_target_source, s.T_true);
     EXPECT_LT(e.rotation_deg, 1.0) << to_string(st);
@@ -63,9 +64,10 @@ TEST(Registration, WeightedStrategiesReachTheRightBasin) {
 TEST(Registration, WeightedWithKOneEqualsBase) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.3, 0.2, -0.1, 5, 3, -20));
   const PreparedTarget target(s.target);
-  const RegistrationResult base = align(s.source, target, RegistrationOptions::paper(PaperStrategy::kBase));
-  for (PaperStrategy st : {PaperStrategy::kCovariance, PaperStrategy::kObservations,
-                           PaperStrategy::kMeanDistance}) {
+  const RegistrationResult base =
+      align(s.source, target, RegistrationOptions::paper(PaperStrategy::kBase));
+  for (PaperStrategy st :
+       {PaperStrategy::kCovariance, PaperStrategy::kObservations, PaperStrategy::kMeanDistance}) {
     const RegistrationResult r = align(s.source, target, RegistrationOptions::paper(st, 1));
     EXPECT_EQ(r.iterations, base.iterations) << to_string(st);
     EXPECT_EQ(r.termination, base.termination) << to_string(st);

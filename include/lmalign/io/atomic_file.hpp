@@ -12,6 +12,7 @@ namespace lmalign {
 /// then renames it to `path`. If `write` throws, or any I/O step fails, the temporary file is
 /// removed, `path` is left as it was, and the exception (IoError for I/O failures, naming the
 /// path and the OS reason) propagates.
-void write_file_atomically(const std::string& path, const std::function<void(std::ostream&)>& write);
+void write_file_atomically(const std::string& path,
+                           const std::function<void(std::ostream&)>& write);
 
 }  // namespace lmalign

@@ -18,7 +18,8 @@ struct PinholeIntrinsics {
 
   /// Projects a point in the camera frame (z forward, metres) to pixels (u right, v down).
   Eigen::Vector2d project(const Vec3& p_camera) const {
-    return {fx_px * p_camera.x() / p_camera.z() + cx_px, fy_px * p_camera.y() / p_camera.z() + cy_px};
+    return {fx_px * p_camera.x() / p_camera.z() + cx_px,
+            fy_px * p_camera.y() / p_camera.z() + cy_px};
   }
   /// Unit-depth ray (x, y, 1) in the camera frame through pixel (u, v).
   Vec3 unproject(double u_px, double v_px) const {

@@ -12,12 +12,12 @@ namespace lmalign {
 
 /// Why a registration stopped.
 enum class TerminationReason {
-  kNotTerminated,       ///< still running (never in a returned result)
-  kMaxIterations,       ///< PCL CONVERGENCE_CRITERIA_ITERATIONS
-  kTransform,           ///< PCL CONVERGENCE_CRITERIA_TRANSFORM: the increment was "small enough"
-  kAbsoluteMse,         ///< PCL CONVERGENCE_CRITERIA_ABS_MSE
-  kRelativeMse,         ///< PCL CONVERGENCE_CRITERIA_REL_MSE
-  kNoCorrespondences,   ///< PCL CONVERGENCE_CRITERIA_NO_CORRESPONDENCES (fewer than the minimum)
+  kNotTerminated,      ///< still running (never in a returned result)
+  kMaxIterations,      ///< PCL CONVERGENCE_CRITERIA_ITERATIONS
+  kTransform,          ///< PCL CONVERGENCE_CRITERIA_TRANSFORM: the increment was "small enough"
+  kAbsoluteMse,        ///< PCL CONVERGENCE_CRITERIA_ABS_MSE
+  kRelativeMse,        ///< PCL CONVERGENCE_CRITERIA_REL_MSE
+  kNoCorrespondences,  ///< PCL CONVERGENCE_CRITERIA_NO_CORRESPONDENCES (fewer than the minimum)
 };
 
 /// "max_iterations", "transform", "absolute_mse", "relative_mse", "no_correspondences".

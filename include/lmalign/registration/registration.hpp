@@ -26,7 +26,8 @@ enum class PaperStrategy {
   kObservations,  ///< weighted-kNN with w_obs (Eq. 2)
   kMeanDistance,  ///< weighted-kNN with w_dist (Eqs. 3-4)
 };
-std::string to_string(PaperStrategy strategy);  ///< "base", "covariance", "observations", "distance"
+std::string to_string(
+    PaperStrategy strategy);  ///< "base", "covariance", "observations", "distance"
 /// Inverse of to_string (also "none" for base). Throws InvalidArgument listing the names.
 PaperStrategy parse_paper_strategy(const std::string& name);
 /// All four, in the paper's column order.
@@ -60,9 +61,9 @@ struct RegistrationOptions {
 
 /// One ICP iteration, recorded when RegistrationOptions::record_history is set.
 struct IterationRecord {
-  int iteration = 0;                   ///< 1-based
+  int iteration = 0;  ///< 1-based
   std::size_t num_correspondences = 0;
-  double mse_m2 = 0.0;                 ///< mean squared correspondence distance (PCL's MSE), m^2
+  double mse_m2 = 0.0;  ///< mean squared correspondence distance (PCL's MSE), m^2
   /// Fitness score after this iteration's update (m^2); NaN unless history_scores was set.
   double score_m2 = std::numeric_limits<double>::quiet_NaN();
 };

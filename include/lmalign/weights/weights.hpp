@@ -46,7 +46,7 @@ std::string to_string(WeightKind kind);
 /// InvalidArgument listing the accepted names.
 WeightKind parse_weight_kind(const std::string& name);
 
-std::string to_string(CovarianceNorm norm);          ///< "spectral", "frobenius"
+std::string to_string(CovarianceNorm norm);  ///< "spectral", "frobenius"
 CovarianceNorm parse_covariance_norm(const std::string& name);
 
 }  // namespace lmalign
