@@ -1,7 +1,4 @@
 // `lmalign split`: runs the real binary (LMALIGN_CLI_PATH) on a small synthetic map.
-#include <sys/wait.h>
-#include <unistd.h>
-
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -13,49 +10,24 @@
 
 #include "lmalign/map/camera.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "support/run_cli.hpp"
 
 namespace lmalign {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct RunResult {
-  int exit_code = -1;
-  std::string out;
-  std::string err;
-};
+using RunResult = test::CliRun;
 
-std::string read_text(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream os;
-  os << in.rdbuf();
-  return os.str();
-}
+std::string quote(const std::string& s) { return test::shell_quote(s); }
 
-std::string quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) {
-    if (c == '\'') {
-      q += "'\\''";
-    } else {
-      q += c;
-    }
-  }
-  return q + "'";
-}
-
-class CliSplit : public ::testing::Test {
+class CliSplit : public test::CliTest {
  protected:
   void SetUp() override {
-    dir_ = fs::temp_directory_path() /
-           ("lmalign_cli_split_" + std::to_string(::getpid()) + "_" +
-            ::testing::UnitTest::GetInstance()->current_test_info()->name());
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
+    CliTest::SetUp();
     input_ = (dir_ / "map.txt").string();
     write_map(input_, make_map());
   }
-  void TearDown() override { fs::remove_all(dir_); }
 
   // Ten frames along x looking along +z, 30 landmarks, each seen by frames i, i+1, i+2 (mod 10).
   static Map make_map() {
@@ -84,26 +56,12 @@ class CliSplit : public ::testing::Test {
     return map;
   }
 
-  RunResult run(const std::string& args) const {
-    const fs::path out = dir_ / "stdout.txt";
-    const fs::path err = dir_ / "stderr.txt";
-    const std::string command = quote(LMALIGN_CLI_PATH) + " " + args + " >" + quote(out.string()) +
-                                " 2>" + quote(err.string());
-    const int status = std::system(command.c_str());
-    RunResult r;
-    r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-    r.out = read_text(out);
-    r.err = read_text(err);
-    return r;
-  }
-
   static std::size_t line_count(const std::string& text) {
     std::size_t n = 0;
     for (char c : text) n += (c == '\n');
     return n;
   }
 
-  fs::path dir_;
   std::string input_;
 };
 
@@ -167,7 +125,7 @@ TEST_F(CliSplit, MissingInputNamesThePath) {
 }
 
 TEST_F(CliSplit, OutputEqualToInputIsRefused) {
-  const std::string before = read_text(input_);
+  const std::string before = test::read_text(input_);
   const auto mtime = fs::last_write_time(input_);
   // The same file, spelled directly and through "./" and "..".
   const std::string spellings[] = {input_, (dir_ / "." / "map.txt").string(),
@@ -178,7 +136,7 @@ TEST_F(CliSplit, OutputEqualToInputIsRefused) {
     EXPECT_NE(r.err.find("input"), std::string::npos) << r.err;
     EXPECT_EQ(line_count(r.err), 1u) << r.err;
   }
-  EXPECT_EQ(read_text(input_), before);
+  EXPECT_EQ(test::read_text(input_), before);
   EXPECT_EQ(fs::last_write_time(input_), mtime);
 }
 

@@ -22,6 +22,7 @@
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/map/map.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "support/map_compare.hpp"
 
 namespace lmalign {
 namespace {
@@ -30,44 +31,6 @@ namespace fs = std::filesystem;
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
-
-std::uint64_t bits(double value) {
-  std::uint64_t out = 0;
-  std::memcpy(&out, &value, sizeof(out));
-  return out;
-}
-
-/// Bit-exact comparison of two maps, field by field, in order.
-void expect_maps_identical(const Map& a, const Map& b) {
-  ASSERT_EQ(a.frames.size(), b.frames.size());
-  for (std::size_t i = 0; i < a.frames.size(); ++i) {
-    SCOPED_TRACE("frame index " + std::to_string(i));
-    const Frame& fa = a.frames[i];
-    const Frame& fb = b.frames[i];
-    EXPECT_EQ(fa.id, fb.id);
-    for (int k = 0; k < 3; ++k) EXPECT_EQ(bits(fa.p_world_camera(k)), bits(fb.p_world_camera(k)));
-    for (int k = 0; k < 4; ++k) {
-      EXPECT_EQ(bits(fa.q_world_camera.coeffs()(k)), bits(fb.q_world_camera.coeffs()(k)));
-    }
-  }
-  ASSERT_EQ(a.landmarks.size(), b.landmarks.size());
-  for (std::size_t i = 0; i < a.landmarks.size(); ++i) {
-    SCOPED_TRACE("landmark index " + std::to_string(i));
-    const Landmark& la = a.landmarks[i];
-    const Landmark& lb = b.landmarks[i];
-    EXPECT_EQ(la.id, lb.id);
-    for (int k = 0; k < 3; ++k) EXPECT_EQ(bits(la.p_world(k)), bits(lb.p_world(k)));
-    for (int k = 0; k < 9; ++k) {
-      EXPECT_EQ(bits(la.cov_world_m2.data()[k]), bits(lb.cov_world_m2.data()[k]));
-    }
-    ASSERT_EQ(la.observations.size(), lb.observations.size());
-    for (std::size_t k = 0; k < la.observations.size(); ++k) {
-      EXPECT_EQ(la.observations[k].frame_id, lb.observations[k].frame_id);
-      EXPECT_EQ(bits(la.observations[k].u_px), bits(lb.observations[k].u_px));
-      EXPECT_EQ(bits(la.observations[k].v_px), bits(lb.observations[k].v_px));
-    }
-  }
-}
 
 Map read_text(const std::string& text, const MapReadOptions& options = {}) {
   std::istringstream in(text);
@@ -193,7 +156,7 @@ TEST(MapIoRoundTrip, WriteThenReadIsBitExact) {
   const std::string path = dir.file("map.txt");
   write_map(path, original);
   const Map read_back = read_map(path, keep_all());
-  expect_maps_identical(original, read_back);
+  EXPECT_TRUE(test::maps_identical(original, read_back));
 
   // Writing what was read gives the same bytes.
   const std::string path2 = dir.file("map2.txt");
@@ -452,7 +415,7 @@ TEST(MapIoTextForms, CrlfTabsCommentsAndBlankLinesReadLikePlainLf) {
                             "LANDMARK 4 1 2 3 1 0.5 0 0.5 1 0 0 0 1 2 2 1.25 2.5 2 3 4";
   const Map a = read_text(lf, keep_all());
   ASSERT_EQ(a.landmarks.size(), 2u);
-  expect_maps_identical(a, read_text(messy, keep_all()));
+  EXPECT_TRUE(test::maps_identical(a, read_text(messy, keep_all())));
 }
 
 TEST(MapIoTextForms, EmptyOrCommentOnlyFileIsAnEmptyMap) {
