@@ -1,6 +1,8 @@
 # lmalign: the two set-up commands.
-#   make demo   installs what is missing, builds in Release and aligns the real ground-truth pair.
+#   make demo   installs what is missing, builds in Release, aligns the real ground-truth pair and
+#               runs the paper's protocol (configs/paper.yaml) into $(BUILD_DIR)/demo/paper.
 #   make test   same set-up, then builds and runs every test.
+# Also: make bench (against PCL and Open3D), make test-sanitize (ASan + UBSan), make fuzz.
 # Real data: ../shared/data by default; set LMALIGN_DATA to point elsewhere.
 
 BUILD_DIR ?= build
@@ -11,7 +13,22 @@ export LMALIGN_DATA
 # Debian bookworm packages the project needs (build, tests, plots).
 DEB_PACKAGES := cmake make g++ pkg-config libeigen3-dev libnanoflann-dev libcli11-dev \
                 libyaml-cpp-dev nlohmann-json3-dev libfmt-dev libgtest-dev libgmock-dev \
-                python3 python3-matplotlib python3-numpy
+                python3 python3-matplotlib python3-numpy \
+                libopencv-dev libceres-dev
+
+# Performance (docs/performance.md, docs/fidelity.md): PCL and Open3D, the optional peers of the
+# PCL drop-in tests and of `make bench`; Google Benchmark.
+DEB_PACKAGES += libpcl-dev libopen3d-dev libbenchmark-dev
+
+# Robustness (docs/robustness.md): clang and its libFuzzer/sanitizer runtimes, and clang's
+# OpenMP, for `make fuzz`.
+DEB_PACKAGES += clang libclang-rt-14-dev libomp-dev
+
+# `make test` also runs the whole suite under ASan + UBSan here; `make fuzz` builds and runs the
+# libFuzzer targets there, FUZZ_SECONDS per target.
+ASAN_BUILD_DIR ?= build-asan
+FUZZ_BUILD_DIR ?= build-fuzz
+FUZZ_SECONDS   ?= 60
 
 LMALIGN := $(BUILD_DIR)/apps/lmalign/lmalign
 GT_PAIR := $(LMALIGN_DATA)/tum_fr1_desk/ground_truth_pair
@@ -40,6 +57,36 @@ build: configure
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
 
+# The whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer, in its own build
+# directory (docs/robustness.md). Not yet part of `make test`: see docs/robustness.md.
+.PHONY: test-sanitize
+test-sanitize: deps
+	cmake -S . -B $(ASAN_BUILD_DIR) -DCMAKE_BUILD_TYPE=Release -DLMALIGN_SANITIZE=ON \
+	  -DLMALIGN_BUILD_BENCH=OFF
+	cmake --build $(ASAN_BUILD_DIR) -j $(JOBS)
+	cd $(ASAN_BUILD_DIR) && ASAN_OPTIONS=detect_leaks=1:strict_string_checks=1 \
+	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS)
+
+.PHONY: fuzz
+# libFuzzer targets (fuzz/), clang with ASan + UBSan; fails on any finding.
+fuzz: deps
+	cmake -S . -B $(FUZZ_BUILD_DIR) -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=Release \
+	  -DLMALIGN_FUZZ=ON -DLMALIGN_BUILD_TESTS=OFF -DLMALIGN_BUILD_APPS=OFF -DLMALIGN_BUILD_VO=OFF \
+	  -DLMALIGN_BUILD_BENCH=OFF -DLMALIGN_WITH_PCL=OFF
+	cmake --build $(FUZZ_BUILD_DIR) -j $(JOBS) --target fuzz_map_reader fuzz_experiment_config
+	FUZZ_BUILD_DIR=$(FUZZ_BUILD_DIR) fuzz/run_fuzzers.sh $(FUZZ_SECONDS)
+
+# `make bench`: lmalign against PCL and Open3D on the real pair, in one script run (each
+# configuration in its own process for clean peak memory): a table on stdout with the ratios,
+# and bench/results/latest.json. BENCH_ARGS=--scaling adds the simulator from 1k to 1M landmarks
+# (bench/results/scaling.json, docs/performance-scaling.png). See docs/performance.md.
+BENCH_ARGS ?=
+.PHONY: bench
+bench: build
+	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
+	  echo "lmalign bench: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
+	python3 bench/run_bench.py --build-dir $(BUILD_DIR) $(BENCH_ARGS)
+
 demo: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign demo: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; \
@@ -49,6 +96,9 @@ demo: build
 	$(LMALIGN) align $(GT_PAIR)/desk_gt_a.txt $(GT_PAIR)/desk_gt_b.txt \
 	  --weight all --k 5 --displace 0,1,0.4,10,0,22.5 --ground-truth identity \
 	  --json $(BUILD_DIR)/demo/align.json
+	@echo "== lmalign demo: the paper's four experiments (configs/paper.yaml: Tables 1-4, 45 cases) on the same pair"
+	$(LMALIGN) experiment configs/paper.yaml -o $(BUILD_DIR)/demo/paper
+	@echo "== report: $(BUILD_DIR)/demo/paper/ (tables.md, summary.json, results.csv, plots/*.png)"
 
 clean:
-	rm -rf $(BUILD_DIR)
+	rm -rf $(BUILD_DIR) $(ASAN_BUILD_DIR) $(FUZZ_BUILD_DIR)

@@ -84,8 +84,21 @@ int run_align(const AlignArgs& a) {
     throw InvalidArgument("--success-rotation-deg and --success-translation-m must be > 0");
   }
   if (!a.json_path.empty()) refuse_output_over_input("--json", a.json_path, {a.source, a.target});
-  if (!a.ply_path.empty())
+  if (!a.ply_path.empty()) {
     refuse_output_over_input("--aligned-out", a.ply_path, {a.source, a.target});
+    // With several strategies the files are NAME_<strategy>.ply: none may be an input either.
+    for (PaperStrategy s : strategies) {
+      const std::string path = ply_path_for(a.ply_path, to_string(s), strategies.size() > 1);
+      refuse_output_over_input("--aligned-out", path, {a.source, a.target});
+      if (!a.json_path.empty() && same_file(path, a.json_path)) {
+        throw InvalidArgument("--aligned-out '" + path + "' and --json name the same file");
+      }
+    }
+  }
+  if (std::isnan(a.max_distance_m) || !(a.max_distance_m > 0.0)) {
+    throw InvalidArgument("--max-distance " + std::to_string(a.max_distance_m) +
+                          ": must be > 0 metres (or inf)");
+  }
 
   std::optional<Isometry3> T_gt;  // ground truth for the undisplaced source
   if (a.ground_truth == "identity") {
@@ -244,8 +257,18 @@ int run_align(const AlignArgs& a) {
     }
     j["results"] = results;
     const std::filesystem::path jp(a.json_path);
-    if (jp.has_parent_path()) std::filesystem::create_directories(jp.parent_path());
-    write_file_atomically(a.json_path, [&](std::ostream& out) { out << j.dump(2) << "\n"; });
+    if (jp.has_parent_path()) {
+      std::error_code ec;
+      std::filesystem::create_directories(jp.parent_path(), ec);
+      if (ec) {
+        throw IoError("cannot write '" + a.json_path + "': cannot create its folder: " +
+                      ec.message());
+      }
+    }
+    // Paths need not be UTF-8 (JSON text must be): invalid bytes become U+FFFD.
+    write_file_atomically(a.json_path, [&](std::ostream& out) {
+      out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
+    });
     std::printf("JSON written to %s\n", a.json_path.c_str());
   }
   return 0;

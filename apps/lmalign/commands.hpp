@@ -14,5 +14,10 @@ using CommandRunner = std::function<int()>;
 
 CommandRunner add_align_command(CLI::App& root);
 CommandRunner add_split_command(CLI::App& root);
+CommandRunner add_experiment_command(CLI::App& root);
+CommandRunner add_eval_trajectory_command(CLI::App& root);
+#ifdef LMALIGN_HAVE_VO
+CommandRunner add_build_map_command(CLI::App& root);
+#endif
 
 }  // namespace lmalign::cli

@@ -1,4 +1,5 @@
 // lmalign: align sparse landmark maps from feature-based visual SLAM.
+#include <cstdio>
 #include <exception>
 #include <iostream>
 #include <map>
@@ -8,6 +9,36 @@
 
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
+
+namespace {
+// An error message as one printable line: control bytes of paths or file contents (a newline in
+// a file name, an escape sequence) are written as \xHH (docs/robustness.md).
+std::string one_line(const char* message) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (const char* p = message; *p != '\0'; ++p) {
+    const auto byte = static_cast<unsigned char>(*p);
+    if (byte < 0x20 || byte == 0x7f) {
+      out += "\\x";
+      out += kHex[byte >> 4];
+      out += kHex[byte & 0xf];
+    } else {
+      out += *p;
+    }
+  }
+  return out;
+}
+
+// Output that could not be written (a full disk, a closed pipe) is an error, not a success.
+int check_stdout(int code) {
+  std::cout.flush();
+  if (std::fflush(stdout) != 0 || std::ferror(stdout) || !std::cout) {
+    std::cerr << "lmalign: error: cannot write the standard output\n";
+    return code == 0 ? 2 : code;
+  }
+  return code;
+}
+}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App app{
@@ -28,6 +59,11 @@ int main(int argc, char** argv) {
   };
   add(&lmalign::cli::add_align_command);
   add(&lmalign::cli::add_split_command);
+  add(&lmalign::cli::add_experiment_command);
+  add(&lmalign::cli::add_eval_trajectory_command);
+#ifdef LMALIGN_HAVE_VO
+  add(&lmalign::cli::add_build_map_command);
+#endif
 
   try {
     app.parse(argc, argv);
@@ -39,21 +75,21 @@ int main(int argc, char** argv) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     // Usage errors are bad input like any other: one line, exit code 2.
-    std::cerr << "lmalign: error: " << e.what() << " (see lmalign --help)\n";
+    std::cerr << "lmalign: error: " << one_line(e.what()) << " (see lmalign --help)\n";
     return 2;
   }
 
   try {
     for (auto& [sub, run] : runners) {
-      if (sub->parsed()) return run();
+      if (sub->parsed()) return check_stdout(run());
     }
     std::cerr << "lmalign: error: no command given (see lmalign --help)\n";
     return 2;
   } catch (const lmalign::Error& e) {
-    std::cerr << "lmalign: error: " << e.what() << "\n";
+    std::cerr << "lmalign: error: " << one_line(e.what()) << "\n";
     return 2;
   } catch (const std::exception& e) {
-    std::cerr << "lmalign: internal error: " << e.what() << "\n";
+    std::cerr << "lmalign: internal error: " << one_line(e.what()) << "\n";
     return 3;
   }
 }

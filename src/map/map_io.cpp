@@ -9,13 +9,16 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <ios>
 #include <istream>
 #include <limits>
 #include <ostream>
 #include <string>
 #include <string_view>
+#include <streambuf>
 #include <system_error>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -60,18 +63,55 @@ std::string format_short(double value) {
   return buffer;
 }
 
+/// Appends `text` with control bytes (and DEL) written as \xHH, so that an error message stays
+/// one printable line whatever the file holds (NUL, CR, escape sequences).
+void append_printable(std::string& out, std::string_view text) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  for (const char ch : text) {
+    const auto byte = static_cast<unsigned char>(ch);
+    if (byte < 0x20 || byte == 0x7f) {
+      out.append("\\x");
+      out.push_back(kHex[byte >> 4]);
+      out.push_back(kHex[byte & 0xf]);
+    } else {
+      out.push_back(ch);
+    }
+  }
+}
+
 /// Quotes a token for an error message, shortening very long ones.
 std::string quote(std::string_view token) {
   constexpr std::size_t kMax = 64;
   std::string text = "'";
   if (token.size() > kMax) {
-    text.append(token.substr(0, kMax));
+    append_printable(text, token.substr(0, kMax));
     text.append("...");
   } else {
-    text.append(token);
+    append_printable(text, token);
   }
   text.push_back('\'');
   return text;
+}
+
+enum class LineStatus { kLine, kEnd, kTooLong };
+
+/// Reads one line (without its '\n') into `line`, reading at most max_bytes + 1 bytes of it:
+/// memory stays bounded however long the line is. kTooLong leaves the rest of the line unread.
+LineStatus next_line(std::streambuf& in, std::string& line, std::size_t max_bytes) {
+  using Traits = std::char_traits<char>;
+  line.clear();
+  bool any = false;
+  for (;;) {
+    const Traits::int_type c = in.sbumpc();
+    if (Traits::eq_int_type(c, Traits::eof())) return any ? LineStatus::kLine : LineStatus::kEnd;
+    any = true;
+    if (c == '\n') return LineStatus::kLine;
+    // The limit excludes the line ending: a '\r' just before '\n' does not count.
+    if (line.size() >= max_bytes && !(c == '\r' && in.sgetc() == '\n')) {
+      return LineStatus::kTooLong;
+    }
+    line.push_back(Traits::to_char_type(c));
+  }
 }
 
 bool is_separator(char c) { return c == ' ' || c == '\t' || c == '\v' || c == '\f'; }
@@ -114,9 +154,13 @@ std::string covariance_problem(const Mat3& cov, double symmetry_tolerance, doubl
       }
     }
   }
-  const Mat3 symmetric = 0.5 * (cov + cov.transpose());
+  // 0.5 * a + 0.5 * b, not 0.5 * (a + b): no overflow for entries near the largest double.
+  const Mat3 symmetric = 0.5 * cov + 0.5 * cov.transpose();
   const Eigen::SelfAdjointEigenSolver<Mat3> solver(symmetric, Eigen::EigenvaluesOnly);
   const Vec3 eigenvalues = solver.eigenvalues();  // ascending
+  if (!eigenvalues.allFinite()) {
+    return "covariance eigenvalues overflow a double (entries too large to check)";
+  }
   const double largest = std::max(1e-12, eigenvalues.cwiseAbs().maxCoeff());
   if (eigenvalues(0) < -psd_tolerance * largest) {
     return "covariance is not positive semi-definite: smallest eigenvalue is " +
@@ -139,14 +183,31 @@ class Reader {
   Reader(const std::string& name, const MapReadOptions& options) : name_(name), options_(options) {}
 
   Map read(std::istream& in) {
-    std::string line;
-    while (std::getline(in, line)) {
-      ++line_number_;
-      parse_line(line);
+    if (in.bad() || in.rdbuf() == nullptr) {
+      throw IoError("cannot read map file '" + name_ + "': read error");
     }
-    if (in.bad()) throw IoError("cannot read map file '" + name_ + "': read error");
+    std::streambuf& buffer = *in.rdbuf();
+    std::string line;
+    try {
+      for (;;) {
+        const LineStatus status = next_line(buffer, line, options_.max_line_bytes);
+        if (status == LineStatus::kEnd) break;
+        ++line_number_;
+        if (status == LineStatus::kTooLong) {
+          std::string start;
+          append_printable(start, std::string_view(line).substr(0, 32));
+          fail("line is longer than " + std::to_string(options_.max_line_bytes) +
+               " bytes (MapReadOptions::max_line_bytes), not a map record; it starts '" + start +
+               "...'");
+        }
+        parse_line(line);
+      }
+    } catch (const std::ios_base::failure& e) {
+      // std::filebuf reports a failed read(2) by throwing.
+      in.setstate(std::ios::badbit);
+      throw IoError("cannot read map file '" + name_ + "': " + e.code().message());
+    }
     check_observed_frames();
-    filter();
     return std::move(map_);
   }
 
@@ -271,33 +332,30 @@ class Reader {
       fail("duplicate LANDMARK id " + std::to_string(landmark.id) + " (first defined on line " +
            std::to_string(it->second) + ")");
     }
-    map_.landmarks.push_back(std::move(landmark));
-    landmark_line_numbers_.push_back(line_number_);
-  }
-
-  /// Frames may follow the landmarks that observe them, so this runs after the whole file.
-  void check_observed_frames() {
-    for (std::size_t i = 0; i < map_.landmarks.size(); ++i) {
-      const Landmark& landmark = map_.landmarks[i];
-      for (const Observation& obs : landmark.observations) {
-        if (frame_lines_.count(obs.frame_id) == 0) {
-          throw ParseError(name_, landmark_line_numbers_[i],
-                           "LANDMARK " + std::to_string(landmark.id) + " observes unknown frame " +
-                               std::to_string(obs.frame_id));
-        }
+    // Frames may follow the landmarks that observe them: remember the references to frames not
+    // seen yet, and resolve them at the end of the file.
+    for (const Observation& obs : landmark.observations) {
+      if (frame_lines_.count(obs.frame_id) == 0) {
+        pending_frames_.push_back({obs.frame_id, landmark.id, line_number_});
       }
+    }
+    // Landmarks below the min_observations filter are validated, then dropped at once, so memory
+    // follows the kept map rather than the file.
+    if (landmark.num_observations() >= options_.min_observations) {
+      map_.landmarks.push_back(std::move(landmark));
     }
   }
 
-  void filter() {
-    const std::size_t min_obs = options_.min_observations;
-    if (min_obs == 0) return;
-    auto& landmarks = map_.landmarks;
-    landmarks.erase(std::remove_if(landmarks.begin(), landmarks.end(),
-                                   [min_obs](const Landmark& landmark) {
-                                     return landmark.num_observations() < min_obs;
-                                   }),
-                    landmarks.end());
+  /// Runs after the whole file: reports the first (in file order) observation of a frame that
+  /// the file never defines.
+  void check_observed_frames() const {
+    for (const PendingFrame& pending : pending_frames_) {
+      if (frame_lines_.count(pending.frame_id) == 0) {
+        throw ParseError(name_, pending.line,
+                         "LANDMARK " + std::to_string(pending.landmark_id) +
+                             " observes unknown frame " + std::to_string(pending.frame_id));
+      }
+    }
   }
 
   const std::string& name_;
@@ -306,13 +364,40 @@ class Reader {
   std::vector<std::string_view> tokens_;
   std::unordered_map<Id, std::size_t> frame_lines_;
   std::unordered_map<Id, std::size_t> landmark_lines_;
-  std::vector<std::size_t> landmark_line_numbers_;
+  struct PendingFrame {
+    Id frame_id;
+    Id landmark_id;
+    std::size_t line;
+  };
+  std::vector<PendingFrame> pending_frames_;
   Map map_;
 };
 
 }  // namespace
 
+bool MapReadOptions::is_valid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  const std::pair<const char*, double> tolerances[] = {
+      {"quaternion_norm_tolerance", quaternion_norm_tolerance},
+      {"covariance_symmetry_tolerance", covariance_symmetry_tolerance},
+      {"covariance_psd_tolerance", covariance_psd_tolerance}};
+  for (const auto& [field, value] : tolerances) {
+    if (!std::isfinite(value) || value < 0.0) {
+      return fail(std::string(field) + " must be finite and >= 0, got " + format_short(value));
+    }
+  }
+  if (max_line_bytes < 64) {
+    return fail("max_line_bytes must be >= 64, got " + std::to_string(max_line_bytes));
+  }
+  return true;
+}
+
 Map read_map(std::istream& in, const std::string& name, const MapReadOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("map read options: " + why);
   return Reader(name, options).read(in);
 }
 

@@ -20,6 +20,8 @@ std::string to_string(TerminationReason reason) {
       return "relative_mse";
     case TerminationReason::kNoCorrespondences:
       return "no_correspondences";
+    case TerminationReason::kDegenerate:
+      return "degenerate";
   }
   return "?";
 }

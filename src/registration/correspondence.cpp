@@ -1,8 +1,10 @@
 #include "lmalign/registration/correspondence.hpp"
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 #include <omp.h>
 
@@ -11,8 +13,83 @@
 namespace lmalign {
 
 namespace {
+
 constexpr PointIndex kNoMatch = std::numeric_limits<PointIndex>::max();
 constexpr int kMaxK = 4096;
+// A workspace keeps at most this many reference poses; beyond, its cache is emptied (bounded
+// memory for workspaces used over very many calls).
+constexpr std::size_t kMaxPoses = 1u << 16;
+// Relative slack of the reuse test: rounding errors of the distances involved are below 1e-15
+// relative; 1e-9 leaves six orders of magnitude of room (docs/performance.md).
+constexpr double kSlack = 1e-9;
+
+// The largest float <= r (r >= 0): a conservative copy of the reuse radius.
+float round_down_to_float(double r) {
+  if (!(r < static_cast<double>(FLT_MAX))) return FLT_MAX;
+  float f = static_cast<float>(r);
+  if (static_cast<double>(f) > r) f = std::nextafter(f, 0.0f);
+  return f;
+}
+
+// Interleaves the low 21 bits of v with two zero bits between each.
+std::uint64_t spread_bits(std::uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 32) & 0x1f00000000ffffULL;
+  v = (v | v << 16) & 0x1f0000ff0000ffULL;
+  v = (v | v << 8) & 0x100f00f00f00f00fULL;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+  v = (v | v << 2) & 0x1249249249249249ULL;
+  return v;
+}
+
+// Source indices sorted along a Morton (Z-order) curve of their positions: queries that follow
+// each other touch the same parts of the tree. Only the speed depends on this order.
+std::vector<PointIndex> morton_order(const Points3& points) {
+  const std::size_t n = points.size();
+  std::vector<PointIndex> order(n);
+  if (n == 0) return order;
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  for (const Vec3& p : points) {
+    if (!p.allFinite()) continue;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  std::vector<std::uint64_t> code(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    code[i] = ~0ULL;  // non-finite points last
+    if (!points[i].allFinite()) continue;
+    code[i] = 0;
+    for (int d = 0; d < 3; ++d) {
+      const double extent = hi[d] - lo[d];
+      const double u = extent > 0.0 ? (points[i][d] - lo[d]) / extent : 0.0;
+      const auto cell = static_cast<std::uint64_t>(std::clamp(u, 0.0, 1.0) * 2097151.0);
+      code[i] |= spread_bits(cell) << d;
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<PointIndex>(i);
+  std::sort(order.begin(), order.end(), [&code](PointIndex a, PointIndex b) {
+    return code[a] < code[b] || (code[a] == code[b] && a < b);
+  });
+  return order;
+}
+
+// Sorts (d2, idx) by the kd-tree's total order: distance, then index. Insertion: the lists are
+// short and, from one iteration to the next, nearly sorted already.
+void sort_candidates(PointIndex* idx, double* d2, std::size_t n) {
+  for (std::size_t j = 1; j < n; ++j) {
+    const double d = d2[j];
+    const PointIndex i = idx[j];
+    std::size_t p = j;
+    while (p > 0 && (d2[p - 1] > d || (d2[p - 1] == d && idx[p - 1] > i))) {
+      d2[p] = d2[p - 1];
+      idx[p] = idx[p - 1];
+      --p;
+    }
+    d2[p] = d;
+    idx[p] = i;
+  }
+}
+
 }  // namespace
 
 std::string to_string(CorrespondenceKind kind) {
@@ -33,18 +110,185 @@ bool CorrespondenceOptions::is_valid(std::string* why) const {
   return true;
 }
 
+// ---------------------------------------------------------------------------------------------
+// Workspace
+
+struct CorrespondenceWorkspace::State {
+  struct Pose {
+    Mat3 R;
+    Vec3 t;
+  };
+  // What the cache refers to.
+  const KdTree* tree = nullptr;
+  const Points3* source = nullptr;
+  std::size_t n = 0;
+  std::size_t width = 0;  // candidates kept per source point (k + margin)
+
+  std::vector<PointIndex> order;  // Morton order of the source points
+  // Per source point s: candidates cand[s * width, s * width + min(width, tree size)), the
+  // conservative distance `reach` of the last one at the reference pose (< 0: no entry; +inf:
+  // every target point is a candidate) and the reference pose `poses[ref[s]]`.
+  std::vector<PointIndex> cand;
+  std::vector<float> reach;
+  std::vector<std::uint16_t> ref;
+  std::vector<Pose> poses;
+  // Per-thread scratch, `scratch_width` entries per thread.
+  std::vector<PointIndex> scratch_idx;
+  std::vector<double> scratch_d2;
+  std::size_t scratch_width = 0;
+
+  std::size_t searched = 0;
+  std::size_t reused = 0;
+
+  void clear_cache() {
+    std::fill(reach.begin(), reach.end(), -1.0f);
+    poses.clear();
+  }
+  void ensure_cache() {
+    if (reach.size() == n) return;
+    cand.assign(n * width, 0);
+    reach.assign(n, -1.0f);
+    ref.assign(n, 0);
+    poses.clear();
+  }
+  void ensure_scratch(std::size_t w) {
+    const std::size_t threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
+    if (scratch_width >= w && scratch_idx.size() >= threads * scratch_width) return;
+    scratch_width = std::max(scratch_width, w);
+    scratch_idx.assign(threads * scratch_width, 0);
+    scratch_d2.assign(threads * scratch_width, 0.0);
+  }
+  // The id of pose (R, t) for entries made in this call; *pushed tells whether it was added.
+  std::uint32_t register_pose(const Mat3& R, const Vec3& t, bool* pushed) {
+    *pushed = false;
+    if (!poses.empty() && poses.back().R == R && poses.back().t == t) {
+      return static_cast<std::uint32_t>(poses.size() - 1);
+    }
+    if (poses.size() >= kMaxPoses) clear_cache();
+    poses.push_back({R, t});
+    *pushed = true;
+    return static_cast<std::uint32_t>(poses.size() - 1);
+  }
+};
+
+CorrespondenceWorkspace::CorrespondenceWorkspace() : state_(new State) {}
+CorrespondenceWorkspace::~CorrespondenceWorkspace() { delete state_; }
+CorrespondenceWorkspace::CorrespondenceWorkspace(CorrespondenceWorkspace&& o) noexcept
+    : state_(o.state_) {
+  o.state_ = new State;
+}
+CorrespondenceWorkspace& CorrespondenceWorkspace::operator=(CorrespondenceWorkspace&& o) noexcept {
+  std::swap(state_, o.state_);
+  return *this;
+}
+void CorrespondenceWorkspace::clear() { state_->clear_cache(); }
+std::size_t CorrespondenceWorkspace::last_searched() const { return state_->searched; }
+std::size_t CorrespondenceWorkspace::last_reused() const { return state_->reused; }
+std::size_t CorrespondenceWorkspace::memory_bytes() const {
+  const State& s = *state_;
+  return s.order.capacity() * sizeof(PointIndex) + s.cand.capacity() * sizeof(PointIndex) +
+         s.reach.capacity() * sizeof(float) + s.ref.capacity() * sizeof(std::uint16_t) +
+         s.poses.capacity() * sizeof(State::Pose) +
+         s.scratch_idx.capacity() * sizeof(PointIndex) + s.scratch_d2.capacity() * sizeof(double);
+}
+
+// ---------------------------------------------------------------------------------------------
+// The search kernel shared by find() and nearest_sq_distances().
+
+namespace {
+
+struct Kernel {
+  const KdTree* tree;
+  const Vec3* target;
+  std::size_t target_size;
+  const Vec3* source;
+  CorrespondenceWorkspace::State* st;  // the cache (nullptr: plain search)
+  std::size_t width;                   // == st->width
+  std::uint32_t pose_id;
+
+  // The `want` first neighbours of q (source point s) in the tree's total order, written sorted
+  // into idx/d2 (capacity >= width); returns how many (min(want, target size)). Sets *searched
+  // if the tree was searched (the entry of s is then refreshed at this pose).
+  std::size_t neighbours(std::size_t s, const Vec3& q, std::size_t want, PointIndex* idx,
+                         double* d2, bool* searched) const {
+    const std::size_t have = std::min(width, target_size);  // held by every entry
+    PointIndex* entry = st->cand.data() + s * width;
+    const float reach = st->reach[s];
+    if (reach >= 0.0f) {
+      // Recompute the candidates' distances at q and sort them exactly as the tree would.
+      for (std::size_t j = 0; j < have; ++j) {
+        idx[j] = entry[j];
+        d2[j] = squared_distance(q, target[entry[j]]);
+      }
+      sort_candidates(idx, d2, have);
+      const std::size_t got = std::min(want, have);
+      bool valid = std::isinf(reach);  // every target point is a candidate
+      if (!valid && got > 0) {
+        const CorrespondenceWorkspace::State::Pose& P = st->poses[st->ref[s]];
+        const Vec3 q_ref = P.R * source[s] + P.t;
+        const double moved = std::sqrt(squared_distance(q, q_ref));
+        const double kth = std::sqrt(d2[got - 1]);
+        valid = kth * (1.0 + kSlack) + moved * (1.0 + kSlack) <
+                static_cast<double>(reach) * (1.0 - kSlack);
+      }
+      if (valid) {
+        std::copy(idx, idx + have, entry);  // keep them nearly sorted for the next time
+        *searched = false;
+        return got;
+      }
+    }
+    // Search again, seeded with the old candidates re-evaluated at q (already sorted in idx/d2):
+    // a tight bound from the start.
+    const std::size_t found = reach >= 0.0f
+                                  ? tree->knn_seeded(q, width, idx, d2, have, idx, d2)
+                                  : tree->knn(q, width, idx, d2);
+    *searched = true;
+    if (found == 0) {
+      st->reach[s] = -1.0f;
+      return 0;
+    }
+    std::copy(idx, idx + found, entry);
+    st->reach[s] = found >= target_size ? std::numeric_limits<float>::infinity()
+                                        : round_down_to_float(std::sqrt(d2[found - 1]));
+    st->ref[s] = static_cast<std::uint16_t>(pose_id);
+    return std::min(want, found);
+  }
+};
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// Finder
+
 CorrespondenceFinder::CorrespondenceFinder(const KdTree& target, std::vector<double> target_weights,
                                            const CorrespondenceOptions& options)
     : target_(&target), weights_(std::move(target_weights)), options_(options) {
+  init();
+}
+
+CorrespondenceFinder::CorrespondenceFinder(Borrow, const KdTree& target,
+                                           const std::vector<double>& target_weights,
+                                           const CorrespondenceOptions& options)
+    : target_(&target), borrowed_weights_(&target_weights), options_(options) {
+  init();
+}
+
+CorrespondenceFinder CorrespondenceFinder::borrowing(const KdTree& target,
+                                                     const std::vector<double>& target_weights,
+                                                     const CorrespondenceOptions& options) {
+  return CorrespondenceFinder(Borrow{}, target, target_weights, options);
+}
+
+void CorrespondenceFinder::init() {
   std::string why;
   if (!options_.is_valid(&why)) throw InvalidArgument("correspondence options: " + why);
-  if (options_.kind == CorrespondenceKind::kWeightedKnn && weights_.size() != target.size()) {
-    throw InvalidArgument("correspondence: " + std::to_string(weights_.size()) +
-                          " target weights for " + std::to_string(target.size()) +
-                          " target points");
+  const std::vector<double>& w = weights();
+  if (options_.kind == CorrespondenceKind::kWeightedKnn && w.size() != target_->size()) {
+    throw InvalidArgument("correspondence: " + std::to_string(w.size()) + " target weights for " +
+                          std::to_string(target_->size()) + " target points");
   }
-  for (std::size_t i = 0; i < weights_.size(); ++i) {
-    if (!std::isfinite(weights_[i]) || weights_[i] < 0.0) {
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    if (!std::isfinite(w[i]) || w[i] < 0.0) {
       throw InvalidArgument("correspondence: target weight " + std::to_string(i) +
                             " must be finite and >= 0");
     }
@@ -55,54 +299,209 @@ CorrespondenceFinder::CorrespondenceFinder(const KdTree& target, std::vector<dou
                             : options_.max_distance_m * options_.max_distance_m;
 }
 
+std::size_t CorrespondenceFinder::cache_width() const {
+  const std::size_t k =
+      options_.kind == CorrespondenceKind::kWeightedKnn ? static_cast<std::size_t>(options_.k) : 1;
+  // k + m candidates: a wider cache survives larger motions but costs more per search; on the
+  // real pair the total is flat for m in [2, k], and this is its middle (docs/performance.md).
+  return k + std::max<std::size_t>(3, (k + 1) / 2);
+}
+
+namespace {
+
+// The strategy applied to the k first neighbours (sorted in the tree's total order). Returns the
+// chosen correspondence, or one with target_index == kNoMatch.
+inline Correspondence select_match(PointIndex s, const PointIndex* idx, const double* d2,
+                                   std::size_t found, bool weighted, const double* weights,
+                                   double max_sq) {
+  Correspondence c{s, kNoMatch, 0.0};
+  if (!weighted) {
+    if (found >= 1 && d2[0] <= max_sq) {
+      c.target_index = idx[0];
+      c.distance_sq_m2 = d2[0];
+    }
+    return c;
+  }
+  // Eq. 6: argmax of the target weight over candidates within range; candidates come nearest
+  // first, so a strict '>' keeps the nearer one on equal weights. Weight 0 never matches.
+  // (Branch-free selection: the comparisons' outcomes are unpredictable.)
+  double best_w = 0.0;
+  std::size_t best = found;
+  for (std::size_t j = 0; j < found; ++j) {
+    const double w = d2[j] <= max_sq ? weights[idx[j]] : 0.0;
+    const bool better = w > best_w;
+    best_w = better ? w : best_w;
+    best = better ? j : best;
+  }
+  if (best < found) {
+    c.target_index = idx[best];
+    c.distance_sq_m2 = d2[best];
+  }
+  return c;
+}
+
+// Removes the kNoMatch slots, keeping source order.
+void compact(Correspondences& out) {
+  std::size_t w = 0;
+  for (std::size_t r = 0; r < out.size(); ++r) {
+    if (out[r].target_index != kNoMatch) out[w++] = out[r];
+  }
+  out.resize(w);
+}
+
+}  // namespace
+
 void CorrespondenceFinder::find(const Points3& source_points, Correspondences& out) const {
   const std::size_t n = source_points.size();
   const bool weighted = options_.kind == CorrespondenceKind::kWeightedKnn;
   const std::size_t k = weighted ? static_cast<std::size_t>(options_.k) : 1;
+  const double* w = weights().data();
+  out.resize(n);
 
   // One slot per source point, filled in parallel, then compacted in source order: the result
   // does not depend on the thread count or schedule.
-  std::vector<PointIndex> match(n, kNoMatch);
-  std::vector<double> match_dist(n, 0.0);
-
 #pragma omp parallel
   {
     std::vector<PointIndex> idx(k);
     std::vector<double> dist(k);
 #pragma omp for schedule(static)
     for (std::ptrdiff_t s = 0; s < static_cast<std::ptrdiff_t>(n); ++s) {
-      const Vec3& q = source_points[static_cast<std::size_t>(s)];
-      if (!q.allFinite()) continue;
-      const std::size_t found = target_->knn(q, k, idx.data(), dist.data());
-      if (!weighted) {
-        if (found == 1 && dist[0] <= max_distance_sq_m2_) {
-          match[s] = idx[0];
-          match_dist[s] = dist[0];
-        }
-        continue;
-      }
-      // Eq. 6: argmax of the target weight over candidates within range; candidates come nearest
-      // first, so a strict '>' keeps the nearer one on equal weights. Weight 0 never matches.
-      double best_w = 0.0;
-      for (std::size_t j = 0; j < found; ++j) {
-        if (dist[j] > max_distance_sq_m2_) break;
-        const double w = weights_[idx[j]];
-        if (w > best_w) {
-          best_w = w;
-          match[s] = idx[j];
-          match_dist[s] = dist[j];
-        }
-      }
+      const auto si = static_cast<std::size_t>(s);
+      const std::size_t found = target_->knn(source_points[si], k, idx.data(), dist.data());
+      out[si] = select_match(static_cast<PointIndex>(si), idx.data(), dist.data(), found, weighted,
+                             w, max_distance_sq_m2_);
     }
   }
+  compact(out);
+}
 
-  out.clear();
-  out.reserve(n);
-  for (std::size_t s = 0; s < n; ++s) {
-    if (match[s] != kNoMatch) {
-      out.push_back({static_cast<PointIndex>(s), match[s], match_dist[s]});
+void CorrespondenceFinder::bind(const Points3& source_points,
+                                CorrespondenceWorkspace& workspace) const {
+  CorrespondenceWorkspace::State& st = *workspace.state_;
+  const std::size_t width = cache_width();
+  if (st.tree != target_ || st.source != &source_points || st.n != source_points.size() ||
+      st.width != width) {
+    st.tree = target_;
+    st.source = &source_points;
+    st.n = source_points.size();
+    st.width = width;
+    st.order = morton_order(source_points);
+    st.cand.clear();
+    st.reach.clear();
+    st.ref.clear();
+    st.poses.clear();
+  }
+}
+
+void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T_target_source,
+                                Points3& moved, Correspondences& out,
+                                CorrespondenceWorkspace& workspace, bool reuse) const {
+  bind(source_points, workspace);
+  CorrespondenceWorkspace::State& st = *workspace.state_;
+  const std::size_t n = source_points.size();
+  const bool weighted = options_.kind == CorrespondenceKind::kWeightedKnn;
+  const std::size_t k = weighted ? static_cast<std::size_t>(options_.k) : 1;
+  const double* w = weights().data();
+  const double max_sq = max_distance_sq_m2_;
+  moved.resize(n);
+  out.resize(n);
+
+  Kernel kernel{target_, target_->points().data(), target_->size(), source_points.data(),
+                &st, st.width, 0};
+  bool pushed = false;
+  if (reuse) {
+    st.ensure_cache();
+    kernel.pose_id = st.register_pose(T_target_source.linear(), T_target_source.translation(),
+                                      &pushed);
+  }
+  st.ensure_scratch(std::max(st.width, k));
+  const std::size_t sw = st.scratch_width;
+  // Exactly transform_points(): R * p + t with R and t copied out of the isometry.
+  const Mat3 R = T_target_source.linear();
+  const Vec3 t = T_target_source.translation();
+  const PointIndex* order = st.order.data();
+  std::size_t searched = 0, reused = 0;
+
+#pragma omp parallel reduction(+ : searched, reused)
+  {
+    PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
+    double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
+#pragma omp for schedule(dynamic, 256)
+    for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
+      const PointIndex s = order[j];
+      const Vec3 q = R * source_points[s] + t;
+      moved[s] = q;
+      std::size_t found = 0;
+      if (!q.allFinite()) {
+        if (reuse) st.reach[s] = -1.0f;
+      } else if (reuse) {
+        bool did_search = false;
+        found = kernel.neighbours(s, q, k, idx, d2, &did_search);
+        if (did_search) {
+          ++searched;
+        } else {
+          ++reused;
+        }
+      } else {
+        found = target_->knn(q, k, idx, d2);
+        ++searched;
+      }
+      out[s] = select_match(s, idx, d2, found, weighted, w, max_sq);
     }
   }
+  if (pushed && searched == 0) st.poses.pop_back();  // no entry refers to this pose
+  st.searched = searched;
+  st.reused = reused;
+  compact(out);
+}
+
+void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
+                                                const Isometry3& T_target_source,
+                                                std::size_t begin, std::size_t end, double* d2_out,
+                                                CorrespondenceWorkspace& workspace) const {
+  bind(source_points, workspace);
+  CorrespondenceWorkspace::State& st = *workspace.state_;
+  end = std::min(end, source_points.size());
+  if (begin >= end) return;
+  st.ensure_cache();
+  st.ensure_scratch(st.width);
+  bool pushed = false;
+  Kernel kernel{target_, target_->points().data(), target_->size(), source_points.data(),
+                &st, st.width, 0};
+  kernel.pose_id =
+      st.register_pose(T_target_source.linear(), T_target_source.translation(), &pushed);
+  const std::size_t sw = st.scratch_width;
+  const Mat3 R = T_target_source.linear();
+  const Vec3 t = T_target_source.translation();
+  std::size_t searched = 0, reused = 0;
+
+#pragma omp parallel reduction(+ : searched, reused)
+  {
+    PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
+    double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(begin);
+         i < static_cast<std::ptrdiff_t>(end); ++i) {
+      const auto s = static_cast<std::size_t>(i);
+      const Vec3 q = R * source_points[s] + t;
+      double value = std::numeric_limits<double>::infinity();
+      if (q.allFinite()) {
+        bool did_search = false;
+        if (kernel.neighbours(s, q, 1, idx, d2, &did_search) == 1) value = d2[0];
+        if (did_search) {
+          ++searched;
+        } else {
+          ++reused;
+        }
+      } else {
+        st.reach[s] = -1.0f;
+      }
+      d2_out[s - begin] = value;
+    }
+  }
+  if (pushed && searched == 0) st.poses.pop_back();
+  st.searched = searched;
+  st.reused = reused;
 }
 
 }  // namespace lmalign

@@ -1,5 +1,6 @@
 #include "lmalign/registration/estimation.hpp"
 
+#include <cmath>
 #include <string>
 
 #include <Eigen/SVD>
@@ -10,12 +11,20 @@ namespace lmalign {
 
 Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& target_points,
                                    const Correspondences& correspondences,
-                                   const std::vector<double>* weights) {
+                                   const std::vector<double>* weights, EstimationReport* report) {
   const std::size_t n = correspondences.size();
   if (n == 0) throw InvalidArgument("estimate_rigid_transform: no correspondences");
   if (weights != nullptr && weights->size() != n) {
     throw InvalidArgument("estimate_rigid_transform: " + std::to_string(weights->size()) +
                           " weights for " + std::to_string(n) + " correspondences");
+  }
+  if (weights != nullptr) {
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!std::isfinite((*weights)[i]) || (*weights)[i] < 0.0) {
+        throw InvalidArgument("estimate_rigid_transform: weight " + std::to_string(i) + " is " +
+                              std::to_string((*weights)[i]) + ", expected finite and >= 0");
+      }
+    }
   }
   auto w = [&](std::size_t i) { return weights == nullptr ? 1.0 : (*weights)[i]; };
 
@@ -45,17 +54,43 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
                    (target_points[c.target_index] - mu_t).transpose();
   }
 
+  if (!H.allFinite() || !mu_s.allFinite() || !mu_t.allFinite()) {
+    throw InvalidArgument(
+        "estimate_rigid_transform: the cross-covariance overflows (coordinates too large)");
+  }
+
   // R = V diag(1, 1, det(V U^T)) U^T maximises trace(R H) over rotations.
   Eigen::JacobiSVD<Mat3> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
   const Mat3& U = svd.matrixU();
   const Mat3& V = svd.matrixV();
-  Mat3 D = Mat3::Identity();
-  if ((V * U.transpose()).determinant() < 0.0) D(2, 2) = -1.0;
-  const Mat3 R = V * D * U.transpose();
+  const Vec3 sigma = svd.singularValues();  // descending, >= 0
+  // Rank <= 1 (identical or collinear points on either side): every rotation taking u_0 onto
+  // v_0 (rank 1), or any rotation at all (rank 0), is a minimiser, and the SVD's choice among
+  // them is arbitrary. Take the smallest one instead, so the result is deterministic and no
+  // spurious spin about the line is introduced.
+  const bool degenerate = !(sigma(0) > 0.0) || sigma(1) <= EstimationReport::kDegenerateRatio * sigma(0);
+  Mat3 R;
+  if (!degenerate) {
+    Mat3 D = Mat3::Identity();
+    if ((V * U.transpose()).determinant() < 0.0) D(2, 2) = -1.0;
+    R = V * D * U.transpose();
+  } else if (sigma(0) > 0.0) {
+    R = Quat::FromTwoVectors(U.col(0), V.col(0)).toRotationMatrix();
+  } else {
+    R = Mat3::Identity();
+  }
+  if (report != nullptr) {
+    report->singular_values = sigma;
+    report->degenerate = degenerate;
+  }
 
   Isometry3 T = Isometry3::Identity();
   T.linear() = R;
   T.translation() = mu_t - R * mu_s;
+  if (!T.matrix().allFinite()) {
+    throw InvalidArgument("estimate_rigid_transform: the estimate is not finite (coordinates too "
+                          "large)");
+  }
   return T;
 }
 

@@ -98,6 +98,20 @@ std::string RegistrationResult::brief_report() const {
 }
 
 namespace {
+void check_coordinate_range(const char* which, const Points3& points) {
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const double largest = points[i].cwiseAbs().maxCoeff();
+    if (!(largest <= kMaxCoordinateM)) {
+      char buf[160];
+      std::snprintf(buf, sizeof(buf),
+                    "registration: %s point %zu has a coordinate of magnitude %g m, beyond the "
+                    "supported %g m",
+                    which, i, largest, kMaxCoordinateM);
+      throw InvalidArgument(buf);
+    }
+  }
+}
+
 Points3 validated_positions(const Map& map) {
   map.validate();
   return map.positions();
@@ -153,40 +167,66 @@ RegistrationResult align(const Points3& source_points, const PreparedTarget& tar
       throw InvalidArgument("registration: source point " + std::to_string(i) + " is not finite");
     }
   }
+  // Degenerate inputs (docs/robustness.md): empty sets are refused; coordinates so large that
+  // a double cannot resolve 0.1 m are refused before anything can overflow.
+  if (source_points.empty()) throw InvalidArgument("registration: the source has no points");
+  if (target.size() == 0) throw InvalidArgument("registration: the target has no points");
+  check_coordinate_range("source", source_points);
+  check_coordinate_range("target", target.points());
+  if (!(T_target_source_init.translation().cwiseAbs().maxCoeff() <= kMaxCoordinateM)) {
+    throw InvalidArgument("registration: the initial guess translation exceeds " +
+                          std::to_string(kMaxCoordinateM) + " m");
+  }
 
   CorrespondenceOptions copt;
   copt.kind = options.correspondence;
   copt.k = options.k;
   copt.max_distance_m = options.max_correspondence_distance_m;
-  std::vector<double> weights;
-  if (options.correspondence == CorrespondenceKind::kWeightedKnn) {
-    weights = target.weights(options.weight);
-  }
-  const CorrespondenceFinder finder(target.tree(), std::move(weights), copt);
+  // The finder borrows the target's weights (no copy). The workspace holds every buffer of the
+  // loop (allocated once, in the first iteration) and the exact neighbour-reuse cache.
+  const std::vector<double> no_weights;
+  const CorrespondenceFinder finder = CorrespondenceFinder::borrowing(
+      target.tree(),
+      options.correspondence == CorrespondenceKind::kWeightedKnn ? target.weights(options.weight)
+                                                                 : no_weights,
+      copt);
+  CorrespondenceWorkspace workspace;
+  const bool reuse = options.reuse_neighbours;
+  // Scores through the cache are bit-identical to fitness_score() on the tree.
+  auto score_at = [&](const Isometry3& T_score) {
+    return reuse ? fitness_score(source_points, finder, T_score, options.score_max_range_m,
+                                 workspace)
+                 : fitness_score(source_points, target.tree(), T_score, options.score_max_range_m);
+  };
   ConvergenceCriteria criteria(options.convergence);
 
   RegistrationResult result;
-  result.initial_score_m2 =
-      fitness_score(source_points, target.tree(), T_target_source_init, options.score_max_range_m)
-          .mean_sq_m2;
+  if (options.record_history) {
+    result.history.reserve(static_cast<std::size_t>(options.convergence.max_iterations));
+  }
+  result.initial_score_m2 = score_at(T_target_source_init).mean_sq_m2;
 
   Isometry3 T = T_target_source_init;
   Points3 moved;
   Correspondences correspondences;
   const std::size_t min_corr = static_cast<std::size_t>(options.convergence.min_correspondences);
+  bool last_step_degenerate = false;
 
   for (;;) {
-    transform_points(T, source_points, moved);
-    finder.find(moved, correspondences);
+    // moved = T * source (exactly transform_points()), then the correspondences of `moved`.
+    finder.find(source_points, T, moved, correspondences, workspace, reuse);
     if (correspondences.size() < min_corr) {
       result.termination = TerminationReason::kNoCorrespondences;
       result.num_correspondences = correspondences.size();
       break;
     }
-    const Isometry3 increment = estimate_rigid_transform(moved, target.points(), correspondences);
+    EstimationReport estimation;
+    const Isometry3 increment =
+        estimate_rigid_transform(moved, target.points(), correspondences, nullptr, &estimation);
+    last_step_degenerate = estimation.degenerate;
     if (!is_finite(increment)) {
       // Cannot happen with finite inputs; guard so a result is never NaN.
-      result.termination = TerminationReason::kNoCorrespondences;
+      result.termination = TerminationReason::kDegenerate;
       break;
     }
     T = increment * T;
@@ -199,8 +239,7 @@ RegistrationResult align(const Points3& source_points, const PreparedTarget& tar
       rec.num_correspondences = correspondences.size();
       rec.mse_m2 = correspondence_mse_m2(correspondences);
       if (options.history_scores) {
-        rec.score_m2 =
-            fitness_score(source_points, target.tree(), T, options.score_max_range_m).mean_sq_m2;
+        rec.score_m2 = score_at(T).mean_sq_m2;
       }
       result.history.push_back(rec);
     }
@@ -212,12 +251,16 @@ RegistrationResult align(const Points3& source_points, const PreparedTarget& tar
     }
   }
 
+  // The rotation of a rank-deficient last step is one minimiser among many: say so rather than
+  // report convergence (docs/robustness.md).
+  if (last_step_degenerate && result.termination != TerminationReason::kNoCorrespondences) {
+    result.termination = TerminationReason::kDegenerate;
+  }
   result.converged = result.termination == TerminationReason::kTransform ||
                      result.termination == TerminationReason::kAbsoluteMse ||
                      result.termination == TerminationReason::kRelativeMse;
   result.T_target_source = T;
-  result.final_score_m2 =
-      fitness_score(source_points, target.tree(), T, options.score_max_range_m).mean_sq_m2;
+  result.final_score_m2 = score_at(T).mean_sq_m2;
   result.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return result;

@@ -26,13 +26,23 @@ struct MapReadOptions {
   double covariance_symmetry_tolerance = 1e-6;
   /// PSD tolerance: smallest eigenvalue >= -tol * max(1e-12, largest |eigenvalue|).
   double covariance_psd_tolerance = 1e-9;
+  /// Longest accepted line, in bytes (without its line ending). A longer line throws ParseError
+  /// naming it, after reading at most this many bytes of it, so one endless line cannot exhaust
+  /// memory. 1 MiB holds a LANDMARK with about 40,000 observations (docs/robustness.md).
+  std::size_t max_line_bytes = std::size_t{1} << 20;
+
+  /// Ceres-style check: false, and *why names the bad field (tolerances must be finite and
+  /// >= 0; max_line_bytes >= 64). read_map throws InvalidArgument on invalid options.
+  bool is_valid(std::string* why = nullptr) const;
 };
 
 /// Reads a map file. Strict: every malformed record throws ParseError naming the file, the
 /// 1-based line and what was expected (unknown record type, missing or extra token, non-numeric
 /// value, NaN/inf, quaternion norm off by more than the tolerance, non-symmetric or non-PSD
 /// covariance, observation of an unknown frame, duplicate frame or landmark id).
-/// Throws IoError if the file cannot be opened or read.
+/// Throws IoError if the file cannot be opened or read, InvalidArgument if options are invalid.
+/// Memory: the text is streamed one line at a time; only the kept landmarks, and the ids and
+/// line numbers of all records, are held.
 Map read_map(const std::string& path, const MapReadOptions& options = {});
 
 /// Same, from a stream; `name` is used in error messages in place of a path.

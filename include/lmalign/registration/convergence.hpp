@@ -18,9 +18,15 @@ enum class TerminationReason {
   kAbsoluteMse,        ///< PCL CONVERGENCE_CRITERIA_ABS_MSE
   kRelativeMse,        ///< PCL CONVERGENCE_CRITERIA_REL_MSE
   kNoCorrespondences,  ///< PCL CONVERGENCE_CRITERIA_NO_CORRESPONDENCES (fewer than the minimum)
+  /// Not in PCL: the last iteration's correspondences did not determine the rotation (all points
+  /// identical or collinear on the source or target side; see EstimationReport). The estimate
+  /// is finite and one of the minimisers, but not unique. Reported instead of the criterion that
+  /// stopped the run (docs/robustness.md).
+  kDegenerate,
 };
 
-/// "max_iterations", "transform", "absolute_mse", "relative_mse", "no_correspondences".
+/// "max_iterations", "transform", "absolute_mse", "relative_mse", "no_correspondences",
+/// "degenerate".
 std::string to_string(TerminationReason reason);
 
 /// PCL's epsilons, with ICP's defaults (the paper's settings).

@@ -51,6 +51,9 @@ struct RegistrationOptions {
   bool history_scores = false;
   /// Range for the final fitness score, metres (see fitness_score()); infinite by default.
   double score_max_range_m = std::numeric_limits<double>::infinity();
+  /// Exact reuse of nearest-neighbour results between iterations (CorrespondenceWorkspace). It
+  /// never changes a result: false searches the tree for every point, with bit-identical output.
+  bool reuse_neighbours = true;
 
   /// The paper's setting for a strategy: base = nearest; the others weighted-kNN with its weight.
   static RegistrationOptions paper(PaperStrategy strategy, int k = 5);
@@ -113,13 +116,19 @@ class PreparedTarget {
   std::map<WeightKind, std::vector<double>> weights_;
 };
 
+/// Largest accepted |coordinate| of a source or target point, metres: beyond it a double cannot
+/// resolve 0.1 m, and squared distances head for overflow. align() refuses larger ones.
+inline constexpr double kMaxCoordinateM = 1e15;
+
 /// Aligns `source_points` (metres, source frame) to the prepared target, starting from
 /// T_target_source_init. Mirrors PCL ICP's loop: transform the source by the current estimate,
 /// find correspondences, estimate the increment by SVD, compose it, test convergence (see
 /// ConvergenceCriteria). The source is re-transformed from the original points by the full
 /// estimate each iteration (PCL transforms incrementally; see docs/conventions.md).
 /// Deterministic for any thread count. Throws InvalidArgument on invalid options, a non-finite
-/// initial guess or non-finite source points.
+/// initial guess, non-finite source points, an empty source or target, or a coordinate beyond
+/// kMaxCoordinateM. Degenerate geometry (fewer than 3 correspondences, identical or collinear
+/// points) gives a finite result with termination kNoCorrespondences or kDegenerate.
 RegistrationResult align(const Points3& source_points, const PreparedTarget& target,
                          const RegistrationOptions& options,
                          const Isometry3& T_target_source_init = Isometry3::Identity());

@@ -1,4 +1,13 @@
-// Nearest-neighbour search over a fixed 3-D point set: a nanoflann kd-tree, built once.
+// Nearest-neighbour search over a fixed 3-D point set: a kd-tree built once.
+//
+// The search is EXACT under one total order: a target point p comes before p' when
+//   (d2(q, p), index(p)) < (d2(q, p'), index(p'))   lexicographically,
+// where d2 is squared_distance() below, evaluated in double precision in a fixed order. The k
+// nearest points are the first k in that order, always, whatever the tree's shape or the traversal:
+// ties in distance resolve by the lower index, including at the k-th place. Two consequences that
+// the exact neighbour reuse of the ICP loop relies on (docs/performance.md):
+//   - the first k results of a (k + m)-query are exactly the results of a k-query;
+//   - a squared distance recomputed with squared_distance() is bit-identical to the tree's.
 #pragma once
 
 #include <cstddef>
@@ -12,15 +21,23 @@ namespace lmalign {
 /// Index of a point in the set it was built from.
 using PointIndex = std::uint32_t;
 
-/// An immutable kd-tree (nanoflann, L2) over a copy of `points`. Thread-safe for concurrent
-/// queries. Neighbours come sorted by increasing distance. Results are deterministic for a given
-/// point set (ties in distance resolve by the tree's fixed traversal, lower index first among the
-/// tied points kept).
+/// The squared Euclidean distance every lmalign search uses: ((dx dx + dy dy) + dz dz) with
+/// d = a - b, in this order (m^2). Inline so that callers recompute exactly the tree's values.
+inline double squared_distance(const Vec3& a, const Vec3& b) {
+  const double dx = a[0] - b[0];
+  const double dy = a[1] - b[1];
+  const double dz = a[2] - b[2];
+  return dx * dx + dy * dy + dz * dz;
+}
+
+/// An immutable kd-tree over a copy of `points`. Thread-safe for concurrent queries. Neighbours
+/// come sorted by increasing squared distance, equal distances by increasing index (see above).
 class KdTree {
  public:
-  /// Builds the tree. Throws InvalidArgument if a point is not finite or there are more than
-  /// 2^32 - 1 points. An empty set is allowed (every query then returns 0 neighbours).
-  explicit KdTree(Points3 points, std::size_t leaf_size = 10);
+  /// Builds the tree (median splits on the widest axis; deterministic). Throws InvalidArgument if
+  /// a point is not finite, leaf_size is 0, or there are more than 2^32 - 2 points. An empty set
+  /// is allowed (every query then returns 0 neighbours).
+  explicit KdTree(Points3 points, std::size_t leaf_size = 8);
   ~KdTree();
   KdTree(KdTree&&) noexcept;
   KdTree& operator=(KdTree&&) noexcept;
@@ -28,15 +45,29 @@ class KdTree {
   KdTree& operator=(const KdTree&) = delete;
 
   std::size_t size() const;
+  /// The points, in the order given to the constructor (indices refer to this order).
   const Points3& points() const;
 
   /// The k nearest points to `query` (metres). Writes min(k, size()) results into `indices` and
-  /// `distances_sq_m2` (squared distances, m^2), nearest first, and returns how many.
+  /// `distances_sq_m2` (squared distances, m^2), in the total order above, and returns how many.
+  /// A query that is not finite returns 0.
   std::size_t knn(const Vec3& query, std::size_t k, PointIndex* indices,
                   double* distances_sq_m2) const;
 
-  /// The nearest point; false if the set is empty.
+  /// Exactly knn(), but starting from `num_seeds` known candidates: seed_indices (distinct, each
+  /// < size()) with seed_distances_sq_m2 = squared_distance(query, point), sorted in the total
+  /// order above -- e.g. the neighbours of a nearby earlier query, re-evaluated at `query`. The
+  /// seeds only tighten the search bound from the start; the result is identical to knn().
+  /// The seed arrays may be the output arrays (in place).
+  std::size_t knn_seeded(const Vec3& query, std::size_t k, const PointIndex* seed_indices,
+                         const double* seed_distances_sq_m2, std::size_t num_seeds,
+                         PointIndex* indices, double* distances_sq_m2) const;
+
+  /// The nearest point; false if the set is empty (or the query is not finite).
   bool nearest(const Vec3& query, PointIndex* index, double* distance_sq_m2) const;
+
+  /// Heap bytes held by the tree (points, permutation and nodes).
+  std::size_t memory_bytes() const;
 
  private:
   struct Impl;

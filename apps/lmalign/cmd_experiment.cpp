@@ -1,0 +1,426 @@
+// `lmalign experiment`: run an experiment protocol written in YAML (the paper's Tables 1-4,
+// convergence basins) and write a report folder: results.csv, summary.json, tables.md, plots.
+// See docs/experiments.md.
+#include <omp.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli_util.hpp"
+#include "commands.hpp"
+#include "lmalign/core/error.hpp"
+#include "lmalign/experiment/cases.hpp"
+#include "lmalign/experiment/config.hpp"
+#include "lmalign/experiment/report.hpp"
+#include "lmalign/experiment/runner.hpp"
+#include "lmalign/io/atomic_file.hpp"
+
+namespace lmalign::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+// --- signals: the first SIGINT/SIGTERM asks the runner to stop after the runs in flight; a
+// second one ends the process at once (every file on disk is complete: they are written
+// atomically).
+std::atomic<bool> g_cancel{false};
+static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler needs a lock-free flag");
+
+extern "C" void on_stop_signal(int sig) {
+  if (g_cancel.exchange(true)) {
+    ::signal(sig, SIG_DFL);
+    ::raise(sig);
+  }
+}
+
+class StopSignals {
+ public:
+  StopSignals() {
+    struct sigaction sa {};
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESTART;
+    ::sigaction(SIGINT, &sa, &old_int_);
+    ::sigaction(SIGTERM, &sa, &old_term_);
+  }
+  ~StopSignals() {
+    ::sigaction(SIGINT, &old_int_, nullptr);
+    ::sigaction(SIGTERM, &old_term_, nullptr);
+  }
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
+
+struct ExperimentArgs {
+  std::string config;
+  std::string output;
+  int threads = 0;
+  bool no_plots = false;
+  std::string plot_case;
+  std::vector<std::string> only;
+};
+
+/// The repository holding this executable (the first ancestor with scripts/plot_experiment.py),
+/// or empty.
+fs::path repository_root() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return {};
+  for (fs::path p = exe.parent_path(); !p.empty(); p = p.parent_path()) {
+    if (fs::exists(p / "scripts" / "plot_experiment.py", ec)) return p;
+    if (p == p.root_path()) break;
+  }
+  return {};
+}
+
+/// $LMALIGN_DATA, else ../shared/data beside the repository (as the Makefile), else empty.
+std::string data_dir() {
+  if (const char* env = std::getenv("LMALIGN_DATA"); env != nullptr && *env != '\0') return env;
+  const fs::path root = repository_root();
+  std::error_code ec;
+  if (!root.empty() && fs::is_directory(root.parent_path() / "shared" / "data", ec)) {
+    return (root.parent_path() / "shared" / "data").lexically_normal().string();
+  }
+  return {};
+}
+
+std::string python_interpreter() {
+  if (const char* env = std::getenv("LMALIGN_PYTHON"); env != nullptr && *env != '\0') return env;
+  if (::access("/usr/bin/python3", X_OK) == 0) return "/usr/bin/python3";
+  return "python3";
+}
+
+std::string plot_script() {
+  if (const char* env = std::getenv("LMALIGN_PLOT_SCRIPT"); env != nullptr && *env != '\0')
+    return env;
+  const fs::path root = repository_root();
+  return root.empty() ? std::string() : (root / "scripts" / "plot_experiment.py").string();
+}
+
+/// Runs argv (PATH lookup for argv[0]); returns the exit status, or -1 if it could not run.
+int run_process(const std::vector<std::string>& argv) {
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  std::cout.flush();
+  std::fflush(stdout);
+  const pid_t pid = ::fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    ::execvp(args[0], args.data());
+    std::fprintf(stderr, "lmalign: cannot run %s\n", args[0]);
+    ::_exit(127);
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return -1;
+  }
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  return -1;
+}
+
+std::string duration_text(double seconds) {
+  if (!std::isfinite(seconds) || seconds < 0) return "--:--";
+  const long s = static_cast<long>(seconds + 0.5);
+  char buf[32];
+  if (s >= 3600) {
+    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", s / 3600, (s / 60) % 60, s % 60);
+  } else {
+    std::snprintf(buf, sizeof buf, "%ld:%02ld", s / 60, s % 60);
+  }
+  return buf;
+}
+
+/// A one-line progress bar with ETA on stderr, drawn only when stderr is a terminal.
+class ProgressBar {
+ public:
+  ProgressBar() : enabled_(::isatty(STDERR_FILENO) == 1), start_(Clock::now()) {}
+  void update(const RunnerProgress& p) {
+    if (!enabled_) return;
+    const auto now = Clock::now();
+    const bool last = p.runs_done >= p.runs_total;
+    if (!last && drawn_ && now - last_draw_ < std::chrono::milliseconds(100)) return;
+    last_draw_ = now;
+    drawn_ = true;
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    const double frac = p.runs_total > 0 ? static_cast<double>(p.runs_done) / p.runs_total : 1.0;
+    const int width = 30;
+    const int filled = static_cast<int>(frac * width);
+    std::string bar(static_cast<std::size_t>(filled), '=');
+    if (filled < width) bar += '>' + std::string(static_cast<std::size_t>(width - filled - 1), ' ');
+    const double eta = p.runs_done > 0 ? elapsed * (p.runs_total - p.runs_done) / p.runs_done : NAN;
+    std::fprintf(stderr, "\r[%s] %zu/%zu runs %3.0f%%  %s elapsed  ETA %s \033[K", bar.c_str(),
+                 p.runs_done, p.runs_total, 100.0 * frac, duration_text(elapsed).c_str(),
+                 duration_text(eta).c_str());
+    std::fflush(stderr);
+  }
+  void finish() {
+    if (enabled_ && drawn_) {
+      std::fprintf(stderr, "\n");
+      std::fflush(stderr);
+    }
+    drawn_ = false;
+  }
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  bool enabled_;
+  bool drawn_ = false;
+  Clock::time_point start_;
+  Clock::time_point last_draw_{};
+};
+
+std::string rate_cell(const StrategySummary& s) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%zu/%zu", s.successes, s.runs);
+  return buf;
+}
+
+void print_summary(const Summary& summary) {
+  std::vector<PaperStrategy> strategies;
+  for (const StrategySummary& s : summary.overall) strategies.push_back(s.strategy);
+  std::size_t name_width = 10;
+  for (const ExperimentSummary& e : summary.experiments)
+    name_width = std::max(name_width, e.name.size());
+  std::printf("\nsuccess (%s) per strategy:\n", summary.has_ground_truth
+                                                    ? "right basin against the ground truth"
+                                                    : "score below the threshold");
+  std::printf("  %-*s", static_cast<int>(name_width), "experiment");
+  for (PaperStrategy s : strategies) std::printf(" %13s", to_string(s).c_str());
+  std::printf("\n");
+  auto row = [&](const std::string& name, const std::vector<StrategySummary>& v, auto cell) {
+    std::printf("  %-*s", static_cast<int>(name_width), name.c_str());
+    for (PaperStrategy s : strategies) {
+      std::string text = "-";
+      for (const StrategySummary& x : v) {
+        if (x.strategy == s) text = cell(x);
+      }
+      std::printf(" %13s", text.c_str());
+    }
+    std::printf("\n");
+  };
+  for (const ExperimentSummary& e : summary.experiments) row(e.name, e.strategies, rate_cell);
+  row("all", summary.overall, rate_cell);
+  if (summary.has_ground_truth) {
+    std::printf("accuracy (median over successful runs), rotation deg / translation cm:\n");
+    row("all", summary.overall, [](const StrategySummary& s) {
+      if (std::isnan(s.median_rotation_error_deg)) return std::string("-");
+      char buf[48];
+      std::snprintf(buf, sizeof buf, "%.2f / %.1f", s.median_rotation_error_deg,
+                    100.0 * s.median_translation_error_m);
+      return std::string(buf);
+    });
+  }
+}
+
+int run_experiment(ExperimentArgs a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ConfigLoadOptions lo;
+  lo.data_dir = data_dir();
+  ExperimentConfig config = load_experiment_config(a.config, lo);
+  if (!a.only.empty()) select_experiments(config, a.only);
+  const std::string out_dir =
+      a.output.empty() ? (fs::path("out") / config.name).string() : a.output;
+
+  const fs::path out(out_dir);
+  const std::string csv_path = (out / "results.csv").string();
+  const std::vector<std::string> inputs{a.config, config.source.path, config.target.path,
+                                        config.ground_truth.path};
+  for (const char* name : {"config.yaml", "results.csv", "summary.json", "tables.md", "history.csv",
+                           "alignment_points.csv"}) {
+    refuse_output_over_input("--output", (out / name).string(), inputs);
+  }
+
+  {
+    std::error_code ec;
+    if (fs::exists(out, ec) && !fs::is_directory(out, ec)) {
+      throw InvalidArgument("--output '" + out_dir + "' exists and is not a folder");
+    }
+  }
+
+  const ExperimentInputs in = load_experiment_inputs(config);
+  const Points3 source_points = in.source.positions();
+  const std::vector<Case> cases = expand_cases(config, source_points);
+  if (!a.plot_case.empty()) {
+    config.plot_case = a.plot_case;
+  } else if (!a.only.empty() && !config.plot_case.empty() && !find_case(cases, config.plot_case)) {
+    config.plot_case.clear();  // the config's plot case is in an experiment left out by --only
+  }
+  const std::optional<std::size_t> plot_case = default_plot_case(config, cases);
+  std::size_t runs = 0;
+  for (const Case& c : cases) runs += c.strategies.size();
+  const int threads = a.threads > 0 ? a.threads : std::max(1, omp_get_num_procs());
+
+  std::printf("lmalign experiment: %s -> %s\n", a.config.c_str(), out_dir.c_str());
+  std::printf("  source %s (%zu landmarks), target %s (%zu landmarks)\n",
+              config.source.path.c_str(), in.source.landmarks.size(), config.target.path.c_str(),
+              in.target.landmarks.size());
+  if (config.has_ground_truth()) {
+    std::printf(
+        "  ground truth: %s; success = rotation error < %g deg and translation error < %g m\n",
+        config.ground_truth.kind == GroundTruthSpec::Kind::kIdentity
+            ? "identity"
+            : config.ground_truth.path.c_str(),
+        config.success.rotation_deg, config.success.translation_m);
+  } else {
+    std::printf("  no ground truth; success = final score < %g m^2\n", config.success.score_m2);
+  }
+  std::printf("  %zu experiments, %zu cases, %zu runs (case x strategy), %d threads\n",
+              config.experiments.size(), cases.size(), runs, threads);
+  std::fflush(stdout);
+
+  // The folder starts with the resolved config and a valid (header-only) results.csv; stale
+  // outputs of an earlier run are removed so that nothing in it disagrees with this run.
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) throw IoError("cannot create the output folder '" + out_dir + "': " + ec.message());
+  for (const char* name : {"summary.json", "tables.md", "history.csv", "alignment_points.csv"}) {
+    fs::remove(out / name, ec);
+  }
+  if (fs::is_directory(out / "plots", ec)) {
+    for (const auto& entry : fs::directory_iterator(out / "plots", ec)) {
+      if (entry.path().extension() == ".png") fs::remove(entry.path(), ec);
+    }
+  }
+  const std::string resolved = resolved_config_yaml(config);
+  write_file_atomically((out / "config.yaml").string(), [&](std::ostream& o) { o << resolved; });
+  write_file_atomically(csv_path, [&](std::ostream& o) { write_results_csv(o, cases, {}); });
+
+  const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
+
+  // Finished cases, flushed to results.csv (whole file, atomically) as each one completes.
+  std::map<std::size_t, std::vector<RunRecord>> finished;
+  ProgressBar bar;
+  RunnerOptions ro;
+  ro.threads = threads;
+  ro.history_case = plot_case;
+  ro.cancel = &g_cancel;
+  ro.on_progress = [&](const RunnerProgress& p) { bar.update(p); };
+  ro.on_case_finished = [&](const Case& c, const std::vector<RunRecord>& records) {
+    finished[c.index] = records;
+    write_file_atomically(csv_path, [&](std::ostream& o) {
+      std::vector<RunRecord> rows;
+      for (const auto& [index, recs] : finished) rows.insert(rows.end(), recs.begin(), recs.end());
+      write_results_csv(o, cases, rows);
+    });
+  };
+
+  g_cancel.store(false);
+  RunnerOutcome outcome;
+  {
+    const StopSignals signals;
+    outcome = run_cases(config, cases, source_points, target, in.ground_truth, ro);
+    bar.finish();
+  }
+
+  write_file_atomically(csv_path,
+                        [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
+  const Summary summary = summarize(config, cases, outcome);
+  write_file_atomically((out / "summary.json").string(),
+                        [&](std::ostream& o) { write_summary_json(o, config, summary); });
+  write_file_atomically((out / "tables.md").string(), [&](std::ostream& o) {
+    write_tables_markdown(o, config, cases, outcome, summary);
+  });
+  bool have_plot_case = false;
+  if (plot_case && finished.count(*plot_case) != 0) {
+    have_plot_case = true;
+    const Case& c = cases[*plot_case];
+    const std::vector<RunRecord>& recs = finished.at(*plot_case);
+    write_file_atomically((out / "history.csv").string(),
+                          [&](std::ostream& o) { write_history_csv(o, c, recs); });
+    write_file_atomically((out / "alignment_points.csv").string(), [&](std::ostream& o) {
+      write_alignment_points_csv(o, c, source_points, target.points(), recs);
+    });
+  }
+
+  if (outcome.cancelled) {
+    std::printf("interrupted: %zu of %zu cases finished; results.csv holds them (%s)\n",
+                outcome.cases_finished, outcome.cases_planned, csv_path.c_str());
+    std::fflush(stdout);
+    return 130;
+  }
+
+  print_summary(summary);
+  const double elapsed =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("\n%zu cases, %zu runs in %.1f s", outcome.cases_finished, outcome.records.size(),
+              elapsed);
+  if (outcome.cases_skipped > 0)
+    std::printf(" (%zu escalation levels not needed)", outcome.cases_skipped);
+  std::printf("\n");
+
+  bool plotted = false;
+  if (!a.no_plots) {
+    const std::string script = plot_script();
+    if (script.empty() || !fs::exists(script, ec)) {
+      std::fprintf(stderr,
+                   "lmalign: warning: no plots: scripts/plot_experiment.py not found beside this "
+                   "executable (set LMALIGN_PLOT_SCRIPT); the report is complete without them\n");
+    } else {
+      std::vector<std::string> argv{python_interpreter(), script, out_dir, "--quiet"};
+      if (have_plot_case) {
+        argv.push_back("--case");
+        argv.push_back(std::to_string(*plot_case));
+      }
+      const int rc = run_process(argv);
+      if (rc != 0) {
+        std::fprintf(stderr,
+                     "lmalign: warning: plotting failed (%s %s exited with %d; it needs matplotlib "
+                     "and numpy; set LMALIGN_PYTHON to choose the interpreter). The report is "
+                     "complete without plots; rerun: %s %s %s\n",
+                     argv[0].c_str(), script.c_str(), rc, argv[0].c_str(), script.c_str(),
+                     out_dir.c_str());
+      } else {
+        plotted = true;
+        std::printf("plots: %s\n", (out / "plots").string().c_str());
+      }
+    }
+  }
+  std::printf("report: %s (results.csv, summary.json, tables.md%s)\n", out_dir.c_str(),
+              plotted ? ", plots/" : "");
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner add_experiment_command(CLI::App& root) {
+  auto args = std::make_shared<ExperimentArgs>();
+  CLI::App* cmd = root.add_subcommand(
+      "experiment",
+      "Run an experiment protocol written in YAML (docs/experiments.md): the paper's Tables 1-4\n"
+      "(configs/paper.yaml), convergence basins (configs/basin.yaml), or your own. Writes\n"
+      "results.csv, summary.json, tables.md and plots/ into the output folder.\n"
+      "Ctrl-C stops after the runs in flight; results.csv then holds the finished cases (exit "
+      "130).");
+  cmd->add_option("CONFIG", args->config, "experiment config (YAML)")->required();
+  cmd->add_option("-o,--output", args->output, "output folder (default: out/<config name>)");
+  cmd->add_option("--threads", args->threads, "worker threads (default: every core)")
+      ->check(CLI::Range(1, 4096));
+  cmd->add_flag("--no-plots", args->no_plots, "do not call scripts/plot_experiment.py");
+  cmd->add_option("--plot-case", args->plot_case,
+                  "case whose score history and alignment are plotted: its index (results.csv's "
+                  "case column) or <experiment>/<label>, e.g. table1_k/k=5");
+  cmd->add_option("--only", args->only, "run only these experiments (by name)")->delimiter(',');
+  return [args]() { return run_experiment(*args); };
+}
+
+}  // namespace lmalign::cli

@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# Runs every libFuzzer target of fuzz/ for a bounded time and fails on any finding: a crash, an
+# uncaught exception other than lmalign::Error, an oracle violation, a sanitizer report, a leak,
+# a timeout (10 s per input) or an out-of-memory (2 GB). Called by `make fuzz` (docs/robustness.md).
+#
+#   fuzz/run_fuzzers.sh [SECONDS_PER_TARGET]      (default 60; FUZZ_BUILD_DIR, default build-fuzz)
+#
+# The two targets run in parallel, one per core. Inputs:
+#   $FUZZ_BUILD_DIR/fuzz-corpus/<target>/  the working corpus: new inputs go here (kept between runs)
+#   fuzz/corpus/<target>/                  the seed corpus of the repository (read only)
+#   fuzz/regressions/<target>/             every input that once failed (read only)
+#   $LMALIGN_DATA/tum_fr1_desk/ground_truth_pair/   map_reader only, if present: the real maps,
+#                                          read only; -max_len keeps only their first 8 KB.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-60}"
+build="${FUZZ_BUILD_DIR:-build-fuzz}"
+data="${LMALIGN_DATA:-../shared/data}"
+
+run_target() {
+  local target="$1" max_len="$2"
+  local binary="$build/fuzz/fuzz_$target"
+  local work="$build/fuzz-corpus/$target"
+  local artifacts="$build/fuzz-artifacts/$target"
+  local log="$build/fuzz-$target.log"
+  mkdir -p "$work" "$artifacts"
+  local corpora=("$work" "fuzz/corpus/$target" "fuzz/regressions/$target")
+  if [ "$target" = map_reader ] && [ -d "$data/tum_fr1_desk/ground_truth_pair" ]; then
+    corpora+=("$data/tum_fr1_desk/ground_truth_pair")
+  fi
+  local dict="fuzz/$target.dict"
+  [ -f "$dict" ] || { echo "fuzz: missing $dict" >&2; exit 1; }
+  # detect_leaks: LeakSanitizer at exit and per input; -fno-sanitize-recover: UBSan aborts.
+  ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:${ASAN_OPTIONS:-}" \
+  UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}" \
+    "$binary" "${corpora[@]}" -dict="$dict" -max_len="$max_len" -timeout=10 -rss_limit_mb=2048 \
+    -max_total_time="$seconds" -artifact_prefix="$artifacts/" -print_final_stats=1 \
+    >"$log" 2>&1
+}
+
+summary() {
+  local target="$1" status="$2" log="$build/fuzz-$1.log"
+  local runs secs corpus
+  runs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
+  secs=$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$log" | tail -1)
+  corpus=$(find "$build/fuzz-corpus/$target" -type f | wc -l)
+  if [ "$status" -eq 0 ]; then
+    echo "fuzz_$target: ${runs:-?} executions in ${secs:-?} s, no finding; working corpus ${corpus} inputs (+ $(ls fuzz/corpus/$target | wc -l) seeds, $(ls fuzz/regressions/$target | wc -l) regressions)"
+  else
+    echo "fuzz_$target: FAILED (exit $status) after ${runs:-?} executions; log: $log" >&2
+    grep -E "ERROR|SUMMARY|oracle violated|uncaught|Test unit written" "$log" | head -20 >&2 || true
+    echo "  Fix it, then add the input to fuzz/regressions/$target/ (tests replay that folder)." >&2
+  fi
+}
+
+for target in map_reader experiment_config; do
+  if [ ! -x "$build/fuzz/fuzz_$target" ]; then
+    echo "fuzz: $build/fuzz/fuzz_$target is not built (make fuzz builds it)" >&2
+    exit 1
+  fi
+done
+
+echo "== fuzzing each target for $seconds s (in parallel)"
+run_target map_reader 8192 & pid_map=$!
+run_target experiment_config 8192 & pid_config=$!
+status_map=0; wait "$pid_map" || status_map=$?
+status_config=0; wait "$pid_config" || status_config=$?
+summary map_reader "$status_map"
+summary experiment_config "$status_config"
+[ "$status_map" -eq 0 ] && [ "$status_config" -eq 0 ]

@@ -1,0 +1,123 @@
+// Running the cases of an experiment config (docs/experiments.md, "Running").
+//
+// Every (case, strategy) pair is one run: the source displaced by the case's D, aligned from the
+// identity onto one shared PreparedTarget. Runs execute in parallel (OpenMP, dynamic schedule);
+// the ICP's own parallel loops then run single-threaded inside each worker. Results are stored by
+// run index, so the outcome is identical for any thread count and schedule.
+#pragma once
+
+#include <atomic>
+#include <cstddef>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/experiment/cases.hpp"
+#include "lmalign/experiment/config.hpp"
+#include "lmalign/map/map.hpp"
+#include "lmalign/registration/registration.hpp"
+
+namespace lmalign {
+
+/// Which rule decided a run's success.
+enum class SuccessCriterion {
+  kGroundTruth,  ///< rotation and translation errors against the known true transform
+  kScore,        ///< final score below the threshold (no ground truth, as the paper)
+};
+std::string to_string(SuccessCriterion c);  ///< "ground_truth", "score"
+
+struct SuccessDecision {
+  bool success = false;
+  SuccessCriterion decided_by = SuccessCriterion::kScore;
+};
+
+/// With an error (ground truth known): success = rotation_deg < criteria.rotation_deg and
+/// translation_m < criteria.translation_m. Without: final_score_m2 < criteria.score_m2.
+/// Non-finite values never succeed.
+SuccessDecision decide_success(const SuccessCriteria& criteria,
+                               const std::optional<TransformError>& error, double final_score_m2);
+
+/// The outcome of one run.
+struct RunRecord {
+  std::size_t case_index = 0;
+  PaperStrategy strategy = PaperStrategy::kBase;
+  int k = 5;
+  double initial_score_m2 = 0.0;
+  double final_score_m2 = 0.0;
+  int iterations = 0;
+  TerminationReason termination = TerminationReason::kNotTerminated;
+  /// Wall time of the alignment, seconds (the only value that differs between identical runs).
+  double time_s = 0.0;
+  /// The estimate for the displaced source (p_target = T * D * p_source).
+  Isometry3 T_target_source = Isometry3::Identity();
+  /// Error of the recovered map-to-map transform T * D against the ground truth, if known.
+  std::optional<TransformError> error;
+  SuccessDecision decision;
+  /// Per-iteration record, for the history case only (with scores).
+  std::vector<IterationRecord> history;
+};
+
+/// The maps and truth an experiment runs on, loaded per the config.
+struct ExperimentInputs {
+  Map source;
+  Map target;
+  /// True T_target_source of the undisplaced source, if the config gives one.
+  std::optional<Isometry3> ground_truth;
+};
+
+/// Reads (and, for split specs, cuts) the source and target maps and the ground truth.
+/// Throws what read_map(), split_map() and read_transform() throw, and InvalidArgument if a map
+/// has no landmarks.
+ExperimentInputs load_experiment_inputs(const ExperimentConfig& config);
+
+struct RunnerProgress {
+  std::size_t runs_done = 0;
+  /// Runs planned; shrinks when an escalation stops a quadrant early.
+  std::size_t runs_total = 0;
+  std::size_t cases_done = 0;
+  std::size_t cases_total = 0;
+};
+
+struct RunnerOptions {
+  /// Worker threads; 0 = every core.
+  int threads = 0;
+  /// Record per-iteration history with scores for the runs of this case.
+  std::optional<std::size_t> history_case;
+  /// Checked before each run starts; once set, no new run starts and run_cases() returns.
+  const std::atomic<bool>* cancel = nullptr;
+  /// Called after every finished run, and
+  std::function<void(const RunnerProgress&)> on_progress;
+  /// called when every run of a case has finished, with its records in strategy order. Both are
+  /// called under one mutex (never concurrently), from whichever worker finished; they may throw,
+  /// which stops the run and propagates from run_cases().
+  std::function<void(const Case&, const std::vector<RunRecord>&)> on_case_finished;
+};
+
+struct RunnerOutcome {
+  /// Records of the finished cases, by case index then in the case's strategy order.
+  std::vector<RunRecord> records;
+  std::size_t cases_finished = 0;
+  /// Cases that were to run (all cases minus those an escalation skipped).
+  std::size_t cases_planned = 0;
+  /// Escalation levels not run because their quadrant stopped.
+  std::size_t cases_skipped = 0;
+  bool cancelled = false;
+};
+
+/// Runs `cases` (from expand_cases(config, ...)). `source_points` are the undisplaced source
+/// landmarks; `target` is shared by all runs; `ground_truth` is the true T_target_source of the
+/// undisplaced source, or nullopt. Escalations run level by level: a quadrant's next offset runs
+/// only if every strategy succeeded at the previous one (with stop: all, if any did).
+/// Throws InvalidArgument on invalid settings (before any run) and whatever a callback throws.
+RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>& cases,
+                        const Points3& source_points, const PreparedTarget& target,
+                        const std::optional<Isometry3>& ground_truth,
+                        const RunnerOptions& options = {});
+
+/// The registration options of one run: RegistrationOptions::paper(strategy, k) with the
+/// config's iterations and max distance.
+RegistrationOptions run_options(const ExperimentConfig& config, PaperStrategy strategy, int k);
+
+}  // namespace lmalign

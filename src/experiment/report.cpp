@@ -1,0 +1,542 @@
+// results.csv, summary.json, tables.md and the per-case plot inputs (docs/experiments.md,
+// "Output"). Everything but time_s / median_time_s is a function of the results alone, so two
+// runs write identical files apart from those.
+#include "lmalign/experiment/report.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <map>
+#include <optional>
+#include <ostream>
+
+#include <nlohmann/json.hpp>
+
+#include "lmalign/core/error.hpp"
+#include "text_format.hpp"
+
+namespace lmalign {
+
+namespace {
+
+using detail::shortest;
+
+const std::vector<std::string> kColumns{"experiment",
+                                        "case",
+                                        "label",
+                                        "group",
+                                        "variable",
+                                        "value",
+                                        "x_m",
+                                        "y_m",
+                                        "z_m",
+                                        "roll_deg",
+                                        "pitch_deg",
+                                        "yaw_deg",
+                                        "strategy",
+                                        "k",
+                                        "initial_score_m2",
+                                        "final_score_m2",
+                                        "iterations",
+                                        "termination",
+                                        "time_s",
+                                        "rotation_error_deg",
+                                        "translation_error_m",
+                                        "success",
+                                        "decided_by"};
+
+std::string fixed(double v, int decimals) {
+  if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  std::string s = buf;
+  if (s[0] == '-' && s.find_first_not_of("-0.") == std::string::npos) s.erase(0, 1);  // "-0.00"
+  return s;
+}
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
+
+StrategySummary summarize_runs(PaperStrategy s, const std::vector<const RunRecord*>& runs) {
+  StrategySummary out;
+  out.strategy = s;
+  std::vector<double> rot, trans, score_ok, score, iters, times;
+  for (const RunRecord* r : runs) {
+    ++out.runs;
+    score.push_back(r->final_score_m2);
+    iters.push_back(r->iterations);
+    times.push_back(r->time_s);
+    if (r->decision.success) {
+      ++out.successes;
+      score_ok.push_back(r->final_score_m2);
+      if (r->error) {
+        rot.push_back(r->error->rotation_deg);
+        trans.push_back(r->error->translation_m);
+      }
+    }
+  }
+  out.success_rate = out.runs > 0 ? static_cast<double>(out.successes) / out.runs : 0.0;
+  out.median_rotation_error_deg = median(rot);
+  out.median_translation_error_m = median(trans);
+  out.median_final_score_successful_m2 = median(score_ok);
+  out.median_final_score_m2 = median(score);
+  out.median_iterations = median(iters);
+  out.median_time_s = median(times);
+  return out;
+}
+
+/// Strategies in first-seen order over `order`, then any others found in `records`.
+std::vector<PaperStrategy> strategy_order(const std::vector<PaperStrategy>& order,
+                                          const std::vector<const RunRecord*>& records) {
+  std::vector<PaperStrategy> out = order;
+  for (const RunRecord* r : records) {
+    if (std::find(out.begin(), out.end(), r->strategy) == out.end()) out.push_back(r->strategy);
+  }
+  return out;
+}
+
+std::vector<StrategySummary> summarize_by_strategy(const std::vector<PaperStrategy>& order,
+                                                   const std::vector<const RunRecord*>& records) {
+  std::vector<StrategySummary> out;
+  for (PaperStrategy s : strategy_order(order, records)) {
+    std::vector<const RunRecord*> mine;
+    for (const RunRecord* r : records) {
+      if (r->strategy == s) mine.push_back(r);
+    }
+    if (!mine.empty()) out.push_back(summarize_runs(s, mine));
+  }
+  return out;
+}
+
+nlohmann::json strategy_json(const StrategySummary& s, bool with_time) {
+  nlohmann::json j;
+  j["runs"] = s.runs;
+  j["successes"] = s.successes;
+  j["success_rate"] = s.success_rate;
+  j["median_rotation_error_deg"] = num(s.median_rotation_error_deg);
+  j["median_translation_error_m"] = num(s.median_translation_error_m);
+  j["median_final_score_successful_m2"] = num(s.median_final_score_successful_m2);
+  j["median_final_score_m2"] = num(s.median_final_score_m2);
+  j["median_iterations"] = num(s.median_iterations);
+  if (with_time) j["median_time_s"] = num(s.median_time_s);
+  return j;
+}
+
+// --- markdown helpers
+
+std::string md_row(const std::vector<std::string>& cells) {
+  std::string s = "|";
+  for (const std::string& c : cells) s += " " + c + " |";
+  return s + "\n";
+}
+
+std::string md_rule(std::size_t n) {
+  std::string s = "|";
+  for (std::size_t i = 0; i < n; ++i) s += i == 0 ? "---|" : "---:|";
+  return s + "\n";
+}
+
+/// Cells of one row: the display text of each value, the best bold (lowest, or highest with
+/// `higher_is_better`), compared on the displayed rounding so that ties are all bold; a row whose
+/// values all display the same has no best and no bold. A cell with no value shows "–"; `marks`
+/// are appended after the (possibly bold) value.
+std::vector<std::string> bold_best(const std::vector<std::optional<double>>& values,
+                                   const std::vector<std::string>& texts,
+                                   const std::vector<std::string>& marks, bool higher_is_better) {
+  constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+  std::size_t best = kNone;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (!values[i] || !std::isfinite(*values[i])) continue;
+    if (best == kNone ||
+        (higher_is_better ? *values[i] > *values[best] : *values[i] < *values[best])) {
+      best = i;
+    }
+  }
+  std::size_t shown = 0, same_as_best = 0;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (!values[i]) continue;
+    ++shown;
+    if (best != kNone && texts[i] == texts[best]) ++same_as_best;
+  }
+  const std::string best_text =
+      best != kNone && shown >= 2 && same_as_best < shown ? texts[best] : "";
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (!values[i]) {
+      out.push_back("–");
+      continue;
+    }
+    const bool is_best = !best_text.empty() && texts[i] == best_text;
+    out.push_back((is_best ? "**" + texts[i] + "**" : texts[i]) + marks[i]);
+  }
+  return out;
+}
+
+std::string rate_text(std::size_t successes, std::size_t runs) {
+  if (runs == 0) return "–";
+  return std::to_string(successes) + "/" + std::to_string(runs) + " (" +
+         fixed(100.0 * static_cast<double>(successes) / runs, 0) + "%)";
+}
+
+std::string strategy_header(PaperStrategy s) {
+  switch (s) {
+    case PaperStrategy::kBase:
+      return "Base";
+    case PaperStrategy::kCovariance:
+      return "Cov.";
+    case PaperStrategy::kObservations:
+      return "# Obs.";
+    case PaperStrategy::kMeanDistance:
+      return "Mean Dist.";
+  }
+  return "?";
+}
+
+}  // namespace
+
+const std::vector<std::string>& results_csv_columns() { return kColumns; }
+
+void write_results_csv(std::ostream& out, const std::vector<Case>& cases,
+                       const std::vector<RunRecord>& records) {
+  for (std::size_t i = 0; i < kColumns.size(); ++i) out << (i ? "," : "") << kColumns[i];
+  out << "\n";
+  for (const RunRecord& r : records) {
+    if (r.case_index >= cases.size())
+      throw InvalidArgument("write_results_csv: record of an unknown case");
+    const Case& c = cases[r.case_index];
+    const Pose6& p = c.displacement;
+    out << c.experiment << ',' << c.index << ',' << c.label << ',' << c.group << ',' << c.variable
+        << ',' << shortest(c.value) << ',' << shortest(p.x_m) << ',' << shortest(p.y_m) << ','
+        << shortest(p.z_m) << ',' << shortest(p.roll_deg) << ',' << shortest(p.pitch_deg) << ','
+        << shortest(p.yaw_deg) << ',' << to_string(r.strategy) << ',' << r.k << ','
+        << shortest(r.initial_score_m2) << ',' << shortest(r.final_score_m2) << ',' << r.iterations
+        << ',' << to_string(r.termination) << ',' << fixed(r.time_s, 6) << ','
+        << (r.error ? shortest(r.error->rotation_deg) : "") << ','
+        << (r.error ? shortest(r.error->translation_m) : "") << ','
+        << (r.decision.success ? "true" : "false") << ',' << to_string(r.decision.decided_by)
+        << '\n';
+  }
+}
+
+double median(std::vector<double> values) {
+  values.erase(std::remove_if(values.begin(), values.end(), [](double v) { return std::isnan(v); }),
+               values.end());
+  if (values.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(values.begin(), values.end());
+  const std::size_t n = values.size();
+  return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+Summary summarize(const ExperimentConfig& config, const std::vector<Case>& cases,
+                  const RunnerOutcome& outcome) {
+  Summary s;
+  s.has_ground_truth = config.has_ground_truth();
+  s.interrupted = outcome.cancelled;
+  s.cases_planned = outcome.cases_planned;
+  s.cases_finished = outcome.cases_finished;
+  s.cases_skipped = outcome.cases_skipped;
+  s.runs = outcome.records.size();
+  std::vector<const RunRecord*> all;
+  for (const RunRecord& r : outcome.records) all.push_back(&r);
+  s.overall = summarize_by_strategy(config.strategies, all);
+
+  for (std::size_t ei = 0; ei < config.experiments.size(); ++ei) {
+    const ExperimentSpec& spec = config.experiments[ei];
+    ExperimentSummary e;
+    e.name = spec.name;
+    e.type = spec.type;
+    std::vector<const RunRecord*> mine;
+    std::vector<std::size_t> case_seen;
+    for (const RunRecord& r : outcome.records) {
+      if (cases.at(r.case_index).experiment_index != ei) continue;
+      mine.push_back(&r);
+      if (case_seen.empty() || case_seen.back() != r.case_index) case_seen.push_back(r.case_index);
+    }
+    e.cases = case_seen.size();
+    e.strategies = summarize_by_strategy(spec.strategies, mine);
+    if (spec.type == ExperimentType::kBasin) {
+      auto add_axis = [&](const std::string& axis, const std::vector<double>& levels) {
+        for (double level : levels) {
+          std::vector<const RunRecord*> at;
+          for (const RunRecord* r : mine) {
+            const Case& c = cases[r->case_index];
+            if (c.group == axis && c.value == level) at.push_back(r);
+          }
+          BasinLevelSummary b;
+          b.axis = axis;
+          b.level = level;
+          b.strategies = summarize_by_strategy(spec.strategies, at);
+          e.basin_levels.push_back(std::move(b));
+        }
+      };
+      add_axis("yaw", spec.basin.yaw_levels_deg);
+      add_axis("translation", spec.basin.translation_levels_m);
+    }
+    s.experiments.push_back(std::move(e));
+  }
+  return s;
+}
+
+void write_summary_json(std::ostream& out, const ExperimentConfig& config, const Summary& summary) {
+  nlohmann::ordered_json j;
+  j["config"] = config.path;
+  j["source"] = config.source.path;
+  j["target"] = config.target.path;
+  j["ground_truth"] = config.ground_truth.kind == GroundTruthSpec::Kind::kNone ? "none"
+                      : config.ground_truth.kind == GroundTruthSpec::Kind::kIdentity
+                          ? "identity"
+                          : config.ground_truth.path;
+  j["success_criterion"] = summary.has_ground_truth ? "ground_truth" : "score";
+  if (summary.has_ground_truth) {
+    j["success_rotation_deg"] = config.success.rotation_deg;
+    j["success_translation_m"] = config.success.translation_m;
+  } else {
+    j["success_score_m2"] = config.success.score_m2;
+  }
+  j["max_iterations"] = config.max_iterations;
+  j["max_distance_m"] = num(config.max_distance_m);
+  j["covariance_norm"] = to_string(config.covariance_norm);
+  j["interrupted"] = summary.interrupted;
+  j["cases_planned"] = summary.cases_planned;
+  j["cases_finished"] = summary.cases_finished;
+  j["cases_skipped_by_escalation"] = summary.cases_skipped;
+  j["runs"] = summary.runs;
+  auto per_strategy = [](const std::vector<StrategySummary>& v, bool with_time) {
+    nlohmann::ordered_json o = nlohmann::ordered_json::object();
+    for (const StrategySummary& s : v) o[to_string(s.strategy)] = strategy_json(s, with_time);
+    return o;
+  };
+  j["per_strategy"] = per_strategy(summary.overall, true);
+  nlohmann::ordered_json ex = nlohmann::ordered_json::object();
+  for (const ExperimentSummary& e : summary.experiments) {
+    nlohmann::ordered_json o;
+    o["type"] = to_string(e.type);
+    o["cases"] = e.cases;
+    o["per_strategy"] = per_strategy(e.strategies, true);
+    if (e.type == ExperimentType::kBasin) {
+      nlohmann::ordered_json levels = nlohmann::ordered_json::array();
+      for (const BasinLevelSummary& b : e.basin_levels) {
+        nlohmann::ordered_json l;
+        l["axis"] = b.axis;
+        l["level"] = b.level;
+        l["unit"] = b.axis == "yaw" ? "deg" : "m";
+        l["per_strategy"] = per_strategy(b.strategies, false);
+        levels.push_back(l);
+      }
+      o["levels"] = levels;
+    }
+    ex[e.name] = o;
+  }
+  j["per_experiment"] = ex;
+  out << j.dump(2) << "\n";
+}
+
+void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
+                           const std::vector<Case>& cases, const RunnerOutcome& outcome,
+                           const Summary& summary) {
+  const bool gt = summary.has_ground_truth;
+  out << "# Experiment report: " << config.name << "\n\n";
+  out << "- config: `" << config.path << "`\n";
+  out << "- source: `" << config.source.path << "`"
+      << (config.source.split ? " frames " + std::to_string(config.source.first_frame_id) + "-" +
+                                    std::to_string(config.source.last_frame_id)
+                              : std::string())
+      << "; target: `" << config.target.path << "`"
+      << (config.target.split ? " frames " + std::to_string(config.target.first_frame_id) + "-" +
+                                    std::to_string(config.target.last_frame_id)
+                              : std::string())
+      << "\n";
+  out << "- ICP: max iterations " << config.max_iterations << ", max correspondence distance "
+      << (std::isinf(config.max_distance_m) ? std::string("infinite")
+                                            : shortest(config.max_distance_m) + " m")
+      << "\n";
+  if (gt) {
+    out << "- success = right basin: rotation error < " << shortest(config.success.rotation_deg)
+        << "° and translation error < " << shortest(config.success.translation_m)
+        << " m against the ground truth; accuracy = medians over the successful runs\n";
+  } else {
+    out << "- no ground truth: success = final score < " << shortest(config.success.score_m2)
+        << " m² (the paper's criterion)\n";
+  }
+  out << "- " << summary.cases_finished << " of " << summary.cases_planned << " cases, "
+      << summary.runs << " runs";
+  if (summary.cases_skipped > 0)
+    out << "; " << summary.cases_skipped << " escalation levels not needed";
+  if (summary.interrupted) out << "; **interrupted: partial results**";
+  out << "\n\n";
+
+  // --- overview
+  std::vector<PaperStrategy> all_strategies;
+  for (const StrategySummary& s : summary.overall) all_strategies.push_back(s.strategy);
+  std::vector<std::string> header{"experiment"};
+  for (PaperStrategy s : all_strategies) header.push_back(strategy_header(s));
+  out << "## Overview\n\n### Success rate\n\n" << md_row(header) << md_rule(header.size());
+  auto overview_rows = [&](auto cell_value, auto cell_text, bool higher) {
+    auto row_for = [&](const std::string& name, const std::vector<StrategySummary>& v) {
+      std::vector<std::optional<double>> values;
+      std::vector<std::string> texts, marks;
+      for (PaperStrategy s : all_strategies) {
+        const auto it = std::find_if(v.begin(), v.end(),
+                                     [&](const StrategySummary& x) { return x.strategy == s; });
+        if (it == v.end()) {
+          values.push_back(std::nullopt);
+          texts.emplace_back();
+        } else {
+          values.push_back(cell_value(*it));
+          texts.push_back(cell_text(*it));
+        }
+        marks.emplace_back();
+      }
+      std::vector<std::string> cells{name};
+      for (const std::string& c : bold_best(values, texts, marks, higher)) cells.push_back(c);
+      out << md_row(cells);
+    };
+    for (const ExperimentSummary& e : summary.experiments) row_for(e.name, e.strategies);
+    row_for("**all**", summary.overall);
+  };
+  overview_rows([](const StrategySummary& s) { return s.success_rate; },
+                [](const StrategySummary& s) { return rate_text(s.successes, s.runs); }, true);
+  if (gt) {
+    out << "\n### Accuracy: median rotation error of the successful runs (°)\n\n"
+        << md_row(header) << md_rule(header.size());
+    overview_rows([](const StrategySummary& s) { return s.median_rotation_error_deg; },
+                  [](const StrategySummary& s) {
+                    return std::isnan(s.median_rotation_error_deg)
+                               ? std::string("–")
+                               : fixed(s.median_rotation_error_deg, 2);
+                  },
+                  false);
+    out << "\n### Accuracy: median translation error of the successful runs (cm)\n\n"
+        << md_row(header) << md_rule(header.size());
+    overview_rows([](const StrategySummary& s) { return s.median_translation_error_m; },
+                  [](const StrategySummary& s) {
+                    return std::isnan(s.median_translation_error_m)
+                               ? std::string("–")
+                               : fixed(100.0 * s.median_translation_error_m, 1);
+                  },
+                  false);
+  }
+  out << "\n";
+
+  // --- per experiment
+  for (std::size_t ei = 0; ei < config.experiments.size(); ++ei) {
+    const ExperimentSpec& spec = config.experiments[ei];
+    const ExperimentSummary& es = summary.experiments[ei];
+    out << "## " << spec.name << " (" << to_string(spec.type) << ")\n\n";
+    std::vector<std::string> h{spec.type == ExperimentType::kBasin ? "level" : "case"};
+    for (PaperStrategy s : spec.strategies) h.push_back(strategy_header(s));
+    if (es.cases == 0) {
+      out << "No finished case.\n\n";
+      continue;
+    }
+    if (spec.type == ExperimentType::kBasin) {
+      out << "Success rate per level (" << spec.basin.samples << " seeded draws per level, seed "
+          << spec.basin.seed << "; yaw pivot: " << to_string(spec.basin.yaw_pivot)
+          << "); highest of each row in bold.\n\n"
+          << md_row(h) << md_rule(h.size());
+      for (const BasinLevelSummary& b : es.basin_levels) {
+        std::vector<std::optional<double>> values;
+        std::vector<std::string> texts, marks;
+        bool any = false;
+        for (PaperStrategy s : spec.strategies) {
+          const auto it = std::find_if(b.strategies.begin(), b.strategies.end(),
+                                       [&](const StrategySummary& x) { return x.strategy == s; });
+          if (it == b.strategies.end()) {
+            values.push_back(std::nullopt);
+            texts.emplace_back();
+          } else {
+            any = true;
+            values.push_back(it->success_rate);
+            texts.push_back(rate_text(it->successes, it->runs));
+          }
+          marks.emplace_back();
+        }
+        if (!any) continue;
+        std::vector<std::string> cells{b.axis == "yaw" ? "yaw " + shortest(b.level) + "°"
+                                                       : "translation " + shortest(b.level) + " m"};
+        for (const std::string& c : bold_best(values, texts, marks, true)) cells.push_back(c);
+        out << md_row(cells);
+      }
+      out << "\n";
+      continue;
+    }
+    // One row per finished case.
+    std::map<std::size_t, std::vector<const RunRecord*>> by_case;
+    for (const RunRecord& r : outcome.records) {
+      if (cases.at(r.case_index).experiment_index == ei) by_case[r.case_index].push_back(&r);
+    }
+    struct Metric {
+      std::string title;
+      std::function<double(const RunRecord&)> value;
+      std::function<std::string(double)> text;
+    };
+    std::vector<Metric> metrics{{"Final score (×10⁻³ m²)",
+                                 [](const RunRecord& r) { return r.final_score_m2; },
+                                 [](double v) { return fixed(v * 1e3, 4); }}};
+    if (gt) {
+      metrics.push_back({"Rotation error (°)",
+                         [](const RunRecord& r) { return r.error ? r.error->rotation_deg : NAN; },
+                         [](double v) { return fixed(v, 2); }});
+      metrics.push_back({"Translation error (cm)",
+                         [](const RunRecord& r) { return r.error ? r.error->translation_m : NAN; },
+                         [](double v) { return fixed(v * 100.0, 1); }});
+    }
+    for (const Metric& m : metrics) {
+      out << m.title << ": lowest of each row in bold; ✗ = failed ("
+          << (gt ? "wrong basin" : "score above the threshold") << ").\n\n"
+          << md_row(h) << md_rule(h.size());
+      for (const auto& [ci, runs] : by_case) {
+        std::vector<std::optional<double>> values;
+        std::vector<std::string> texts, marks;
+        for (PaperStrategy s : spec.strategies) {
+          const auto it = std::find_if(runs.begin(), runs.end(),
+                                       [&](const RunRecord* r) { return r->strategy == s; });
+          if (it == runs.end()) {
+            values.push_back(std::nullopt);
+            texts.emplace_back();
+            marks.emplace_back();
+          } else {
+            const double v = m.value(**it);
+            values.push_back(v);
+            texts.push_back(m.text(v));
+            marks.push_back((*it)->decision.success ? "" : " ✗");
+          }
+        }
+        std::vector<std::string> cells{cases[ci].label};
+        for (const std::string& c : bold_best(values, texts, marks, false)) cells.push_back(c);
+        out << md_row(cells);
+      }
+      out << "\n";
+    }
+  }
+}
+
+void write_history_csv(std::ostream& out, const Case& c, const std::vector<RunRecord>& records) {
+  out << "case,experiment,label,strategy,iteration,num_correspondences,mse_m2,score_m2\n";
+  for (const RunRecord& r : records) {
+    for (const IterationRecord& it : r.history) {
+      out << c.index << ',' << c.experiment << ',' << c.label << ',' << to_string(r.strategy) << ','
+          << it.iteration << ',' << it.num_correspondences << ',' << shortest(it.mse_m2) << ','
+          << (std::isnan(it.score_m2) ? std::string() : shortest(it.score_m2)) << '\n';
+    }
+  }
+}
+
+void write_alignment_points_csv(std::ostream& out, const Case& c, const Points3& source_points,
+                                const Points3& target_points,
+                                const std::vector<RunRecord>& records) {
+  out << "case,experiment,label,cloud,x,y,z\n";
+  auto write = [&](const std::string& cloud, const Isometry3& T, const Points3& pts) {
+    for (const Vec3& p0 : pts) {
+      const Vec3 p = T * p0;
+      out << c.index << ',' << c.experiment << ',' << c.label << ',' << cloud << ','
+          << fixed(p.x(), 5) << ',' << fixed(p.y(), 5) << ',' << fixed(p.z(), 5) << '\n';
+    }
+  };
+  write("target", Isometry3::Identity(), target_points);
+  write("initial", c.D, source_points);
+  for (const RunRecord& r : records)
+    write(to_string(r.strategy), r.T_target_source * c.D, source_points);
+}
+
+}  // namespace lmalign

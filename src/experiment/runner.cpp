@@ -1,0 +1,287 @@
+// Running the cases (docs/experiments.md, "Running"). One task per (case, strategy); OpenMP
+// dynamic schedule over the tasks of a wave; results stored by task index. Escalations add one
+// wave per level. Nothing here depends on the thread count or on timing except time_s.
+#include "lmalign/experiment/runner.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <exception>
+#include <mutex>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/io/transform_io.hpp"
+#include "lmalign/map/map_io.hpp"
+#include "lmalign/map/split.hpp"
+
+namespace lmalign {
+
+std::string to_string(SuccessCriterion c) {
+  return c == SuccessCriterion::kGroundTruth ? "ground_truth" : "score";
+}
+
+SuccessDecision decide_success(const SuccessCriteria& criteria,
+                               const std::optional<TransformError>& error, double final_score_m2) {
+  SuccessDecision d;
+  if (error) {
+    d.decided_by = SuccessCriterion::kGroundTruth;
+    d.success = std::isfinite(error->rotation_deg) && std::isfinite(error->translation_m) &&
+                error->rotation_deg < criteria.rotation_deg &&
+                error->translation_m < criteria.translation_m;
+  } else {
+    d.decided_by = SuccessCriterion::kScore;
+    d.success = std::isfinite(final_score_m2) && final_score_m2 < criteria.score_m2;
+  }
+  return d;
+}
+
+namespace {
+
+Map load_map(const MapSpec& spec, const std::string& role) {
+  Map map;
+  if (spec.split) {
+    MapReadOptions ro;
+    ro.min_observations = 0;  // count observations within the window, not in the whole map
+    const Map full = read_map(spec.path, ro);
+    SplitOptions so;
+    so.first_frame_id = spec.first_frame_id;
+    so.last_frame_id = spec.last_frame_id;
+    so.min_observations = std::max<std::size_t>(spec.min_observations, 1);
+    so.retriangulate = spec.retriangulate;
+    so.min_parallax_deg = spec.min_parallax_deg;
+    map = split_map(full, so);
+  } else {
+    MapReadOptions ro;
+    ro.min_observations = spec.min_observations;
+    map = read_map(spec.path, ro);
+  }
+  if (map.landmarks.empty()) {
+    throw InvalidArgument(role + " map '" + spec.path + "' has no landmarks" +
+                          (spec.split ? " in frames " + std::to_string(spec.first_frame_id) + "-" +
+                                            std::to_string(spec.last_frame_id)
+                                      : std::string()) +
+                          " with at least " + std::to_string(spec.min_observations) +
+                          " observations");
+  }
+  return map;
+}
+
+struct Task {
+  std::size_t case_index;
+  std::size_t slot;  // position of the strategy in the case
+};
+
+/// Sets OpenMP's max active levels to 1 for its lifetime: the ICP's parallel loops inside a
+/// worker then run on that worker alone (no oversubscription).
+class SingleLevelParallelism {
+ public:
+  SingleLevelParallelism() : saved_(omp_get_max_active_levels()) { omp_set_max_active_levels(1); }
+  ~SingleLevelParallelism() { omp_set_max_active_levels(saved_); }
+  SingleLevelParallelism(const SingleLevelParallelism&) = delete;
+  SingleLevelParallelism& operator=(const SingleLevelParallelism&) = delete;
+
+ private:
+  int saved_;
+};
+
+}  // namespace
+
+ExperimentInputs load_experiment_inputs(const ExperimentConfig& config) {
+  ExperimentInputs in;
+  in.source = load_map(config.source, "source");
+  in.target = load_map(config.target, "target");
+  switch (config.ground_truth.kind) {
+    case GroundTruthSpec::Kind::kNone:
+      break;
+    case GroundTruthSpec::Kind::kIdentity:
+      in.ground_truth = Isometry3::Identity();
+      break;
+    case GroundTruthSpec::Kind::kFile:
+      in.ground_truth = read_transform(config.ground_truth.path);
+      break;
+  }
+  return in;
+}
+
+RegistrationOptions run_options(const ExperimentConfig& config, PaperStrategy strategy, int k) {
+  RegistrationOptions o = RegistrationOptions::paper(strategy, k);
+  o.convergence.max_iterations = config.max_iterations;
+  o.max_correspondence_distance_m = config.max_distance_m;
+  return o;
+}
+
+RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>& cases,
+                        const Points3& source_points, const PreparedTarget& target,
+                        const std::optional<Isometry3>& ground_truth,
+                        const RunnerOptions& options) {
+  // --- validate everything before any run
+  if (options.threads < 0) throw InvalidArgument("runner: threads must be >= 0");
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const Case& c = cases[i];
+    if (c.index != i)
+      throw InvalidArgument("runner: cases must come from expand_cases() (index mismatch at " +
+                            std::to_string(i) + ")");
+    if (c.strategies.empty()) throw InvalidArgument("runner: case " + c.id() + " has no strategy");
+    for (PaperStrategy s : c.strategies) {
+      std::string why;
+      if (!run_options(config, s, c.k).is_valid(&why)) {
+        throw InvalidArgument("runner: case " + c.id() + ", " + to_string(s) + ": " + why);
+      }
+    }
+    if (!is_finite(c.D))
+      throw InvalidArgument("runner: case " + c.id() + " has a non-finite displacement");
+  }
+  if (options.history_case && *options.history_case >= cases.size()) {
+    throw InvalidArgument("runner: history case " + std::to_string(*options.history_case) +
+                          " out of range (" + std::to_string(cases.size()) + " cases)");
+  }
+  if (ground_truth && !is_finite(*ground_truth))
+    throw InvalidArgument("runner: ground truth is not finite");
+  const int threads = options.threads > 0 ? options.threads : std::max(1, omp_get_num_procs());
+
+  // --- bookkeeping, indexed by case
+  std::vector<std::vector<std::optional<RunRecord>>> records(cases.size());
+  std::vector<std::size_t> remaining(cases.size());
+  std::vector<bool> planned(cases.size(), true);
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    records[i].resize(cases[i].strategies.size());
+    remaining[i] = cases[i].strategies.size();
+  }
+  // Escalation groups: their cases in level order.
+  std::vector<std::vector<std::size_t>> groups;
+  for (const Case& c : cases) {
+    if (c.escalation_group < 0) continue;
+    if (static_cast<std::size_t>(c.escalation_group) >= groups.size())
+      groups.resize(c.escalation_group + 1);
+    groups[c.escalation_group].push_back(c.index);
+  }
+
+  RunnerProgress progress;
+  for (const Case& c : cases) progress.runs_total += c.strategies.size();
+  progress.cases_total = cases.size();
+
+  RunnerOutcome outcome;
+  std::mutex mutex;
+  std::exception_ptr failure;
+  std::atomic<bool> failed{false};
+  auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
+
+  auto run_one = [&](const Task& t) {
+    const Case& c = cases[t.case_index];
+    const PaperStrategy s = c.strategies[t.slot];
+    RegistrationOptions ro = run_options(config, s, c.k);
+    const bool history = options.history_case && *options.history_case == c.index;
+    ro.record_history = history;
+    ro.history_scores = history;
+    const RegistrationResult r = align(transform_points(c.D, source_points), target, ro);
+    RunRecord rec;
+    rec.case_index = c.index;
+    rec.strategy = s;
+    rec.k = c.k;
+    rec.initial_score_m2 = r.initial_score_m2;
+    rec.final_score_m2 = r.final_score_m2;
+    rec.iterations = r.iterations;
+    rec.termination = r.termination;
+    rec.time_s = r.wall_time_s;
+    rec.T_target_source = r.T_target_source;
+    // The recovered map-to-map transform T * D against the truth: independent of D.
+    if (ground_truth) rec.error = transform_error(r.T_target_source * c.D, *ground_truth);
+    rec.decision = decide_success(config.success, rec.error, rec.final_score_m2);
+    rec.history = r.history;
+    return rec;
+  };
+
+  auto run_wave = [&](const std::vector<Task>& tasks) {
+    const SingleLevelParallelism single_level;
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(tasks.size());
+#pragma omp parallel num_threads(threads)
+    {
+      // Inner (ICP) parallel regions of this worker get one thread, even when the team has
+      // one thread and is therefore not an active level.
+      omp_set_num_threads(1);
+#pragma omp for schedule(dynamic, 1)
+      for (std::ptrdiff_t i = 0; i < n; ++i) {
+        if (failed.load() || cancelled()) continue;
+        const Task& t = tasks[static_cast<std::size_t>(i)];
+        try {
+          RunRecord rec = run_one(t);
+          std::lock_guard<std::mutex> lock(mutex);
+          if (failed.load()) continue;
+          records[t.case_index][t.slot] = std::move(rec);
+          ++progress.runs_done;
+          if (--remaining[t.case_index] == 0) {
+            ++progress.cases_done;
+            if (options.on_case_finished) {
+              std::vector<RunRecord> finished;
+              for (const auto& r : records[t.case_index]) finished.push_back(*r);
+              options.on_case_finished(cases[t.case_index], finished);
+            }
+          }
+          if (options.on_progress) options.on_progress(progress);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (!failed.load()) {
+            failure = std::current_exception();
+            failed.store(true);
+          }
+        }
+      }
+    }
+    if (failure) std::rethrow_exception(failure);
+  };
+
+  auto add_case = [&](std::vector<Task>& tasks, std::size_t ci) {
+    for (std::size_t s = 0; s < cases[ci].strategies.size(); ++s) tasks.push_back({ci, s});
+  };
+
+  // Wave 0: everything but escalation levels > 0.
+  std::vector<Task> wave;
+  for (const Case& c : cases) {
+    if (c.escalation_group < 0 || c.escalation_level == 0) add_case(wave, c.index);
+  }
+  std::vector<std::size_t> next_level(groups.size(), 1);
+  while (!wave.empty()) {
+    run_wave(wave);
+    if (cancelled()) break;
+    wave.clear();
+    // A group goes on only if every strategy succeeded at its last level (stop: all: if any did).
+    std::lock_guard<std::mutex> lock(mutex);
+    for (std::size_t g = 0; g < groups.size(); ++g) {
+      const std::size_t level = next_level[g];
+      if (level == 0 || level >= groups[g].size()) continue;
+      const std::size_t last = groups[g][level - 1];
+      const bool any_must_succeed =
+          config.experiments[cases[last].experiment_index].escalation.stop_when_all_fail;
+      std::size_t ok = 0;
+      for (const auto& r : records[last]) ok += r && r->decision.success ? 1 : 0;
+      const bool go_on =
+          remaining[last] == 0 && (any_must_succeed ? ok > 0 : ok == records[last].size());
+      if (go_on) {
+        add_case(wave, groups[g][level]);
+        ++next_level[g];
+      } else {
+        for (std::size_t l = level; l < groups[g].size(); ++l) {
+          const std::size_t ci = groups[g][l];
+          planned[ci] = false;
+          ++outcome.cases_skipped;
+          progress.runs_total -= cases[ci].strategies.size();
+          --progress.cases_total;
+        }
+        next_level[g] = 0;  // stopped
+        if (options.on_progress) options.on_progress(progress);
+      }
+    }
+  }
+
+  outcome.cancelled = cancelled();
+  outcome.cases_planned = progress.cases_total;
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    if (!planned[i] || remaining[i] != 0) continue;
+    ++outcome.cases_finished;
+    for (auto& r : records[i]) outcome.records.push_back(std::move(*r));
+  }
+  return outcome;
+}
+
+}  // namespace lmalign

@@ -1,0 +1,308 @@
+// The experiment runner on a synthetic pair: success in both modes, errors against the ground
+// truth, determinism across thread counts, cancellation, escalation, per-case history.
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/experiment/cases.hpp"
+#include "lmalign/experiment/config.hpp"
+#include "lmalign/experiment/report.hpp"
+#include "lmalign/experiment/runner.hpp"
+#include "support/synthetic_scene.hpp"
+
+namespace lmalign {
+namespace {
+
+// Source = 2/3 of the target's landmarks, in a frame moved by T_true^-1.
+struct Pair {
+  Map target_map;
+  Points3 source;
+  Isometry3 T_true;
+};
+
+const Pair& pair() {
+  static const Pair p = [] {
+    Pair q;
+    const Points3 pts = test::room_points(1200, 11);
+    q.target_map = test::map_from_points(pts, 12);
+    q.T_true = pose_from_xyz_rpy_deg(0.05, -0.03, 0.02, 1, -1, 3);
+    q.source = transform_points(q.T_true.inverse(), Points3(pts.begin(), pts.begin() + 800));
+    return q;
+  }();
+  return p;
+}
+
+const PreparedTarget& target() {
+  static const PreparedTarget t(pair().target_map);
+  return t;
+}
+
+ExperimentConfig config(const std::string& experiments, const std::string& extra = "") {
+  return parse_experiment_config(
+      "source: a.txt\ntarget: b.txt\nstrategies: [base, observations]\n" + extra +
+          "experiments:\n" + experiments,
+      "t.yaml", "/");
+}
+
+const std::string kExperiments =
+    "  - {name: ks, type: k, k_values: [1, 5], pose: {x_m: 0.1, yaw_deg: 5}}\n"
+    "  - {name: yaws, type: yaw, yaw_deg: [0, 10, 120, 170]}\n"
+    "  - {name: bas, type: basin, levels: {yaw_deg: [20], translation_m: [0.3]}, samples: 2}\n";
+
+std::string csv_of(const std::vector<Case>& cases, const std::vector<RunRecord>& records) {
+  std::ostringstream os;
+  write_results_csv(os, cases, records);
+  return os.str();
+}
+
+/// results.csv without its time_s column.
+std::string without_time(const std::string& csv) {
+  std::istringstream in(csv);
+  std::string line, out;
+  const auto& cols = results_csv_columns();
+  const std::size_t t = std::find(cols.begin(), cols.end(), "time_s") - cols.begin();
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream ls(line);
+    std::string cell;
+    while (std::getline(ls, cell, ',')) f.push_back(cell);
+    if (line.back() == ',') f.emplace_back();
+    EXPECT_EQ(f.size(), cols.size()) << line;
+    if (t < f.size()) f.erase(f.begin() + static_cast<std::ptrdiff_t>(t));
+    for (const std::string& x : f) out += x + ",";
+    out += "\n";
+  }
+  return out;
+}
+
+TEST(ExperimentSuccess, GroundTruthDecidesWhenKnownElseTheScore) {
+  SuccessCriteria c;  // 5 deg, 0.10 m, 0.0037 m^2
+  auto gt = [&](double rot, double trans, double score) {
+    return decide_success(c, TransformError{rot, trans}, score);
+  };
+  EXPECT_TRUE(gt(4.9, 0.099, 1.0).success);  // the score is ignored with ground truth
+  EXPECT_EQ(gt(4.9, 0.099, 1.0).decided_by, SuccessCriterion::kGroundTruth);
+  EXPECT_FALSE(gt(5.0, 0.01, 0.0).success);  // strict <
+  EXPECT_FALSE(gt(1.0, 0.10, 0.0).success);
+  EXPECT_FALSE(gt(NAN, 0.01, 0.0).success);
+  EXPECT_TRUE(decide_success(c, std::nullopt, 0.0036).success);
+  EXPECT_EQ(decide_success(c, std::nullopt, 0.0036).decided_by, SuccessCriterion::kScore);
+  EXPECT_FALSE(decide_success(c, std::nullopt, 0.0037).success);
+  EXPECT_FALSE(decide_success(c, std::nullopt, INFINITY).success);
+  c.rotation_deg = 10;
+  c.translation_m = 0.5;
+  c.score_m2 = 0.01;
+  EXPECT_TRUE(gt(9.0, 0.4, 1.0).success);  // thresholds are configurable
+  EXPECT_TRUE(decide_success(c, std::nullopt, 0.009).success);
+  EXPECT_EQ(to_string(SuccessCriterion::kGroundTruth), "ground_truth");
+  EXPECT_EQ(to_string(SuccessCriterion::kScore), "score");
+}
+
+TEST(ExperimentRunner, ErrorsAreOfTheRecoveredMapTransformAndDecideSuccess) {
+  const ExperimentConfig c = config(kExperiments);
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true);
+  ASSERT_EQ(o.cases_finished, cases.size());
+  ASSERT_EQ(o.records.size(), 2 * cases.size());
+  EXPECT_FALSE(o.cancelled);
+  std::size_t successes = 0, failures = 0;
+  for (const RunRecord& r : o.records) {
+    const Case& cs = cases[r.case_index];
+    SCOPED_TRACE(cs.id() + " " + to_string(r.strategy));
+    ASSERT_TRUE(r.error.has_value());
+    EXPECT_EQ(r.decision.decided_by, SuccessCriterion::kGroundTruth);
+    // The error is that of T_est * D against the truth, not of T_est against D^-1 T_true.
+    const TransformError e = transform_error(r.T_target_source * cs.D, pair().T_true);
+    EXPECT_EQ(e.rotation_deg, r.error->rotation_deg);
+    EXPECT_EQ(r.decision.success, e.rotation_deg < 5.0 && e.translation_m < 0.10);
+    if (cs.value <= 20 || cs.variable == "translation_m" || cs.variable == "k") {
+      // Small displacements of an exact subset: the right basin, and base finds the exact
+      // answer (the weighted strategies may pick a farther, heavier candidate).
+      EXPECT_TRUE(r.decision.success);
+      if (r.strategy == PaperStrategy::kBase) {
+        EXPECT_LT(r.error->rotation_deg, 1e-5);
+        EXPECT_LT(r.error->translation_m, 1e-6);
+      }
+    }
+    (r.decision.success ? successes : failures)++;
+    EXPECT_EQ(r.k, cs.k);
+    EXPECT_GT(r.iterations, 0);
+  }
+  EXPECT_GT(failures, 0u) << "yaw 120/170 should leave the basin";
+  // k = 1 is the base strategy exactly (method.md §3).
+  EXPECT_EQ(o.records[0].final_score_m2, o.records[1].final_score_m2);
+  EXPECT_TRUE(o.records[0].T_target_source.isApprox(o.records[1].T_target_source, 0.0));
+
+  // Without ground truth the score decides, and there are no errors.
+  const RunnerOutcome n = run_cases(c, cases, pair().source, target(), std::nullopt);
+  for (std::size_t i = 0; i < n.records.size(); ++i) {
+    EXPECT_FALSE(n.records[i].error.has_value());
+    EXPECT_EQ(n.records[i].decision.decided_by, SuccessCriterion::kScore);
+    EXPECT_EQ(n.records[i].decision.success, n.records[i].final_score_m2 < 0.0037);
+    EXPECT_EQ(n.records[i].final_score_m2, o.records[i].final_score_m2);
+  }
+}
+
+TEST(ExperimentRunner, OutputIsIdenticalForAnyThreadCountApartFromTime) {
+  const ExperimentConfig c = config(kExperiments);
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  std::vector<std::string> csvs;
+  for (int threads : {1, 2, 3}) {
+    RunnerOptions opt;
+    opt.threads = threads;
+    const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+    csvs.push_back(csv_of(cases, o.records));
+  }
+  const std::string ref = without_time(csvs[0]);
+  EXPECT_EQ(std::count(ref.begin(), ref.end(), '\n'), 1 + 2 * static_cast<long>(cases.size()));
+  for (const std::string& csv : csvs) EXPECT_EQ(without_time(csv), ref);
+}
+
+TEST(ExperimentRunner, CancellingLeavesExactlyTheFinishedCasesInTheCsv) {
+  const ExperimentConfig c = config(kExperiments);
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  for (int threads : {1, 2}) {
+    SCOPED_TRACE(threads);
+    std::atomic<bool> cancel{false};
+    std::map<std::size_t, std::vector<RunRecord>> done;
+    std::string flushed;
+    std::size_t progress_calls = 0;
+    RunnerOptions opt;
+    opt.threads = threads;
+    opt.cancel = &cancel;
+    opt.on_progress = [&](const RunnerProgress& p) {
+      ++progress_calls;
+      EXPECT_LE(p.runs_done, p.runs_total);
+    };
+    opt.on_case_finished = [&](const Case& cs, const std::vector<RunRecord>& recs) {
+      EXPECT_EQ(recs.size(), cs.strategies.size());
+      done[cs.index] = recs;
+      std::vector<RunRecord> rows;
+      for (const auto& [i, r] : done) rows.insert(rows.end(), r.begin(), r.end());
+      flushed = csv_of(cases, rows);  // what the CLI writes to results.csv
+      if (done.size() == 3) cancel.store(true);
+    };
+    const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+    EXPECT_TRUE(o.cancelled);
+    EXPECT_EQ(o.cases_finished, done.size());
+    EXPECT_GE(o.cases_finished, 3u);
+    EXPECT_LT(o.cases_finished, cases.size());
+    if (threads == 1) EXPECT_EQ(o.cases_finished, 3u);  // nothing else was in flight
+    EXPECT_EQ(o.records.size(), 2 * o.cases_finished);
+    EXPECT_GE(progress_calls, o.records.size());
+    // The last flushed CSV is the final one: header + every row of the finished cases.
+    EXPECT_EQ(flushed, csv_of(cases, o.records));
+    EXPECT_EQ(std::count(flushed.begin(), flushed.end(), '\n'),
+              1 + 2 * static_cast<long>(o.cases_finished));
+    without_time(flushed);  // checks every row has every column
+  }
+}
+
+TEST(ExperimentRunner, EscalationStopsAQuadrantAtItsFirstFailure) {
+  // With a 45 deg yaw, in -X-Y base fails from 1 m on while observations still succeeds; in +X+Y
+  // both succeed up to 2 m. "full" runs every offset, to check the escalations against.
+  const ExperimentConfig c = config(
+      "  - {name: esc, type: xy, escalate: {start_m: 0.5, step_m: 0.5, max_m: 2}, quadrants: "
+      "[-X-Y, +X+Y], pose: {yaw_deg: 45}}\n"
+      "  - {name: all, type: xy, escalate: {start_m: 0.5, step_m: 0.5, max_m: 2, stop: all}, "
+      "quadrants: [-X-Y], pose: {yaw_deg: 45}}\n"
+      "  - {name: full, type: xy, offsets_m: {-X-Y: [0.5, 1, 1.5, 2], +X+Y: [0.5, 1, 1.5, 2]}, "
+      "pose: {yaw_deg: 45}}\n",
+      "max_iterations: 60\n");
+  const std::vector<Case> cases = expand_cases(c);
+  ASSERT_EQ(cases.size(), 20u);  // 2 x 4 + 4 + 2 x 4
+  std::size_t finished_callbacks = 0;
+  RunnerOptions opt;
+  opt.on_case_finished = [&](const Case&, const std::vector<RunRecord>&) { ++finished_callbacks; };
+  const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+  EXPECT_EQ(finished_callbacks, o.cases_finished);
+  // Per quadrant and offset of "full": did every strategy succeed, did any?
+  std::map<std::string, std::map<double, bool>> all_ok, any_ok;
+  std::map<std::string, std::vector<double>> ran;
+  for (const RunRecord& r : o.records) {
+    const Case& cs = cases[r.case_index];
+    if (cs.experiment == "full") {
+      all_ok[cs.group].emplace(cs.value, true).first->second &= r.decision.success;
+      any_ok[cs.group].emplace(cs.value, false).first->second |= r.decision.success;
+    } else if (r.strategy == PaperStrategy::kBase) {
+      ran[cs.experiment + cs.group].push_back(cs.value);
+    }
+  }
+  // Levels an escalation runs: up to and including the first at which it must stop.
+  auto expected_levels = [&](const std::map<double, bool>& go_on) {
+    std::vector<double> v;
+    for (const auto& [level, ok] : go_on) {
+      v.push_back(level);
+      if (!ok) break;
+    }
+    return v;
+  };
+  EXPECT_EQ(ran["esc-X-Y"], expected_levels(all_ok["-X-Y"]));
+  EXPECT_EQ(ran["esc+X+Y"], expected_levels(all_ok["+X+Y"]));
+  EXPECT_EQ(ran["all-X-Y"], expected_levels(any_ok["-X-Y"]));
+  EXPECT_LT(ran["esc-X-Y"].size(), 4u) << "the scene should make base fail in -X-Y";
+  EXPECT_GT(ran["all-X-Y"].size(), ran["esc-X-Y"].size()) << "observations should go further";
+  EXPECT_EQ(o.cases_skipped + o.cases_finished, cases.size());
+  EXPECT_EQ(o.cases_planned, o.cases_finished);
+
+  // Deterministic: the same again with another thread count.
+  opt.threads = 1;
+  const RunnerOutcome again = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+  EXPECT_EQ(without_time(csv_of(cases, again.records)), without_time(csv_of(cases, o.records)));
+}
+
+TEST(ExperimentRunner, RecordsHistoryForTheChosenCaseOnly) {
+  const ExperimentConfig c = config(kExperiments);
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  RunnerOptions opt;
+  opt.history_case = 3;
+  const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+  for (const RunRecord& r : o.records) {
+    if (r.case_index == 3) {
+      ASSERT_EQ(r.history.size(), static_cast<std::size_t>(r.iterations));
+      EXPECT_TRUE(std::isfinite(r.history.back().score_m2));
+      EXPECT_DOUBLE_EQ(r.history.back().score_m2, r.final_score_m2);
+    } else {
+      EXPECT_TRUE(r.history.empty());
+    }
+  }
+  std::ostringstream h;
+  std::vector<RunRecord> of3;
+  for (const RunRecord& r : o.records) {
+    if (r.case_index == 3) of3.push_back(r);
+  }
+  write_history_csv(h, cases[3], of3);
+  const std::string text = h.str();
+  EXPECT_EQ(
+      text.rfind("case,experiment,label,strategy,iteration,num_correspondences,mse_m2,score_m2\n",
+                 0),
+      0u);
+  EXPECT_EQ(std::count(text.begin(), text.end(), '\n'), 1 + of3[0].iterations + of3[1].iterations);
+}
+
+TEST(ExperimentRunner, CallbackExceptionsAndBadSettingsPropagate) {
+  const ExperimentConfig c = config(kExperiments);
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  RunnerOptions opt;
+  opt.on_case_finished = [](const Case&, const std::vector<RunRecord>&) {
+    throw IoError("disk full");
+  };
+  EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true, opt), IoError);
+  RunnerOptions bad;
+  bad.history_case = cases.size();
+  EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true, bad), InvalidArgument);
+  std::vector<Case> shuffled = cases;
+  std::swap(shuffled[0], shuffled[1]);
+  EXPECT_THROW(run_cases(c, shuffled, pair().source, target(), pair().T_true), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace lmalign
