@@ -61,7 +61,8 @@ test: build
 # directory (docs/robustness.md). Not yet part of `make test`: see docs/robustness.md.
 .PHONY: test-sanitize
 test-sanitize: deps
-	cmake -S . -B $(ASAN_BUILD_DIR) -DCMAKE_BUILD_TYPE=Release -DLMALIGN_SANITIZE=ON \
+	cmake -S . -B $(ASAN_BUILD_DIR) -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE=-O1 \
+	  -DLMALIGN_SANITIZE=ON \
 	  -DLMALIGN_BUILD_BENCH=OFF
 	cmake --build $(ASAN_BUILD_DIR) -j $(JOBS)
 	cd $(ASAN_BUILD_DIR) && ASAN_OPTIONS=detect_leaks=1:strict_string_checks=1 \

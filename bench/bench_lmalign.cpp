@@ -20,7 +20,7 @@ namespace {
 RegistrationOptions forced(PaperStrategy strategy, int k, int iterations) {
   RegistrationOptions o = RegistrationOptions::paper(strategy, k);
   o.convergence.max_iterations = iterations;
-  o.convergence.absolute_mse_epsilon_m2 = -1.0;                // never fires
+  o.convergence.absolute_mse_epsilon_m2 = -1.0;               // never fires
   o.convergence.max_iterations_similar_transforms = 1 << 30;  // nor does the transform test
   return o;
 }

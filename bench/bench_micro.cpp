@@ -26,7 +26,8 @@ void BM_Knn(benchmark::State& state) {
   std::vector<PointIndex> idx(k);
   std::vector<double> d2(k);
   for (auto _ : state) {
-    for (const Vec3& q : pair().source) benchmark::DoNotOptimize(tree.knn(q, k, idx.data(), d2.data()));
+    for (const Vec3& q : pair().source)
+      benchmark::DoNotOptimize(tree.knn(q, k, idx.data(), d2.data()));
   }
   state.SetItemsProcessed(state.iterations() * static_cast<std::int64_t>(pair().source.size()));
 }

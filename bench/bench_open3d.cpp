@@ -41,8 +41,8 @@ int run(const Args& args) {
     return RunResult{args.iterations, r.inlier_rmse_ * r.inlier_rmse_};
   };
   return measure(args.config, "open3d",
-                 "Open3D 0.16 RegistrationICP, point-to-point (nearest neighbour)", args.reps,
-                 once, {{"threads", "\"OpenMP default\""}});
+                 "Open3D 0.16 RegistrationICP, point-to-point (nearest neighbour)", args.reps, once,
+                 {{"threads", "\"OpenMP default\""}});
 }
 
 }  // namespace

@@ -78,7 +78,8 @@ int run(const Args& args) {
     force_iterations(icp, args.iterations);
     if (dropin) {
       icp.setCorrespondenceEstimation(
-          std::make_shared<WeightedKnnCorrespondenceEstimation<pcl::PointXYZ, pcl::PointXYZ, double>>(
+          std::make_shared<
+              WeightedKnnCorrespondenceEstimation<pcl::PointXYZ, pcl::PointXYZ, double>>(
               5, pair.target_weights));
     }
     std::vector<double> scores;

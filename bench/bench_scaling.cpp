@@ -100,8 +100,8 @@ RegistrationOptions forced(int iterations, bool reuse) {
 }
 
 int run(const Args& args) {
-  const std::size_t n = std::strtoull(args.extra.count("n") ? args.extra.at("n").c_str() : "10000",
-                                      nullptr, 10);
+  const std::size_t n =
+      std::strtoull(args.extra.count("n") ? args.extra.at("n").c_str() : "10000", nullptr, 10);
   sim::SlamSimOptions so;
   so.num_landmarks = n;
   so.seed = 2024;
@@ -156,11 +156,10 @@ int run(const Args& args) {
       "%.9g, \"cold_reuse_total_s_with_setup\": %.9g, \"final_score_m2\": %.17g, "
       "\"added_heap_peak_bytes\": %lld, \"added_rss_peak_bytes\": %zu, \"peak_rss_reset\": %s, "
       "\"kdtree_bytes\": %zu, \"source_landmarks\": %zu, \"target_landmarks\": %zu}\n",
-      n, omp_get_max_threads(), reuse_run.iterations, sim_s, reuse_med,
-      reuse_med / args.iterations, median(plain_t), reuse_s, reuse_run.final_score_m2,
-      heap_peak - heap_before, rss_peak > rss_before ? rss_peak - rss_before : 0,
-      peak_reset ? "true" : "false", tree_bytes, pair.source.landmarks.size(),
-      pair.target.landmarks.size());
+      n, omp_get_max_threads(), reuse_run.iterations, sim_s, reuse_med, reuse_med / args.iterations,
+      median(plain_t), reuse_s, reuse_run.final_score_m2, heap_peak - heap_before,
+      rss_peak > rss_before ? rss_peak - rss_before : 0, peak_reset ? "true" : "false", tree_bytes,
+      pair.source.landmarks.size(), pair.target.landmarks.size());
   return 0;
 }
 

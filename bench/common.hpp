@@ -79,8 +79,7 @@ inline bool reset_peak_rss() {
 // ---- time
 
 inline double now_s() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 inline double median(std::vector<double> v) {
   if (v.empty()) return 0.0;

@@ -77,10 +77,18 @@ def loadavg():
         return float("nan")
 
 
+def child_env(args):
+    """Every peer runs with the same OpenMP wait policy (Open3D uses OpenMP too; PCL is serial)."""
+    env = dict(os.environ)
+    if args.wait_policy != "default":
+        env["OMP_WAIT_POLICY"] = args.wait_policy
+    return env
+
+
 def run_one(exe, config, args):
     cmd = [exe, "--config", config, "--reps", str(args.reps), "--iterations", str(args.iterations)]
     before = loadavg()
-    out = subprocess.run(cmd, capture_output=True, text=True)
+    out = subprocess.run(cmd, capture_output=True, text=True, env=child_env(args))
     if out.returncode != 0:
         sys.stderr.write(f"run_bench: {' '.join(cmd)} failed ({out.returncode}):\n{out.stderr}\n")
         return None
@@ -148,7 +156,7 @@ def scaling(args):
         print(f"  scaling N={n} ...", flush=True)
         out = subprocess.run([exe, "--n", str(n), "--reps", str(args.scaling_reps),
                               "--iterations", str(args.iterations)],
-                             capture_output=True, text=True)
+                             capture_output=True, text=True, env=child_env(args))
         if out.returncode != 0:
             sys.stderr.write(f"run_bench: scaling N={n} failed:\n{out.stderr}\n")
             continue
@@ -244,18 +252,22 @@ def main():
     ap.add_argument("--sizes", default="1000,3000,10000,30000,100000,300000,1000000")
     ap.add_argument("--scaling-reps", type=int, default=3)
     ap.add_argument("--out", default=os.path.join(HERE, "results"))
+    ap.add_argument("--wait-policy", default="passive", choices=["passive", "active", "default"],
+                    help="OMP_WAIT_POLICY of every child (passive: idle threads sleep instead of "
+                         "spinning, which keeps 2 threads useful on a busy 2-core machine)")
     args = ap.parse_args()
     os.makedirs(args.out, exist_ok=True)
     stamp = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     print(f"lmalign bench: {stamp}, load average {loadavg():.2f}")
     if not args.scaling_only:
         doc = {"date_utc": stamp, "machine": machine(), "iterations": args.iterations,
-               "reps": args.reps, **real_pair(args)}
+               "reps": args.reps, "omp_wait_policy": args.wait_policy, **real_pair(args)}
         with open(os.path.join(args.out, "latest.json"), "w") as f:
             json.dump(doc, f, indent=2)
         print(f"\nwritten: {os.path.relpath(os.path.join(args.out, 'latest.json'), ROOT)}")
     if args.scaling or args.scaling_only:
-        doc = {"date_utc": stamp, "machine": machine(), **scaling(args)}
+        doc = {"date_utc": stamp, "machine": machine(), "omp_wait_policy": args.wait_policy,
+               **scaling(args)}
         with open(os.path.join(args.out, "scaling.json"), "w") as f:
             json.dump(doc, f, indent=2)
         print(f"written: {os.path.relpath(os.path.join(args.out, 'scaling.json'), ROOT)}")

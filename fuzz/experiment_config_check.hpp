@@ -55,7 +55,8 @@ inline void check_experiment_config_bytes(const std::uint8_t* data, std::size_t 
   try {
     const std::vector<Case> cases = expand_cases(config, source);
     for (const Case& c : cases) {
-      LMALIGN_FUZZ_CHECK(is_proper_rigid(c.D), "a case displacement is not a finite rigid transform");
+      LMALIGN_FUZZ_CHECK(is_proper_rigid(c.D),
+                         "a case displacement is not a finite rigid transform");
       LMALIGN_FUZZ_CHECK(c.k >= 1 && c.k <= 4096, "a case has k outside [1, 4096]");
       LMALIGN_FUZZ_CHECK(!c.strategies.empty(), "a case has no strategy");
     }

@@ -31,13 +31,13 @@
 namespace lmalign::fuzz {
 
 /// An oracle violation: print it and abort, so libFuzzer (and gtest) report the input.
-#define LMALIGN_FUZZ_CHECK(condition, what)                                                 \
-  do {                                                                                      \
-    if (!(condition)) {                                                                     \
+#define LMALIGN_FUZZ_CHECK(condition, what)                                                \
+  do {                                                                                     \
+    if (!(condition)) {                                                                    \
       std::fprintf(stderr, "lmalign fuzz oracle violated: %s (%s:%d)\n", (what), __FILE__, \
-                   __LINE__);                                                               \
-      std::abort();                                                                         \
-    }                                                                                       \
+                   __LINE__);                                                              \
+      std::abort();                                                                        \
+    }                                                                                      \
   } while (0)
 
 /// Longest line the fuzzed reader accepts: small, so that the limit itself is exercised.

@@ -24,7 +24,8 @@ run_target() {
   local artifacts="$build/fuzz-artifacts/$target"
   local log="$build/fuzz-$target.log"
   mkdir -p "$work" "$artifacts"
-  local corpora=("$work" "fuzz/corpus/$target" "fuzz/regressions/$target")
+  local corpora=("$work" "fuzz/corpus/$target")
+  [ -d "fuzz/regressions/$target" ] && corpora+=("fuzz/regressions/$target")
   if [ "$target" = map_reader ] && [ -d "$data/tum_fr1_desk/ground_truth_pair" ]; then
     corpora+=("$data/tum_fr1_desk/ground_truth_pair")
   fi
@@ -45,7 +46,10 @@ summary() {
   secs=$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$log" | tail -1)
   corpus=$(find "$build/fuzz-corpus/$target" -type f | wc -l)
   if [ "$status" -eq 0 ]; then
-    echo "fuzz_$target: ${runs:-?} executions in ${secs:-?} s, no finding; working corpus ${corpus} inputs (+ $(ls fuzz/corpus/$target | wc -l) seeds, $(ls fuzz/regressions/$target | wc -l) regressions)"
+    local seeds regressions=0
+    seeds=$(find "fuzz/corpus/$target" -type f | wc -l)
+    [ -d "fuzz/regressions/$target" ] && regressions=$(find "fuzz/regressions/$target" -type f | wc -l)
+    echo "fuzz_$target: ${runs:-?} executions in ${secs:-?} s, no finding; working corpus ${corpus} inputs (+ ${seeds} seeds, ${regressions} regressions)"
   else
     echo "fuzz_$target: FAILED (exit $status) after ${runs:-?} executions; log: $log" >&2
     grep -E "ERROR|SUMMARY|oracle violated|uncaught|Test unit written" "$log" | head -20 >&2 || true

@@ -49,7 +49,9 @@ class WeightedKnnCorrespondenceEstimation
   using ConstPtr = std::shared_ptr<const WeightedKnnCorrespondenceEstimation>;
 
   /// k = 1 and no weights: PCL's nearest-neighbour correspondences.
-  WeightedKnnCorrespondenceEstimation() { this->corr_name_ = "WeightedKnnCorrespondenceEstimation"; }
+  WeightedKnnCorrespondenceEstimation() {
+    this->corr_name_ = "WeightedKnnCorrespondenceEstimation";
+  }
 
   /// `k` nearest candidates (>= 1); `target_weights`: one per target point, finite and >= 0
   /// (empty: every weight 1, i.e. the nearest neighbour). Throws lmalign::InvalidArgument.
@@ -148,9 +150,9 @@ class WeightedKnnCorrespondenceEstimation
 
   void checkWeights() const {
     if (!weights_->empty() && weights_->size() != this->target_->size()) {
-      throw InvalidArgument("WeightedKnnCorrespondenceEstimation: " +
-                            std::to_string(weights_->size()) + " target weights for " +
-                            std::to_string(this->target_->size()) + " target points");
+      throw InvalidArgument(
+          "WeightedKnnCorrespondenceEstimation: " + std::to_string(weights_->size()) +
+          " target weights for " + std::to_string(this->target_->size()) + " target points");
     }
   }
 

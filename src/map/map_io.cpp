@@ -13,9 +13,9 @@
 #include <istream>
 #include <limits>
 #include <ostream>
+#include <streambuf>
 #include <string>
 #include <string_view>
-#include <streambuf>
 #include <system_error>
 #include <unordered_map>
 #include <utility>

@@ -131,11 +131,15 @@ struct CorrespondenceWorkspace::State {
   std::vector<PointIndex> cand;
   std::vector<float> reach;
   std::vector<std::uint16_t> ref;
+  std::vector<PointIndex> ref_source;  // the reference position is poses[ref] * source[ref_source]
   std::vector<Pose> poses;
-  // Per-thread scratch, `scratch_width` entries per thread.
+  // Per-thread scratch: `scratch_width` entries for each thread, `scratch_stride` apart. The
+  // stride pads every thread's slice to whole cache lines, plus one: threads never write to the
+  // same line (false sharing made two threads slower than one).
   std::vector<PointIndex> scratch_idx;
   std::vector<double> scratch_d2;
   std::size_t scratch_width = 0;
+  std::size_t scratch_stride = 0;
 
   std::size_t searched = 0;
   std::size_t reused = 0;
@@ -149,14 +153,16 @@ struct CorrespondenceWorkspace::State {
     cand.assign(n * width, 0);
     reach.assign(n, -1.0f);
     ref.assign(n, 0);
+    ref_source.assign(n, 0);
     poses.clear();
   }
   void ensure_scratch(std::size_t w) {
     const std::size_t threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
-    if (scratch_width >= w && scratch_idx.size() >= threads * scratch_width) return;
+    if (scratch_width >= w && scratch_idx.size() >= threads * scratch_stride) return;
     scratch_width = std::max(scratch_width, w);
-    scratch_idx.assign(threads * scratch_width, 0);
-    scratch_d2.assign(threads * scratch_width, 0.0);
+    scratch_stride = (scratch_width + 7) / 8 * 8 + 8;  // 8 doubles = one 64-byte line
+    scratch_idx.assign(threads * scratch_stride, 0);
+    scratch_d2.assign(threads * scratch_stride, 0.0);
   }
   // The id of pose (R, t) for entries made in this call; *pushed tells whether it was added.
   std::uint32_t register_pose(const Mat3& R, const Vec3& t, bool* pushed) {
@@ -188,7 +194,7 @@ std::size_t CorrespondenceWorkspace::memory_bytes() const {
   const State& s = *state_;
   return s.order.capacity() * sizeof(PointIndex) + s.cand.capacity() * sizeof(PointIndex) +
          s.reach.capacity() * sizeof(float) + s.ref.capacity() * sizeof(std::uint16_t) +
-         s.poses.capacity() * sizeof(State::Pose) +
+         s.ref_source.capacity() * sizeof(PointIndex) + s.poses.capacity() * sizeof(State::Pose) +
          s.scratch_idx.capacity() * sizeof(PointIndex) + s.scratch_d2.capacity() * sizeof(double);
 }
 
@@ -206,51 +212,77 @@ struct Kernel {
   std::size_t width;                   // == st->width
   std::uint32_t pose_id;
 
-  // The `want` first neighbours of q (source point s) in the tree's total order, written sorted
-  // into idx/d2 (capacity >= width); returns how many (min(want, target size)). Sets *searched
-  // if the tree was searched (the entry of s is then refreshed at this pose).
-  std::size_t neighbours(std::size_t s, const Vec3& q, std::size_t want, PointIndex* idx,
-                         double* d2, bool* searched) const {
+  // Re-evaluates the entry of source point e at q (sorted into idx/d2) and tells whether it
+  // provably holds the `want` first neighbours of q: the reuse test (docs/performance.md).
+  bool entry_holds(std::size_t e, const Vec3& q, std::size_t want, PointIndex* idx,
+                   double* d2) const {
     const std::size_t have = std::min(width, target_size);  // held by every entry
-    PointIndex* entry = st->cand.data() + s * width;
-    const float reach = st->reach[s];
-    if (reach >= 0.0f) {
-      // Recompute the candidates' distances at q and sort them exactly as the tree would.
-      for (std::size_t j = 0; j < have; ++j) {
-        idx[j] = entry[j];
-        d2[j] = squared_distance(q, target[entry[j]]);
-      }
-      sort_candidates(idx, d2, have);
-      const std::size_t got = std::min(want, have);
-      bool valid = std::isinf(reach);  // every target point is a candidate
-      if (!valid && got > 0) {
-        const CorrespondenceWorkspace::State::Pose& P = st->poses[st->ref[s]];
-        const Vec3 q_ref = P.R * source[s] + P.t;
-        const double moved = std::sqrt(squared_distance(q, q_ref));
-        const double kth = std::sqrt(d2[got - 1]);
-        valid = kth * (1.0 + kSlack) + moved * (1.0 + kSlack) <
-                static_cast<double>(reach) * (1.0 - kSlack);
-      }
-      if (valid) {
-        std::copy(idx, idx + have, entry);  // keep them nearly sorted for the next time
-        *searched = false;
+    const PointIndex* entry = st->cand.data() + e * width;
+    for (std::size_t j = 0; j < have; ++j) {
+      idx[j] = entry[j];
+      d2[j] = squared_distance(q, target[entry[j]]);
+    }
+    sort_candidates(idx, d2, have);
+    const float reach = st->reach[e];
+    if (std::isinf(reach)) return true;  // every target point is a candidate
+    const std::size_t got = std::min(want, have);
+    if (got == 0) return false;
+    const CorrespondenceWorkspace::State::Pose& P = st->poses[st->ref[e]];
+    const Vec3 q_ref = P.R * source[st->ref_source[e]] + P.t;
+    const double moved = std::sqrt(squared_distance(q, q_ref));
+    const double kth = std::sqrt(d2[got - 1]);
+    return kth * (1.0 + kSlack) + moved * (1.0 + kSlack) <
+           static_cast<double>(reach) * (1.0 - kSlack);
+  }
+
+  // The `want` first neighbours of q (source point s) in the tree's total order, written sorted
+  // into idx/d2 (capacity >= 2 width); returns how many (min(want, target size)). Tries, in
+  // turn: the entry of s; the entry of `*lender` (the point this thread served last, usually a
+  // neighbour of s in the Morton order: its reference position may be nearer q than s's own);
+  // a fresh search, seeded with the entry of s. Sets *searched if the tree was searched, and
+  // *lender to s.
+  std::size_t neighbours(std::size_t s, const Vec3& q, std::size_t want, PointIndex* idx,
+                         double* d2, bool* searched, std::ptrdiff_t* lender) const {
+    const std::size_t have = std::min(width, target_size);
+    const std::size_t got = std::min(want, have);
+    const bool own = st->reach[s] >= 0.0f;
+    *searched = false;
+    if (own && entry_holds(s, q, want, idx, d2)) {
+      // Keep the entry sorted as of now (cheaper to sort next time); write only if the order
+      // changed, so that converged iterations only read the cache.
+      PointIndex* entry = st->cand.data() + s * width;
+      if (!std::equal(idx, idx + have, entry)) std::copy(idx, idx + have, entry);
+      *lender = static_cast<std::ptrdiff_t>(s);
+      return got;
+    }
+    if (*lender >= 0) {
+      const auto l = static_cast<std::size_t>(*lender);
+      if (entry_holds(l, q, want, idx + width, d2 + width)) {  // adopt the lender's entry
+        std::copy(idx + width, idx + width + have, st->cand.data() + s * width);
+        std::copy(idx + width, idx + width + got, idx);
+        std::copy(d2 + width, d2 + width + got, d2);
+        st->reach[s] = st->reach[l];
+        st->ref[s] = st->ref[l];
+        st->ref_source[s] = st->ref_source[l];
+        *lender = static_cast<std::ptrdiff_t>(s);
         return got;
       }
     }
     // Search again, seeded with the old candidates re-evaluated at q (already sorted in idx/d2):
     // a tight bound from the start.
-    const std::size_t found = reach >= 0.0f
-                                  ? tree->knn_seeded(q, width, idx, d2, have, idx, d2)
-                                  : tree->knn(q, width, idx, d2);
+    const std::size_t found =
+        own ? tree->knn_seeded(q, width, idx, d2, have, idx, d2) : tree->knn(q, width, idx, d2);
     *searched = true;
     if (found == 0) {
       st->reach[s] = -1.0f;
       return 0;
     }
-    std::copy(idx, idx + found, entry);
+    std::copy(idx, idx + found, st->cand.data() + s * width);
     st->reach[s] = found >= target_size ? std::numeric_limits<float>::infinity()
                                         : round_down_to_float(std::sqrt(d2[found - 1]));
     st->ref[s] = static_cast<std::uint16_t>(pose_id);
+    st->ref_source[s] = static_cast<PointIndex>(s);
+    *lender = static_cast<std::ptrdiff_t>(s);
     return std::min(want, found);
   }
 };
@@ -389,6 +421,7 @@ void CorrespondenceFinder::bind(const Points3& source_points,
     st.cand.clear();
     st.reach.clear();
     st.ref.clear();
+    st.ref_source.clear();
     st.poses.clear();
   }
 }
@@ -406,16 +439,16 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   moved.resize(n);
   out.resize(n);
 
-  Kernel kernel{target_, target_->points().data(), target_->size(), source_points.data(),
-                &st, st.width, 0};
+  Kernel kernel{
+      target_, target_->points().data(), target_->size(), source_points.data(), &st, st.width, 0};
   bool pushed = false;
   if (reuse) {
     st.ensure_cache();
-    kernel.pose_id = st.register_pose(T_target_source.linear(), T_target_source.translation(),
-                                      &pushed);
+    kernel.pose_id =
+        st.register_pose(T_target_source.linear(), T_target_source.translation(), &pushed);
   }
-  st.ensure_scratch(std::max(st.width, k));
-  const std::size_t sw = st.scratch_width;
+  st.ensure_scratch(std::max(2 * st.width, k));
+  const std::size_t sw = st.scratch_stride;
   // Exactly transform_points(): R * p + t with R and t copied out of the isometry.
   const Mat3 R = T_target_source.linear();
   const Vec3 t = T_target_source.translation();
@@ -426,6 +459,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
+    std::ptrdiff_t lender = -1;  // this thread's last served point (Morton order)
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
       const PointIndex s = order[j];
@@ -434,9 +468,10 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       std::size_t found = 0;
       if (!q.allFinite()) {
         if (reuse) st.reach[s] = -1.0f;
+        if (lender == static_cast<std::ptrdiff_t>(s)) lender = -1;
       } else if (reuse) {
         bool did_search = false;
-        found = kernel.neighbours(s, q, k, idx, d2, &did_search);
+        found = kernel.neighbours(s, q, k, idx, d2, &did_search, &lender);
         if (did_search) {
           ++searched;
         } else {
@@ -456,21 +491,21 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
 }
 
 void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
-                                                const Isometry3& T_target_source,
-                                                std::size_t begin, std::size_t end, double* d2_out,
+                                                const Isometry3& T_target_source, std::size_t begin,
+                                                std::size_t end, double* d2_out,
                                                 CorrespondenceWorkspace& workspace) const {
   bind(source_points, workspace);
   CorrespondenceWorkspace::State& st = *workspace.state_;
   end = std::min(end, source_points.size());
   if (begin >= end) return;
   st.ensure_cache();
-  st.ensure_scratch(st.width);
+  st.ensure_scratch(2 * st.width);
   bool pushed = false;
-  Kernel kernel{target_, target_->points().data(), target_->size(), source_points.data(),
-                &st, st.width, 0};
+  Kernel kernel{
+      target_, target_->points().data(), target_->size(), source_points.data(), &st, st.width, 0};
   kernel.pose_id =
       st.register_pose(T_target_source.linear(), T_target_source.translation(), &pushed);
-  const std::size_t sw = st.scratch_width;
+  const std::size_t sw = st.scratch_stride;
   const Mat3 R = T_target_source.linear();
   const Vec3 t = T_target_source.translation();
   std::size_t searched = 0, reused = 0;
@@ -479,6 +514,7 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
+    std::ptrdiff_t lender = -1;
 #pragma omp for schedule(static)
     for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(begin);
          i < static_cast<std::ptrdiff_t>(end); ++i) {
@@ -487,7 +523,7 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
       double value = std::numeric_limits<double>::infinity();
       if (q.allFinite()) {
         bool did_search = false;
-        if (kernel.neighbours(s, q, 1, idx, d2, &did_search) == 1) value = d2[0];
+        if (kernel.neighbours(s, q, 1, idx, d2, &did_search, &lender) == 1) value = d2[0];
         if (did_search) {
           ++searched;
         } else {

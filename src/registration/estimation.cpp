@@ -68,7 +68,8 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   // v_0 (rank 1), or any rotation at all (rank 0), is a minimiser, and the SVD's choice among
   // them is arbitrary. Take the smallest one instead, so the result is deterministic and no
   // spurious spin about the line is introduced.
-  const bool degenerate = !(sigma(0) > 0.0) || sigma(1) <= EstimationReport::kDegenerateRatio * sigma(0);
+  const bool degenerate =
+      !(sigma(0) > 0.0) || sigma(1) <= EstimationReport::kDegenerateRatio * sigma(0);
   Mat3 R;
   if (!degenerate) {
     Mat3 D = Mat3::Identity();
@@ -88,8 +89,9 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   T.linear() = R;
   T.translation() = mu_t - R * mu_s;
   if (!T.matrix().allFinite()) {
-    throw InvalidArgument("estimate_rigid_transform: the estimate is not finite (coordinates too "
-                          "large)");
+    throw InvalidArgument(
+        "estimate_rigid_transform: the estimate is not finite (coordinates too "
+        "large)");
   }
   return T;
 }

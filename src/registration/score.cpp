@@ -53,9 +53,8 @@ FitnessScore fitness_score(const Points3& source_points, const KdTree& target,
           const Vec3 p = R * source_points[static_cast<std::size_t>(i)] + t;
           PointIndex idx = 0;
           double dist_sq = 0.0;
-          d2[static_cast<std::size_t>(i) - begin] = target.nearest(p, &idx, &dist_sq)
-                                                        ? dist_sq
-                                                        : std::numeric_limits<double>::infinity();
+          d2[static_cast<std::size_t>(i) - begin] =
+              target.nearest(p, &idx, &dist_sq) ? dist_sq : std::numeric_limits<double>::infinity();
         }
       });
 }
@@ -63,11 +62,10 @@ FitnessScore fitness_score(const Points3& source_points, const KdTree& target,
 FitnessScore fitness_score(const Points3& source_points, const CorrespondenceFinder& finder,
                            const Isometry3& T_target_source, double max_range_m,
                            CorrespondenceWorkspace& workspace) {
-  return blocked_score(source_points.size(), max_range_m,
-                       [&](std::size_t begin, std::size_t end, double* d2) {
-                         finder.nearest_sq_distances(source_points, T_target_source, begin, end,
-                                                     d2, workspace);
-                       });
+  return blocked_score(
+      source_points.size(), max_range_m, [&](std::size_t begin, std::size_t end, double* d2) {
+        finder.nearest_sq_distances(source_points, T_target_source, begin, end, d2, workspace);
+      });
 }
 
 }  // namespace lmalign

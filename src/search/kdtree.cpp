@@ -12,20 +12,18 @@ namespace lmalign {
 
 namespace {
 
-constexpr std::uint32_t kLeafBit = 0x80000000u;
-// Deepest tree: 2 log2(n) + 8 levels of sliding-midpoint splits, then at most log2(n) median
-// splits (n < 2^31): 101.
-constexpr int kMaxDepth = 104;
+// The tree is complete and balanced: 2^depth leaves of at most leaf_size points each, split at
+// the median on the axis of largest spread, stored implicitly in heap order (children of node i
+// are 2i + 1 and 2i + 2; leaf j is node 2^depth - 1 + j). Depth <= 31 for n < 2^31.
+constexpr int kMaxDepth = 32;
 
-// 16 bytes. Nodes are stored in pre-order, so the left child of node i is node i + 1. An internal
-// node splits its points on one axis: every left point has coordinate <= left_max, every right
-// point >= right_min: the bounds of the two halves on that axis, rounded outwards to float (so
-// they remain bounds; +-inf when out of float range, i.e. no bound).
+// 12 bytes per internal node: every left point has coordinate <= left_max on `axis`, every
+// right point >= right_min -- the bounds of the two halves, rounded outwards to float so that
+// they remain bounds (+-inf beyond the float range: no bound).
 struct Node {
   float left_max = 0.0f;
   float right_min = 0.0f;
-  std::uint32_t a = 0;  // internal: index of the right child; leaf: first slot of `perm`
-  std::uint32_t b = 0;  // internal: split axis (0..2); leaf: one past the last slot | kLeafBit
+  std::uint32_t axis = 0;
 };
 
 // The smallest float >= x, and the largest float <= x (infinite beyond the float range).
@@ -89,109 +87,52 @@ class Best {
 
 struct KdTree::Impl {
   Points3 points;
-  std::vector<PointIndex> perm;  // leaf slots -> point index
-  std::vector<Node> nodes;
+  std::vector<PointIndex> perm;           // leaf slots -> point index
+  std::vector<Node> nodes;                // 2^depth - 1 internal nodes, heap order
+  std::vector<std::uint32_t> leaf_begin;  // 2^depth + 1 slot offsets
+  int depth = 0;
   Vec3 box_min = Vec3::Zero(), box_max = Vec3::Zero();  // bounding box of all points
-  std::size_t leaf_size = 8;
-  int max_depth = 64;
 
-  // Sliding-midpoint construction: a node halves its cell (the region it covers, not the bounding
-  // box of its points) on the cell's longest axis, the cut slid onto the points if it misses
-  // them. Cells stay compact, which prunes well also for queries far from the data. Beyond
-  // max_depth (degenerate distributions), the median is used: the depth stays O(log n).
-  std::uint32_t build(std::uint32_t lo, std::uint32_t hi, int depth, Vec3 cell_lo, Vec3 cell_hi) {
-    const auto id = static_cast<std::uint32_t>(nodes.size());
-    nodes.emplace_back();
-    if (hi - lo <= leaf_size || depth >= kMaxDepth) {  // (the depth bound never binds; see above)
-      nodes[id].a = lo;
-      nodes[id].b = hi | kLeafBit;
-      return id;
+  void build(std::uint32_t node, int level, std::uint32_t lo, std::uint32_t hi) {
+    if (level == depth) {
+      leaf_begin[node - static_cast<std::uint32_t>(nodes.size())] = lo;
+      return;
     }
-    Vec3 lo_c = points[perm[lo]], hi_c = lo_c;
-    for (std::uint32_t i = lo + 1; i < hi; ++i) {
-      lo_c = lo_c.cwiseMin(points[perm[i]]);
-      hi_c = hi_c.cwiseMax(points[perm[i]]);
-    }
-    const Vec3 spread = hi_c - lo_c;
-    if (!(spread.maxCoeff() > 0.0)) {  // all points equal: one (large) leaf, still exact
-      nodes[id].a = lo;
-      nodes[id].b = hi | kLeafBit;
-      return id;
-    }
-    // The longest cell axis; among axes nearly as long, the one where the points spread most.
-    const Vec3 span = cell_hi - cell_lo;
-    const double max_span = span.maxCoeff();
-    int dim = -1;
-    for (int d = 0; d < 3; ++d) {
-      if (span[d] >= (1.0 - 1e-5) * max_span && spread[d] > 0.0 &&
-          (dim < 0 || spread[d] > spread[dim])) {
-        dim = d;
+    int axis = 0;
+    if (hi > lo) {
+      Vec3 lo_c = points[perm[lo]], hi_c = lo_c;
+      for (std::uint32_t i = lo + 1; i < hi; ++i) {
+        lo_c = lo_c.cwiseMin(points[perm[i]]);
+        hi_c = hi_c.cwiseMax(points[perm[i]]);
       }
+      const Vec3 spread = hi_c - lo_c;
+      if (spread[1] > spread[axis]) axis = 1;
+      if (spread[2] > spread[axis]) axis = 2;
     }
-    if (dim < 0) {  // the long axes have no spread: the axis of largest spread
-      dim = 0;
-      if (spread[1] > spread[dim]) dim = 1;
-      if (spread[2] > spread[dim]) dim = 2;
-    }
+    // The left half gets the larger share, so every leaf ends with at most leaf_size points.
+    const std::uint32_t mid = lo + (hi - lo + 1) / 2;
     const Points3& pts = points;
-    const double cut = std::clamp(0.5 * (cell_lo[dim] + cell_hi[dim]), lo_c[dim], hi_c[dim]);
-    std::uint32_t mid = static_cast<std::uint32_t>(
-        std::partition(perm.begin() + lo, perm.begin() + hi,
-                       [&pts, dim, cut](PointIndex x) { return pts[x][dim] < cut; }) -
-        perm.begin());
-    if (mid == lo) {  // cut slid onto the smallest coordinate: those points go left
-      mid = static_cast<std::uint32_t>(
-          std::partition(perm.begin() + lo, perm.begin() + hi,
-                         [&pts, dim, cut](PointIndex x) { return pts[x][dim] <= cut; }) -
-          perm.begin());
-    }
-    double child_cut = cut;
-    if (depth >= max_depth || mid == lo || mid == hi) {
-      mid = lo + (hi - lo) / 2;
+    if (hi - lo > 1) {
       std::nth_element(perm.begin() + lo, perm.begin() + mid, perm.begin() + hi,
-                       [&pts, dim](PointIndex x, PointIndex y) {
-                         const double cx = pts[x][dim], cy = pts[y][dim];
+                       [&pts, axis](PointIndex x, PointIndex y) {
+                         const double cx = pts[x][axis], cy = pts[y][axis];
                          return cx < cy || (cx == cy && x < y);
                        });
-      child_cut = pts[perm[mid]][dim];
     }
-    double left_max = points[perm[lo]][dim];
-    for (std::uint32_t i = lo + 1; i < mid; ++i) left_max = std::max(left_max, points[perm[i]][dim]);
-    double right_min = points[perm[mid]][dim];
-    for (std::uint32_t i = mid + 1; i < hi; ++i) right_min = std::min(right_min, points[perm[i]][dim]);
-    Vec3 left_hi = cell_hi, right_lo = cell_lo;
-    left_hi[dim] = child_cut;
-    right_lo[dim] = child_cut;
-    build(lo, mid, depth + 1, cell_lo, left_hi);  // left child: id + 1
-    const std::uint32_t right = build(mid, hi, depth + 1, right_lo, cell_hi);
-    nodes[id].left_max = float_at_least(left_max);
-    nodes[id].right_min = float_at_most(right_min);
-    nodes[id].a = right;
-    nodes[id].b = static_cast<std::uint32_t>(dim);
-    return id;
+    double left_max = -std::numeric_limits<double>::infinity();
+    double right_min = std::numeric_limits<double>::infinity();
+    for (std::uint32_t i = lo; i < mid; ++i) left_max = std::max(left_max, pts[perm[i]][axis]);
+    for (std::uint32_t i = mid; i < hi; ++i) right_min = std::min(right_min, pts[perm[i]][axis]);
+    nodes[node] = {float_at_least(left_max), float_at_most(right_min),
+                   static_cast<std::uint32_t>(axis)};
+    build(2 * node + 1, level + 1, lo, mid);
+    build(2 * node + 2, level + 1, mid, hi);
   }
 
-  // Depth-first, nearer child first, with an explicit stack of deferred far children. `off`
-  // holds, per axis, the signed offset from the query to the current cell's extent (0 inside);
-  // the cell's lower bound is its squared norm. Every offset is q[d] - c with c a coordinate bound
-  // of the cell, and rounding is monotone, so that bound never exceeds the computed squared
-  // distance of a point in the cell: pruning with '>' is exact, and cells at exactly the bound are
-  // visited (a tie with a lower index may be there).
-  struct Deferred {
-    std::uint32_t node;
-    double cell_d2;
-    double off[3];
-  };
-  static double norm2(const double* off) {
-    return off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
-  }
-
-  // Offers every point of leaf slots [begin, end) to `best`: squared distances computed in
-  // blocks (vectorised), then compared with the bound.
-  // Offers every point of leaf slots [begin, end) to `best`.
-  void scan_leaf(std::uint32_t begin, std::uint32_t end, const Vec3& q, Best& best) const {
+  // Offers every point of leaf j to `best`.
+  void scan_leaf(std::uint32_t leaf, const Vec3& q, Best& best) const {
     double bound = best.bound();
-    for (std::uint32_t s = begin; s < end; ++s) {
+    for (std::uint32_t s = leaf_begin[leaf]; s < leaf_begin[leaf + 1]; ++s) {
       const PointIndex i = perm[s];
       const double d = squared_distance(q, points[i]);
       if (d <= bound) {
@@ -201,48 +142,68 @@ struct KdTree::Impl {
     }
   }
 
+  // Depth-first, nearer half first, with an explicit stack of deferred far halves. `off` holds,
+  // per axis, the signed offset from the query to the current cell (0 inside); the cell's lower
+  // bound is its squared norm. Every offset is q[d] - c with c a coordinate bound of the cell,
+  // and rounding is monotone, so that bound never exceeds the computed squared distance of a
+  // point in the cell: pruning with '>' is exact, and cells at exactly the bound are visited (a
+  // tie with a lower index may be there).
+  struct Deferred {
+    std::uint32_t node;
+    int level;
+    double cell_d2;
+    double off[3];
+  };
+  static double norm2(const double* off) {
+    return off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
+  }
+
   void search(const Vec3& q, const double* off0, Best& best) const {
     Deferred stack[kMaxDepth + 1];
     int top = 0;
-    std::uint32_t node_id = 0;
+    std::uint32_t node = 0;
+    int level = 0;
     double off[3] = {off0[0], off0[1], off0[2]};
     double cell_d2 = norm2(off);
+    const auto first_leaf = static_cast<std::uint32_t>(nodes.size());
     for (;;) {
       // Descend towards the query, deferring the far halves.
       while (cell_d2 <= best.bound()) {
-        const Node& node = nodes[node_id];
-        if (node.b & kLeafBit) {
-          scan_leaf(node.a, node.b & ~kLeafBit, q, best);
+        if (level == depth) {
+          scan_leaf(node - first_leaf, q, best);
           break;
         }
-        const std::uint32_t dim = node.b;
-        const double qd = q[dim];
-        // Offsets to each half along `dim`, 0 when the query is on that half's side of its
-        // bound (the ancestors' offset along `dim`, if any, then still holds).
-        const double lo_off = qd - static_cast<double>(node.left_max);
-        const double hi_off = qd - static_cast<double>(node.right_min);
-        const double to_left = std::max(lo_off, 0.0);   // (branch-free: the outcome of these
-        const double to_right = std::min(hi_off, 0.0);  // comparisons is unpredictable)
+        const Node& nd = nodes[node];
+        const std::uint32_t axis = nd.axis;
+        const double qd = q[axis];
+        // Offsets to each half along `axis`, 0 when the query is on that half's side of its
+        // bound (the ancestors' offset along `axis`, if any, then still holds). Branch-free:
+        // which half is nearer is unpredictable.
+        const double to_left = std::max(qd - static_cast<double>(nd.left_max), 0.0);
+        const double to_right = std::min(qd - static_cast<double>(nd.right_min), 0.0);
         const bool left_near = -to_right > to_left;
         Deferred& far = stack[top++];
-        far.node = left_near ? node.a : node_id + 1;
+        far.node = left_near ? 2 * node + 2 : 2 * node + 1;
+        far.level = level + 1;
         far.off[0] = off[0];
         far.off[1] = off[1];
         far.off[2] = off[2];
         const double off_far = left_near ? to_right : to_left;
-        far.off[dim] = off_far != 0.0 ? off_far : far.off[dim];
+        far.off[axis] = off_far != 0.0 ? off_far : far.off[axis];
         far.cell_d2 = norm2(far.off);
         const double off_near = left_near ? to_left : to_right;
-        off[dim] = off_near != 0.0 ? off_near : off[dim];
+        off[axis] = off_near != 0.0 ? off_near : off[axis];
         cell_d2 = norm2(off);
-        node_id = left_near ? node_id + 1 : node.a;
+        node = left_near ? 2 * node + 1 : 2 * node + 2;
+        ++level;
       }
-      // Resume at the nearest deferred half still within the bound.
+      // Resume at the most recent deferred half still within the bound.
       for (;;) {
         if (top == 0) return;
         const Deferred& d = stack[--top];
         if (d.cell_d2 <= best.bound()) {
-          node_id = d.node;
+          node = d.node;
+          level = d.level;
           off[0] = d.off[0];
           off[1] = d.off[1];
           off[2] = d.off[2];
@@ -255,7 +216,7 @@ struct KdTree::Impl {
 
   std::size_t query(const Vec3& q, std::size_t k, const PointIndex* seed_idx, const double* seed_d2,
                     std::size_t num_seeds, PointIndex* indices, double* d2) const {
-    if (nodes.empty() || k == 0 || !q.allFinite()) return 0;
+    if (points.empty() || k == 0 || !q.allFinite()) return 0;
     const std::size_t cap = std::min(k, points.size());
     const std::size_t seeded = std::min(num_seeds, cap);
     for (std::size_t j = 0; j < seeded; ++j) {  // (a no-op when seeding in place)
@@ -273,7 +234,7 @@ struct KdTree::Impl {
 };
 
 KdTree::KdTree(Points3 points, std::size_t leaf_size) : impl_(std::make_unique<Impl>()) {
-  if (points.size() >= static_cast<std::size_t>(kLeafBit) - 1) {
+  if (points.size() >= (std::size_t{1} << 31)) {
     throw InvalidArgument("kd-tree: too many points (" + std::to_string(points.size()) + ")");
   }
   for (std::size_t i = 0; i < points.size(); ++i) {
@@ -282,7 +243,6 @@ KdTree::KdTree(Points3 points, std::size_t leaf_size) : impl_(std::make_unique<I
     }
   }
   if (leaf_size == 0) throw InvalidArgument("kd-tree: leaf_size must be >= 1");
-  impl_->leaf_size = leaf_size;
   impl_->points = std::move(points);
   const std::size_t n = impl_->points.size();
   if (n == 0) return;
@@ -293,12 +253,15 @@ KdTree::KdTree(Points3 points, std::size_t leaf_size) : impl_(std::make_unique<I
     impl_->box_min = impl_->box_min.cwiseMin(p);
     impl_->box_max = impl_->box_max.cwiseMax(p);
   }
-  impl_->nodes.reserve(2 * (n / std::max<std::size_t>(1, leaf_size / 2)) + 1);
-  int log2n = 0;
-  while ((std::size_t{1} << log2n) < n) ++log2n;
-  impl_->max_depth = 2 * log2n + 8;
-  impl_->build(0, static_cast<std::uint32_t>(n), 0, impl_->box_min, impl_->box_max);
-  impl_->nodes.shrink_to_fit();
+  std::size_t leaves = 1;
+  while (leaves * leaf_size < n) {
+    leaves *= 2;
+    ++impl_->depth;
+  }
+  impl_->nodes.resize(leaves - 1);
+  impl_->leaf_begin.resize(leaves + 1);
+  impl_->build(0, 0, 0, static_cast<std::uint32_t>(n));
+  impl_->leaf_begin[leaves] = static_cast<std::uint32_t>(n);
 }
 
 KdTree::~KdTree() = default;
@@ -326,7 +289,8 @@ bool KdTree::nearest(const Vec3& query, PointIndex* index, double* distance_sq_m
 
 std::size_t KdTree::memory_bytes() const {
   return impl_->points.capacity() * sizeof(Vec3) + impl_->perm.capacity() * sizeof(PointIndex) +
-         impl_->nodes.capacity() * sizeof(Node);
+         impl_->nodes.capacity() * sizeof(Node) +
+         impl_->leaf_begin.capacity() * sizeof(std::uint32_t);
 }
 
 }  // namespace lmalign

@@ -14,9 +14,9 @@ namespace lmalign::sim {
 
 namespace {
 
-constexpr double kWidthM = 2.0;        // corridor width (walls at y = 0 and y = kWidthM)
-constexpr double kWallHeightM = 2.2;   // walls from z = 0 to this
-constexpr double kFrameStepM = 0.2;    // keyframe spacing along the corridor
+constexpr double kWidthM = 2.0;         // corridor width (walls at y = 0 and y = kWidthM)
+constexpr double kWallHeightM = 2.2;    // walls from z = 0 to this
+constexpr double kFrameStepM = 0.2;     // keyframe spacing along the corridor
 constexpr double kMinLookAheadM = 0.3;  // a frame observes landmarks 0.3 .. 3 m ahead of it
 constexpr double kMaxLookAheadM = 3.0;
 
@@ -35,16 +35,14 @@ std::uint64_t mix(std::uint64_t x) {  // splitmix64 finaliser
   return x ^ (x >> 31);
 }
 
-Patch patch(const Vec3& o, const Vec3& u, const Vec3& v) {
-  return {o, u, v, u.cross(v).norm()};
-}
+Patch patch(const Vec3& o, const Vec3& u, const Vec3& v) { return {o, u, v, u.cross(v).norm()}; }
 
 // The surfaces of corridor metre m (x in [m, m + 1]): floor, both walls, and 1-2 boxes whose
 // sizes and places depend only on (seed, m).
 void metre_patches(std::int64_t m, std::uint64_t seed, std::vector<Patch>& out) {
   const double x0 = static_cast<double>(m);
-  out.push_back(patch({x0, 0, 0}, {1, 0, 0}, {0, kWidthM, 0}));            // floor
-  out.push_back(patch({x0, 0, 0}, {1, 0, 0}, {0, 0, kWallHeightM}));       // wall y = 0
+  out.push_back(patch({x0, 0, 0}, {1, 0, 0}, {0, kWidthM, 0}));             // floor
+  out.push_back(patch({x0, 0, 0}, {1, 0, 0}, {0, 0, kWallHeightM}));        // wall y = 0
   out.push_back(patch({x0, kWidthM, 0}, {1, 0, 0}, {0, 0, kWallHeightM}));  // wall y = W
   std::mt19937_64 rng(mix(seed ^ mix(static_cast<std::uint64_t>(m) + 0x51ed270b)));
   std::uniform_real_distribution<double> u(0.0, 1.0);
@@ -56,9 +54,9 @@ void metre_patches(std::int64_t m, std::uint64_t seed, std::vector<Patch>& out) 
     const double y_front = left ? depth : kWidthM - depth;
     const double y_wall = left ? 0.0 : kWidthM;
     const double y_lo = std::min(y_front, y_wall);
-    out.push_back(patch({bx, y_lo, h}, {len, 0, 0}, {0, depth, 0}));    // top
-    out.push_back(patch({bx, y_front, 0}, {len, 0, 0}, {0, 0, h}));     // front
-    out.push_back(patch({bx, y_lo, 0}, {0, depth, 0}, {0, 0, h}));      // side facing -x
+    out.push_back(patch({bx, y_lo, h}, {len, 0, 0}, {0, depth, 0}));      // top
+    out.push_back(patch({bx, y_front, 0}, {len, 0, 0}, {0, 0, h}));       // front
+    out.push_back(patch({bx, y_lo, 0}, {0, depth, 0}, {0, 0, h}));        // side facing -x
     out.push_back(patch({bx + len, y_lo, 0}, {0, depth, 0}, {0, 0, h}));  // side facing +x
   }
 }
@@ -75,7 +73,8 @@ Isometry3 keyframe_pose(double x) {
   T.linear().col(0) = right;
   T.linear().col(1) = down;
   T.linear().col(2) = forward;
-  T.translation() = Vec3(x, 0.5 * kWidthM + 0.25 * std::sin(0.7 * x), 1.3 + 0.1 * std::sin(1.3 * x));
+  T.translation() =
+      Vec3(x, 0.5 * kWidthM + 0.25 * std::sin(0.7 * x), 1.3 + 0.1 * std::sin(1.3 * x));
   return T;
 }
 
@@ -156,9 +155,9 @@ Map simulate_session(double x_start, std::size_t n, double density, std::uint64_
     R.col(1) = ray.cross(R.col(0));
     const Vec3 e(sigma_l * gauss(rng), sigma_l * gauss(rng), sigma_z * gauss(rng));
     lm.p_world = P + R * e;
-    lm.cov_world_m2 =
-        R * Vec3(sigma_l * sigma_l, sigma_l * sigma_l, sigma_z * sigma_z).asDiagonal() *
-        R.transpose();
+    lm.cov_world_m2 = R *
+                      Vec3(sigma_l * sigma_l, sigma_l * sigma_l, sigma_z * sigma_z).asDiagonal() *
+                      R.transpose();
     made.emplace_back(first + nobs - 1, std::move(lm));
   }
   // Creation order, as a SLAM system would number them: by the frame that made them.

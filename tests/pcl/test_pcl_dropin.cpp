@@ -100,7 +100,7 @@ TEST(PclDropIn, ReciprocalKeepsOnlyMutualChoices) {
 }
 
 TEST(PclDropIn, WorksInsidePclsIcp) {
-  const Points3 tgt = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1),
+  const Points3 tgt = {Vec3(0, 0, 0), Vec3(1, 0, 0),       Vec3(0, 1, 0),      Vec3(0, 0, 1),
                        Vec3(1, 1, 0), Vec3(0.3, 0.7, 0.2), Vec3(0.9, 0.2, 0.6)};
   const Isometry3 T = pose_from_xyz_rpy_deg(0.02, -0.01, 0.01, 0.5, 0, 1);
   pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ, double> icp;

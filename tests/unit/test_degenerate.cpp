@@ -36,8 +36,8 @@ std::vector<PaperStrategy> strategies() { return all_paper_strategies(); }
 /// A target of bare points with every weight kind set to 1 (so all four strategies run).
 PreparedTarget bare_target(const Points3& points) {
   PreparedTarget target(points);
-  for (WeightKind kind : {WeightKind::kCovariance, WeightKind::kObservations,
-                          WeightKind::kMeanDistance}) {
+  for (WeightKind kind :
+       {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance}) {
     target.set_weights(kind, std::vector<double>(points.size(), 1.0));
   }
   return target;
@@ -167,7 +167,8 @@ TEST(DegenerateMaps, CoplanarMapsAreWellDeterminedAndConverge) {
   Points3 floor = test::room_points(3000, 9);
   for (Vec3& p : floor) p.z() = 0.0;
   const Isometry3 T_true = pose_from_xyz_rpy_deg(0.05, -0.03, 0.02, 1, -1, 3);
-  const Points3 source = transform_points(T_true.inverse(), Points3(floor.begin(), floor.begin() + 2000));
+  const Points3 source =
+      transform_points(T_true.inverse(), Points3(floor.begin(), floor.begin() + 2000));
   const PreparedTarget target = bare_target(floor);
   const RegistrationResult r =
       align(source, target, RegistrationOptions::paper(PaperStrategy::kBase));
@@ -223,8 +224,8 @@ TEST(DegenerateEstimation, ReportsTheRankAndStaysAProperRotation) {
   Points3 plane = test::room_points(20, 12);
   for (Vec3& p : plane) p.z() = 0.0;
   const Isometry3 T_true = pose_from_xyz_rpy_deg(0.3, 0.1, -0.2, 20, -10, 40);
-  T = estimate_rigid_transform(plane, transform_points(T_true, plane), identity_pairs(20),
-                               nullptr, &report);
+  T = estimate_rigid_transform(plane, transform_points(T_true, plane), identity_pairs(20), nullptr,
+                               &report);
   EXPECT_FALSE(report.degenerate);
   EXPECT_LT(transform_error(T, T_true).rotation_deg, 1e-9);
 }
@@ -299,10 +300,13 @@ TEST(DegenerateMaps, KLargerThanTheTargetEqualsKEqualToTheTarget) {
   std::vector<double> w(target_points.size());
   for (std::size_t i = 0; i < w.size(); ++i) w[i] = 1.0 + static_cast<double>(i % 4);
   target.set_weights(WeightKind::kObservations, w);
-  const Points3 source = transform_points(pose_from_xyz_rpy_deg(0.02, 0, 0, 0, 0, 2),
-                                          Points3(target_points.begin(), target_points.begin() + 8));
-  const RegistrationResult all = align(source, target, RegistrationOptions::paper(PaperStrategy::kObservations, 12));
-  const RegistrationResult more = align(source, target, RegistrationOptions::paper(PaperStrategy::kObservations, 4096));
+  const Points3 source =
+      transform_points(pose_from_xyz_rpy_deg(0.02, 0, 0, 0, 0, 2),
+                       Points3(target_points.begin(), target_points.begin() + 8));
+  const RegistrationResult all =
+      align(source, target, RegistrationOptions::paper(PaperStrategy::kObservations, 12));
+  const RegistrationResult more =
+      align(source, target, RegistrationOptions::paper(PaperStrategy::kObservations, 4096));
   expect_proper_rigid(more.T_target_source);
   EXPECT_NE(more.termination, TerminationReason::kNotTerminated);
   EXPECT_TRUE(more.T_target_source.matrix() == all.T_target_source.matrix());
@@ -314,8 +318,8 @@ TEST(DegenerateMaps, AllTargetWeightsZeroMeansNoCorrespondences) {
   PreparedTarget target(target_points);
   target.set_weights(WeightKind::kObservations, std::vector<double>(target_points.size(), 0.0));
   const Isometry3 init = pose_from_xyz_rpy_deg(0, 0.1, 0, 0, 0, 0);
-  const RegistrationResult r = align(target_points, target,
-                                     RegistrationOptions::paper(PaperStrategy::kObservations), init);
+  const RegistrationResult r =
+      align(target_points, target, RegistrationOptions::paper(PaperStrategy::kObservations), init);
   EXPECT_EQ(r.termination, TerminationReason::kNoCorrespondences);
   EXPECT_EQ(r.num_correspondences, 0u);
   EXPECT_EQ(r.iterations, 0);
@@ -365,8 +369,8 @@ TEST(DegenerateMaps, SourceEqualToTargetConvergesToTheIdentity) {
   // Weighted-kNN (Eq. 6) pairs a landmark with its most trusted neighbour among the k nearest,
   // which is often another landmark: even a map aligned onto itself moves (docs/robustness.md).
   // The result is still a converged, finite transform near the identity.
-  for (PaperStrategy s : {PaperStrategy::kCovariance, PaperStrategy::kObservations,
-                          PaperStrategy::kMeanDistance}) {
+  for (PaperStrategy s :
+       {PaperStrategy::kCovariance, PaperStrategy::kObservations, PaperStrategy::kMeanDistance}) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = align(map.positions(), target, RegistrationOptions::paper(s));
     expect_proper_rigid(r.T_target_source);
@@ -463,8 +467,8 @@ TEST(DegenerateWeights, ExtremeCovariancesAndDistancesGiveFiniteWeights) {
   big.cov_world_m2 = 1.7e308 * Mat3::Identity();
   big.observations = {{0, 1, 1}, {0, 2, 2}};
   map.landmarks.push_back(big);
-  for (WeightKind kind : {WeightKind::kCovariance, WeightKind::kObservations,
-                          WeightKind::kMeanDistance}) {
+  for (WeightKind kind :
+       {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance}) {
     for (CovarianceNorm norm : {CovarianceNorm::kSpectral, CovarianceNorm::kFrobenius}) {
       WeightOptions options;
       options.covariance_norm = norm;

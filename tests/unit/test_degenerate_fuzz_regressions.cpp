@@ -22,7 +22,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
-fs::path fuzz_dir() { return fs::path(__FILE__).parent_path().parent_path().parent_path() / "fuzz"; }
+fs::path fuzz_dir() {
+  return fs::path(__FILE__).parent_path().parent_path().parent_path() / "fuzz";
+}
 
 std::vector<fs::path> inputs(const std::string& kind, const std::string& target) {
   std::vector<fs::path> files;

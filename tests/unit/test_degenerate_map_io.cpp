@@ -160,7 +160,8 @@ TEST(DegenerateMapFile, TenMegabyteLineIsRefusedWithTheDefaultLimit) {
 
 TEST(DegenerateMapFile, TheDefaultLimitHoldsTensOfThousandsOfObservations) {
   std::string line = "LANDMARK 9 0 0 1 1e-4 0 0 0 1e-4 0 0 0 1e-4 30000";
-  for (int i = 0; i < 30000; ++i) line += i % 2 ? " 1 493.722198 281.207306" : " 0 505.653381 269.800049";
+  for (int i = 0; i < 30000; ++i)
+    line += i % 2 ? " 1 493.722198 281.207306" : " 0 505.653381 269.800049";
   ASSERT_LT(line.size(), std::size_t{1} << 20);
   ASSERT_GT(line.size(), std::size_t{700} << 10);
   const Map map = read_text(kFrames + line + "\n");
@@ -326,8 +327,8 @@ TEST(DegenerateMapFile, HugeCovarianceEntriesDoNotOverflowTheChecks) {
   keep_all.min_observations = 0;
   // 0.5 * (c + c^T) would overflow to inf for entries near the largest double; the reader
   // symmetrises without overflow and accepts this PSD covariance.
-  const Map map = read_text(
-      kFrames + "LANDMARK 1 0 0 1 1.7e308 0 0 0 1.7e308 0 0 0 1.7e308 0\n", keep_all);
+  const Map map =
+      read_text(kFrames + "LANDMARK 1 0 0 1 1.7e308 0 0 0 1.7e308 0 0 0 1.7e308 0\n", keep_all);
   ASSERT_EQ(map.landmarks.size(), 1u);
   // Eigenvalues beyond the largest double cannot be checked: a clear refusal, not a silent pass.
   try {

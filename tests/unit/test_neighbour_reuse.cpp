@@ -118,7 +118,8 @@ TEST(KdTreeTotalOrder, SeededSearchEqualsPlainSearch) {
     }
     const std::size_t n_seeds = static_cast<std::size_t>(trial % 10);  // 0..9 seeds
     const std::size_t f1 = tree.knn(q, 9, plain.data(), dp.data());
-    const std::size_t f2 = tree.knn_seeded(q, 9, si.data(), sd.data(), n_seeds, si.data(), sd.data());
+    const std::size_t f2 =
+        tree.knn_seeded(q, 9, si.data(), sd.data(), n_seeds, si.data(), sd.data());
     ASSERT_EQ(f1, f2);
     for (std::size_t j = 0; j < f1; ++j) {
       ASSERT_EQ(plain[j], si[j]) << "trial " << trial;

@@ -34,9 +34,10 @@ inline double squared_distance(const Vec3& a, const Vec3& b) {
 /// come sorted by increasing squared distance, equal distances by increasing index (see above).
 class KdTree {
  public:
-  /// Builds the tree (median splits on the widest axis; deterministic). Throws InvalidArgument if
-  /// a point is not finite, leaf_size is 0, or there are more than 2^32 - 2 points. An empty set
-  /// is allowed (every query then returns 0 neighbours).
+  /// Builds the tree: complete and balanced, leaves of at most leaf_size points, median splits on
+  /// the axis of largest spread (deterministic). Throws InvalidArgument if a point is not finite,
+  /// leaf_size is 0, or there are 2^31 points or more. An empty set is allowed (every query then
+  /// returns 0 neighbours).
   explicit KdTree(Points3 points, std::size_t leaf_size = 8);
   ~KdTree();
   KdTree(KdTree&&) noexcept;
@@ -66,7 +67,7 @@ class KdTree {
   /// The nearest point; false if the set is empty (or the query is not finite).
   bool nearest(const Vec3& query, PointIndex* index, double* distance_sq_m2) const;
 
-  /// Heap bytes held by the tree (points, permutation and nodes).
+  /// Heap bytes held by the tree (points, permutation, nodes): about 34 bytes per point.
   std::size_t memory_bytes() const;
 
  private:
