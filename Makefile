@@ -31,6 +31,8 @@ FUZZ_BUILD_DIR ?= build-fuzz
 FUZZ_SECONDS   ?= 60
 
 LMALIGN := $(BUILD_DIR)/apps/lmalign/lmalign
+# Debian's python3, which has python3-matplotlib (a python3 earlier on PATH may not).
+PYTHON ?= $(shell test -x /usr/bin/python3 && echo /usr/bin/python3 || echo python3)
 GT_PAIR := $(LMALIGN_DATA)/tum_fr1_desk/ground_truth_pair
 
 .PHONY: all deps configure build test demo clean
@@ -80,13 +82,13 @@ fuzz: deps
 # `make bench`: lmalign against PCL and Open3D on the real pair, in one script run (each
 # configuration in its own process for clean peak memory): a table on stdout with the ratios,
 # and bench/results/latest.json. BENCH_ARGS=--scaling adds the simulator from 1k to 1M landmarks
-# (bench/results/scaling.json, docs/performance-scaling.png). See docs/performance.md.
+# (bench/results/scaling.json, docs/images/performance_scaling.png). See docs/performance.md.
 BENCH_ARGS ?=
 .PHONY: bench
 bench: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign bench: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
-	python3 bench/run_bench.py --build-dir $(BUILD_DIR) $(BENCH_ARGS)
+	$(PYTHON) bench/run_bench.py --build-dir $(BUILD_DIR) $(BENCH_ARGS)
 
 demo: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \

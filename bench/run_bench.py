@@ -5,7 +5,7 @@ Each configuration runs in its own child process (one of the bench executables),
 peak-memory figure is that configuration's alone. Prints a table with the ratios against each
 peer and writes bench/results/latest.json. With --scaling, also runs the simulator from 1k to 1M
 landmarks, fits the growth of time with N, and writes bench/results/scaling.json and the plot
-docs/performance-scaling.png (docs/performance.md explains all of it).
+docs/images/performance_scaling.png (docs/performance.md explains all of it).
 """
 import argparse
 import datetime
@@ -203,7 +203,7 @@ def scaling(args):
               f"with reuse {summary['reuse_exponent']:.3f} "
               f"(N log N over this range: {summary['nlogn_exponent_over_range']:.3f})")
     try:
-        plot(rows, summary, os.path.join(ROOT, "docs", "performance-scaling.png"))
+        plot(rows, summary, os.path.join(ROOT, "docs", "images", "performance_scaling.png"))
     except Exception as e:  # matplotlib missing: the numbers still stand
         print(f"(no plot: {e})")
     return {"rows": rows, "summary": summary}

@@ -195,7 +195,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
   auto run_wave = [&](const std::vector<Task>& tasks) {
     const SingleLevelParallelism single_level;
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(tasks.size());
-#pragma omp parallel num_threads(threads)
+#pragma omp parallel num_threads(threads) proc_bind(spread)
     {
       // Inner (ICP) parallel regions of this worker get one thread, even when the team has
       // one thread and is therefore not an active level.

@@ -124,7 +124,12 @@ struct CorrespondenceWorkspace::State {
   std::size_t n = 0;
   std::size_t width = 0;  // candidates kept per source point (k + margin)
 
-  std::vector<PointIndex> order;  // Morton order of the source points
+  // Entries are kept by position in the Morton order of the source points, so that each
+  // thread's block of queries reads and writes a contiguous block of entries (no false sharing).
+  std::vector<PointIndex> order;  // Morton position -> source index
+  std::vector<PointIndex> inv;    // source index -> Morton position
+  Correspondences by_position;    // find()'s matches by Morton position, before reordering
+  double coord_max = 0.0;         // largest absolute target coordinate (rounding allowance)
   // Per source point s: candidates cand[s * width, s * width + min(width, tree size)), the
   // conservative distance `reach` of the last one at the reference pose (< 0: no entry; +inf:
   // every target point is a candidate) and the reference pose `poses[ref[s]]`.
@@ -192,7 +197,9 @@ std::size_t CorrespondenceWorkspace::last_searched() const { return state_->sear
 std::size_t CorrespondenceWorkspace::last_reused() const { return state_->reused; }
 std::size_t CorrespondenceWorkspace::memory_bytes() const {
   const State& s = *state_;
-  return s.order.capacity() * sizeof(PointIndex) + s.cand.capacity() * sizeof(PointIndex) +
+  return s.order.capacity() * sizeof(PointIndex) + s.inv.capacity() * sizeof(PointIndex) +
+         s.by_position.capacity() * sizeof(Correspondence) +
+         s.cand.capacity() * sizeof(PointIndex) +
          s.reach.capacity() * sizeof(float) + s.ref.capacity() * sizeof(std::uint16_t) +
          s.ref_source.capacity() * sizeof(PointIndex) + s.poses.capacity() * sizeof(State::Pose) +
          s.scratch_idx.capacity() * sizeof(PointIndex) + s.scratch_d2.capacity() * sizeof(double);
@@ -231,40 +238,47 @@ struct Kernel {
     const Vec3 q_ref = P.R * source[st->ref_source[e]] + P.t;
     const double moved = std::sqrt(squared_distance(q, q_ref));
     const double kth = std::sqrt(d2[got - 1]);
-    return kth * (1.0 + kSlack) + moved * (1.0 + kSlack) <
+    // Absolute allowance for the rounding of distances computed from coordinates this large
+    // (relative slack alone does not cover the cancellation in q - p far from the origin).
+    const double abs_tol =
+        1e-13 * (st->coord_max + q.cwiseAbs().maxCoeff() + q_ref.cwiseAbs().maxCoeff());
+    return kth * (1.0 + kSlack) + moved * (1.0 + kSlack) + abs_tol <
            static_cast<double>(reach) * (1.0 - kSlack);
   }
 
-  // The `want` first neighbours of q (source point s) in the tree's total order, written sorted
+  // The `want` first neighbours of q = T * source[s] in the tree's total order, written sorted
   // into idx/d2 (capacity >= 2 width); returns how many (min(want, target size)). Tries, in
-  // turn: the entry of s; the entry of `*lender` (the point this thread served last, usually a
+  // turn: s's cache entry e; the entry `*lender` (the one this thread served last, usually of a
   // neighbour of s in the Morton order: its reference position may be nearer q than s's own);
-  // a fresh search, seeded with the entry of s. Sets *searched if the tree was searched, and
-  // *lender to s.
-  std::size_t neighbours(std::size_t s, const Vec3& q, std::size_t want, PointIndex* idx,
-                         double* d2, bool* searched, std::ptrdiff_t* lender) const {
+  // a fresh search, seeded with entry e. Sets *searched if the tree was searched, and *lender
+  // to e.
+  std::size_t neighbours(std::size_t e, std::size_t s, const Vec3& q, std::size_t want,
+                         PointIndex* idx, double* d2, bool* searched,
+                         std::ptrdiff_t* lender) const {
     const std::size_t have = std::min(width, target_size);
     const std::size_t got = std::min(want, have);
-    const bool own = st->reach[s] >= 0.0f;
+    const bool own = st->reach[e] >= 0.0f;
     *searched = false;
-    if (own && entry_holds(s, q, want, idx, d2)) {
+    if (own && entry_holds(e, q, want, idx, d2)) {
       // Keep the entry sorted as of now (cheaper to sort next time); write only if the order
       // changed, so that converged iterations only read the cache.
-      PointIndex* entry = st->cand.data() + s * width;
-      if (!std::equal(idx, idx + have, entry)) std::copy(idx, idx + have, entry);
-      *lender = static_cast<std::ptrdiff_t>(s);
+      PointIndex* entry = st->cand.data() + e * width;
+      for (std::size_t j = 0; j < have; ++j) {
+        if (entry[j] != idx[j]) entry[j] = idx[j];
+      }
+      *lender = static_cast<std::ptrdiff_t>(e);
       return got;
     }
     if (*lender >= 0) {
       const auto l = static_cast<std::size_t>(*lender);
       if (entry_holds(l, q, want, idx + width, d2 + width)) {  // adopt the lender's entry
-        std::copy(idx + width, idx + width + have, st->cand.data() + s * width);
+        std::copy(idx + width, idx + width + have, st->cand.data() + e * width);
         std::copy(idx + width, idx + width + got, idx);
         std::copy(d2 + width, d2 + width + got, d2);
-        st->reach[s] = st->reach[l];
-        st->ref[s] = st->ref[l];
-        st->ref_source[s] = st->ref_source[l];
-        *lender = static_cast<std::ptrdiff_t>(s);
+        st->reach[e] = st->reach[l];
+        st->ref[e] = st->ref[l];
+        st->ref_source[e] = st->ref_source[l];
+        *lender = static_cast<std::ptrdiff_t>(e);
         return got;
       }
     }
@@ -274,15 +288,15 @@ struct Kernel {
         own ? tree->knn_seeded(q, width, idx, d2, have, idx, d2) : tree->knn(q, width, idx, d2);
     *searched = true;
     if (found == 0) {
-      st->reach[s] = -1.0f;
+      st->reach[e] = -1.0f;
       return 0;
     }
-    std::copy(idx, idx + found, st->cand.data() + s * width);
-    st->reach[s] = found >= target_size ? std::numeric_limits<float>::infinity()
+    std::copy(idx, idx + found, st->cand.data() + e * width);
+    st->reach[e] = found >= target_size ? std::numeric_limits<float>::infinity()
                                         : round_down_to_float(std::sqrt(d2[found - 1]));
-    st->ref[s] = static_cast<std::uint16_t>(pose_id);
-    st->ref_source[s] = static_cast<PointIndex>(s);
-    *lender = static_cast<std::ptrdiff_t>(s);
+    st->ref[e] = static_cast<std::uint16_t>(pose_id);
+    st->ref_source[e] = static_cast<PointIndex>(s);
+    *lender = static_cast<std::ptrdiff_t>(e);
     return std::min(want, found);
   }
 };
@@ -418,6 +432,12 @@ void CorrespondenceFinder::bind(const Points3& source_points,
     st.n = source_points.size();
     st.width = width;
     st.order = morton_order(source_points);
+    st.inv.resize(st.n);
+    for (std::size_t j = 0; j < st.n; ++j) st.inv[st.order[j]] = static_cast<PointIndex>(j);
+    st.coord_max = 0.0;
+    for (const Vec3& p : target_->points()) {
+      st.coord_max = std::max(st.coord_max, p.cwiseAbs().maxCoeff());
+    }
     st.cand.clear();
     st.reach.clear();
     st.ref.clear();
@@ -453,25 +473,31 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   const Mat3 R = T_target_source.linear();
   const Vec3 t = T_target_source.translation();
   const PointIndex* order = st.order.data();
+  const PointIndex* inv = st.inv.data();
+  st.by_position.resize(n);
+  Correspondence* by_position = st.by_position.data();
   std::size_t searched = 0, reused = 0;
 
-#pragma omp parallel reduction(+ : searched, reused)
+  // proc_bind(close): threads that migrate between cores lose their caches (measured on the
+  // benchmark machine: docs/performance.md).
+#pragma omp parallel proc_bind(close) reduction(+ : searched, reused)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
-    std::ptrdiff_t lender = -1;  // this thread's last served point (Morton order)
+    std::ptrdiff_t lender = -1;  // this thread's last served entry (Morton order)
+    // Pass 1, in Morton order: the matches, by position.
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
-      const PointIndex s = order[j];
+      const auto e = static_cast<std::size_t>(j);
+      const PointIndex s = order[e];
       const Vec3 q = R * source_points[s] + t;
-      moved[s] = q;
       std::size_t found = 0;
       if (!q.allFinite()) {
-        if (reuse) st.reach[s] = -1.0f;
-        if (lender == static_cast<std::ptrdiff_t>(s)) lender = -1;
+        if (reuse) st.reach[e] = -1.0f;
+        if (lender == j) lender = -1;
       } else if (reuse) {
         bool did_search = false;
-        found = kernel.neighbours(s, q, k, idx, d2, &did_search, &lender);
+        found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender);
         if (did_search) {
           ++searched;
         } else {
@@ -481,7 +507,15 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
         found = target_->knn(q, k, idx, d2);
         ++searched;
       }
-      out[s] = select_match(s, idx, d2, found, weighted, w, max_sq);
+      by_position[e] = select_match(s, idx, d2, found, weighted, w, max_sq);
+    }
+    // Pass 2, in source order (each thread writes its own block): the moved points, recomputed
+    // with the same expression (bit-identical), and the matches.
+#pragma omp for schedule(static)
+    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
+      const auto s = static_cast<std::size_t>(i);
+      moved[s] = R * source_points[s] + t;
+      out[s] = by_position[inv[s]];
     }
   }
   if (pushed && searched == 0) st.poses.pop_back();  // no entry refers to this pose
@@ -510,7 +544,7 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
   const Vec3 t = T_target_source.translation();
   std::size_t searched = 0, reused = 0;
 
-#pragma omp parallel reduction(+ : searched, reused)
+#pragma omp parallel proc_bind(close) reduction(+ : searched, reused)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
@@ -521,16 +555,18 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
       const auto s = static_cast<std::size_t>(i);
       const Vec3 q = R * source_points[s] + t;
       double value = std::numeric_limits<double>::infinity();
+      const std::size_t e = st.inv[s];
       if (q.allFinite()) {
         bool did_search = false;
-        if (kernel.neighbours(s, q, 1, idx, d2, &did_search, &lender) == 1) value = d2[0];
+        if (kernel.neighbours(e, s, q, 1, idx, d2, &did_search, &lender) == 1) value = d2[0];
         if (did_search) {
           ++searched;
         } else {
           ++reused;
         }
       } else {
-        st.reach[s] = -1.0f;
+        st.reach[e] = -1.0f;
+        if (lender == static_cast<std::ptrdiff_t>(e)) lender = -1;
       }
       d2_out[s - begin] = value;
     }

@@ -47,7 +47,7 @@ FitnessScore fitness_score(const Points3& source_points, const KdTree& target,
   const Vec3 t = T_target_source.translation();
   return blocked_score(
       source_points.size(), max_range_m, [&](std::size_t begin, std::size_t end, double* d2) {
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for proc_bind(close) schedule(static)
         for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(begin);
              i < static_cast<std::ptrdiff_t>(end); ++i) {
           const Vec3 p = R * source_points[static_cast<std::size_t>(i)] + t;
