@@ -563,6 +563,65 @@ class Builder {
     }
   }
 
+  // A tracked frame: its slot in the frame trajectory, its keyframe (or kNoKeyframe), and its
+  // inlier matches (landmark, pixel).
+  struct FrameMatch {
+    int landmark;
+    double u, v;
+  };
+  struct TrackedFrame {
+    std::size_t slot;
+    std::size_t keyframe;
+    std::vector<FrameMatch> matches;
+  };
+  static constexpr std::size_t kNoKeyframe = static_cast<std::size_t>(-1);
+
+  // The frame trajectory, final: keyframes take their bundle-adjusted poses; every other frame
+  // is refined by Levenberg-Marquardt (motion only) against the final, bundle-adjusted landmark
+  // positions, from its tracked pose. At tracking time the young landmarks near the start only
+  // had their depth-initialised positions. A refinement that does not lower the reprojection
+  // error is not kept.
+  void refine_frames(const std::vector<TrackedFrame>& frames, Trajectory& trajectory) const {
+    const cv::Matx33d K(k_.fx_px, 0, k_.cx_px, 0, k_.fy_px, k_.cy_px, 0, 0, 1);
+    for (const TrackedFrame& fr : frames) {
+      if (fr.keyframe != kNoKeyframe) {
+        trajectory[fr.slot].T_world_camera = pose_from_block(kfs_[fr.keyframe].pose);
+        continue;
+      }
+      if (static_cast<int>(fr.matches.size()) < o_.min_inliers) continue;
+      std::vector<cv::Point3d> obj;
+      std::vector<cv::Point2d> img;
+      for (const FrameMatch& m : fr.matches) {
+        const auto& p = lms_[static_cast<std::size_t>(m.landmark)].p;
+        obj.emplace_back(p[0], p[1], p[2]);
+        img.emplace_back(m.u, m.v);
+      }
+      const Isometry3 T_cw = trajectory[fr.slot].T_world_camera.inverse();
+      auto rms = [&](const Isometry3& T) {
+        double sum = 0.0;
+        for (std::size_t j = 0; j < obj.size(); ++j) {
+          const Vec3 pc = T * Vec3(obj[j].x, obj[j].y, obj[j].z);
+          if (pc.z() <= 0) return std::numeric_limits<double>::infinity();
+          sum += (k_.project(pc) - Eigen::Vector2d(img[j].x, img[j].y)).squaredNorm();
+        }
+        return sum / static_cast<double>(obj.size());
+      };
+      const Eigen::AngleAxisd aa(T_cw.rotation());
+      const Vec3 r = aa.axis() * aa.angle();
+      cv::Mat rvec = (cv::Mat_<double>(3, 1) << r.x(), r.y(), r.z());
+      cv::Mat tvec = (cv::Mat_<double>(3, 1) << T_cw.translation().x(), T_cw.translation().y(),
+                      T_cw.translation().z());
+      cv::solvePnPRefineLM(obj, img, K, cv::noArray(), rvec, tvec);
+      Isometry3 T = Isometry3::Identity();
+      const Vec3 rv(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2));
+      if (rv.norm() > 0) {
+        T.linear() = Eigen::AngleAxisd(rv.norm(), rv / rv.norm()).toRotationMatrix();
+      }
+      T.translation() = Vec3(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+      if (is_finite(T) && rms(T) <= rms(T_cw)) trajectory[fr.slot].T_world_camera = T.inverse();
+    }
+  }
+
   MapBuilderResult run(const TumSequence& seq, const ProgressCallback& progress) {
     MapBuilderResult result;
     const std::size_t total =
@@ -583,6 +642,9 @@ class Builder {
       init = (*seq.ground_truth)[pairs.front().ground_truth_index].T_world_camera;
     }
     Isometry3 T_wc = init, velocity = Isometry3::Identity();
+    // Every tracked frame's 2-D/3-D matches, so that its pose can be refined at the end against
+    // the bundle-adjusted landmarks (see refine_frames()).
+    std::vector<TrackedFrame> tracked_frames;
     bool have_pose = false;
     std::size_t ref_tracked = 0;
     bool ref_set = false;
@@ -595,6 +657,7 @@ class Builder {
         for (double d : f.depth_m) valid += d > 0 ? 1 : 0;
         if (static_cast<int>(valid) >= o_.min_inliers) {
           add_keyframe(f, ref.rgb_timestamp_s, T_wc, {});
+          tracked_frames.push_back({result.frame_trajectory.size(), kfs_.size() - 1, {}});
           result.frame_trajectory.push_back({ref.rgb_timestamp_s, T_wc});
           have_pose = true;
           ref_set = false;
@@ -632,18 +695,23 @@ class Builder {
                          rotation_angle_deg(rel.linear()) > o_.keyframe_rotation_deg;
       const bool weak = static_cast<double>(tracked.size()) <
                         o_.keyframe_min_tracked_fraction * static_cast<double>(ref_tracked);
+      TrackedFrame record{result.frame_trajectory.size(), kNoKeyframe, {}};
+      for (const auto& [i, l] : tracked) record.matches.push_back({l, f.u[i], f.v[i]});
       if (moved || weak) {
         add_keyframe(f, ref.rgb_timestamp_s, T_wc, tracked);
+        record.keyframe = kfs_.size() - 1;
         // The BA refined the new keyframe: continue from its refined pose.
         const Isometry3 refined = pose_from_block(kfs_.back().pose);
         velocity = velocity * (T_wc.inverse() * refined);
         T_wc = refined;
         ref_set = false;
       }
+      tracked_frames.push_back(std::move(record));
       result.frame_trajectory.push_back({ref.rgb_timestamp_s, T_wc});
       if (progress) progress(fi + 1, total);
     }
     if (kfs_.size() >= 2) bundle_adjust(true);  // marginals of the last window
+    refine_frames(tracked_frames, result.frame_trajectory);
     if (kfs_.empty()) {
       throw InvalidArgument("TUM sequence '" + seq.folder +
                             "': tracking never started (no frame with enough valid depth)");
