@@ -9,8 +9,8 @@
 //   - reuse_per_iteration_s: 150 forced iterations with the exact reuse, total / 150;
 //   - added heap and RSS of registration beyond the loaded maps: everything from extracting the
 //     source positions and building the PreparedTarget (kd-tree, uniform and observation
-//     weights) to the end of align(), as the peak above the level before it. Heap bytes come from counting operator
-//     new/delete in this process.
+//     weights) to the end of align(), as the peak above the level before it. Heap bytes come from
+//     counting operator new/delete in this process.
 #include <malloc.h>
 #include <omp.h>
 

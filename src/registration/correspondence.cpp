@@ -199,10 +199,10 @@ std::size_t CorrespondenceWorkspace::memory_bytes() const {
   const State& s = *state_;
   return s.order.capacity() * sizeof(PointIndex) + s.inv.capacity() * sizeof(PointIndex) +
          s.by_position.capacity() * sizeof(Correspondence) +
-         s.cand.capacity() * sizeof(PointIndex) +
-         s.reach.capacity() * sizeof(float) + s.ref.capacity() * sizeof(std::uint16_t) +
-         s.ref_source.capacity() * sizeof(PointIndex) + s.poses.capacity() * sizeof(State::Pose) +
-         s.scratch_idx.capacity() * sizeof(PointIndex) + s.scratch_d2.capacity() * sizeof(double);
+         s.cand.capacity() * sizeof(PointIndex) + s.reach.capacity() * sizeof(float) +
+         s.ref.capacity() * sizeof(std::uint16_t) + s.ref_source.capacity() * sizeof(PointIndex) +
+         s.poses.capacity() * sizeof(State::Pose) + s.scratch_idx.capacity() * sizeof(PointIndex) +
+         s.scratch_d2.capacity() * sizeof(double);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -485,7 +485,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     std::ptrdiff_t lender = -1;  // this thread's last served entry (Morton order)
-    // Pass 1, in Morton order: the matches, by position.
+                                 // Pass 1, in Morton order: the matches, by position.
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
       const auto e = static_cast<std::size_t>(j);
