@@ -1,0 +1,176 @@
+#include "lmalign/registration/uncertainty.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/error.hpp"
+
+namespace lmalign {
+
+namespace {
+
+constexpr double kRadToDeg = 57.29577951308232;
+
+Mat3 skew(const Vec3& v) {
+  Mat3 S;
+  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return S;
+}
+
+std::string num(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+}  // namespace
+
+double PoseCovariance::translation_sd_m() const {
+  if (!valid) return std::numeric_limits<double>::infinity();
+  return std::sqrt(
+      std::max(0.0, Eigen::SelfAdjointEigenSolver<Mat3>(covariance.topLeftCorner<3, 3>())
+                        .eigenvalues()
+                        .maxCoeff()));
+}
+
+double PoseCovariance::rotation_sd_deg() const {
+  if (!valid) return std::numeric_limits<double>::infinity();
+  return kRadToDeg * std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Mat3>(
+                                                 covariance.bottomRightCorner<3, 3>())
+                                                 .eigenvalues()
+                                                 .maxCoeff()));
+}
+
+PoseCovariance point_to_point_covariance(const Points3& moved_source, const Points3& target_points,
+                                         const Correspondences& correspondences) {
+  PoseCovariance out;
+  const std::size_t n = correspondences.size();
+  out.num_correspondences = n;
+  Mat6 H = Mat6::Zero();
+  double sum_sq = 0.0;
+  for (const Correspondence& c : correspondences) {
+    if (c.source_index >= moved_source.size() || c.target_index >= target_points.size()) {
+      throw InvalidArgument("point_to_point_covariance: correspondence index out of range");
+    }
+    const Vec3& x = moved_source[c.source_index];
+    const Vec3 r = target_points[c.target_index] - x;
+    Eigen::Matrix<double, 3, 6> J;
+    J.leftCols<3>() = Mat3::Identity();
+    J.rightCols<3>() = -skew(x);
+    H.noalias() += J.transpose() * J;
+    sum_sq += r.squaredNorm();
+  }
+  if (n < 3) return out;
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(H);
+  const double lmax = eig.eigenvalues().maxCoeff();
+  if (!(eig.eigenvalues().minCoeff() > 1e-12 * lmax)) return out;  // singular: a line
+  const double dof = 3.0 * static_cast<double>(n) - 6.0;
+  const double sigma2 = sum_sq / dof;
+  out.sigma_m = std::sqrt(sigma2);
+  out.covariance = sigma2 * (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
+                             eig.eigenvectors().transpose());
+  out.valid = out.covariance.allFinite();
+  if (!out.valid) out.covariance.setZero();
+  return out;
+}
+
+Vec6 pose_error_twist(const Isometry3& T_est, const Isometry3& T_true) {
+  const Isometry3 E = T_est * T_true.inverse();
+  const Eigen::AngleAxisd aa(E.rotation());
+  Vec6 xi;
+  xi.head<3>() = E.translation();
+  xi.tail<3>() = aa.axis() * aa.angle();
+  return xi;
+}
+
+double nees(const Vec6& error, const PoseCovariance& covariance) {
+  if (!covariance.valid) return std::numeric_limits<double>::infinity();
+  return error.dot(covariance.covariance.ldlt().solve(error));
+}
+
+bool TrustOptions::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& m) {
+    if (why != nullptr) *why = m;
+    return false;
+  };
+  if (!(inlier_distance_m > 0.0) || !std::isfinite(inlier_distance_m)) {
+    return fail("inlier_distance_m must be > 0 and finite, got " + num(inlier_distance_m));
+  }
+  if (!(overlap_distance_m >= inlier_distance_m) || !std::isfinite(overlap_distance_m)) {
+    return fail("overlap_distance_m must be finite and >= inlier_distance_m, got " +
+                num(overlap_distance_m));
+  }
+  if (!(min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0)) {
+    return fail("min_inlier_ratio must be in [0, 1], got " + num(min_inlier_ratio));
+  }
+  if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
+    return fail("min_inlier_fraction must be in [0, 1], got " + num(min_inlier_fraction));
+  }
+  if (!(max_translation_sd_m > 0.0)) {
+    return fail("max_translation_sd_m must be > 0, got " + num(max_translation_sd_m));
+  }
+  if (!(max_rotation_sd_deg > 0.0)) {
+    return fail("max_rotation_sd_deg must be > 0, got " + num(max_rotation_sd_deg));
+  }
+  return true;
+}
+
+TrustVerdict judge_alignment(const Points3& source_points, const KdTree& target,
+                             const Isometry3& T_target_source, const TrustOptions& options,
+                             PoseCovariance* inlier_covariance) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("trust options: " + why);
+  if (source_points.empty()) throw InvalidArgument("judge_alignment: the source has no points");
+  const std::size_t n = source_points.size();
+  Points3 moved(n);
+  std::vector<PointIndex> nn(n, 0);
+  std::vector<double> d2(n, std::numeric_limits<double>::infinity());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
+    const auto s = static_cast<std::size_t>(i);
+    moved[s] = T_target_source * source_points[s];
+    if (!target.nearest(moved[s], &nn[s], &d2[s])) d2[s] = std::numeric_limits<double>::infinity();
+  }
+  const double in2 = options.inlier_distance_m * options.inlier_distance_m;
+  const double ov2 = options.overlap_distance_m * options.overlap_distance_m;
+  Correspondences inliers;
+  std::size_t overlap = 0;
+  for (std::size_t s = 0; s < n; ++s) {
+    if (d2[s] <= ov2) ++overlap;
+    if (d2[s] <= in2) inliers.push_back({static_cast<PointIndex>(s), nn[s], d2[s]});
+  }
+  const PoseCovariance cov = point_to_point_covariance(moved, target.points(), inliers);
+  if (inlier_covariance != nullptr) *inlier_covariance = cov;
+
+  TrustVerdict v;
+  v.inlier_fraction = static_cast<double>(inliers.size()) / static_cast<double>(n);
+  v.overlap_fraction = static_cast<double>(overlap) / static_cast<double>(n);
+  v.translation_sd_m = cov.translation_sd_m();
+  v.rotation_sd_deg = cov.rotation_sd_deg();
+  const double ratio = overlap > 0 ? static_cast<double>(inliers.size()) / overlap : 0.0;
+  if (!(v.inlier_fraction >= options.min_inlier_fraction)) {
+    v.reason = "inlier fraction " + num(v.inlier_fraction) + " below " +
+               num(options.min_inlier_fraction) + " (too little overlap)";
+  } else if (!(ratio >= options.min_inlier_ratio)) {
+    v.reason = "inlier ratio " + num(ratio) + " below " + num(options.min_inlier_ratio) +
+               " (landmarks in the overlap do not coincide)";
+  } else if (!cov.valid) {
+    v.reason = "the inliers do not determine the transform (degenerate)";
+  } else if (!(v.translation_sd_m <= options.max_translation_sd_m)) {
+    v.reason = "translation sd " + num(v.translation_sd_m) + " m above " +
+               num(options.max_translation_sd_m);
+  } else if (!(v.rotation_sd_deg <= options.max_rotation_sd_deg)) {
+    v.reason =
+        "rotation sd " + num(v.rotation_sd_deg) + " deg above " + num(options.max_rotation_sd_deg);
+  } else {
+    v.trustworthy = true;
+    v.reason = "ok";
+  }
+  return v;
+}
+
+}  // namespace lmalign
