@@ -1,11 +1,14 @@
-// `lmalign align`: align a source map onto a target map with the paper's strategies and print a
-// table (and optionally JSON / PLY). See docs/cli.md.
+// `lmalign align`: align a source map onto a target map with the recommended strategy, the
+// paper's strategies or lmalign's own, and print a table (and optionally JSON / PLY). See
+// docs/cli.md.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <limits>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,6 +21,7 @@
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/robust.hpp"
 
 namespace lmalign::cli {
 
@@ -26,7 +30,8 @@ namespace {
 struct AlignArgs {
   std::string source;
   std::string target;
-  std::string weight = "all";
+  std::string weight;    // empty: not given
+  std::string strategy;  // empty: not given
   int k = 5;
   int max_iterations = 150;
   double max_distance_m = std::numeric_limits<double>::infinity();
@@ -40,6 +45,12 @@ struct AlignArgs {
   std::string ply_path;
   bool history = false;
 };
+
+/// Whether --k matters to a strategy (the weighted-kNN selections).
+bool uses_k(PaperStrategy s) {
+  return s == PaperStrategy::kCovariance || s == PaperStrategy::kObservations ||
+         s == PaperStrategy::kMeanDistance || s == PaperStrategy::kRobustObsKnn;
+}
 
 struct StrategyRun {
   PaperStrategy strategy;
@@ -66,10 +77,38 @@ std::string fmt_score(double v) {
 int run_align(const AlignArgs& a) {
   // --- validate everything before any work, so bad input fails fast with one line.
   std::vector<PaperStrategy> strategies;
+  if (!a.weight.empty() && !a.strategy.empty()) {
+    throw InvalidArgument("give --weight or --strategy, not both");
+  }
   if (a.weight == "all") {
     strategies = all_paper_strategies();
-  } else {
+  } else if (!a.weight.empty()) {
     strategies = {parse_paper_strategy(a.weight)};
+  } else if (!a.strategy.empty()) {
+    std::string item;
+    std::stringstream list(a.strategy);
+    while (std::getline(list, item, ',')) {
+      std::vector<PaperStrategy> add;
+      if (item == "paper") {
+        add = all_paper_strategies();
+      } else if (item == "beyond") {
+        add = beyond_paper_strategies();
+      } else if (item == "all") {
+        add = all_paper_strategies();
+        for (PaperStrategy s : beyond_paper_strategies()) add.push_back(s);
+      } else {
+        add = {parse_paper_strategy(item)};
+      }
+      for (PaperStrategy s : add) {
+        if (std::find(strategies.begin(), strategies.end(), s) != strategies.end()) {
+          throw InvalidArgument("--strategy: '" + to_string(s) + "' is listed twice");
+        }
+        strategies.push_back(s);
+      }
+    }
+    if (strategies.empty()) throw InvalidArgument("--strategy: no strategy given");
+  } else {
+    strategies = {kRecommendedStrategy};
   }
   WeightOptions wopt;
   wopt.covariance_norm = parse_covariance_norm(a.covariance_norm);
@@ -148,12 +187,18 @@ int run_align(const AlignArgs& a) {
 
   std::vector<StrategyRun> runs;
   for (PaperStrategy s : strategies) {
-    RegistrationOptions o = RegistrationOptions::paper(s, a.k);
-    o.max_correspondence_distance_m = a.max_distance_m;
-    o.convergence.max_iterations = a.max_iterations;
-    o.record_history = a.history;
-    o.history_scores = a.history;
-    StrategyRun run{s, align(source_points, prepared, o), std::nullopt, false};
+    RegistrationResult result;
+    if (is_paper_strategy(s)) {
+      RegistrationOptions o = RegistrationOptions::paper(s, a.k);
+      o.max_correspondence_distance_m = a.max_distance_m;
+      o.convergence.max_iterations = a.max_iterations;
+      o.record_history = a.history;
+      o.history_scores = a.history;
+      result = align(source_points, prepared, o);
+    } else {
+      result = align_robust(source_points, prepared, robust_strategy_options(s, a.k));
+    }
+    StrategyRun run{s, result, std::nullopt, false};
     if (T_true) {
       run.error = transform_error(run.result.T_target_source * T_displace, *T_gt);
       run.right_basin = run.error->rotation_deg < a.success_rotation_deg &&
@@ -168,7 +213,7 @@ int run_align(const AlignArgs& a) {
   if (T_true) std::printf(" %8s %8s %6s", "rot deg", "trans m", "basin");
   std::printf("\n");
   for (const StrategyRun& r : runs) {
-    const bool weighted = r.strategy != PaperStrategy::kBase;
+    const bool weighted = uses_k(r.strategy);
     std::printf("%-13s %3s %12s %12s %6d %-19s %9.2f", to_string(r.strategy).c_str(),
                 weighted ? std::to_string(a.k).c_str() : "-",
                 fmt_score(r.result.initial_score_m2).c_str(),
@@ -229,7 +274,7 @@ int run_align(const AlignArgs& a) {
     for (const StrategyRun& r : runs) {
       nlohmann::json e;
       e["strategy"] = to_string(r.strategy);
-      e["k"] = r.strategy == PaperStrategy::kBase ? nlohmann::json() : nlohmann::json(a.k);
+      e["k"] = uses_k(r.strategy) ? nlohmann::json(a.k) : nlohmann::json();
       e["T_target_source"] = json_matrix(r.result.T_target_source);
       e["converged"] = r.result.converged;
       e["termination"] = to_string(r.result.termination);
@@ -261,8 +306,8 @@ int run_align(const AlignArgs& a) {
       std::error_code ec;
       std::filesystem::create_directories(jp.parent_path(), ec);
       if (ec) {
-        throw IoError("cannot write '" + a.json_path + "': cannot create its folder: " +
-                      ec.message());
+        throw IoError("cannot write '" + a.json_path +
+                      "': cannot create its folder: " + ec.message());
       }
     }
     // Paths need not be UTF-8 (JSON text must be): invalid bytes become U+FFFD.
@@ -281,15 +326,22 @@ CommandRunner add_align_command(CLI::App& root) {
   CLI::App* cmd = root.add_subcommand(
       "align",
       "Align SOURCE onto TARGET (map files, docs/map-format.md) with ICP and the paper's\n"
-      "confidence-weighted correspondences. Prints one row per strategy.\n"
+      "confidence-weighted correspondences, or lmalign's own robust strategies (by default the\n"
+      "recommended one, robust_obs). Prints one row per strategy.\n"
       "Result: T_target_source, with p_target = T_target_source * p_source (metres).");
   cmd->add_option("SOURCE", args->source, "source map file (moved onto the target)")->required();
   cmd->add_option("TARGET", args->target, "target map file (fixed)")->required();
   cmd->add_option("--weight", args->weight,
-                  "strategy: none (base ICP, nearest neighbour), covariance, observations, "
-                  "distance (mean observation distance), or all four")
-      ->check(CLI::IsMember({"none", "base", "covariance", "observations", "distance", "all"}))
-      ->capture_default_str();
+                  "one of the paper's strategies: none (base ICP, nearest neighbour), covariance, "
+                  "observations, distance (mean observation distance), or all four")
+      ->check(CLI::IsMember({"none", "base", "covariance", "observations", "distance", "all"}));
+  cmd->add_option("--strategy", args->strategy,
+                  "comma-separated strategies by name: the paper's (base, covariance, "
+                  "observations, distance) and lmalign's own (shrink, shrink_cauchy, trimmed, "
+                  "mutual, robust_obs, robust_obs_knn, robust_obs_4dof); 'paper', 'beyond' and "
+                  "'all' name groups. Default (neither --weight nor --strategy): robust_obs, the "
+                  "recommended strategy (docs/accuracy.md). --max-iterations and --max-distance "
+                  "apply to the paper's strategies only");
   cmd->add_option("--k", args->k, "neighbourhood size of the weighted strategies, [1, 4096]")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();

@@ -264,7 +264,8 @@ class Parser {
       } catch (const InvalidArgument&) {
         fail(*it, w,
              "unknown strategy '" + name +
-                 "' (expected base, covariance, observations or distance)");
+                 "' (expected base, covariance, observations, distance, shrink, shrink_cauchy, "
+                 "trimmed, mutual, robust_obs, robust_obs_knn or robust_obs_4dof)");
       }
       if (std::find(out.begin(), out.end(), s) != out.end()) {
         fail(*it, w, "strategy '" + to_string(s) + "' is listed twice");
@@ -594,9 +595,8 @@ class Parser {
           b.samples = static_cast<int>(integer(m.get("samples"), m.path("samples"), 1, 100000));
         // levels x samples is unbounded otherwise (up to 2e10 cases): cap it like one list
         // (docs/robustness.md; found by fuzz_experiment_config).
-        if (const std::size_t cases =
-                (b.yaw_levels_deg.size() + b.translation_levels_m.size()) *
-                static_cast<std::size_t>(b.samples);
+        if (const std::size_t cases = (b.yaw_levels_deg.size() + b.translation_levels_m.size()) *
+                                      static_cast<std::size_t>(b.samples);
             cases > kMaxCasesPerList) {
           fail(m.has("samples") ? m.get("samples") : m.node(), where,
                "levels x samples = " + std::to_string(cases) + " cases, more than " +

@@ -188,6 +188,8 @@ std::string strategy_header(PaperStrategy s) {
       return "# Obs.";
     case PaperStrategy::kMeanDistance:
       return "Mean Dist.";
+    default:
+      return to_string(s);
   }
   return "?";
 }

@@ -14,6 +14,7 @@
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
+#include "lmalign/registration/robust.hpp"
 
 namespace lmalign {
 
@@ -125,7 +126,9 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     if (c.strategies.empty()) throw InvalidArgument("runner: case " + c.id() + " has no strategy");
     for (PaperStrategy s : c.strategies) {
       std::string why;
-      if (!run_options(config, s, c.k).is_valid(&why)) {
+      const bool valid = is_paper_strategy(s) ? run_options(config, s, c.k).is_valid(&why)
+                                              : robust_strategy_options(s, c.k).is_valid(&why);
+      if (!valid) {
         throw InvalidArgument("runner: case " + c.id() + ", " + to_string(s) + ": " + why);
       }
     }
@@ -170,11 +173,19 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
   auto run_one = [&](const Task& t) {
     const Case& c = cases[t.case_index];
     const PaperStrategy s = c.strategies[t.slot];
-    RegistrationOptions ro = run_options(config, s, c.k);
     const bool history = options.history_case && *options.history_case == c.index;
-    ro.record_history = history;
-    ro.history_scores = history;
-    const RegistrationResult r = align(transform_points(c.D, source_points), target, ro);
+    RegistrationResult r;
+    if (is_paper_strategy(s)) {
+      RegistrationOptions ro = run_options(config, s, c.k);
+      ro.record_history = history;
+      ro.history_scores = history;
+      r = align(transform_points(c.D, source_points), target, ro);
+    } else {
+      // lmalign's own strategies (issue 7): their preset schedule replaces the config's
+      // max_distance_m; the iteration budget is the preset's (over all levels).
+      r = align_robust(transform_points(c.D, source_points), target,
+                       robust_strategy_options(s, c.k));
+    }
     RunRecord rec;
     rec.case_index = c.index;
     rec.strategy = s;

@@ -1,5 +1,6 @@
 #include "lmalign/registration/registration.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -21,6 +22,20 @@ std::string to_string(PaperStrategy strategy) {
       return "observations";
     case PaperStrategy::kMeanDistance:
       return "distance";
+    case PaperStrategy::kShrink:
+      return "shrink";
+    case PaperStrategy::kShrinkCauchy:
+      return "shrink_cauchy";
+    case PaperStrategy::kTrimmed:
+      return "trimmed";
+    case PaperStrategy::kMutual:
+      return "mutual";
+    case PaperStrategy::kRobustObs:
+      return "robust_obs";
+    case PaperStrategy::kRobustObsKnn:
+      return "robust_obs_knn";
+    case PaperStrategy::kRobustObs4Dof:
+      return "robust_obs_4dof";
   }
   return "?";
 }
@@ -30,13 +45,29 @@ PaperStrategy parse_paper_strategy(const std::string& name) {
   if (name == "covariance") return PaperStrategy::kCovariance;
   if (name == "observations") return PaperStrategy::kObservations;
   if (name == "distance" || name == "mean_distance") return PaperStrategy::kMeanDistance;
+  for (PaperStrategy s : beyond_paper_strategies()) {
+    if (name == to_string(s)) return s;
+  }
   throw InvalidArgument("unknown strategy '" + name +
-                        "' (expected base|none, covariance, observations, distance)");
+                        "' (expected base|none, covariance, observations, distance, shrink, "
+                        "shrink_cauchy, trimmed, mutual, robust_obs, robust_obs_knn, "
+                        "robust_obs_4dof)");
 }
 
 std::vector<PaperStrategy> all_paper_strategies() {
   return {PaperStrategy::kBase, PaperStrategy::kCovariance, PaperStrategy::kObservations,
           PaperStrategy::kMeanDistance};
+}
+
+std::vector<PaperStrategy> beyond_paper_strategies() {
+  return {PaperStrategy::kShrink,       PaperStrategy::kShrinkCauchy, PaperStrategy::kTrimmed,
+          PaperStrategy::kMutual,       PaperStrategy::kRobustObs,    PaperStrategy::kRobustObsKnn,
+          PaperStrategy::kRobustObs4Dof};
+}
+
+bool is_paper_strategy(PaperStrategy strategy) {
+  const auto paper = all_paper_strategies();
+  return std::find(paper.begin(), paper.end(), strategy) != paper.end();
 }
 
 RegistrationOptions RegistrationOptions::paper(PaperStrategy strategy, int k) {
@@ -58,6 +89,10 @@ RegistrationOptions RegistrationOptions::paper(PaperStrategy strategy, int k) {
     case PaperStrategy::kMeanDistance:
       o.correspondence = CorrespondenceKind::kWeightedKnn;
       o.weight = WeightKind::kMeanDistance;
+      break;
+    default:
+      throw InvalidArgument("RegistrationOptions::paper: '" + to_string(strategy) +
+                            "' is not one of the paper's strategies (use align_robust)");
       break;
   }
   return o;
@@ -194,9 +229,9 @@ RegistrationResult align(const Points3& source_points, const PreparedTarget& tar
   const bool reuse = options.reuse_neighbours;
   // Scores through the cache are bit-identical to fitness_score() on the tree.
   auto score_at = [&](const Isometry3& T_score) {
-    return reuse ? fitness_score(source_points, finder, T_score, options.score_max_range_m,
-                                 workspace)
-                 : fitness_score(source_points, target.tree(), T_score, options.score_max_range_m);
+    return reuse
+               ? fitness_score(source_points, finder, T_score, options.score_max_range_m, workspace)
+               : fitness_score(source_points, target.tree(), T_score, options.score_max_range_m);
   };
   ConvergenceCriteria criteria(options.convergence);
 

@@ -30,7 +30,8 @@ class CliAlign : public test::CliTest {
 
 TEST_F(CliAlign, PrintsOneRowPerStrategyAndWritesJson) {
   write_transform(path("gt.txt"), T_true_);
-  const test::CliRun r = run("align " + source_ + " " + target_ + " --ground-truth " +
+  // The paper's four, asked for explicitly (the default is the recommended strategy).
+  const test::CliRun r = run("align " + source_ + " " + target_ + " --weight all --ground-truth " +
                              path("gt.txt") + " --json " + path("out/result.json") + " --history");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* s :
@@ -50,6 +51,34 @@ TEST_F(CliAlign, PrintsOneRowPerStrategyAndWritesJson) {
   for (int rr = 0; rr < 4; ++rr)
     for (int c = 0; c < 4; ++c) T.matrix()(rr, c) = base["T_target_source"][rr][c].get<double>();
   EXPECT_LT(transform_error(T, T_true_).translation_m, 1e-6);
+}
+
+TEST_F(CliAlign, DefaultIsTheRecommendedStrategyAndStrategyListsSelectByName) {
+  write_transform(path("gt.txt"), T_true_);
+  const test::CliRun r = run("align " + source_ + " " + target_ + " --ground-truth " +
+                             path("gt.txt") + " --json " + path("d.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  auto j = nlohmann::json::parse(test::read_text(path("d.json")));
+  ASSERT_EQ(j["results"].size(), 1u);
+  EXPECT_EQ(j["results"][0]["strategy"], "robust_obs");
+  EXPECT_TRUE(j["results"][0]["right_basin"].get<bool>());
+  EXPECT_LT(j["results"][0]["translation_error_m"].get<double>(), 1e-3);
+
+  const test::CliRun r2 = run("align " + source_ + " " + target_ +
+                              " --strategy paper,shrink,robust_obs_4dof --json " + path("s.json"));
+  ASSERT_EQ(r2.exit_code, 0) << r2.err;
+  j = nlohmann::json::parse(test::read_text(path("s.json")));
+  ASSERT_EQ(j["results"].size(), 6u);
+  EXPECT_EQ(j["results"][0]["strategy"], "base");
+  EXPECT_EQ(j["results"][4]["strategy"], "shrink");
+  EXPECT_EQ(j["results"][5]["strategy"], "robust_obs_4dof");
+
+  for (const std::string& bad :
+       {std::string("--strategy robust"), std::string("--strategy base,base"),
+        std::string("--strategy base --weight none")}) {
+    const test::CliRun e = run("align " + source_ + " " + target_ + " " + bad);
+    EXPECT_EQ(e.exit_code, 2) << bad << "\n" << e.out << e.err;
+  }
 }
 
 TEST_F(CliAlign, DisplaceIsUndoneInTheErrors) {

@@ -94,8 +94,8 @@ TEST_F(CliRobustness, OneTwoOrThreeLandmarks) {
   const Points3 tri = {Vec3(0, 0, 0), Vec3(1.0, 0.1, 0.05), Vec3(0.3, 0.8, -0.2)};
   for (std::size_t n : {1u, 2u}) {
     write_bytes(path("few.txt"), map_text(Points3(tri.begin(), tri.begin() + n)));
-    const test::CliRun r =
-        run("align " + path("few.txt") + " " + target_ + " --json " + path("few.json"));
+    const test::CliRun r = run("align " + path("few.txt") + " " + target_ +
+                               " --strategy all --json " + path("few.json"));
     ASSERT_EQ(r.exit_code, 0) << r.err;
     const nlohmann::json report = read_json(path("few.json"));
     for (const auto& e : report["results"]) {
@@ -109,9 +109,9 @@ TEST_F(CliRobustness, OneTwoOrThreeLandmarks) {
   // with k >= 3 every source landmark then picks the same most trusted target landmark, and the
   // defined outcome is a `degenerate` termination with a finite transform.
   write_bytes(path("tri.txt"), map_text(tri));
-  const test::CliRun r =
-      run("align " + path("tri.txt") + " " + path("tri.txt") +
-          " --displace 0.01,0,0,0,0,1 --ground-truth identity --json " + path("tri.json"));
+  const test::CliRun r = run(
+      "align " + path("tri.txt") + " " + path("tri.txt") +
+      " --weight all --displace 0.01,0,0,0,0,1 --ground-truth identity --json " + path("tri.json"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json report = read_json(path("tri.json"));
   ASSERT_EQ(report["results"].size(), 4u);
@@ -251,8 +251,8 @@ TEST_F(CliRobustness, NaNOrNegativeOptionValuesAreOneLineErrors) {
 }
 
 TEST_F(CliRobustness, MaxDistanceSoSmallThatNothingCorresponds) {
-  const test::CliRun r =
-      run("align " + source_ + " " + target_ + " --max-distance 1e-12 --json " + path("md.json"));
+  const test::CliRun r = run("align " + source_ + " " + target_ +
+                             " --weight all --max-distance 1e-12 --json " + path("md.json"));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const nlohmann::json report = read_json(path("md.json"));
   for (const auto& e : report["results"]) {
@@ -361,9 +361,9 @@ TEST_F(CliRobustness, AnOutputPathThatIsAnInputIsRefused) {
   }
   // With several strategies the PLY files are NAME_<strategy>.ply; an input of that name is safe.
   fs::copy_file(source_, path("out_base.ply"));
-  expect_one_line_error(
-      run("align " + path("out_base.ply") + " " + target_ + " --aligned-out " + path("out.ply")),
-      "refusing", "derived PLY name");
+  expect_one_line_error(run("align " + path("out_base.ply") + " " + target_ +
+                            " --weight all --aligned-out " + path("out.ply")),
+                        "refusing", "derived PLY name");
   expect_one_line_error(run("align " + source_ + " " + target_ + " --weight none --json " +
                             path("x.ply") + " --aligned-out " + path("x.ply")),
                         "same file", "--json equal to --aligned-out");

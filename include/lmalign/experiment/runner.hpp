@@ -116,8 +116,10 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
                         const std::optional<Isometry3>& ground_truth,
                         const RunnerOptions& options = {});
 
-/// The registration options of one run: RegistrationOptions::paper(strategy, k) with the
-/// config's iterations and max distance.
+/// The registration options of one run of a paper strategy: RegistrationOptions::paper(strategy,
+/// k) with the config's iterations and max distance. lmalign's own strategies run align_robust()
+/// with robust_strategy_options(strategy, k) instead (their preset schedule and budget); this
+/// throws InvalidArgument for them.
 RegistrationOptions run_options(const ExperimentConfig& config, PaperStrategy strategy, int k);
 
 }  // namespace lmalign

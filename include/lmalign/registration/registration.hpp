@@ -19,19 +19,39 @@
 
 namespace lmalign {
 
-/// The paper's four strategies (its table columns).
+/// The strategies selectable by name: first the paper's four (its table columns, run by
+/// align()), then lmalign's own (issue 7; run by align_robust() with the preset options of
+/// robust_strategy_options(), registration/robust.hpp). The type keeps its historical name;
+/// `Strategy` is the same type.
 enum class PaperStrategy {
   kBase,          ///< nearest neighbour, no weights
   kCovariance,    ///< weighted-kNN with w_cov (Eq. 1)
   kObservations,  ///< weighted-kNN with w_obs (Eq. 2)
   kMeanDistance,  ///< weighted-kNN with w_dist (Eqs. 3-4)
+  // --- beyond the paper (docs/accuracy.md) ---
+  kShrink,         ///< "shrink": nearest, max distance inf -> 1 -> 0.5 -> 0.25 -> 0.1 -> 0.05 m
+  kShrinkCauchy,   ///< "shrink_cauchy": shrink + Cauchy IRLS
+  kTrimmed,        ///< "trimmed": shrink + trimming to an estimated overlap (trimmed ICP)
+  kMutual,         ///< "mutual": shrink + mutual nearest neighbours
+  kRobustObs,      ///< "robust_obs": shrink_cauchy + w_obs in the estimation (recommended)
+  kRobustObsKnn,   ///< "robust_obs_knn": robust_obs with the paper's weighted-kNN (w_obs) selection
+  kRobustObs4Dof,  ///< "robust_obs_4dof": robust_obs estimating x, y, z, yaw only (z up)
 };
-std::string to_string(
-    PaperStrategy strategy);  ///< "base", "covariance", "observations", "distance"
-/// Inverse of to_string (also "none" for base). Throws InvalidArgument listing the names.
+using Strategy = PaperStrategy;
+/// "base", "covariance", "observations", "distance", then "shrink", "shrink_cauchy", "trimmed",
+/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof".
+std::string to_string(PaperStrategy strategy);
+/// Inverse of to_string (also "none" for base, "mean_distance" for distance). Throws
+/// InvalidArgument listing the names.
 PaperStrategy parse_paper_strategy(const std::string& name);
-/// All four, in the paper's column order.
+/// The paper's four, in the paper's column order.
 std::vector<PaperStrategy> all_paper_strategies();
+/// lmalign's own strategies (issue 7), in declaration order.
+std::vector<PaperStrategy> beyond_paper_strategies();
+/// True for the paper's four (run by align()); false for lmalign's own (align_robust()).
+bool is_paper_strategy(PaperStrategy strategy);
+/// The strategy `lmalign align` uses by default, chosen by measurement (docs/accuracy.md).
+inline constexpr PaperStrategy kRecommendedStrategy = PaperStrategy::kRobustObs;
 
 /// Every setting of one registration. Plain struct; check with is_valid().
 struct RegistrationOptions {
@@ -56,6 +76,7 @@ struct RegistrationOptions {
   bool reuse_neighbours = true;
 
   /// The paper's setting for a strategy: base = nearest; the others weighted-kNN with its weight.
+  /// Throws InvalidArgument for a strategy that is not one of the paper's four.
   static RegistrationOptions paper(PaperStrategy strategy, int k = 5);
 
   /// Ceres-style validation: false, and *why names the bad field and its value.

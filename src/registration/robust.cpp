@@ -1,0 +1,415 @@
+#include "lmalign/registration/robust.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/estimation.hpp"
+#include "lmalign/registration/score.hpp"
+#include "lmalign/search/kdtree.hpp"
+
+namespace lmalign {
+
+std::string to_string(RobustKernel kernel) {
+  switch (kernel) {
+    case RobustKernel::kNone:
+      return "none";
+    case RobustKernel::kHuber:
+      return "huber";
+    case RobustKernel::kCauchy:
+      return "cauchy";
+    case RobustKernel::kGemanMcClure:
+      return "geman_mcclure";
+  }
+  return "?";
+}
+
+RobustKernel parse_robust_kernel(const std::string& name) {
+  if (name == "none") return RobustKernel::kNone;
+  if (name == "huber") return RobustKernel::kHuber;
+  if (name == "cauchy") return RobustKernel::kCauchy;
+  if (name == "geman_mcclure") return RobustKernel::kGemanMcClure;
+  throw InvalidArgument("unknown robust kernel '" + name +
+                        "' (expected none, huber, cauchy or geman_mcclure)");
+}
+
+double robust_weight(RobustKernel kernel, double residual_m, double scale_m) {
+  if (kernel == RobustKernel::kNone || std::isinf(scale_m)) return 1.0;
+  const double r = std::abs(residual_m);
+  const double u2 = (r / scale_m) * (r / scale_m);
+  switch (kernel) {
+    case RobustKernel::kNone:
+      return 1.0;
+    case RobustKernel::kHuber:
+      return r <= scale_m ? 1.0 : scale_m / r;
+    case RobustKernel::kCauchy:
+      return 1.0 / (1.0 + u2);
+    case RobustKernel::kGemanMcClure:
+      return 1.0 / ((1.0 + u2) * (1.0 + u2));
+  }
+  return 1.0;
+}
+
+double estimate_overlap_ratio(std::vector<double> residuals_sq_m2, double min_ratio,
+                              double lambda) {
+  if (!(min_ratio > 0.0 && min_ratio <= 1.0)) {
+    throw InvalidArgument("estimate_overlap_ratio: min_ratio must be in (0, 1], got " +
+                          std::to_string(min_ratio));
+  }
+  if (!(lambda >= 0.0)) throw InvalidArgument("estimate_overlap_ratio: lambda must be >= 0");
+  const std::size_t n = residuals_sq_m2.size();
+  if (n < 2) return 1.0;
+  std::sort(residuals_sq_m2.begin(), residuals_sq_m2.end());
+  std::vector<double> prefix(n + 1, 0.0);
+  for (std::size_t i = 0; i < n; ++i) prefix[i + 1] = prefix[i] + residuals_sq_m2[i];
+  double best = std::numeric_limits<double>::infinity();
+  double best_ratio = 1.0;
+  const int first = static_cast<int>(std::ceil(min_ratio * 100.0 - 1e-9));
+  for (int step = first; step <= 100; ++step) {
+    const double xi = step / 100.0;
+    const std::size_t m = std::max<std::size_t>(
+        1, std::min(n, static_cast<std::size_t>(std::ceil(xi * static_cast<double>(n) - 1e-9))));
+    const double e = prefix[m] / static_cast<double>(m);
+    const double psi = e / std::pow(xi, 1.0 + lambda);
+    if (psi < best) {
+      best = psi;
+      best_ratio = xi;
+    }
+  }
+  return best_ratio;
+}
+
+void trim_correspondences(Correspondences& correspondences, double ratio) {
+  if (!(ratio > 0.0 && ratio <= 1.0)) {
+    throw InvalidArgument("trim_correspondences: ratio must be in (0, 1], got " +
+                          std::to_string(ratio));
+  }
+  const std::size_t n = correspondences.size();
+  const std::size_t keep =
+      std::min(n, static_cast<std::size_t>(std::ceil(ratio * static_cast<double>(n) - 1e-9)));
+  if (keep >= n) return;
+  std::stable_sort(correspondences.begin(), correspondences.end(),
+                   [](const Correspondence& a, const Correspondence& b) {
+                     if (a.distance_sq_m2 != b.distance_sq_m2) {
+                       return a.distance_sq_m2 < b.distance_sq_m2;
+                     }
+                     return a.source_index < b.source_index;
+                   });
+  correspondences.resize(keep);
+  std::sort(correspondences.begin(), correspondences.end(),
+            [](const Correspondence& a, const Correspondence& b) {
+              return a.source_index < b.source_index;
+            });
+}
+
+void keep_mutual(const Points3& moved_source, const Points3& target_points,
+                 Correspondences& correspondences) {
+  if (correspondences.empty()) return;
+  const KdTree source_tree(moved_source);
+  Correspondences kept;
+  kept.reserve(correspondences.size());
+  for (const Correspondence& c : correspondences) {
+    PointIndex nearest = 0;
+    double d2 = 0.0;
+    if (source_tree.nearest(target_points[c.target_index], &nearest, &d2) &&
+        nearest == c.source_index) {
+      kept.push_back(c);
+    }
+  }
+  correspondences.swap(kept);
+}
+
+bool RobustRegistrationOptions::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (k < 1 || k > 4096) return fail("k = " + std::to_string(k) + " (expected 1..4096)");
+  if (max_distance_schedule_m.empty()) return fail("max_distance_schedule_m is empty");
+  for (std::size_t i = 0; i < max_distance_schedule_m.size(); ++i) {
+    const double d = max_distance_schedule_m[i];
+    if (!(d > 0.0)) {
+      return fail("max_distance_schedule_m[" + std::to_string(i) + "] = " + std::to_string(d) +
+                  " (expected > 0)");
+    }
+    if (i > 0 && d > max_distance_schedule_m[i - 1]) {
+      return fail("max_distance_schedule_m[" + std::to_string(i) + "] = " + std::to_string(d) +
+                  " (expected non-increasing)");
+    }
+  }
+  if (!(trim_ratio > 0.0 && trim_ratio <= 1.0)) {
+    return fail("trim_ratio = " + std::to_string(trim_ratio) + " (expected in (0, 1])");
+  }
+  if (!(min_overlap_ratio > 0.0 && min_overlap_ratio <= 1.0)) {
+    return fail("min_overlap_ratio = " + std::to_string(min_overlap_ratio) +
+                " (expected in (0, 1])");
+  }
+  if (!(kernel_scale_m > 0.0) || !std::isfinite(kernel_scale_m)) {
+    return fail("kernel_scale_m = " + std::to_string(kernel_scale_m) + " (expected finite > 0)");
+  }
+  if (!(kernel_scale_ratio >= 0.0) || !std::isfinite(kernel_scale_ratio)) {
+    return fail("kernel_scale_ratio = " + std::to_string(kernel_scale_ratio) +
+                " (expected finite >= 0)");
+  }
+  if (irls_iterations < 1) {
+    return fail("irls_iterations = " + std::to_string(irls_iterations) + " (expected >= 1)");
+  }
+  if (max_iterations < 1) {
+    return fail("max_iterations = " + std::to_string(max_iterations) + " (expected >= 1)");
+  }
+  if (max_iterations_per_level < 1) {
+    return fail("max_iterations_per_level = " + std::to_string(max_iterations_per_level) +
+                " (expected >= 1)");
+  }
+  if (!(settle_translation_m >= 0.0)) {
+    return fail("settle_translation_m = " + std::to_string(settle_translation_m) +
+                " (expected >= 0)");
+  }
+  if (!(settle_rotation_rad >= 0.0)) {
+    return fail("settle_rotation_rad = " + std::to_string(settle_rotation_rad) +
+                " (expected >= 0)");
+  }
+  if (min_correspondences < 3) {
+    return fail("min_correspondences = " + std::to_string(min_correspondences) +
+                " (expected >= 3)");
+  }
+  return true;
+}
+
+RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k) {
+  RobustRegistrationOptions o;
+  o.k = k;
+  switch (strategy) {
+    case PaperStrategy::kShrink:
+      break;
+    case PaperStrategy::kShrinkCauchy:
+      o.kernel = RobustKernel::kCauchy;
+      break;
+    case PaperStrategy::kTrimmed:
+      o.estimate_overlap = true;
+      break;
+    case PaperStrategy::kMutual:
+      o.mutual = true;
+      break;
+    case PaperStrategy::kRobustObs:
+      o.kernel = RobustKernel::kCauchy;
+      o.estimation_weight = WeightKind::kObservations;
+      break;
+    case PaperStrategy::kRobustObsKnn:
+      o.kernel = RobustKernel::kCauchy;
+      o.estimation_weight = WeightKind::kObservations;
+      o.selection = CorrespondenceKind::kWeightedKnn;
+      o.selection_weight = WeightKind::kObservations;
+      break;
+    case PaperStrategy::kRobustObs4Dof:
+      o.kernel = RobustKernel::kCauchy;
+      o.estimation_weight = WeightKind::kObservations;
+      o.dof = DegreesOfFreedom::k4;
+      break;
+    default:
+      throw InvalidArgument("robust_strategy_options: '" + to_string(strategy) +
+                            "' is one of the paper's strategies (use align())");
+  }
+  return o;
+}
+
+namespace {
+
+Mat3 skew(const Vec3& v) {
+  Mat3 S;
+  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return S;
+}
+
+Mat6 point_to_point_covariance(const Points3& moved, const Points3& target,
+                               const Correspondences& corr, const std::vector<double>& w) {
+  const std::size_t n = corr.size();
+  if (n < 3) return Mat6::Zero();
+  double wsum = 0.0;
+  for (double x : w) wsum += x;
+  if (!(wsum > 0.0)) return Mat6::Zero();
+  const double norm = static_cast<double>(n) / wsum;  // mean weight 1
+  Mat6 H = Mat6::Zero();
+  double chi2 = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = moved[corr[i].source_index];
+    const Vec3 r = p - target[corr[i].target_index];
+    const double wi = w[i] * norm;
+    Eigen::Matrix<double, 3, 6> J;
+    J.leftCols<3>() = Mat3::Identity();
+    J.rightCols<3>() = -skew(p);
+    H.noalias() += wi * J.transpose() * J;
+    chi2 += wi * r.squaredNorm();
+  }
+  const double dof = 3.0 * static_cast<double>(n) - 6.0;
+  if (!(dof > 0.0)) return Mat6::Zero();
+  const double sigma2 = chi2 / dof;
+  Eigen::LDLT<Mat6> ldlt(H);
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return Mat6::Zero();
+  Mat6 cov = sigma2 * ldlt.solve(Mat6::Identity());
+  if (!cov.allFinite()) return Mat6::Zero();
+  return 0.5 * (cov + cov.transpose());
+}
+
+}  // namespace
+
+RobustRegistrationResult align_robust(const Points3& source_points, const PreparedTarget& target,
+                                      const RobustRegistrationOptions& options,
+                                      const Isometry3& T_target_source_init) {
+  const auto t_start = std::chrono::steady_clock::now();
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("robust registration options: " + why);
+  if (!is_finite(T_target_source_init)) {
+    throw InvalidArgument("robust registration: the initial guess is not finite");
+  }
+  if (source_points.empty()) throw InvalidArgument("robust registration: the source has no points");
+  if (target.size() == 0) throw InvalidArgument("robust registration: the target has no points");
+  for (std::size_t i = 0; i < source_points.size(); ++i) {
+    if (!source_points[i].allFinite() ||
+        !(source_points[i].cwiseAbs().maxCoeff() <= kMaxCoordinateM)) {
+      throw InvalidArgument("robust registration: source point " + std::to_string(i) +
+                            " is not finite or beyond kMaxCoordinateM");
+    }
+  }
+
+  const std::vector<double> no_weights;
+  const std::vector<double>& selection_weights =
+      options.selection == CorrespondenceKind::kWeightedKnn
+          ? target.weights(options.selection_weight)
+          : no_weights;
+  const std::vector<double>* confidence = options.estimation_weight == WeightKind::kUniform
+                                              ? nullptr
+                                              : &target.weights(options.estimation_weight);
+  // One finder per level (borrowed weights; stable addresses for the workspace binding).
+  std::vector<CorrespondenceFinder> finders;
+  finders.reserve(options.max_distance_schedule_m.size());
+  for (double d : options.max_distance_schedule_m) {
+    CorrespondenceOptions copt;
+    copt.kind = options.selection;
+    copt.k = options.k;
+    copt.max_distance_m = d;
+    finders.push_back(CorrespondenceFinder::borrowing(target.tree(), selection_weights, copt));
+  }
+
+  RobustRegistrationResult result;
+  result.initial_score_m2 =
+      fitness_score(source_points, target.tree(), T_target_source_init).mean_sq_m2;
+
+  Isometry3 T = T_target_source_init;
+  Points3 moved;
+  Correspondences corr;
+  std::vector<double> weights;
+  std::vector<double> residuals_sq;
+  std::size_t level = 0;
+  int level_iterations = 0;
+  CorrespondenceWorkspace workspace;
+  const std::size_t min_corr = static_cast<std::size_t>(options.min_correspondences);
+  const Points3& tp = target.points();
+
+  for (;;) {
+    const double d_level = options.max_distance_schedule_m[level];
+    finders[level].find(source_points, T, moved, corr, workspace, true);
+    // Mutual and trimming act once the distance gate is finite: at an unlimited level they would
+    // shrink the basin (measured on the real pair; docs/accuracy.md).
+    const bool gated = std::isfinite(d_level);
+    if (options.mutual && gated) keep_mutual(moved, tp, corr);
+    double ratio = gated ? options.trim_ratio : 1.0;
+    if (gated && options.estimate_overlap && corr.size() >= 2) {
+      residuals_sq.clear();
+      for (const Correspondence& c : corr) residuals_sq.push_back(c.distance_sq_m2);
+      ratio = estimate_overlap_ratio(residuals_sq, options.min_overlap_ratio);
+    }
+    if (ratio < 1.0) trim_correspondences(corr, ratio);
+    result.overlap_ratio = ratio;
+    if (corr.size() < min_corr) {
+      result.termination = TerminationReason::kNoCorrespondences;
+      result.num_correspondences = corr.size();
+      break;
+    }
+
+    // IRLS on fixed correspondences: weights from the residuals under the current increment.
+    const double scale = std::max(options.kernel_scale_m, options.kernel_scale_ratio * d_level);
+    Isometry3 increment = Isometry3::Identity();
+    EstimationReport report;
+    weights.assign(corr.size(), 1.0);
+    const int irls = options.kernel == RobustKernel::kNone ? 1 : options.irls_iterations;
+    for (int it = 0; it < irls; ++it) {
+      for (std::size_t i = 0; i < corr.size(); ++i) {
+        const double r =
+            (increment * moved[corr[i].source_index] - tp[corr[i].target_index]).norm();
+        const double c = confidence ? (*confidence)[corr[i].target_index] : 1.0;
+        weights[i] = c * robust_weight(options.kernel, r, scale);
+      }
+      double wsum = 0.0;
+      for (double w : weights) wsum += w;
+      if (!(wsum > 0.0)) break;  // keep the last increment
+      increment = options.dof == DegreesOfFreedom::k6
+                      ? estimate_rigid_transform(moved, tp, corr, &weights, &report)
+                      : estimate_4dof_transform(moved, tp, corr, &weights, options.up_axis);
+    }
+    if (!is_finite(increment)) {
+      result.termination = TerminationReason::kDegenerate;
+      break;
+    }
+    T = increment * T;
+    ++result.iterations;
+    ++level_iterations;
+    result.num_correspondences = corr.size();
+
+    const bool settled =
+        increment.translation().norm() < options.settle_translation_m &&
+        Eigen::AngleAxisd(increment.linear()).angle() < options.settle_rotation_rad;
+    if (settled || level_iterations >= options.max_iterations_per_level) {
+      if (level + 1 == finders.size()) {
+        if (settled) {
+          result.termination =
+              report.degenerate ? TerminationReason::kDegenerate : TerminationReason::kTransform;
+          break;
+        }
+        // not settled at the last level: keep going until the total budget ends
+      } else {
+        ++level;
+        level_iterations = 0;
+      }
+    }
+    if (result.iterations >= options.max_iterations) {
+      result.termination = TerminationReason::kMaxIterations;
+      break;
+    }
+  }
+
+  // Final diagnostics at the final estimate, with the last level's correspondences.
+  const std::size_t last = level;
+  result.final_max_distance_m = options.max_distance_schedule_m[last];
+  finders[last].find(source_points, T, moved, corr, workspace, true);
+  if (options.mutual && std::isfinite(result.final_max_distance_m)) keep_mutual(moved, tp, corr);
+  if (result.overlap_ratio < 1.0) trim_correspondences(corr, result.overlap_ratio);
+  result.inlier_ratio =
+      static_cast<double>(corr.size()) / static_cast<double>(source_points.size());
+  if (!corr.empty()) {
+    const double scale =
+        std::max(options.kernel_scale_m, options.kernel_scale_ratio * result.final_max_distance_m);
+    weights.resize(corr.size());
+    double wsum = 0.0, wr2 = 0.0;
+    for (std::size_t i = 0; i < corr.size(); ++i) {
+      const double r = std::sqrt(corr[i].distance_sq_m2);
+      const double c = confidence ? (*confidence)[corr[i].target_index] : 1.0;
+      weights[i] = c * robust_weight(options.kernel, r, scale);
+      wsum += weights[i];
+      wr2 += weights[i] * corr[i].distance_sq_m2;
+    }
+    result.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
+    result.covariance = point_to_point_covariance(moved, tp, corr, weights);
+  }
+  result.converged = result.termination == TerminationReason::kTransform;
+  result.T_target_source = T;
+  result.final_score_m2 = fitness_score(source_points, target.tree(), T).mean_sq_m2;
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return result;
+}
+
+}  // namespace lmalign
