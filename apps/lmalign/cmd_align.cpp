@@ -22,6 +22,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign::cli {
 
@@ -57,6 +58,8 @@ struct StrategyRun {
   RegistrationResult result;
   std::optional<TransformError> error;
   bool right_basin = false;
+  TrustVerdict trust;  // judge_alignment() at the estimate (no ground truth involved)
+  PoseCovariance cov;  // on the inliers of the estimate
 };
 
 std::string ply_path_for(const std::string& base, const std::string& strategy, bool several) {
@@ -198,7 +201,9 @@ int run_align(const AlignArgs& a) {
     } else {
       result = align_robust(source_points, prepared, robust_strategy_options(s, a.k));
     }
-    StrategyRun run{s, result, std::nullopt, false};
+    StrategyRun run{s, result, std::nullopt, false, {}, {}};
+    run.trust =
+        judge_alignment(source_points, prepared.tree(), result.T_target_source, {}, &run.cov);
     if (T_true) {
       run.error = transform_error(run.result.T_target_source * T_displace, *T_gt);
       run.right_basin = run.error->rotation_deg < a.success_rotation_deg &&
@@ -211,7 +216,7 @@ int run_align(const AlignArgs& a) {
   std::printf("%-13s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score",
               "iters", "termination", "time ms");
   if (T_true) std::printf(" %8s %8s %6s", "rot deg", "trans m", "basin");
-  std::printf("\n");
+  std::printf(" %6s\n", "trust");
   for (const StrategyRun& r : runs) {
     const bool weighted = uses_k(r.strategy);
     std::printf("%-13s %3s %12s %12s %6d %-19s %9.2f", to_string(r.strategy).c_str(),
@@ -223,9 +228,18 @@ int run_align(const AlignArgs& a) {
       std::printf(" %8.3f %8.4f %6s", r.error->rotation_deg, r.error->translation_m,
                   r.right_basin ? "yes" : "NO");
     }
-    std::printf("\n");
+    std::printf(" %6s\n", r.trust.trustworthy ? "yes" : "NO");
   }
   std::printf("\nscores are PCL fitness scores (mean squared nearest-neighbour distance, m^2)\n");
+  std::printf(
+      "trust: the verdict without ground truth (docs/accuracy.md): inliers within 5 cm, of all "
+      "source landmarks and of those within 20 cm, and the covariance on them\n");
+  for (const StrategyRun& r : runs) {
+    if (!r.trust.trustworthy) {
+      std::printf("  %-13s not trusted: %s\n", to_string(r.strategy).c_str(),
+                  r.trust.reason.c_str());
+    }
+  }
   std::printf(
       "\nestimated T_target_source (p_target = T * p_source): x y z [m], roll pitch yaw [deg]\n");
   for (const StrategyRun& r : runs) {
@@ -283,6 +297,23 @@ int run_align(const AlignArgs& a) {
       e["initial_score_m2"] = json_number(r.result.initial_score_m2);
       e["final_score_m2"] = json_number(r.result.final_score_m2);
       e["wall_time_s"] = r.result.wall_time_s;
+      e["trustworthy"] = r.trust.trustworthy;
+      e["trust_reason"] = r.trust.reason;
+      e["inlier_fraction"] = r.trust.inlier_fraction;
+      e["overlap_fraction"] = r.trust.overlap_fraction;
+      e["translation_sd_m"] = json_number(r.trust.translation_sd_m);
+      e["rotation_sd_deg"] = json_number(r.trust.rotation_sd_deg);
+      {
+        // Row-major 6x6, xi = (rho [m], phi [rad]) on the left in the target frame; null if the
+        // inliers do not determine the transform.
+        nlohmann::json c = nlohmann::json::array();
+        if (r.cov.valid) {
+          for (int i = 0; i < 6; ++i) {
+            for (int k = 0; k < 6; ++k) c.push_back(r.cov.covariance(i, k));
+          }
+        }
+        e["covariance_6x6"] = r.cov.valid ? c : nlohmann::json();
+      }
       if (r.error) {
         e["rotation_error_deg"] = r.error->rotation_deg;
         e["translation_error_m"] = r.error->translation_m;

@@ -128,6 +128,10 @@ bool RobustRegistrationOptions::is_valid(std::string* why) const {
     return false;
   };
   if (k < 1 || k > 4096) return fail("k = " + std::to_string(k) + " (expected 1..4096)");
+  if (global_initialisation) {
+    std::string inner;
+    if (!global.is_valid(&inner)) return fail("global." + inner);
+  }
   if (max_distance_schedule_m.empty()) return fail("max_distance_schedule_m is empty");
   for (std::size_t i = 0; i < max_distance_schedule_m.size(); ++i) {
     const double d = max_distance_schedule_m[i];
@@ -208,6 +212,11 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k)
       o.kernel = RobustKernel::kCauchy;
       o.estimation_weight = WeightKind::kObservations;
       o.dof = DegreesOfFreedom::k4;
+      break;
+    case PaperStrategy::kGlobal:
+      o.kernel = RobustKernel::kCauchy;
+      o.estimation_weight = WeightKind::kObservations;
+      o.global_initialisation = true;
       break;
     default:
       throw InvalidArgument("robust_strategy_options: '" + to_string(strategy) +
@@ -298,7 +307,11 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
   result.initial_score_m2 =
       fitness_score(source_points, target.tree(), T_target_source_init).mean_sq_m2;
 
-  Isometry3 T = T_target_source_init;
+  // With global initialisation the guess is ignored: the robust loop refines global_align()'s
+  // (which needs 3 points a side; with fewer, the loop ends with no_correspondences anyway).
+  Isometry3 T = options.global_initialisation && source_points.size() >= 3 && target.size() >= 3
+                    ? global_align(source_points, target, options.global).T_target_source
+                    : T_target_source_init;
   Points3 moved;
   Correspondences corr;
   std::vector<double> weights;

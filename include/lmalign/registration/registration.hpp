@@ -36,6 +36,8 @@ enum class PaperStrategy {
   kRobustObs,      ///< "robust_obs": shrink_cauchy + w_obs in the estimation (recommended)
   kRobustObsKnn,   ///< "robust_obs_knn": robust_obs with the paper's weighted-kNN (w_obs) selection
   kRobustObs4Dof,  ///< "robust_obs_4dof": robust_obs estimating x, y, z, yaw only (z up)
+  kGlobal,         ///< "global": global initialisation (any yaw, metres off; global_init.hpp), then
+                   ///< robust_obs from its estimate; the initial guess is ignored
 };
 using Strategy = PaperStrategy;
 /// "base", "covariance", "observations", "distance", then "shrink", "shrink_cauchy", "trimmed",

@@ -15,6 +15,7 @@
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/correspondence.hpp"
 #include "lmalign/registration/estimation_4dof.hpp"
+#include "lmalign/registration/global_init.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/weights/weights.hpp"
 
@@ -94,6 +95,12 @@ struct RobustRegistrationOptions {
   WeightKind estimation_weight = WeightKind::kUniform;
   DegreesOfFreedom dof = DegreesOfFreedom::k6;
   UpAxis up_axis = UpAxis::kZ;
+
+  // --- initialisation ---
+  /// Start from global_align() (any yaw, translation by voting; global_init.hpp) instead of
+  /// the initial guess, which is then ignored. The robust loop refines its estimate.
+  bool global_initialisation = false;
+  GlobalInitOptions global;
 
   // --- stopping ---
   int max_iterations = 300;            ///< over all levels, >= 1
