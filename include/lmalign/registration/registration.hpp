@@ -36,10 +36,11 @@ enum class PaperStrategy {
   kRobustObs,      ///< "robust_obs": shrink_cauchy + w_obs in the estimation (recommended)
   kRobustObsKnn,   ///< "robust_obs_knn": robust_obs with the paper's weighted-kNN (w_obs) selection
   kRobustObs4Dof,  ///< "robust_obs_4dof": robust_obs estimating x, y, z, yaw only (z up)
+  kGlobalRobustObs,  ///< "global_robust_obs": robust_obs after a global yaw search (any start)
 };
 using Strategy = PaperStrategy;
 /// "base", "covariance", "observations", "distance", then "shrink", "shrink_cauchy", "trimmed",
-/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof".
+/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof", "global_robust_obs".
 std::string to_string(PaperStrategy strategy);
 /// Inverse of to_string (also "none" for base, "mean_distance" for distance). Throws
 /// InvalidArgument listing the names.
