@@ -366,13 +366,15 @@ CommandRunner add_align_command(CLI::App& root) {
                   "one of the paper's strategies: none (base ICP, nearest neighbour), covariance, "
                   "observations, distance (mean observation distance), or all four")
       ->check(CLI::IsMember({"none", "base", "covariance", "observations", "distance", "all"}));
-  cmd->add_option("--strategy", args->strategy,
-                  "comma-separated strategies by name: the paper's (base, covariance, "
-                  "observations, distance) and lmalign's own (shrink, shrink_cauchy, trimmed, "
-                  "mutual, robust_obs, robust_obs_knn, robust_obs_4dof); 'paper', 'beyond' and "
-                  "'all' name groups. Default (neither --weight nor --strategy): robust_obs, the "
-                  "recommended strategy (docs/accuracy.md). --max-iterations and --max-distance "
-                  "apply to the paper's strategies only");
+  cmd->add_option(
+      "--strategy", args->strategy,
+      "comma-separated strategies by name: the paper's (base, covariance, "
+      "observations, distance) and lmalign's own (shrink, shrink_cauchy, trimmed, "
+      "mutual, robust_obs, robust_obs_knn, robust_obs_4dof, global_robust_obs); 'paper', "
+      "'beyond' and "
+      "'all' name groups. Default (neither --weight nor --strategy): robust_obs, the "
+      "recommended strategy (docs/accuracy.md). --max-iterations and --max-distance "
+      "apply to the paper's strategies only");
   cmd->add_option("--k", args->k, "neighbourhood size of the weighted strategies, [1, 4096]")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();

@@ -38,6 +38,8 @@ std::string to_string(PaperStrategy strategy) {
       return "robust_obs_4dof";
     case PaperStrategy::kGlobal:
       return "global";
+    case PaperStrategy::kGlobalRobustObs:
+      return "global_robust_obs";
   }
   return "?";
 }
@@ -53,7 +55,7 @@ PaperStrategy parse_paper_strategy(const std::string& name) {
   throw InvalidArgument("unknown strategy '" + name +
                         "' (expected base|none, covariance, observations, distance, shrink, "
                         "shrink_cauchy, trimmed, mutual, robust_obs, robust_obs_knn, "
-                        "robust_obs_4dof, global)");
+                        "robust_obs_4dof, global, global_robust_obs)");
 }
 
 std::vector<PaperStrategy> all_paper_strategies() {
@@ -62,9 +64,10 @@ std::vector<PaperStrategy> all_paper_strategies() {
 }
 
 std::vector<PaperStrategy> beyond_paper_strategies() {
-  return {PaperStrategy::kShrink,        PaperStrategy::kShrinkCauchy, PaperStrategy::kTrimmed,
-          PaperStrategy::kMutual,        PaperStrategy::kRobustObs,    PaperStrategy::kRobustObsKnn,
-          PaperStrategy::kRobustObs4Dof, PaperStrategy::kGlobal};
+  return {
+      PaperStrategy::kShrink,        PaperStrategy::kShrinkCauchy, PaperStrategy::kTrimmed,
+      PaperStrategy::kMutual,        PaperStrategy::kRobustObs,    PaperStrategy::kRobustObsKnn,
+      PaperStrategy::kRobustObs4Dof, PaperStrategy::kGlobal,       PaperStrategy::kGlobalRobustObs};
 }
 
 bool is_paper_strategy(PaperStrategy strategy) {

@@ -176,6 +176,27 @@ bool RobustRegistrationOptions::is_valid(std::string* why) const {
     return fail("settle_rotation_rad = " + std::to_string(settle_rotation_rad) +
                 " (expected >= 0)");
   }
+  if (yaw_hypotheses < 1) {
+    return fail("yaw_hypotheses = " + std::to_string(yaw_hypotheses) + " (expected >= 1)");
+  }
+  if (global_schedule_m.empty()) return fail("global_schedule_m is empty");
+  for (std::size_t i = 0; i < global_schedule_m.size(); ++i) {
+    const double d = global_schedule_m[i];
+    if (!(d > 0.0) || (i > 0 && d > global_schedule_m[i - 1])) {
+      return fail("global_schedule_m[" + std::to_string(i) + "] = " + std::to_string(d) +
+                  " (expected > 0 and non-increasing)");
+    }
+  }
+  if (global_subsample < 1) {
+    return fail("global_subsample = " + std::to_string(global_subsample) + " (expected >= 1)");
+  }
+  if (global_iterations < 1) {
+    return fail("global_iterations = " + std::to_string(global_iterations) + " (expected >= 1)");
+  }
+  if (!(global_inlier_distance_m > 0.0)) {
+    return fail("global_inlier_distance_m = " + std::to_string(global_inlier_distance_m) +
+                " (expected > 0)");
+  }
   if (min_correspondences < 3) {
     return fail("min_correspondences = " + std::to_string(min_correspondences) +
                 " (expected >= 3)");
@@ -217,6 +238,11 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k)
       o.kernel = RobustKernel::kCauchy;
       o.estimation_weight = WeightKind::kObservations;
       o.global_initialisation = true;
+      break;
+    case PaperStrategy::kGlobalRobustObs:
+      o.kernel = RobustKernel::kCauchy;
+      o.estimation_weight = WeightKind::kObservations;
+      o.global_search = true;
       break;
     default:
       throw InvalidArgument("robust_strategy_options: '" + to_string(strategy) +
@@ -265,6 +291,82 @@ Mat6 point_to_point_covariance(const Points3& moved, const Points3& target,
 
 }  // namespace
 
+namespace {
+
+/// Source points within `distance_m` of a target point at T (the global search's score).
+std::size_t consensus(const Points3& source_points, const KdTree& tree, const Isometry3& T,
+                      double distance_m) {
+  std::size_t n = 0;
+  const double d2max = distance_m * distance_m;
+  for (const Vec3& p : source_points) {
+    PointIndex idx = 0;
+    double d2 = 0.0;
+    if (tree.nearest(T * p, &idx, &d2) && d2 <= d2max) ++n;
+  }
+  return n;
+}
+
+RobustRegistrationResult align_global(const Points3& source_points, const PreparedTarget& target,
+                                      const RobustRegistrationOptions& options,
+                                      const Isometry3& T_init,
+                                      std::chrono::steady_clock::time_point t_start) {
+  // Hypotheses: the guess itself, then yaws about the moved source's centroid with the centroid
+  // moved onto the target's centroid.
+  Vec3 cs = Vec3::Zero();
+  for (const Vec3& p : source_points) cs += T_init * p;
+  cs /= static_cast<double>(source_points.size());
+  Vec3 ct = Vec3::Zero();
+  for (const Vec3& p : target.points()) ct += p;
+  ct /= static_cast<double>(target.size());
+  std::vector<Isometry3> hypotheses{T_init};
+  for (int h = 0; h < options.yaw_hypotheses; ++h) {
+    const double yaw = 2.0 * M_PI * h / options.yaw_hypotheses;
+    Isometry3 H = Isometry3::Identity();
+    H.linear() = rotation_about_up(options.up_axis, yaw);
+    H.translation() = ct - H.linear() * cs;
+    hypotheses.push_back(H * T_init);
+  }
+  RobustRegistrationOptions coarse = options;
+  coarse.global_search = false;
+  coarse.max_distance_schedule_m = options.global_schedule_m;
+  coarse.max_iterations = options.global_iterations;
+  coarse.max_iterations_per_level =
+      std::max(1, options.global_iterations / static_cast<int>(options.global_schedule_m.size()));
+  Points3 sub;
+  for (std::size_t i = 0; i < source_points.size();
+       i += static_cast<std::size_t>(options.global_subsample)) {
+    sub.push_back(source_points[i]);
+  }
+  std::size_t best = 0;
+  std::size_t best_score = 0;
+  Isometry3 best_T = T_init;
+  int iterations = 0;
+  for (std::size_t h = 0; h < hypotheses.size(); ++h) {
+    const RobustRegistrationResult r = align_robust(sub, target, coarse, hypotheses[h]);
+    iterations += r.iterations;
+    const std::size_t score =
+        consensus(sub, target.tree(), r.T_target_source, options.global_inlier_distance_m);
+    if (h == 0 || score > best_score) {
+      best = h;
+      best_score = score;
+      best_T = r.T_target_source;
+    }
+  }
+  // The full run starts again at an unlimited distance from the chosen estimate: skipping that
+  // level (the coarse run used a subsample) ended in a wrong minimum on the real pair.
+  RobustRegistrationOptions local = options;
+  local.global_search = false;
+  RobustRegistrationResult result = align_robust(source_points, target, local, best_T);
+  result.initial_score_m2 = fitness_score(source_points, target.tree(), T_init).mean_sq_m2;
+  result.iterations += iterations;
+  (void)best;
+  result.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return result;
+}
+
+}  // namespace
+
 RobustRegistrationResult align_robust(const Points3& source_points, const PreparedTarget& target,
                                       const RobustRegistrationOptions& options,
                                       const Isometry3& T_target_source_init) {
@@ -282,6 +384,10 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
       throw InvalidArgument("robust registration: source point " + std::to_string(i) +
                             " is not finite or beyond kMaxCoordinateM");
     }
+  }
+
+  if (options.global_search) {
+    return align_global(source_points, target, options, T_target_source_init, t_start);
   }
 
   const std::vector<double> no_weights;

@@ -182,7 +182,8 @@ TEST_F(RobustScene, PaperBaseIsBiasedAndEveryNamedStrategyIsAccurate) {
   // The paper's objective: every source point pulls, including the half with no counterpart.
   EXPECT_GT(eb.translation_m, 0.02);
   for (PaperStrategy s : beyond_paper_strategies()) {
-    if (s == PaperStrategy::kRobustObs4Dof) continue;  // the truth has roll and pitch
+    if (s == PaperStrategy::kRobustObs4Dof) continue;    // the truth has roll and pitch
+    if (s == PaperStrategy::kGlobalRobustObs) continue;  // GlobalSearch below
     const RobustRegistrationResult r =
         align_robust(scene_->source, *target_, robust_strategy_options(s));
     const TransformError e = error_of(r.T_target_source);
@@ -248,6 +249,24 @@ TEST_F(RobustScene, FourDofKeepsRollAndPitchExactlyAndRecoversYaw) {
       transform_error(align_robust(s.source, target, o).T_target_source, T_true);
   EXPECT_LT(e.rotation_deg, 0.2);
   EXPECT_LT(e.translation_m, 0.005);
+}
+
+TEST_F(RobustScene, GlobalSearchFindsTheTruthFromAnyYawWithoutUsingIt) {
+  // A far start (yaw -160 deg about the room centre, 1.3 m off): the local loop alone ends in a
+  // wrong basin; the yaw search finds the right one by consensus.
+  RobustRegistrationOptions o = robust_strategy_options(PaperStrategy::kGlobalRobustObs);
+  for (double yaw_deg : {-160.0}) {
+    const Isometry3 D = pose_from_xyz_rpy_deg(2.0 + 1.2, 1.5 - 0.6, 0, 0, 0, yaw_deg) *
+                        pose_from_xyz_rpy_deg(-2.0, -1.5, 0, 0, 0, 0);
+    const Points3 moved = transform_points(D, scene_->source);
+    const RobustRegistrationResult local =
+        align_robust(moved, *target_, robust_strategy_options(PaperStrategy::kRobustObs));
+    EXPECT_GT(error_of(local.T_target_source * D).rotation_deg, 5.0) << yaw_deg;
+    const RobustRegistrationResult r = align_robust(moved, *target_, o);
+    const TransformError e = error_of(r.T_target_source * D);
+    EXPECT_LT(e.rotation_deg, 0.2) << yaw_deg;
+    EXPECT_LT(e.translation_m, 0.005) << yaw_deg << " " << e.rotation_deg;
+  }
 }
 
 TEST_F(RobustScene, CovarianceIsSymmetricPositiveDefiniteAndSmall) {

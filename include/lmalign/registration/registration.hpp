@@ -38,10 +38,11 @@ enum class PaperStrategy {
   kRobustObs4Dof,  ///< "robust_obs_4dof": robust_obs estimating x, y, z, yaw only (z up)
   kGlobal,         ///< "global": global initialisation (any yaw, metres off; global_init.hpp), then
                    ///< robust_obs from its estimate; the initial guess is ignored
+  kGlobalRobustObs,  ///< "global_robust_obs": robust_obs after a global yaw search (any start)
 };
 using Strategy = PaperStrategy;
 /// "base", "covariance", "observations", "distance", then "shrink", "shrink_cauchy", "trimmed",
-/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof".
+/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof", "global_robust_obs".
 std::string to_string(PaperStrategy strategy);
 /// Inverse of to_string (also "none" for base, "mean_distance" for distance). Throws
 /// InvalidArgument listing the names.

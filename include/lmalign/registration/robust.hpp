@@ -2,7 +2,8 @@
 // rejection (a maximum distance on a shrinking schedule, trimming to an overlap ratio given or
 // estimated, mutual nearest neighbours), each combinable with the paper's weighted-kNN
 // selection; weighted Umeyama with IRLS robust kernels times landmark confidences; optional
-// 4-DoF (x, y, z, yaw) estimation. The paper's align() is untouched.
+// 4-DoF (x, y, z, yaw) estimation; an optional global yaw search for far starts. The paper's
+// align() is untouched.
 //
 // Frames: the result is T_target_source, p_target = T_target_source * p_source.
 #pragma once
@@ -101,6 +102,20 @@ struct RobustRegistrationOptions {
   /// the initial guess, which is then ignored. The robust loop refines its estimate.
   bool global_initialisation = false;
   GlobalInitOptions global;
+  // --- global initialisation (issue 7; no ground truth used) ---
+  /// Before the local loop, try yaw_hypotheses yaws about the up axis (evenly spaced from 0),
+  /// each rotating the source about its centroid and moving the centroid onto the target's
+  /// centroid, plus the initial guess itself. Each hypothesis gets a short coarse run (this
+  /// loop with global_search off, global_schedule_m and global_iterations); the one with the
+  /// most source points within global_inlier_distance_m of a target point (ties: the earlier
+  /// hypothesis) then starts the full run.
+  bool global_search = false;
+  int yaw_hypotheses = 12;  ///< >= 1
+  std::vector<double> global_schedule_m{std::numeric_limits<double>::infinity(), 0.5, 0.2};
+  int global_iterations = 45;             ///< per hypothesis, over all its levels, >= 1
+  double global_inlier_distance_m = 0.1;  ///< > 0
+  /// The coarse runs and their score use every n-th source point (speed), >= 1.
+  int global_subsample = 4;
 
   // --- stopping ---
   int max_iterations = 300;            ///< over all levels, >= 1
@@ -144,7 +159,9 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k 
 /// per iteration, transform the source, find correspondences (nearest or weighted-kNN at the
 /// current level's maximum distance), keep mutual ones, trim, weight by robust kernel times
 /// target confidence, estimate the increment by weighted Umeyama (6-DoF) or the 4-DoF closed
-/// form with IRLS re-weighting, compose T = dT * T. Deterministic for any thread count.
+/// form with IRLS re-weighting, compose T = dT * T. With global_search, first the yaw
+/// hypotheses' coarse runs pick the start (see global_search); `iterations` then counts theirs
+/// too. Deterministic for any thread count.
 /// Throws InvalidArgument on invalid options, a non-finite guess or source point, an empty
 /// source or target, or a missing weight kind in the target.
 RobustRegistrationResult align_robust(
