@@ -1,8 +1,10 @@
 # lmalign: the two set-up commands.
 #   make demo   installs what is missing, builds in Release, aligns the real ground-truth pair and
 #               runs the paper's protocol (configs/paper.yaml) into $(BUILD_DIR)/demo/paper.
-#   make test   same set-up, then builds and runs every test.
-# Also: make bench (against PCL and Open3D), make test-sanitize (ASan + UBSan), make fuzz.
+#   make test   same set-up, then builds and runs every test, then builds and runs the whole suite
+#               again under ASan + UBSan in $(ASAN_BUILD_DIR) (make test-sanitize).
+# Also: make bench (against PCL and Open3D), make test-sanitize (the sanitizer half alone),
+# make fuzz (libFuzzer targets, FUZZ_SECONDS each; .ci/run runs it after make test).
 # Real data: ../shared/data by default; set LMALIGN_DATA to point elsewhere.
 
 BUILD_DIR ?= build
@@ -58,9 +60,11 @@ build: configure
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
+	$(MAKE) --no-print-directory test-sanitize
 
-# The whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer, in its own build
-# directory (docs/robustness.md). Not yet part of `make test`: see docs/robustness.md.
+# The whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer (every label, leaks
+# included), in its own build directory, -O1; the second half of `make test`. Measured time and
+# coverage: docs/robustness.md.
 .PHONY: test-sanitize
 test-sanitize: deps
 	cmake -S . -B $(ASAN_BUILD_DIR) -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE=-O1 \

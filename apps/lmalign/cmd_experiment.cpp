@@ -6,6 +6,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -13,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <optional>
@@ -77,7 +79,39 @@ struct ExperimentArgs {
   bool no_plots = false;
   std::string plot_case;
   std::vector<std::string> only;
+  std::string resume;
 };
+
+/// A resolved config.yaml without its leading comment lines (they name the file it came from):
+/// two runs used the same config exactly when these agree.
+std::string config_body(const std::string& resolved) {
+  std::size_t pos = 0;
+  while (pos < resolved.size() && resolved[pos] == '#') {
+    const std::size_t nl = resolved.find('\n', pos);
+    if (nl == std::string::npos) return {};
+    pos = nl + 1;
+  }
+  return resolved.substr(pos);
+}
+
+/// The config file a resolved config.yaml was resolved from (its first comment line), or empty.
+std::string resolved_from(const std::string& resolved) {
+  const std::string head = "# Resolved by lmalign experiment from ";
+  const std::string tail = ": every default filled in";
+  if (resolved.compare(0, head.size(), head) != 0) return {};
+  const std::size_t end = resolved.find(tail, head.size());
+  const std::size_t nl = resolved.find('\n');
+  if (end == std::string::npos || (nl != std::string::npos && end > nl)) return {};
+  return resolved.substr(head.size(), end - head.size());
+}
+
+std::string read_whole_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError("cannot read '" + path + "'");
+  std::ostringstream os;
+  os << in.rdbuf();
+  return os.str();
+}
 
 /// The repository holding this executable (the first ancestor with scripts/plot_experiment.py),
 /// or empty.
@@ -234,20 +268,52 @@ void print_summary(const Summary& summary) {
 
 int run_experiment(ExperimentArgs a) {
   const auto t0 = std::chrono::steady_clock::now();
+  const bool resuming = !a.resume.empty();
+  std::string stored_config;  // resume: the resolved config.yaml of the interrupted run
+  if (resuming) {
+    if (!a.output.empty() &&
+        fs::path(a.output).lexically_normal() != fs::path(a.resume).lexically_normal()) {
+      throw InvalidArgument("--resume '" + a.resume + "' and --output '" + a.output +
+                            "' name different folders (--resume writes into its own folder)");
+    }
+    std::error_code ec;
+    for (const char* name : {"config.yaml", "results.csv"}) {
+      if (!fs::is_regular_file(fs::path(a.resume) / name, ec)) {
+        throw InvalidArgument("--resume '" + a.resume + "' holds no run to resume (no " + name +
+                              ")");
+      }
+    }
+    stored_config = read_whole_file((fs::path(a.resume) / "config.yaml").string());
+  } else if (a.config.empty()) {
+    throw InvalidArgument("experiment: CONFIG is required (or --resume OUTDIR)");
+  }
   ConfigLoadOptions lo;
   lo.data_dir = data_dir();
-  ExperimentConfig config = load_experiment_config(a.config, lo);
+  ExperimentConfig config;
+  if (!a.config.empty()) {
+    config = load_experiment_config(a.config, lo);
+  } else {
+    // --resume alone: the run's own config.yaml, reported under the name it was resolved from
+    // (so that summary.json and tables.md read as those of an uninterrupted run).
+    a.config = (fs::path(a.resume) / "config.yaml").string();
+    config = load_experiment_config(a.config, lo);
+    if (const std::string from = resolved_from(stored_config); !from.empty()) {
+      config.path = from;
+      config.name = fs::path(from).stem().string();
+    }
+  }
   if (!a.only.empty()) select_experiments(config, a.only);
-  const std::string out_dir =
-      a.output.empty() ? (fs::path("out") / config.name).string() : a.output;
+  const std::string out_dir = resuming           ? a.resume
+                              : a.output.empty() ? (fs::path("out") / config.name).string()
+                                                 : a.output;
 
   const fs::path out(out_dir);
   const std::string csv_path = (out / "results.csv").string();
-  const std::vector<std::string> inputs{a.config, config.source.path, config.target.path,
-                                        config.ground_truth.path};
+  std::vector<std::string> inputs{config.source.path, config.target.path, config.ground_truth.path};
+  if (!resuming) inputs.push_back(a.config);  // --resume reads and rewrites its config.yaml
   for (const char* name : {"config.yaml", "results.csv", "summary.json", "tables.md", "history.csv",
                            "alignment_points.csv"}) {
-    refuse_output_over_input("--output", (out / name).string(), inputs);
+    refuse_output_over_input(resuming ? "--resume" : "--output", (out / name).string(), inputs);
   }
 
   {
@@ -266,6 +332,27 @@ int run_experiment(ExperimentArgs a) {
     config.plot_case.clear();  // the config's plot case is in an experiment left out by --only
   }
   const std::optional<std::size_t> plot_case = default_plot_case(config, cases);
+  const std::string resolved = resolved_config_yaml(config);
+
+  // --resume: the same config exactly, and the finished cases of results.csv.
+  std::vector<RunRecord> already_finished;
+  if (resuming) {
+    if (config_body(resolved) != config_body(stored_config)) {
+      throw InvalidArgument("--resume '" + out_dir +
+                            "': the config differs from the one of the "
+                            "interrupted run (" +
+                            (out / "config.yaml").string() +
+                            "); resume with that config, or start a new run");
+    }
+    std::ifstream in(csv_path, std::ios::binary);
+    if (!in) throw IoError("cannot read '" + csv_path + "'");
+    already_finished = read_results_csv(in, csv_path, cases);
+  }
+  std::size_t cases_already_finished = 0;
+  for (std::size_t i = 0; i < already_finished.size(); ++i) {
+    if (i == 0 || already_finished[i].case_index != already_finished[i - 1].case_index)
+      ++cases_already_finished;
+  }
   std::size_t runs = 0;
   for (const Case& c : cases) runs += c.strategies.size();
   const int threads = a.threads > 0 ? a.threads : std::max(1, omp_get_num_procs());
@@ -286,29 +373,42 @@ int run_experiment(ExperimentArgs a) {
   }
   std::printf("  %zu experiments, %zu cases, %zu runs (case x strategy), %d threads\n",
               config.experiments.size(), cases.size(), runs, threads);
+  if (resuming) {
+    std::printf("  resuming: %zu cases (%zu runs) already finished in %s are not run again\n",
+                cases_already_finished, already_finished.size(), csv_path.c_str());
+  }
   std::fflush(stdout);
 
-  // The folder starts with the resolved config and a valid (header-only) results.csv; stale
-  // outputs of an earlier run are removed so that nothing in it disagrees with this run.
+  // The folder starts with the resolved config and a valid results.csv (header-only, or the
+  // finished cases when resuming); stale outputs of an earlier run are removed so that nothing in
+  // it disagrees with this run. When resuming, the plot case's files stay if it is finished.
+  const bool plot_case_finished =
+      plot_case && std::any_of(already_finished.begin(), already_finished.end(),
+                               [&](const RunRecord& r) { return r.case_index == *plot_case; });
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) throw IoError("cannot create the output folder '" + out_dir + "': " + ec.message());
-  for (const char* name : {"summary.json", "tables.md", "history.csv", "alignment_points.csv"}) {
-    fs::remove(out / name, ec);
+  for (const char* name : {"summary.json", "tables.md"}) fs::remove(out / name, ec);
+  if (!plot_case_finished) {
+    for (const char* name : {"history.csv", "alignment_points.csv"}) fs::remove(out / name, ec);
   }
   if (fs::is_directory(out / "plots", ec)) {
     for (const auto& entry : fs::directory_iterator(out / "plots", ec)) {
       if (entry.path().extension() == ".png") fs::remove(entry.path(), ec);
     }
   }
-  const std::string resolved = resolved_config_yaml(config);
-  write_file_atomically((out / "config.yaml").string(), [&](std::ostream& o) { o << resolved; });
-  write_file_atomically(csv_path, [&](std::ostream& o) { write_results_csv(o, cases, {}); });
+  if (!resuming) {
+    write_file_atomically((out / "config.yaml").string(), [&](std::ostream& o) { o << resolved; });
+  }
+  write_file_atomically(csv_path,
+                        [&](std::ostream& o) { write_results_csv(o, cases, already_finished); });
 
   const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
 
-  // Finished cases, flushed to results.csv (whole file, atomically) as each one completes.
+  // Finished cases, flushed to results.csv (whole file, atomically) as each one completes; the
+  // plot case's history and alignment as soon as it completes (so that a resumed run has them).
   std::map<std::size_t, std::vector<RunRecord>> finished;
+  for (const RunRecord& r : already_finished) finished[r.case_index].push_back(r);
   ProgressBar bar;
   RunnerOptions ro;
   ro.threads = threads;
@@ -322,7 +422,15 @@ int run_experiment(ExperimentArgs a) {
       for (const auto& [index, recs] : finished) rows.insert(rows.end(), recs.begin(), recs.end());
       write_results_csv(o, cases, rows);
     });
+    if (plot_case && c.index == *plot_case) {
+      write_file_atomically((out / "history.csv").string(),
+                            [&](std::ostream& o) { write_history_csv(o, c, records); });
+      write_file_atomically((out / "alignment_points.csv").string(), [&](std::ostream& o) {
+        write_alignment_points_csv(o, c, source_points, target.points(), records);
+      });
+    }
   };
+  ro.already_finished = already_finished;
 
   g_cancel.store(false);
   RunnerOutcome outcome;
@@ -340,21 +448,15 @@ int run_experiment(ExperimentArgs a) {
   write_file_atomically((out / "tables.md").string(), [&](std::ostream& o) {
     write_tables_markdown(o, config, cases, outcome, summary);
   });
-  bool have_plot_case = false;
-  if (plot_case && finished.count(*plot_case) != 0) {
-    have_plot_case = true;
-    const Case& c = cases[*plot_case];
-    const std::vector<RunRecord>& recs = finished.at(*plot_case);
-    write_file_atomically((out / "history.csv").string(),
-                          [&](std::ostream& o) { write_history_csv(o, c, recs); });
-    write_file_atomically((out / "alignment_points.csv").string(), [&](std::ostream& o) {
-      write_alignment_points_csv(o, c, source_points, target.points(), recs);
-    });
-  }
+  const bool have_plot_case = plot_case && finished.count(*plot_case) != 0 &&
+                              fs::exists(out / "history.csv", ec) &&
+                              fs::exists(out / "alignment_points.csv", ec);
 
   if (outcome.cancelled) {
-    std::printf("interrupted: %zu of %zu cases finished; results.csv holds them (%s)\n",
-                outcome.cases_finished, outcome.cases_planned, csv_path.c_str());
+    std::printf(
+        "interrupted: %zu of %zu cases finished; results.csv holds them (%s); finish "
+        "with: lmalign experiment --resume %s\n",
+        outcome.cases_finished, outcome.cases_planned, csv_path.c_str(), out_dir.c_str());
     std::fflush(stdout);
     return 130;
   }
@@ -409,9 +511,10 @@ CommandRunner add_experiment_command(CLI::App& root) {
       "Run an experiment protocol written in YAML (docs/experiments.md): the paper's Tables 1-4\n"
       "(configs/paper.yaml), convergence basins (configs/basin.yaml), or your own. Writes\n"
       "results.csv, summary.json, tables.md and plots/ into the output folder.\n"
-      "Ctrl-C stops after the runs in flight; results.csv then holds the finished cases (exit "
-      "130).");
-  cmd->add_option("CONFIG", args->config, "experiment config (YAML)")->required();
+      "Ctrl-C (SIGINT) or SIGTERM stops after the runs in flight; results.csv then holds the\n"
+      "finished cases (exit 130) and --resume OUTDIR runs the rest.");
+  cmd->add_option("CONFIG", args->config,
+                  "experiment config (YAML); with --resume, optional (OUTDIR/config.yaml)");
   cmd->add_option("-o,--output", args->output, "output folder (default: out/<config name>)");
   cmd->add_option("--threads", args->threads, "worker threads (default: every core)")
       ->check(CLI::Range(1, 4096));
@@ -420,6 +523,10 @@ CommandRunner add_experiment_command(CLI::App& root) {
                   "case whose score history and alignment are plotted: its index (results.csv's "
                   "case column) or <experiment>/<label>, e.g. table1_k/k=5");
   cmd->add_option("--only", args->only, "run only these experiments (by name)")->delimiter(',');
+  cmd->add_option("--resume", args->resume,
+                  "finish the interrupted run in OUTDIR: keep the cases in its results.csv, run "
+                  "the rest (refused if CONFIG/--only/--plot-case differ from its config.yaml)")
+      ->type_name("OUTDIR");
   return [args]() { return run_experiment(*args); };
 }
 

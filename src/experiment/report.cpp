@@ -4,12 +4,15 @@
 #include "lmalign/experiment/report.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <istream>
 #include <map>
 #include <optional>
 #include <ostream>
+#include <system_error>
 
 #include <nlohmann/json.hpp>
 
@@ -218,6 +221,149 @@ void write_results_csv(std::ostream& out, const std::vector<Case>& cases,
         << (r.decision.success ? "true" : "false") << ',' << to_string(r.decision.decided_by)
         << '\n';
   }
+}
+
+namespace {
+
+std::vector<std::string> split_csv_line(const std::string& line) {
+  std::vector<std::string> fields;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = line.find(',', start);
+    fields.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return fields;
+}
+
+double parse_number(const std::string& text, const std::string& column, const std::string& file,
+                    std::size_t line) {
+  if (text == "inf") return std::numeric_limits<double>::infinity();
+  if (text == "-inf") return -std::numeric_limits<double>::infinity();
+  if (text == "nan") return std::numeric_limits<double>::quiet_NaN();
+  double v = 0.0;
+  const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (text.empty() || r.ec != std::errc() || r.ptr != text.data() + text.size())
+    throw ParseError(file, line, column + ": expected a number, got '" + text + "'");
+  return v;
+}
+
+long parse_integer(const std::string& text, const std::string& column, const std::string& file,
+                   std::size_t line) {
+  long v = 0;
+  const auto r = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (text.empty() || r.ec != std::errc() || r.ptr != text.data() + text.size())
+    throw ParseError(file, line, column + ": expected an integer, got '" + text + "'");
+  return v;
+}
+
+}  // namespace
+
+std::vector<RunRecord> read_results_csv(std::istream& in, const std::string& file,
+                                        const std::vector<Case>& cases) {
+  std::string header;
+  if (!std::getline(in, header))
+    throw ParseError(file, 0, "empty; expected the results.csv header");
+  std::string expected;
+  for (std::size_t i = 0; i < kColumns.size(); ++i) expected += (i ? "," : "") + kColumns[i];
+  if (header != expected) throw ParseError(file, 1, "not the results.csv header of this version");
+
+  std::vector<RunRecord> records;
+  std::string text;
+  std::size_t line = 1;
+  // The case being read and how many of its strategies were seen.
+  std::size_t current = cases.size();
+  std::size_t seen = 0;
+  auto close_case = [&](std::size_t at_line) {
+    if (current < cases.size() && seen != cases[current].strategies.size())
+      throw ParseError(file, at_line,
+                       "case " + std::to_string(current) + " has " + std::to_string(seen) + " of " +
+                           std::to_string(cases[current].strategies.size()) + " strategies");
+  };
+  while (std::getline(in, text)) {
+    ++line;
+    if (in.eof()) throw ParseError(file, line, "the last line has no newline (half-written)");
+    const std::vector<std::string> f = split_csv_line(text);
+    if (f.size() != kColumns.size())
+      throw ParseError(file, line,
+                       "expected " + std::to_string(kColumns.size()) + " columns, got " +
+                           std::to_string(f.size()));
+    const long ci = parse_integer(f[1], "case", file, line);
+    if (ci < 0 || static_cast<std::size_t>(ci) >= cases.size())
+      throw ParseError(file, line, "case " + f[1] + " is not a case of this config");
+    const Case& c = cases[static_cast<std::size_t>(ci)];
+    const Pose6& p = c.displacement;
+    const std::vector<std::string> case_cells{c.experiment,
+                                              std::to_string(c.index),
+                                              c.label,
+                                              c.group,
+                                              c.variable,
+                                              shortest(c.value),
+                                              shortest(p.x_m),
+                                              shortest(p.y_m),
+                                              shortest(p.z_m),
+                                              shortest(p.roll_deg),
+                                              shortest(p.pitch_deg),
+                                              shortest(p.yaw_deg)};
+    for (std::size_t i = 0; i < case_cells.size(); ++i) {
+      if (f[i] != case_cells[i])
+        throw ParseError(file, line,
+                         kColumns[i] + " '" + f[i] + "' differs from case " + c.id() + " ('" +
+                             case_cells[i] + "') of this config");
+    }
+    if (c.index != current) {
+      close_case(line);
+      if (current < cases.size() && c.index < current)
+        throw ParseError(file, line, "case " + f[1] + " out of order");
+      current = c.index;
+      seen = 0;
+    }
+    if (seen >= c.strategies.size() || to_string(c.strategies[seen]) != f[12])
+      throw ParseError(file, line,
+                       "strategy '" + f[12] + "' is not the next strategy of case " + c.id());
+    RunRecord r;
+    r.case_index = c.index;
+    r.strategy = c.strategies[seen];
+    r.k = static_cast<int>(parse_integer(f[13], "k", file, line));
+    if (r.k != c.k) throw ParseError(file, line, "k " + f[13] + " differs from case " + c.id());
+    r.initial_score_m2 = parse_number(f[14], "initial_score_m2", file, line);
+    r.final_score_m2 = parse_number(f[15], "final_score_m2", file, line);
+    r.iterations = static_cast<int>(parse_integer(f[16], "iterations", file, line));
+    bool known = false;
+    for (TerminationReason t :
+         {TerminationReason::kNotTerminated, TerminationReason::kMaxIterations,
+          TerminationReason::kTransform, TerminationReason::kAbsoluteMse,
+          TerminationReason::kRelativeMse, TerminationReason::kNoCorrespondences,
+          TerminationReason::kDegenerate}) {
+      if (to_string(t) == f[17]) {
+        r.termination = t;
+        known = true;
+      }
+    }
+    if (!known) throw ParseError(file, line, "unknown termination '" + f[17] + "'");
+    r.time_s = parse_number(f[18], "time_s", file, line);
+    if (f[19].empty() != f[20].empty())
+      throw ParseError(file, line, "rotation and translation errors must both be given or empty");
+    if (!f[19].empty()) {
+      r.error = TransformError{parse_number(f[19], "rotation_error_deg", file, line),
+                               parse_number(f[20], "translation_error_m", file, line)};
+    }
+    if (f[21] != "true" && f[21] != "false")
+      throw ParseError(file, line, "success: expected true or false, got '" + f[21] + "'");
+    r.decision.success = f[21] == "true";
+    if (f[22] == to_string(SuccessCriterion::kGroundTruth)) {
+      r.decision.decided_by = SuccessCriterion::kGroundTruth;
+    } else if (f[22] == to_string(SuccessCriterion::kScore)) {
+      r.decision.decided_by = SuccessCriterion::kScore;
+    } else {
+      throw ParseError(file, line, "unknown decided_by '" + f[22] + "'");
+    }
+    ++seen;
+    records.push_back(std::move(r));
+  }
+  close_case(line);
+  return records;
 }
 
 double median(std::vector<double> values) {

@@ -164,6 +164,30 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
   for (const Case& c : cases) progress.runs_total += c.strategies.size();
   progress.cases_total = cases.size();
 
+  // --- cases finished by an earlier run: complete, in strategy order
+  std::vector<bool> preloaded(cases.size(), false);
+  for (const RunRecord& r : options.already_finished) {
+    if (r.case_index >= cases.size())
+      throw InvalidArgument("runner: a finished record names case " + std::to_string(r.case_index) +
+                            " of " + std::to_string(cases.size()));
+    const Case& c = cases[r.case_index];
+    const std::size_t slot = c.strategies.size() - remaining[c.index];
+    if (remaining[c.index] == 0 || c.strategies[slot] != r.strategy || r.k != c.k)
+      throw InvalidArgument("runner: the finished records of case " + c.id() +
+                            " do not match its strategies");
+    records[c.index][slot] = r;
+    preloaded[c.index] = true;
+    --remaining[c.index];
+    ++progress.runs_done;
+  }
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    if (!preloaded[i]) continue;
+    if (remaining[i] != 0)
+      throw InvalidArgument("runner: the finished records of case " + cases[i].id() +
+                            " miss strategies");
+    ++progress.cases_done;
+  }
+
   RunnerOutcome outcome;
   std::mutex mutex;
   std::exception_ptr failure;
@@ -246,43 +270,52 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     for (std::size_t s = 0; s < cases[ci].strategies.size(); ++s) tasks.push_back({ci, s});
   };
 
-  // Wave 0: everything but escalation levels > 0.
+  // Wave 0: everything but escalation levels > 0 (and but the cases already finished).
   std::vector<Task> wave;
   for (const Case& c : cases) {
+    if (preloaded[c.index]) continue;
     if (c.escalation_group < 0 || c.escalation_level == 0) add_case(wave, c.index);
   }
   std::vector<std::size_t> next_level(groups.size(), 1);
-  while (!wave.empty()) {
-    run_wave(wave);
-    if (cancelled()) break;
-    wave.clear();
+  for (;;) {
+    if (!wave.empty()) {
+      run_wave(wave);
+      if (cancelled()) break;
+      wave.clear();
+    }
     // A group goes on only if every strategy succeeded at its last level (stop: all: if any did).
+    // A next level finished by an earlier run is taken as it is and the group decided again.
     std::lock_guard<std::mutex> lock(mutex);
     for (std::size_t g = 0; g < groups.size(); ++g) {
-      const std::size_t level = next_level[g];
-      if (level == 0 || level >= groups[g].size()) continue;
-      const std::size_t last = groups[g][level - 1];
-      const bool any_must_succeed =
-          config.experiments[cases[last].experiment_index].escalation.stop_when_all_fail;
-      std::size_t ok = 0;
-      for (const auto& r : records[last]) ok += r && r->decision.success ? 1 : 0;
-      const bool go_on =
-          remaining[last] == 0 && (any_must_succeed ? ok > 0 : ok == records[last].size());
-      if (go_on) {
-        add_case(wave, groups[g][level]);
-        ++next_level[g];
-      } else {
-        for (std::size_t l = level; l < groups[g].size(); ++l) {
-          const std::size_t ci = groups[g][l];
-          planned[ci] = false;
-          ++outcome.cases_skipped;
-          progress.runs_total -= cases[ci].strategies.size();
-          --progress.cases_total;
+      for (;;) {
+        const std::size_t level = next_level[g];
+        if (level == 0 || level >= groups[g].size()) break;
+        const std::size_t last = groups[g][level - 1];
+        const bool any_must_succeed =
+            config.experiments[cases[last].experiment_index].escalation.stop_when_all_fail;
+        std::size_t ok = 0;
+        for (const auto& r : records[last]) ok += r && r->decision.success ? 1 : 0;
+        const bool go_on =
+            remaining[last] == 0 && (any_must_succeed ? ok > 0 : ok == records[last].size());
+        if (go_on) {
+          ++next_level[g];
+          if (preloaded[groups[g][level]]) continue;
+          add_case(wave, groups[g][level]);
+        } else {
+          for (std::size_t l = level; l < groups[g].size(); ++l) {
+            const std::size_t ci = groups[g][l];
+            planned[ci] = false;
+            ++outcome.cases_skipped;
+            progress.runs_total -= cases[ci].strategies.size();
+            --progress.cases_total;
+          }
+          next_level[g] = 0;  // stopped
+          if (options.on_progress) options.on_progress(progress);
         }
-        next_level[g] = 0;  // stopped
-        if (options.on_progress) options.on_progress(progress);
+        break;
       }
     }
+    if (wave.empty()) break;
   }
 
   outcome.cancelled = cancelled();

@@ -3,10 +3,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <set>
 #include <sstream>
@@ -311,6 +313,132 @@ TEST_F(CliExperiment, SigintMidwayLeavesAValidCsvOfTheFinishedCases) {
       << out;
   const auto j = nlohmann::json::parse(test::read_text(path("out/summary.json")));
   EXPECT_TRUE(j["interrupted"].get<bool>());
+  for (const auto& entry : fs::directory_iterator(path("out"))) {
+    EXPECT_EQ(entry.path().filename().string().find(".tmp."), std::string::npos) << entry.path();
+  }
+}
+
+/// Starts `lmalign experiment <args>` as a child (stdout/stderr into files) and sends it `sig`
+/// once results.csv has at least `min_lines` lines (header included). Returns the exit status;
+/// fails the test if the run ended before it could be stopped.
+int stop_midway(const std::vector<std::string>& args, const std::string& csv, int sig,
+                std::size_t min_lines, const std::string& out_file, const std::string& err_file) {
+  std::vector<char*> argv{const_cast<char*>(LMALIGN_CLI_PATH), const_cast<char*>("experiment")};
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ADD_FAILURE() << "fork failed";
+    return -1;
+  }
+  if (pid == 0) {
+    std::freopen(out_file.c_str(), "w", stdout);
+    std::freopen(err_file.c_str(), "w", stderr);
+    ::execv(LMALIGN_CLI_PATH, argv.data());
+    ::_exit(127);
+  }
+  // Poll until enough cases are in results.csv (nothing is timed), then stop the run.
+  bool some = false;
+  for (int i = 0; i < 60000 && !some; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (fs::exists(csv)) some = lines_of(test::read_text(csv)).size() >= min_lines;
+    int status = 0;
+    if (::waitpid(pid, &status, WNOHANG) == pid) {
+      ADD_FAILURE() << "finished before it could be stopped: " << test::read_text(err_file);
+      return -1;
+    }
+  }
+  EXPECT_TRUE(some);
+  EXPECT_EQ(::kill(pid, sig), 0);
+  int status = 0;
+  EXPECT_EQ(::waitpid(pid, &status, 0), pid);
+  return status;
+}
+
+TEST_F(CliExperiment, SigtermThenResumeGivesTheCsvOfAnUninterruptedRun) {
+  // 64 basin draws and 3 yaw cases, 2 strategies each, on one thread: long enough to be stopped.
+  const std::string experiments =
+      "  - {name: bas, type: basin, levels: {yaw_deg: [10, 40], translation_m: [0.2, 0.6]}, "
+      "samples: 16}\n"
+      "  - {name: yaws, type: yaw, yaw_deg: [0, 20, 120]}\n";
+  const std::string cfg = config("many.yaml", experiments);
+  const std::string csv = path("out/results.csv");
+  const int status = stop_midway({cfg, "-o", path("out"), "--threads", "1", "--no-plots"}, csv,
+                                 SIGTERM, 5, path("run.out"), path("run.err"));
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130) << test::read_text(path("run.err"));
+  const std::string run_out = test::read_text(path("run.out"));
+  EXPECT_NE(run_out.find("of 67 cases finished; results.csv holds them"), std::string::npos)
+      << run_out;
+  EXPECT_NE(run_out.find("lmalign experiment --resume " + path("out")), std::string::npos)
+      << run_out;
+
+  // The partial CSV: valid, complete cases only, fewer than all.
+  const std::string partial = test::read_text(csv);
+  const auto partial_rows = read_results(csv);
+  ASSERT_GE(partial_rows.size(), 4u);
+  ASSERT_LT(partial_rows.size(), 134u);
+  EXPECT_EQ(partial_rows.size() % 2, 0u);
+  const std::size_t partial_cases = partial_rows.size() / 2;
+
+  // A different config is refused with one line, and the folder is left as it was.
+  const std::string other =
+      config("other.yaml",
+             "  - {name: bas, type: basin, levels: {yaw_deg: [10, 40], translation_m: "
+             "[0.2, 0.6]}, samples: 17}\n  - {name: yaws, type: yaw, yaw_deg: [0, 20, 120]}\n");
+  const test::CliRun refused = run("experiment " + other + " --resume " + path("out"));
+  EXPECT_EQ(refused.exit_code, 2);
+  EXPECT_NE(refused.err.find("lmalign: error: --resume '" + path("out") +
+                             "': the config differs from the one of the interrupted run"),
+            std::string::npos)
+      << refused.err;
+  EXPECT_EQ(std::count(refused.err.begin(), refused.err.end(), '\n'), 1) << refused.err;
+  EXPECT_EQ(test::read_text(csv), partial);
+  const test::CliRun nothing = run("experiment --resume " + path("nowhere"));
+  EXPECT_EQ(nothing.exit_code, 2);
+  EXPECT_NE(nothing.err.find("holds no run to resume"), std::string::npos) << nothing.err;
+
+  // Resume (from the folder alone, on two threads): the finished cases are not run again.
+  const test::CliRun resumed =
+      run("experiment --resume " + path("out") + " --threads 2 --no-plots");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_NE(resumed.out.find("resuming: " + std::to_string(partial_cases) + " cases (" +
+                             std::to_string(partial_rows.size()) + " runs) already finished"),
+            std::string::npos)
+      << resumed.out;
+  const std::string after = test::read_text(csv);
+  // The rows of the interrupted run are kept byte for byte, wall time included.
+  for (const std::string& line : lines_of(partial))
+    EXPECT_NE(after.find(line + "\n"), std::string::npos) << line;
+
+  // A run that was never interrupted gives the same CSV: same rows in the same order, every
+  // column equal except the documented wall-time column time_s.
+  const test::CliRun full = run("experiment " + cfg + " -o " + path("full") + " --no-plots");
+  ASSERT_EQ(full.exit_code, 0) << full.err;
+  const std::string expected = test::read_text(path("full/results.csv"));
+  EXPECT_EQ(lines_of(after).size(), 135u);
+  EXPECT_EQ(without_time(after), without_time(expected));
+  // tables.md has no timing: identical; summary.json agrees on everything but median_time_s.
+  EXPECT_EQ(test::read_text(path("out/tables.md")), test::read_text(path("full/tables.md")));
+  auto strip_times = [](nlohmann::json j) {
+    std::function<void(nlohmann::json&)> strip = [&](nlohmann::json& x) {
+      if (x.is_object()) {
+        x.erase("median_time_s");
+        for (auto& [k, v] : x.items()) strip(v);
+      } else if (x.is_array()) {
+        for (auto& v : x) strip(v);
+      }
+    };
+    strip(j);
+    return j;
+  };
+  const auto js = nlohmann::json::parse(test::read_text(path("out/summary.json")));
+  const auto jf = nlohmann::json::parse(test::read_text(path("full/summary.json")));
+  EXPECT_FALSE(js["interrupted"].get<bool>());
+  EXPECT_EQ(strip_times(js), strip_times(jf));
+  EXPECT_EQ(test::read_text(path("out/history.csv")), test::read_text(path("full/history.csv")));
+  EXPECT_EQ(test::read_text(path("out/alignment_points.csv")),
+            test::read_text(path("full/alignment_points.csv")));
   for (const auto& entry : fs::directory_iterator(path("out"))) {
     EXPECT_EQ(entry.path().filename().string().find(".tmp."), std::string::npos) << entry.path();
   }

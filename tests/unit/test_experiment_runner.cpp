@@ -259,6 +259,88 @@ TEST(ExperimentRunner, EscalationStopsAQuadrantAtItsFirstFailure) {
   EXPECT_EQ(without_time(csv_of(cases, again.records)), without_time(csv_of(cases, o.records)));
 }
 
+TEST(ExperimentRunner, ResumingFromTheCsvOfAnInterruptedRunFinishesTheRestOnly) {
+  // Escalations (decided again from records read back) and plain cases.
+  const ExperimentConfig c = config(
+      "  - {name: esc, type: xy, escalate: {start_m: 0.5, step_m: 0.5, max_m: 2}, quadrants: "
+      "[-X-Y, +X+Y], pose: {yaw_deg: 45}}\n"
+      "  - {name: yaws, type: yaw, yaw_deg: [0, 10, 120]}\n",
+      "max_iterations: 60\n");
+  const std::vector<Case> cases = expand_cases(c);
+  const RunnerOutcome full = run_cases(c, cases, pair().source, target(), pair().T_true);
+  const std::string full_csv = csv_of(cases, full.records);
+  ASSERT_GE(full.cases_finished, 6u);
+
+  // Every prefix of finished cases (what an interrupted run leaves), read back from its CSV.
+  std::vector<std::size_t> finished_cases;
+  for (const RunRecord& r : full.records) {
+    if (finished_cases.empty() || finished_cases.back() != r.case_index)
+      finished_cases.push_back(r.case_index);
+  }
+  for (std::size_t n : {std::size_t{0}, std::size_t{1}, std::size_t{3}, finished_cases.size()}) {
+    std::vector<RunRecord> done;
+    for (const RunRecord& r : full.records) {
+      if (std::find(finished_cases.begin(), finished_cases.begin() + n, r.case_index) !=
+          finished_cases.begin() + n)
+        done.push_back(r);
+    }
+    std::istringstream partial(csv_of(cases, done));
+    RunnerOptions opt;
+    opt.already_finished = read_results_csv(partial, "results.csv", cases);
+    ASSERT_EQ(opt.already_finished.size(), done.size());
+    std::size_t ran = 0;
+    opt.on_case_finished = [&](const Case& cs, const std::vector<RunRecord>&) {
+      ++ran;
+      EXPECT_EQ(std::find(finished_cases.begin(), finished_cases.begin() + n, cs.index),
+                finished_cases.begin() + n)
+          << "case " << cs.id() << " was finished already";
+    };
+    const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+    EXPECT_EQ(ran, finished_cases.size() - n) << n;
+    EXPECT_EQ(o.cases_finished, full.cases_finished);
+    EXPECT_EQ(o.cases_skipped, full.cases_skipped);
+    EXPECT_EQ(without_time(csv_of(cases, o.records)), without_time(full_csv)) << n;
+    // The records read back write the same text, wall time included.
+    EXPECT_EQ(csv_of(cases, opt.already_finished), csv_of(cases, done));
+  }
+
+  // Incomplete or foreign records are refused.
+  RunnerOptions half;
+  half.already_finished = {full.records[0]};
+  EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true, half), InvalidArgument);
+}
+
+TEST(ExperimentReport, ReadingResultsCsvIsStrict) {
+  const ExperimentConfig c = config(kExperiments);
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true);
+  const std::string csv = csv_of(cases, o.records);
+  auto read = [&](const std::string& text) {
+    std::istringstream in(text);
+    return read_results_csv(in, "r.csv", cases);
+  };
+  EXPECT_EQ(csv_of(cases, read(csv)), csv);
+  const std::size_t first_row = csv.find('\n') + 1;
+  const std::size_t second_row = csv.find('\n', first_row) + 1;
+  const std::size_t third_row = csv.find('\n', second_row) + 1;
+  // Half a case, a half-written line, a foreign header, a changed label: ParseError with a line.
+  EXPECT_THROW(read(csv.substr(0, second_row)), ParseError);
+  EXPECT_THROW(read(csv.substr(0, third_row - 1)), ParseError);
+  EXPECT_THROW(read("case,x\n"), ParseError);
+  EXPECT_THROW(read(""), ParseError);
+  std::string relabelled = csv;
+  relabelled.replace(relabelled.find(",k=1,"), 5, ",k=2,");
+  try {
+    read(relabelled);
+    ADD_FAILURE() << "a foreign label was accepted";
+  } catch (const ParseError& e) {
+    EXPECT_EQ(e.line(), 2u);
+    EXPECT_NE(e.detail().find("label 'k=2' differs from case ks/k=1"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(read(csv.substr(0, first_row)).size(), 0u);  // header only: nothing finished
+}
+
 TEST(ExperimentRunner, RecordsHistoryForTheChosenCaseOnly) {
   const ExperimentConfig c = config(kExperiments);
   const std::vector<Case> cases = expand_cases(c, pair().source);

@@ -27,6 +27,15 @@ const std::vector<std::string>& results_csv_columns();
 void write_results_csv(std::ostream& out, const std::vector<Case>& cases,
                        const std::vector<RunRecord>& records);
 
+/// Reads back a results.csv written by write_results_csv() for the same `cases` (the finished
+/// cases of an interrupted run, for `lmalign experiment --resume`). Every row must name a case of
+/// `cases` with its experiment, label, displacement, k and one of its strategies, and every case
+/// present must have all its strategies in order; write_results_csv() of the result gives back
+/// the same text. The records carry no transform and no history (results.csv has neither).
+/// Throws ParseError("<file>:<line>: ...") on anything else; `file` only names the source.
+std::vector<RunRecord> read_results_csv(std::istream& in, const std::string& file,
+                                        const std::vector<Case>& cases);
+
 /// Success rate and medians of one strategy over a set of runs.
 struct StrategySummary {
   PaperStrategy strategy = PaperStrategy::kBase;

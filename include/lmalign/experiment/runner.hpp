@@ -93,6 +93,11 @@ struct RunnerOptions {
   /// called under one mutex (never concurrently), from whichever worker finished; they may throw,
   /// which stops the run and propagates from run_cases().
   std::function<void(const Case&, const std::vector<RunRecord>&)> on_case_finished;
+  /// Records of cases finished by an earlier, interrupted run (read_results_csv(), for
+  /// `lmalign experiment --resume`): these cases are not run again; their records go into the
+  /// outcome as they are and count for the escalations. Each case present must have all its
+  /// strategies, in order. on_case_finished is not called for them.
+  std::vector<RunRecord> already_finished;
 };
 
 struct RunnerOutcome {
