@@ -1,4 +1,5 @@
 #include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -253,46 +254,6 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k)
 
 namespace {
 
-Mat3 skew(const Vec3& v) {
-  Mat3 S;
-  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return S;
-}
-
-Mat6 point_to_point_covariance(const Points3& moved, const Points3& target,
-                               const Correspondences& corr, const std::vector<double>& w) {
-  const std::size_t n = corr.size();
-  if (n < 3) return Mat6::Zero();
-  double wsum = 0.0;
-  for (double x : w) wsum += x;
-  if (!(wsum > 0.0)) return Mat6::Zero();
-  const double norm = static_cast<double>(n) / wsum;  // mean weight 1
-  Mat6 H = Mat6::Zero();
-  double chi2 = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3& p = moved[corr[i].source_index];
-    const Vec3 r = p - target[corr[i].target_index];
-    const double wi = w[i] * norm;
-    Eigen::Matrix<double, 3, 6> J;
-    J.leftCols<3>() = Mat3::Identity();
-    J.rightCols<3>() = -skew(p);
-    H.noalias() += wi * J.transpose() * J;
-    chi2 += wi * r.squaredNorm();
-  }
-  const double dof = 3.0 * static_cast<double>(n) - 6.0;
-  if (!(dof > 0.0)) return Mat6::Zero();
-  const double sigma2 = chi2 / dof;
-  Eigen::LDLT<Mat6> ldlt(H);
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return Mat6::Zero();
-  Mat6 cov = sigma2 * ldlt.solve(Mat6::Identity());
-  if (!cov.allFinite()) return Mat6::Zero();
-  return 0.5 * (cov + cov.transpose());
-}
-
-}  // namespace
-
-namespace {
-
 /// Source points within `distance_m` of a target point at T (the global search's score).
 std::size_t consensus(const Points3& source_points, const KdTree& tree, const Isometry3& T,
                       double distance_m) {
@@ -521,7 +482,8 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
       wr2 += weights[i] * corr[i].distance_sq_m2;
     }
     result.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
-    result.covariance = point_to_point_covariance(moved, tp, corr, weights);
+    const PoseCovariance cov = point_to_point_covariance(moved, tp, corr, &weights);
+    result.covariance = cov.valid ? cov.covariance : Mat6::Zero();
   }
   result.converged = result.termination == TerminationReason::kTransform;
   result.T_target_source = T;

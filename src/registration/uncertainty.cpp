@@ -46,13 +46,27 @@ double PoseCovariance::rotation_sd_deg() const {
 }
 
 PoseCovariance point_to_point_covariance(const Points3& moved_source, const Points3& target_points,
-                                         const Correspondences& correspondences) {
+                                         const Correspondences& correspondences,
+                                         const std::vector<double>* weights) {
   PoseCovariance out;
   const std::size_t n = correspondences.size();
   out.num_correspondences = n;
+  if (weights != nullptr && weights->size() != n) {
+    throw InvalidArgument("point_to_point_covariance: " + std::to_string(weights->size()) +
+                          " weights for " + std::to_string(n) + " correspondences");
+  }
+  double norm = 1.0;  // weights normalised to mean 1
+  if (weights != nullptr) {
+    double wsum = 0.0;
+    for (double w : *weights) wsum += w;
+    if (!(wsum > 0.0)) return out;
+    norm = static_cast<double>(n) / wsum;
+  }
   Mat6 H = Mat6::Zero();
   double sum_sq = 0.0;
-  for (const Correspondence& c : correspondences) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const Correspondence& c = correspondences[i];
+    const double w = weights != nullptr ? (*weights)[i] * norm : 1.0;
     if (c.source_index >= moved_source.size() || c.target_index >= target_points.size()) {
       throw InvalidArgument("point_to_point_covariance: correspondence index out of range");
     }
@@ -61,8 +75,8 @@ PoseCovariance point_to_point_covariance(const Points3& moved_source, const Poin
     Eigen::Matrix<double, 3, 6> J;
     J.leftCols<3>() = Mat3::Identity();
     J.rightCols<3>() = -skew(x);
-    H.noalias() += J.transpose() * J;
-    sum_sq += r.squaredNorm();
+    H.noalias() += w * J.transpose() * J;
+    sum_sq += w * r.squaredNorm();
   }
   if (n < 3) return out;
   const Eigen::SelfAdjointEigenSolver<Mat6> eig(H);
@@ -71,8 +85,9 @@ PoseCovariance point_to_point_covariance(const Points3& moved_source, const Poin
   const double dof = 3.0 * static_cast<double>(n) - 6.0;
   const double sigma2 = sum_sq / dof;
   out.sigma_m = std::sqrt(sigma2);
-  out.covariance = sigma2 * (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
+  const Mat6 cov = sigma2 * (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
                              eig.eigenvectors().transpose());
+  out.covariance = 0.5 * (cov + cov.transpose());  // exactly symmetric
   out.valid = out.covariance.allFinite();
   if (!out.valid) out.covariance.setZero();
   return out;

@@ -12,6 +12,7 @@
 
 #include <cstddef>
 #include <string>
+#include <vector>
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/correspondence.hpp"
@@ -37,9 +38,13 @@ struct PoseCovariance {
 
 /// Covariance of the transform that maps `moved_source[c.source_index]` (already transformed by
 /// the estimate, metres, target frame) onto `target_points[c.target_index]`, from the
-/// correspondences of the final iteration. Throws InvalidArgument if an index is out of range.
+/// correspondences of the final iteration. With `weights` (one per correspondence, >= 0, e.g. the
+/// final IRLS weights), they are normalised to mean 1 and enter both H = sum w J^T J and
+/// sigma^2 = sum w |r|^2 / (3n - 6). Throws InvalidArgument if an index is out of range or the
+/// weights do not match the correspondences.
 PoseCovariance point_to_point_covariance(const Points3& moved_source, const Points3& target_points,
-                                         const Correspondences& correspondences);
+                                         const Correspondences& correspondences,
+                                         const std::vector<double>* weights = nullptr);
 
 /// The left-perturbation error of an estimate: xi with T_est = Exp(xi) T_true, to first order
 /// (rho = translation of T_est T_true^-1, phi = its rotation vector).
