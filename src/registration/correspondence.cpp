@@ -138,6 +138,13 @@ struct CorrespondenceWorkspace::State {
   std::vector<std::uint16_t> ref;
   std::vector<PointIndex> ref_source;  // the reference position is poses[ref] * source[ref_source]
   std::vector<Pose> poses;
+  // The fast path (docs/performance.md): per entry, a conservative half of the gap between the
+  // gap_k-th and (gap_k + 1)-th neighbour distances at the reference position (+inf: the entry
+  // holds every target point; < 0: unknown). While the point stays within it of the reference,
+  // its gap_k first candidates (entry positions [0, gap_k), in any order) are its gap_k nearest.
+  std::vector<float> half_gap;
+  std::vector<std::uint16_t> fast_ref;  // the pose of the fast reference position
+  std::size_t gap_k = 1;                // the finder's k
   // Per-thread scratch: `scratch_width` entries for each thread, `scratch_stride` apart. The
   // stride pads every thread's slice to whole cache lines, plus one: threads never write to the
   // same line (false sharing made two threads slower than one).
@@ -148,6 +155,7 @@ struct CorrespondenceWorkspace::State {
 
   std::size_t searched = 0;
   std::size_t reused = 0;
+  std::size_t fast = 0;
 
   void clear_cache() {
     std::fill(reach.begin(), reach.end(), -1.0f);
@@ -157,6 +165,8 @@ struct CorrespondenceWorkspace::State {
     if (reach.size() == n) return;
     cand.assign(n * width, 0);
     reach.assign(n, -1.0f);
+    half_gap.assign(n, -1.0f);
+    fast_ref.assign(n, 0);
     ref.assign(n, 0);
     ref_source.assign(n, 0);
     poses.clear();
@@ -195,12 +205,14 @@ CorrespondenceWorkspace& CorrespondenceWorkspace::operator=(CorrespondenceWorksp
 void CorrespondenceWorkspace::clear() { state_->clear_cache(); }
 std::size_t CorrespondenceWorkspace::last_searched() const { return state_->searched; }
 std::size_t CorrespondenceWorkspace::last_reused() const { return state_->reused; }
+std::size_t CorrespondenceWorkspace::last_fast() const { return state_->fast; }
 std::size_t CorrespondenceWorkspace::memory_bytes() const {
   const State& s = *state_;
   return s.order.capacity() * sizeof(PointIndex) + s.inv.capacity() * sizeof(PointIndex) +
          s.by_position.capacity() * sizeof(Correspondence) +
          s.cand.capacity() * sizeof(PointIndex) + s.reach.capacity() * sizeof(float) +
          s.ref.capacity() * sizeof(std::uint16_t) + s.ref_source.capacity() * sizeof(PointIndex) +
+         s.half_gap.capacity() * sizeof(float) + s.fast_ref.capacity() * sizeof(std::uint16_t) +
          s.poses.capacity() * sizeof(State::Pose) + s.scratch_idx.capacity() * sizeof(PointIndex) +
          s.scratch_d2.capacity() * sizeof(double);
 }
@@ -219,10 +231,23 @@ struct Kernel {
   std::size_t width;                   // == st->width
   std::uint32_t pose_id;
 
+  // The reference position of entry e for the wide test: where its candidates were searched.
+  Vec3 reference(std::size_t e) const {
+    const CorrespondenceWorkspace::State::Pose& P = st->poses[st->ref[e]];
+    return P.R * source[st->ref_source[e]] + P.t;
+  }
+  // Absolute allowance for the rounding of distances computed from coordinates this large
+  // (relative slack alone does not cover the cancellation in q - p far from the origin).
+  double abs_tol(const Vec3& a, const Vec3& b) const {
+    return 1e-13 * (st->coord_max + a.cwiseAbs().maxCoeff() + b.cwiseAbs().maxCoeff());
+  }
+
   // Re-evaluates the entry of source point e at q (sorted into idx/d2) and tells whether it
   // provably holds the `want` first neighbours of q: the reuse test (docs/performance.md).
-  bool entry_holds(std::size_t e, const Vec3& q, std::size_t want, PointIndex* idx,
-                   double* d2) const {
+  // *outside_m receives a lower bound on the distance from q of every target point that is not
+  // a candidate (+inf when every target point is one).
+  bool entry_holds(std::size_t e, const Vec3& q, std::size_t want, PointIndex* idx, double* d2,
+                   double* outside_m) const {
     const std::size_t have = std::min(width, target_size);  // held by every entry
     const PointIndex* entry = st->cand.data() + e * width;
     for (std::size_t j = 0; j < have; ++j) {
@@ -231,19 +256,60 @@ struct Kernel {
     }
     sort_candidates(idx, d2, have);
     const float reach = st->reach[e];
+    *outside_m = std::numeric_limits<double>::infinity();
     if (std::isinf(reach)) return true;  // every target point is a candidate
     const std::size_t got = std::min(want, have);
     if (got == 0) return false;
-    const CorrespondenceWorkspace::State::Pose& P = st->poses[st->ref[e]];
-    const Vec3 q_ref = P.R * source[st->ref_source[e]] + P.t;
+    const Vec3 q_ref = reference(e);
     const double moved = std::sqrt(squared_distance(q, q_ref));
     const double kth = std::sqrt(d2[got - 1]);
-    // Absolute allowance for the rounding of distances computed from coordinates this large
-    // (relative slack alone does not cover the cancellation in q - p far from the origin).
-    const double abs_tol =
-        1e-13 * (st->coord_max + q.cwiseAbs().maxCoeff() + q_ref.cwiseAbs().maxCoeff());
-    return kth * (1.0 + kSlack) + moved * (1.0 + kSlack) + abs_tol <
-           static_cast<double>(reach) * (1.0 - kSlack);
+    *outside_m =
+        static_cast<double>(reach) * (1.0 - kSlack) - moved * (1.0 + kSlack) - abs_tol(q, q_ref);
+    return kth * (1.0 + kSlack) < *outside_m;
+  }
+
+  // The fast path: entry e's half gap was measured at its fast reference position (the pose
+  // poses[fast_ref[e]] applied to source point s). If q has moved from there by less than the
+  // half gap, its gap_k nearest are the entry's gap_k first candidates (triangle inequality:
+  // each of them is nearer than d_k + moved, every other point farther than d_(k+1) - moved).
+  // Writes them sorted into idx/d2 and returns how many (0: the test failed).
+  std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2) const {
+    const float half_gap = st->half_gap[e];
+    if (!(half_gap > 0.0f) || !(st->reach[e] >= 0.0f)) return 0;
+    if (!std::isinf(half_gap)) {
+      const CorrespondenceWorkspace::State::Pose& P = st->poses[st->fast_ref[e]];
+      const Vec3 q_ref = P.R * source[s] + P.t;
+      const double moved = std::sqrt(squared_distance(q, q_ref));
+      if (!(moved * (1.0 + kSlack) + abs_tol(q, q_ref) <
+            static_cast<double>(half_gap) * (1.0 - kSlack))) {
+        return 0;
+      }
+    }
+    const std::size_t got = std::min(st->gap_k, target_size);
+    const PointIndex* entry = st->cand.data() + e * width;
+    for (std::size_t j = 0; j < got; ++j) {
+      idx[j] = entry[j];
+      d2[j] = squared_distance(q, target[entry[j]]);
+    }
+    sort_candidates(idx, d2, got);
+    return got;
+  }
+
+  // Makes q (this call's pose applied to source point s) entry e's fast reference: d2 holds the
+  // entry's `have` candidates sorted at q, and every other target point is at least `outside_m`
+  // from q. The half gap is half of (min(d_(k+1), outside) - d_k), rounded down.
+  void rebase_fast(std::size_t e, const double* d2, std::size_t have, double outside_m) const {
+    const std::size_t k = st->gap_k;
+    float half_gap = -1.0f;
+    if (have <= k) {
+      if (have >= target_size) half_gap = std::numeric_limits<float>::infinity();
+    } else {
+      const double next = std::min(std::sqrt(d2[k]), outside_m);
+      const double gap = 0.5 * (next - std::sqrt(d2[k - 1]) * (1.0 + kSlack));
+      if (gap > 0.0) half_gap = round_down_to_float(gap);
+    }
+    st->half_gap[e] = half_gap;
+    st->fast_ref[e] = static_cast<std::uint16_t>(pose_id);
   }
 
   // The `want` first neighbours of q = T * source[s] in the tree's total order, written sorted
@@ -251,7 +317,7 @@ struct Kernel {
   // turn: s's cache entry e; the entry `*lender` (the one this thread served last, usually of a
   // neighbour of s in the Morton order: its reference position may be nearer q than s's own);
   // a fresh search, seeded with entry e. Sets *searched if the tree was searched, and *lender
-  // to e.
+  // to e. Whatever serves, entry e's fast reference becomes q.
   std::size_t neighbours(std::size_t e, std::size_t s, const Vec3& q, std::size_t want,
                          PointIndex* idx, double* d2, bool* searched,
                          std::ptrdiff_t* lender) const {
@@ -259,20 +325,23 @@ struct Kernel {
     const std::size_t got = std::min(want, have);
     const bool own = st->reach[e] >= 0.0f;
     *searched = false;
-    if (own && entry_holds(e, q, want, idx, d2)) {
-      // Keep the entry sorted as of now (cheaper to sort next time); write only if the order
-      // changed, so that converged iterations only read the cache.
+    double outside_m = 0.0;
+    if (own && entry_holds(e, q, want, idx, d2, &outside_m)) {
+      // Keep the entry sorted as of now (cheaper to sort next time, and its first gap_k are
+      // the k nearest at the new fast reference).
       PointIndex* entry = st->cand.data() + e * width;
       for (std::size_t j = 0; j < have; ++j) {
         if (entry[j] != idx[j]) entry[j] = idx[j];
       }
+      rebase_fast(e, d2, have, outside_m);
       *lender = static_cast<std::ptrdiff_t>(e);
       return got;
     }
     if (*lender >= 0) {
       const auto l = static_cast<std::size_t>(*lender);
-      if (entry_holds(l, q, want, idx + width, d2 + width)) {  // adopt the lender's entry
+      if (entry_holds(l, q, want, idx + width, d2 + width, &outside_m)) {  // adopt the lender's
         std::copy(idx + width, idx + width + have, st->cand.data() + e * width);
+        rebase_fast(e, d2 + width, have, outside_m);
         std::copy(idx + width, idx + width + got, idx);
         std::copy(d2 + width, d2 + width + got, d2);
         st->reach[e] = st->reach[l];
@@ -289,6 +358,7 @@ struct Kernel {
     *searched = true;
     if (found == 0) {
       st->reach[e] = -1.0f;
+      st->half_gap[e] = -1.0f;
       return 0;
     }
     std::copy(idx, idx + found, st->cand.data() + e * width);
@@ -296,6 +366,10 @@ struct Kernel {
                                         : round_down_to_float(std::sqrt(d2[found - 1]));
     st->ref[e] = static_cast<std::uint16_t>(pose_id);
     st->ref_source[e] = static_cast<PointIndex>(s);
+    // Beyond the found candidates, every target point is at least their last distance away.
+    rebase_fast(e, d2, found,
+                found >= target_size ? std::numeric_limits<double>::infinity()
+                                     : std::sqrt(d2[found - 1]) * (1.0 - kSlack));
     *lender = static_cast<std::ptrdiff_t>(e);
     return std::min(want, found);
   }
@@ -425,8 +499,11 @@ void CorrespondenceFinder::bind(const Points3& source_points,
                                 CorrespondenceWorkspace& workspace) const {
   CorrespondenceWorkspace::State& st = *workspace.state_;
   const std::size_t width = cache_width();
+  const std::size_t k =
+      options_.kind == CorrespondenceKind::kWeightedKnn ? static_cast<std::size_t>(options_.k) : 1;
   if (st.tree != target_ || st.source != &source_points || st.n != source_points.size() ||
-      st.width != width) {
+      st.width != width || st.gap_k != k) {
+    st.gap_k = k;
     st.tree = target_;
     st.source = &source_points;
     st.n = source_points.size();
@@ -442,6 +519,8 @@ void CorrespondenceFinder::bind(const Points3& source_points,
     st.reach.clear();
     st.ref.clear();
     st.ref_source.clear();
+    st.half_gap.clear();
+    st.fast_ref.clear();
     st.poses.clear();
   }
 }
@@ -476,11 +555,11 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   const PointIndex* inv = st.inv.data();
   st.by_position.resize(n);
   Correspondence* by_position = st.by_position.data();
-  std::size_t searched = 0, reused = 0;
+  std::size_t searched = 0, reused = 0, fast = 0;
 
   // proc_bind(close): threads that migrate between cores lose their caches (measured on the
   // benchmark machine: docs/performance.md).
-#pragma omp parallel proc_bind(close) reduction(+ : searched, reused)
+#pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
@@ -495,6 +574,10 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       if (!q.allFinite()) {
         if (reuse) st.reach[e] = -1.0f;
         if (lender == j) lender = -1;
+      } else if (reuse && (found = kernel.fast(e, s, q, idx, d2)) > 0) {
+        ++reused;
+        ++fast;
+        lender = j;
       } else if (reuse) {
         bool did_search = false;
         found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender);
@@ -518,9 +601,12 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       out[s] = by_position[inv[s]];
     }
   }
-  if (pushed && searched == 0) st.poses.pop_back();  // no entry refers to this pose
+  // No entry refers to this pose unless a point was searched or re-based (not all took the fast
+  // path).
+  if (pushed && searched + reused == fast) st.poses.pop_back();
   st.searched = searched;
   st.reused = reused;
+  st.fast = fast;
   compact(out);
 }
 
@@ -542,9 +628,9 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
   const std::size_t sw = st.scratch_stride;
   const Mat3 R = T_target_source.linear();
   const Vec3 t = T_target_source.translation();
-  std::size_t searched = 0, reused = 0;
+  std::size_t searched = 0, reused = 0, fast = 0;
 
-#pragma omp parallel proc_bind(close) reduction(+ : searched, reused)
+#pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
@@ -556,7 +642,12 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
       const Vec3 q = R * source_points[s] + t;
       double value = std::numeric_limits<double>::infinity();
       const std::size_t e = st.inv[s];
-      if (q.allFinite()) {
+      if (q.allFinite() && st.gap_k == 1 && kernel.fast(e, s, q, idx, d2) == 1) {
+        value = d2[0];
+        ++reused;
+        ++fast;
+        lender = static_cast<std::ptrdiff_t>(e);
+      } else if (q.allFinite()) {
         bool did_search = false;
         if (kernel.neighbours(e, s, q, 1, idx, d2, &did_search, &lender) == 1) value = d2[0];
         if (did_search) {
@@ -571,9 +662,10 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
       d2_out[s - begin] = value;
     }
   }
-  if (pushed && searched == 0) st.poses.pop_back();
+  if (pushed && searched + reused == fast) st.poses.pop_back();
   st.searched = searched;
   st.reused = reused;
+  st.fast = fast;
 }
 
 }  // namespace lmalign

@@ -158,6 +158,9 @@ void expect_same(const Correspondences& a, const Correspondences& b, const std::
   }
 }
 
+// Points served by the fast path (half the k-th to (k+1)-th gap) over all walks.
+std::size_t fast_total = 0;
+
 // Runs the cached finder along the walk and compares every step with a fresh plain search.
 void check_walk(const Points3& source, const KdTree& tree, const std::vector<double>& weights,
                 const CorrespondenceOptions& options, const std::vector<Isometry3>& walk,
@@ -171,6 +174,8 @@ void check_walk(const Points3& source, const KdTree& tree, const std::vector<dou
   for (std::size_t i = 0; i < walk.size(); ++i) {
     finder.find(source, walk[i], moved, cached, ws, /*reuse=*/true);
     *reused_total += ws.last_reused();
+    fast_total += ws.last_fast();
+    ASSERT_LE(ws.last_fast(), ws.last_reused());
     transform_points(walk[i], source, moved_plain);
     ASSERT_TRUE(moved == moved_plain) << what << " step " << i;  // exactly transform_points
     finder.find(moved_plain, plain);
@@ -205,7 +210,8 @@ TEST(NeighbourReuse, IdenticalToPlainSearchOnRandomWalks) {
       }
     }
   }
-  EXPECT_GT(reused, 10000u);  // the cache did serve (the test is not vacuous)
+  EXPECT_GT(reused, 10000u);     // the cache did serve (the test is not vacuous)
+  EXPECT_GT(fast_total, 5000u);  // and so did its fast path
 }
 
 TEST(NeighbourReuse, IdenticalWithExactTiesEverywhere) {

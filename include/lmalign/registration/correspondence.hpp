@@ -72,6 +72,10 @@ class CorrespondenceWorkspace {
   /// Source points of the last call that were searched in the tree, and that reused the cache.
   std::size_t last_searched() const;
   std::size_t last_reused() const;
+  /// Of the reused ones, those served by the fast path: the point stayed within half the gap
+  /// between its k-th and (k + 1)-th neighbour distances at the reference position, so only its
+  /// k nearest were re-evaluated (docs/performance.md).
+  std::size_t last_fast() const;
   /// Heap bytes held (buffers and cache).
   std::size_t memory_bytes() const;
 
