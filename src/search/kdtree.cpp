@@ -58,12 +58,12 @@ class Best {
   // index, hence the same key) is not added twice.
   void offer(double d, PointIndex i) {
     if (n_ == cap_ && (d > bound_ || (d == bound_ && i >= idx_[n_ - 1]))) return;
-    // Position: how many held entries come first (branch-free count; the held keys are distinct).
-    std::size_t pos = 0;
-    for (std::size_t j = 0; j < n_; ++j) {
-      pos += static_cast<std::size_t>((d2_[j] < d) | ((d2_[j] == d) & (idx_[j] < i)));
-    }
-    if (pos < n_ && d2_[pos] == d && idx_[pos] == i) return;  // held already (a seed)
+    // Insertion from the back: shift the held entries that come after (d, i) one place down
+    // (the last one falls off when full). An entry already held (same index, hence the same key:
+    // a seed) stops the insertion.
+    std::size_t pos = n_ < cap_ ? n_ : cap_ - 1;
+    while (pos > 0 && (d2_[pos - 1] > d || (d2_[pos - 1] == d && idx_[pos - 1] > i))) --pos;
+    if (pos > 0 && d2_[pos - 1] == d && idx_[pos - 1] == i) return;  // held already (a seed)
     const std::size_t last = n_ < cap_ ? n_ : cap_ - 1;
     for (std::size_t j = last; j > pos; --j) {
       d2_[j] = d2_[j - 1];
