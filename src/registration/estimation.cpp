@@ -1,7 +1,12 @@
 #include "lmalign/registration/estimation.hpp"
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
+#include <vector>
+
+#include <omp.h>
 
 #include <Eigen/SVD>
 
@@ -28,16 +33,42 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   }
   auto w = [&](std::size_t i) { return weights == nullptr ? 1.0 : (*weights)[i]; };
 
+  // Sums over at most kMaxBlocks blocks of at least kMinBlock correspondences (their sizes depend
+  // on n only), combined in block order: the same result for any thread count. The blocks run
+  // in parallel when not already inside a parallel region; no allocation.
+  constexpr std::size_t kMaxBlocks = 16;
+  constexpr std::size_t kMinBlock = 512;
+  const std::size_t block = std::max(kMinBlock, (n + kMaxBlocks - 1) / kMaxBlocks);
+  const std::size_t blocks = (n + block - 1) / block;
+  struct Partial {
+    double w_sum = 0.0;
+    Vec3 s = Vec3::Zero(), t = Vec3::Zero();
+    Mat3 H = Mat3::Zero();
+  };
+  std::array<Partial, kMaxBlocks> partial;
+  const bool parallel = blocks > 1 && !omp_in_parallel();
+
   // Pass 1: weighted centroids.
+#pragma omp parallel for schedule(static) if (parallel)
+  for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(blocks); ++b) {
+    Partial& p = partial[static_cast<std::size_t>(b)];
+    const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
+    for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
+      const Correspondence& c = correspondences[i];
+      const double wi = w(i);
+      p.w_sum += wi;
+      p.s += wi * source_points[c.source_index];
+      p.t += wi * target_points[c.target_index];
+    }
+  }
   double w_sum = 0.0;
   Vec3 mu_s = Vec3::Zero();
   Vec3 mu_t = Vec3::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Correspondence& c = correspondences[i];
-    const double wi = w(i);
-    w_sum += wi;
-    mu_s += wi * source_points[c.source_index];
-    mu_t += wi * target_points[c.target_index];
+  for (std::size_t b = 0; b < blocks; ++b) {
+    const Partial& p = partial[b];
+    w_sum += p.w_sum;
+    mu_s += p.s;
+    mu_t += p.t;
   }
   if (!(w_sum > 0.0)) {
     throw InvalidArgument("estimate_rigid_transform: the weights sum to " + std::to_string(w_sum) +
@@ -47,12 +78,18 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   mu_t /= w_sum;
 
   // Pass 2: cross-covariance of the demeaned points, H = sum w (s - mu_s)(t - mu_t)^T.
-  Mat3 H = Mat3::Zero();
-  for (std::size_t i = 0; i < n; ++i) {
-    const Correspondence& c = correspondences[i];
-    H.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
-                   (target_points[c.target_index] - mu_t).transpose();
+#pragma omp parallel for schedule(static) if (parallel)
+  for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(blocks); ++b) {
+    Partial& p = partial[static_cast<std::size_t>(b)];
+    const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
+    for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
+      const Correspondence& c = correspondences[i];
+      p.H.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
+                       (target_points[c.target_index] - mu_t).transpose();
+    }
   }
+  Mat3 H = Mat3::Zero();
+  for (std::size_t b = 0; b < blocks; ++b) H += partial[b].H;
 
   if (!H.allFinite() || !mu_s.allFinite() || !mu_t.allFinite()) {
     throw InvalidArgument(

@@ -1,3 +1,5 @@
+#include <omp.h>
+
 #include <random>
 
 #include <gtest/gtest.h>
@@ -76,6 +78,33 @@ TEST(EstimateRigidTransform, RejectsEmptyAndBadWeights) {
   EXPECT_THROW(estimate_rigid_transform(p, p, identity_pairs(1), &zero), InvalidArgument);
   const std::vector<double> two = {1.0, 1.0};
   EXPECT_THROW(estimate_rigid_transform(p, p, identity_pairs(1), &two), InvalidArgument);
+}
+
+TEST(EstimateRigidTransform, BlockedSumsAreTheSameForAnyThreadCountAndMatchTheTruth) {
+  // Enough correspondences for several blocks (parallel sums), with noise and weights.
+  std::mt19937 rng(77);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.1, 3.0);
+  const Isometry3 T_true = pose_from_xyz_rpy_deg(0.3, -0.2, 0.1, 4.0, -2.0, 25.0);
+  for (std::size_t n : {511u, 513u, 4000u, 20000u}) {
+    Points3 src(n), tgt(n);
+    std::vector<double> w(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      src[i] = Vec3(g(rng), g(rng), 0.3 * g(rng));
+      tgt[i] = T_true * src[i] + 1e-3 * Vec3(g(rng), g(rng), g(rng));
+      w[i] = u(rng);
+    }
+    const int saved = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const Isometry3 one = estimate_rigid_transform(src, tgt, identity_pairs(n), &w);
+    omp_set_num_threads(2);
+    const Isometry3 two = estimate_rigid_transform(src, tgt, identity_pairs(n), &w);
+    omp_set_num_threads(saved);
+    EXPECT_TRUE(one.matrix() == two.matrix()) << "n = " << n;  // to the bit
+    const TransformError e = transform_error(one, T_true);
+    EXPECT_LT(e.rotation_deg, 0.05) << "n = " << n;
+    EXPECT_LT(e.translation_m, 5e-4) << "n = " << n;
+  }
 }
 
 }  // namespace
