@@ -128,7 +128,6 @@ struct CorrespondenceWorkspace::State {
   // thread's block of queries reads and writes a contiguous block of entries (no false sharing).
   std::vector<PointIndex> order;  // Morton position -> source index
   std::vector<PointIndex> inv;    // source index -> Morton position
-  Correspondences by_position;    // find()'s matches by Morton position, before reordering
   double coord_max = 0.0;         // largest absolute target coordinate (rounding allowance)
   // Per source point s: candidates cand[s * width, s * width + min(width, tree size)), the
   // conservative distance `reach` of the last one at the reference pose (< 0: no entry; +inf:
@@ -209,7 +208,6 @@ std::size_t CorrespondenceWorkspace::last_fast() const { return state_->fast; }
 std::size_t CorrespondenceWorkspace::memory_bytes() const {
   const State& s = *state_;
   return s.order.capacity() * sizeof(PointIndex) + s.inv.capacity() * sizeof(PointIndex) +
-         s.by_position.capacity() * sizeof(Correspondence) +
          s.cand.capacity() * sizeof(PointIndex) + s.reach.capacity() * sizeof(float) +
          s.ref.capacity() * sizeof(std::uint16_t) + s.ref_source.capacity() * sizeof(PointIndex) +
          s.half_gap.capacity() * sizeof(float) + s.fast_ref.capacity() * sizeof(std::uint16_t) +
@@ -422,9 +420,11 @@ void CorrespondenceFinder::init() {
 std::size_t CorrespondenceFinder::cache_width() const {
   const std::size_t k =
       options_.kind == CorrespondenceKind::kWeightedKnn ? static_cast<std::size_t>(options_.k) : 1;
-  // k + m candidates: a wider cache survives larger motions but costs more per search; on the
-  // real pair the total is flat for m in [2, k], and this is its middle (docs/performance.md).
-  return k + std::max<std::size_t>(3, (k + 1) / 2);
+  // k + m candidates: a wider cache survives larger motions but costs more per search and per
+  // re-evaluation. Converged points take the fast path, which re-evaluates only k, so on the
+  // real pair m = 5..8 costs the fewest instructions (k = 5: 79,240 searches at m = 3, 56,845 at
+  // m = 5; docs/performance.md); 5 keeps the memory per landmark low.
+  return k + std::max<std::size_t>(5, (k + 1) / 2);
 }
 
 namespace {
@@ -552,9 +552,6 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   const Mat3 R = T_target_source.linear();
   const Vec3 t = T_target_source.translation();
   const PointIndex* order = st.order.data();
-  const PointIndex* inv = st.inv.data();
-  st.by_position.resize(n);
-  Correspondence* by_position = st.by_position.data();
   std::size_t searched = 0, reused = 0, fast = 0;
 
   // proc_bind(close): threads that migrate between cores lose their caches (measured on the
@@ -564,7 +561,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     std::ptrdiff_t lender = -1;  // this thread's last served entry (Morton order)
-                                 // Pass 1, in Morton order: the matches, by position.
+    // In Morton order: queries that follow each other touch the same parts of the tree.
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
       const auto e = static_cast<std::size_t>(j);
@@ -590,15 +587,11 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
         found = target_->knn(q, k, idx, d2);
         ++searched;
       }
-      by_position[e] = select_match(s, idx, d2, found, weighted, w, max_sq);
-    }
-    // Pass 2, in source order (each thread writes its own block): the moved points, recomputed
-    // with the same expression (bit-identical), and the matches.
-#pragma omp for schedule(static)
-    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
-      const auto s = static_cast<std::size_t>(i);
-      moved[s] = R * source_points[s] + t;
-      out[s] = by_position[inv[s]];
+      // Straight into source order: Morton neighbours are mostly index neighbours in a SLAM
+      // map (landmarks numbered along the trajectory), so the threads' writes rarely share a
+      // cache line, and no staging buffer is needed.
+      moved[s] = q;
+      out[s] = select_match(s, idx, d2, found, weighted, w, max_sq);
     }
   }
   // No entry refers to this pose unless a point was searched or re-based (not all took the fast
