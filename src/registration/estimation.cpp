@@ -51,15 +51,21 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   // Pass 1: weighted centroids.
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(blocks); ++b) {
-    Partial& p = partial[static_cast<std::size_t>(b)];
+    // Local accumulators (kept in registers), stored once per block.
+    double ws = 0.0;
+    Vec3 ss = Vec3::Zero(), ts = Vec3::Zero();
     const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
     for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
       const Correspondence& c = correspondences[i];
       const double wi = w(i);
-      p.w_sum += wi;
-      p.s += wi * source_points[c.source_index];
-      p.t += wi * target_points[c.target_index];
+      ws += wi;
+      ss += wi * source_points[c.source_index];
+      ts += wi * target_points[c.target_index];
     }
+    Partial& p = partial[static_cast<std::size_t>(b)];
+    p.w_sum = ws;
+    p.s = ss;
+    p.t = ts;
   }
   double w_sum = 0.0;
   Vec3 mu_s = Vec3::Zero();
@@ -80,13 +86,14 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   // Pass 2: cross-covariance of the demeaned points, H = sum w (s - mu_s)(t - mu_t)^T.
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(blocks); ++b) {
-    Partial& p = partial[static_cast<std::size_t>(b)];
+    Mat3 Hb = Mat3::Zero();
     const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
     for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
       const Correspondence& c = correspondences[i];
-      p.H.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
-                       (target_points[c.target_index] - mu_t).transpose();
+      Hb.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
+                      (target_points[c.target_index] - mu_t).transpose();
     }
+    partial[static_cast<std::size_t>(b)].H = Hb;
   }
   Mat3 H = Mat3::Zero();
   for (std::size_t b = 0; b < blocks; ++b) H += partial[b].H;
