@@ -2,8 +2,9 @@
 // rejection (a maximum distance on a shrinking schedule, trimming to an overlap ratio given or
 // estimated, mutual nearest neighbours), each combinable with the paper's weighted-kNN
 // selection; weighted Umeyama with IRLS robust kernels times landmark confidences; optional
-// 4-DoF (x, y, z, yaw) estimation; an optional global yaw search for far starts. The paper's
-// align() is untouched.
+// 4-DoF (x, y, z, yaw) estimation; an optional point-to-distribution cost with both maps'
+// landmark covariances (estimation_p2d.hpp); an optional global yaw search for far starts. The
+// paper's align() is untouched.
 //
 // Frames: the result is T_target_source, p_target = T_target_source * p_source.
 #pragma once
