@@ -34,7 +34,8 @@ struct PointToDistributionOptions {
   /// Covariance floor, metres, >= 0 and finite: sigma_floor^2 I is added to every combined
   /// covariance C_t + R C_s R^T, so that zero, tiny or rank-deficient SLAM covariances (a
   /// landmark seen from one direction is nearly flat) cannot make Omega singular or let one
-  /// landmark dominate. 5 mm is about the smallest error the real maps resolve (docs/accuracy.md).
+  /// landmark dominate. 5 mm: about the smallest across-ray standard deviation of the real
+  /// maps' landmarks (~4-5 mm; docs/confidence.md).
   double covariance_floor_m = 0.005;
 
   /// Ceres-style validation: false, and *why names the bad field and its value.
