@@ -588,8 +588,10 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
     for (std::size_t i = 0; i < corr.size(); ++i) {
       const Vec3 r = moved[corr[i].source_index] - tp[corr[i].target_index];
       const double c = confidence ? (*confidence)[corr[i].target_index] : 1.0;
-      weights[i] =
-          c * robust_weight(options.kernel, kernel_residual(corr[i], r, T, p2d_final), scale);
+      // Point-to-point keeps the pair's own distance (bit-identical to before P2D existed).
+      const double rn =
+          p2d_final ? kernel_residual(corr[i], r, T, true) : std::sqrt(corr[i].distance_sq_m2);
+      weights[i] = c * robust_weight(options.kernel, rn, scale);
       wsum += weights[i];
       wr2 += weights[i] * corr[i].distance_sq_m2;
     }
