@@ -3,6 +3,8 @@
 // run the paper's base ICP and the global initialisation, and for every result
 //   - the 6x6 covariance on its inliers (nearest target within 5 cm) and its NEES against the
 //     truth (for right-basin results: is the covariance calibrated?);
+//   - and for robust_obs and robust_p2d (point-to-distribution, with both maps' covariances) the
+//     NEES of the covariance the result itself carries (RobustRegistrationResult::covariance);
 //   - the trust verdict, against the truth (right basin: < 5 deg and < 10 cm): precision and
 //     recall of "trustworthy".
 // Prints one JSON object. Usage: lmalign_eval_trust [--samples S] (default: the config's)
@@ -22,6 +24,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/global_init.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/robust.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -53,24 +56,39 @@ int run(int argc, char** argv) {
   }
   const Map source_map = read_map(config.source.path);
   const Points3 source = source_map.positions();
+  const std::vector<Mat3> source_cov = source_map.covariances_m2();
   const PreparedTarget target(read_map(config.target.path));
   const std::vector<Case> cases = expand_cases(config, source);
   const TrustOptions trust;
-  std::vector<Row> rows(cases.size() * 2);
+  constexpr int kMethods = 4;
+  std::vector<Row> rows(cases.size() * kMethods);
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(cases.size()); ++i) {
     const Case& c = cases[static_cast<std::size_t>(i)];
     const Points3 displaced = transform_points(c.D, source);
-    const Isometry3 est[2] = {
+    std::vector<Mat3> displaced_cov = source_cov;
+    for (Mat3& C : displaced_cov) C = c.D.linear() * C * c.D.linear().transpose();
+    const RobustRegistrationResult ro =
+        align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustObs));
+    const RobustRegistrationResult rp =
+        align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustP2D),
+                     Isometry3::Identity(), &displaced_cov);
+    const Isometry3 est[kMethods] = {
         align(displaced, target, RegistrationOptions::paper(PaperStrategy::kBase)).T_target_source,
-        global_align(displaced, target).T_target_source};
-    for (int m = 0; m < 2; ++m) {
+        global_align(displaced, target).T_target_source, ro.T_target_source, rp.T_target_source};
+    const char* names[kMethods] = {"base", "global", "robust_obs", "robust_p2d"};
+    for (int m = 0; m < kMethods; ++m) {
       const Isometry3 T_map = est[m] * c.D;  // the recovered map-to-map transform
       const TransformError e = transform_error(T_map, Isometry3::Identity());
       PoseCovariance cov;
       const TrustVerdict v = judge_alignment(source, target.tree(), T_map, trust, &cov);
-      Row& r = rows[static_cast<std::size_t>(i) * 2 + m];
-      r.method = m == 0 ? "base" : "global";
+      if (m >= 2) {
+        // The result's own covariance: a left perturbation of T, hence of T * D too.
+        cov.covariance = (m == 2 ? ro : rp).covariance;
+        cov.valid = !cov.covariance.isZero();
+      }
+      Row& r = rows[static_cast<std::size_t>(i) * kMethods + m];
+      r.method = names[m];
       const Vec3 xyz = c.D.translation();
       r.yaw_deg = xyz_rpy_deg_from_pose(c.D)[5];
       r.translation_m = xyz.head<2>().norm();

@@ -162,6 +162,9 @@ int run_align(const AlignArgs& a) {
 
   // The paper displaces the source about the world origin, then starts ICP at the identity.
   const Points3 source_points = transform_points(T_displace, source.positions());
+  // Their covariances move with them (C' = R C R^T), for the point-to-distribution strategies.
+  std::vector<Mat3> source_covariances = source.covariances_m2();
+  for (Mat3& C : source_covariances) C = T_displace.linear() * C * T_displace.linear().transpose();
   // Truth for the displaced source. Errors are measured on the recovered map-to-map transform
   // T_est * T_displace against T_gt, so they do not depend on the artificial displacement.
   std::optional<Isometry3> T_true;
@@ -199,7 +202,8 @@ int run_align(const AlignArgs& a) {
       o.history_scores = a.history;
       result = align(source_points, prepared, o);
     } else {
-      result = align_robust(source_points, prepared, robust_strategy_options(s, a.k));
+      result = align_robust(source_points, prepared, robust_strategy_options(s, a.k),
+                            Isometry3::Identity(), &source_covariances);
     }
     StrategyRun run{s, result, std::nullopt, false, {}, {}};
     run.trust =
@@ -370,7 +374,8 @@ CommandRunner add_align_command(CLI::App& root) {
       "--strategy", args->strategy,
       "comma-separated strategies by name: the paper's (base, covariance, "
       "observations, distance) and lmalign's own (shrink, shrink_cauchy, trimmed, "
-      "mutual, robust_obs, robust_obs_knn, robust_obs_4dof, global_robust_obs); 'paper', "
+      "mutual, robust_obs, robust_obs_knn, robust_obs_4dof, global, global_robust_obs, p2d, "
+      "robust_p2d); 'paper', "
       "'beyond' and "
       "'all' name groups. Default (neither --weight nor --strategy): robust_obs, the "
       "recommended strategy (docs/accuracy.md). --max-iterations and --max-distance "

@@ -431,6 +431,8 @@ int run_experiment(ExperimentArgs a) {
     }
   };
   ro.already_finished = already_finished;
+  const std::vector<Mat3> source_covariances = in.source.covariances_m2();
+  ro.source_covariances_m2 = &source_covariances;
 
   g_cancel.store(false);
   RunnerOutcome outcome;

@@ -265,8 +265,8 @@ class Parser {
         fail(*it, w,
              "unknown strategy '" + name +
                  "' (expected base, covariance, observations, distance, shrink, shrink_cauchy, "
-                 "trimmed, mutual, robust_obs, robust_obs_knn, robust_obs_4dof or "
-                 "global_robust_obs)");
+                 "trimmed, mutual, robust_obs, robust_obs_knn, robust_obs_4dof, global, "
+                 "global_robust_obs, p2d or robust_p2d)");
       }
       if (std::find(out.begin(), out.end(), s) != out.end()) {
         fail(*it, w, "strategy '" + to_string(s) + "' is listed twice");

@@ -131,6 +131,16 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       if (!valid) {
         throw InvalidArgument("runner: case " + c.id() + ", " + to_string(s) + ": " + why);
       }
+      if (!is_paper_strategy(s) &&
+          robust_strategy_options(s, c.k).cost == EstimationCost::kPointToDistribution) {
+        if (options.source_covariances_m2 == nullptr ||
+            options.source_covariances_m2->size() != source_points.size()) {
+          throw InvalidArgument("runner: case " + c.id() + ", " + to_string(s) +
+                                ": the point-to-distribution cost needs one source landmark "
+                                "covariance per source point (RunnerOptions)");
+        }
+        (void)target.covariances_m2();  // throws if the target has none
+      }
     }
     if (!is_finite(c.D))
       throw InvalidArgument("runner: case " + c.id() + " has a non-finite displacement");
@@ -207,8 +217,18 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     } else {
       // lmalign's own strategies (issue 7): their preset schedule replaces the config's
       // max_distance_m; the iteration budget is the preset's (over all levels).
-      r = align_robust(transform_points(c.D, source_points), target,
-                       robust_strategy_options(s, c.k));
+      const RobustRegistrationOptions ro = robust_strategy_options(s, c.k);
+      std::vector<Mat3> moved_cov;
+      if (ro.cost == EstimationCost::kPointToDistribution) {
+        // The covariances move with the points: C' = R_D C R_D^T.
+        const Mat3 R = c.D.linear();
+        moved_cov.reserve(options.source_covariances_m2->size());
+        for (const Mat3& C : *options.source_covariances_m2) {
+          moved_cov.push_back(R * C * R.transpose());
+        }
+      }
+      r = align_robust(transform_points(c.D, source_points), target, ro, Isometry3::Identity(),
+                       moved_cov.empty() ? nullptr : &moved_cov);
     }
     RunRecord rec;
     rec.case_index = c.index;

@@ -44,6 +44,13 @@ Points3 Map::positions() const {
   return points;
 }
 
+std::vector<Mat3> Map::covariances_m2() const {
+  std::vector<Mat3> covariances;
+  covariances.reserve(landmarks.size());
+  for (const Landmark& landmark : landmarks) covariances.push_back(landmark.cov_world_m2);
+  return covariances;
+}
+
 void Map::validate() const {
   std::unordered_map<Id, std::size_t> frame_ids;
   frame_ids.reserve(frames.size());

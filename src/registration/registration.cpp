@@ -40,6 +40,10 @@ std::string to_string(PaperStrategy strategy) {
       return "global";
     case PaperStrategy::kGlobalRobustObs:
       return "global_robust_obs";
+    case PaperStrategy::kP2D:
+      return "p2d";
+    case PaperStrategy::kRobustP2D:
+      return "robust_p2d";
   }
   return "?";
 }
@@ -55,7 +59,7 @@ PaperStrategy parse_paper_strategy(const std::string& name) {
   throw InvalidArgument("unknown strategy '" + name +
                         "' (expected base|none, covariance, observations, distance, shrink, "
                         "shrink_cauchy, trimmed, mutual, robust_obs, robust_obs_knn, "
-                        "robust_obs_4dof, global, global_robust_obs)");
+                        "robust_obs_4dof, global, global_robust_obs, p2d, robust_p2d)");
 }
 
 std::vector<PaperStrategy> all_paper_strategies() {
@@ -67,7 +71,8 @@ std::vector<PaperStrategy> beyond_paper_strategies() {
   return {
       PaperStrategy::kShrink,        PaperStrategy::kShrinkCauchy, PaperStrategy::kTrimmed,
       PaperStrategy::kMutual,        PaperStrategy::kRobustObs,    PaperStrategy::kRobustObsKnn,
-      PaperStrategy::kRobustObs4Dof, PaperStrategy::kGlobal,       PaperStrategy::kGlobalRobustObs};
+      PaperStrategy::kRobustObs4Dof, PaperStrategy::kGlobal,       PaperStrategy::kGlobalRobustObs,
+      PaperStrategy::kP2D,           PaperStrategy::kRobustP2D};
 }
 
 bool is_paper_strategy(PaperStrategy strategy) {
@@ -164,6 +169,7 @@ PreparedTarget::PreparedTarget(const Map& target, const WeightOptions& weight_op
                           WeightKind::kMeanDistance}) {
     weights_[kind] = compute_weights(target, kind, weight_options);
   }
+  covariances_ = target.covariances_m2();
 }
 
 PreparedTarget::PreparedTarget(Points3 points) : tree_(std::move(points)) {
@@ -182,6 +188,28 @@ void PreparedTarget::set_weights(WeightKind kind, std::vector<double> weights) {
     }
   }
   weights_[kind] = std::move(weights);
+}
+
+void PreparedTarget::set_covariances(std::vector<Mat3> covariances_m2) {
+  if (covariances_m2.size() != tree_.size()) {
+    throw InvalidArgument("set_covariances: " + std::to_string(covariances_m2.size()) +
+                          " covariances for " + std::to_string(tree_.size()) + " target points");
+  }
+  for (std::size_t i = 0; i < covariances_m2.size(); ++i) {
+    if (!covariances_m2[i].allFinite()) {
+      throw InvalidArgument("set_covariances: covariance " + std::to_string(i) + " is not finite");
+    }
+  }
+  covariances_ = std::move(covariances_m2);
+}
+
+const std::vector<Mat3>& PreparedTarget::covariances_m2() const {
+  if (!has_covariances()) {
+    throw InvalidArgument(
+        "target has no landmark covariances (built from bare points; use a Map or "
+        "set_covariances()), which the point-to-distribution cost needs");
+  }
+  return covariances_;
 }
 
 const std::vector<double>& PreparedTarget::weights(WeightKind kind) const {

@@ -37,6 +37,35 @@ RobustKernel parse_robust_kernel(const std::string& name) {
                         "' (expected none, huber, cauchy or geman_mcclure)");
 }
 
+std::string to_string(EstimationCost cost) {
+  switch (cost) {
+    case EstimationCost::kPointToPoint:
+      return "point_to_point";
+    case EstimationCost::kPointToDistribution:
+      return "point_to_distribution";
+  }
+  return "?";
+}
+
+EstimationCost parse_estimation_cost(const std::string& name) {
+  if (name == "point_to_point" || name == "p2p") return EstimationCost::kPointToPoint;
+  if (name == "point_to_distribution" || name == "p2d") {
+    return EstimationCost::kPointToDistribution;
+  }
+  throw InvalidArgument("unknown estimation cost '" + name +
+                        "' (expected point_to_point|p2p or point_to_distribution|p2d)");
+}
+
+std::string to_string(KernelResidual residual) {
+  switch (residual) {
+    case KernelResidual::kEuclidean:
+      return "euclidean";
+    case KernelResidual::kMahalanobis:
+      return "mahalanobis";
+  }
+  return "?";
+}
+
 double robust_weight(RobustKernel kernel, double residual_m, double scale_m) {
   if (kernel == RobustKernel::kNone || std::isinf(scale_m)) return 1.0;
   const double r = std::abs(residual_m);
@@ -159,6 +188,23 @@ bool RobustRegistrationOptions::is_valid(std::string* why) const {
     return fail("kernel_scale_ratio = " + std::to_string(kernel_scale_ratio) +
                 " (expected finite >= 0)");
   }
+  if (cost == EstimationCost::kPointToDistribution) {
+    if (dof != DegreesOfFreedom::k6) {
+      return fail(
+          "cost = point_to_distribution needs dof = 6 (the 4-DoF point-to-distribution "
+          "estimate is not implemented)");
+    }
+    std::string inner;
+    if (!p2d.is_valid(&inner)) return fail("p2d." + inner);
+    if (!(p2d_max_level_distance_m > 0.0)) {
+      return fail("p2d_max_level_distance_m = " + std::to_string(p2d_max_level_distance_m) +
+                  " (expected > 0)");
+    }
+    if (!(kernel_scale_sigma > 0.0) || !std::isfinite(kernel_scale_sigma)) {
+      return fail("kernel_scale_sigma = " + std::to_string(kernel_scale_sigma) +
+                  " (expected finite > 0)");
+    }
+  }
   if (irls_iterations < 1) {
     return fail("irls_iterations = " + std::to_string(irls_iterations) + " (expected >= 1)");
   }
@@ -245,6 +291,14 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k)
       o.estimation_weight = WeightKind::kObservations;
       o.global_search = true;
       break;
+    case PaperStrategy::kP2D:
+      o.cost = EstimationCost::kPointToDistribution;
+      break;
+    case PaperStrategy::kRobustP2D:
+      o.kernel = RobustKernel::kCauchy;
+      o.estimation_weight = WeightKind::kObservations;
+      o.cost = EstimationCost::kPointToDistribution;
+      break;
     default:
       throw InvalidArgument("robust_strategy_options: '" + to_string(strategy) +
                             "' is one of the paper's strategies (use align())");
@@ -270,7 +324,8 @@ std::size_t consensus(const Points3& source_points, const KdTree& tree, const Is
 RobustRegistrationResult align_global(const Points3& source_points, const PreparedTarget& target,
                                       const RobustRegistrationOptions& options,
                                       const Isometry3& T_init,
-                                      std::chrono::steady_clock::time_point t_start) {
+                                      std::chrono::steady_clock::time_point t_start,
+                                      const std::vector<Mat3>* source_cov) {
   // Hypotheses: the guess itself, then yaws about the moved source's centroid with the centroid
   // moved onto the target's centroid.
   Vec3 cs = Vec3::Zero();
@@ -294,16 +349,19 @@ RobustRegistrationResult align_global(const Points3& source_points, const Prepar
   coarse.max_iterations_per_level =
       std::max(1, options.global_iterations / static_cast<int>(options.global_schedule_m.size()));
   Points3 sub;
+  std::vector<Mat3> sub_cov;
   for (std::size_t i = 0; i < source_points.size();
        i += static_cast<std::size_t>(options.global_subsample)) {
     sub.push_back(source_points[i]);
+    if (source_cov != nullptr) sub_cov.push_back((*source_cov)[i]);
   }
   std::size_t best = 0;
   std::size_t best_score = 0;
   Isometry3 best_T = T_init;
   int iterations = 0;
   for (std::size_t h = 0; h < hypotheses.size(); ++h) {
-    const RobustRegistrationResult r = align_robust(sub, target, coarse, hypotheses[h]);
+    const RobustRegistrationResult r =
+        align_robust(sub, target, coarse, hypotheses[h], source_cov ? &sub_cov : nullptr);
     iterations += r.iterations;
     const std::size_t score =
         consensus(sub, target.tree(), r.T_target_source, options.global_inlier_distance_m);
@@ -317,7 +375,7 @@ RobustRegistrationResult align_global(const Points3& source_points, const Prepar
   // level (the coarse run used a subsample) ended in a wrong minimum on the real pair.
   RobustRegistrationOptions local = options;
   local.global_search = false;
-  RobustRegistrationResult result = align_robust(source_points, target, local, best_T);
+  RobustRegistrationResult result = align_robust(source_points, target, local, best_T, source_cov);
   result.initial_score_m2 = fitness_score(source_points, target.tree(), T_init).mean_sq_m2;
   result.iterations += iterations;
   (void)best;
@@ -330,7 +388,8 @@ RobustRegistrationResult align_global(const Points3& source_points, const Prepar
 
 RobustRegistrationResult align_robust(const Points3& source_points, const PreparedTarget& target,
                                       const RobustRegistrationOptions& options,
-                                      const Isometry3& T_target_source_init) {
+                                      const Isometry3& T_target_source_init,
+                                      const std::vector<Mat3>* source_covariances_m2) {
   const auto t_start = std::chrono::steady_clock::now();
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("robust registration options: " + why);
@@ -347,9 +406,45 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
     }
   }
 
-  if (options.global_search) {
-    return align_global(source_points, target, options, T_target_source_init, t_start);
+  const bool p2d = options.cost == EstimationCost::kPointToDistribution;
+  if (p2d) {
+    if (source_covariances_m2 == nullptr) {
+      throw InvalidArgument(
+          "robust registration: the point-to-distribution cost needs the source landmark "
+          "covariances (none given)");
+    }
+    if (source_covariances_m2->size() != source_points.size()) {
+      throw InvalidArgument(
+          "robust registration: " + std::to_string(source_covariances_m2->size()) +
+          " source covariances for " + std::to_string(source_points.size()) + " source points");
+    }
+    for (std::size_t i = 0; i < source_covariances_m2->size(); ++i) {
+      if (!(*source_covariances_m2)[i].allFinite()) {
+        throw InvalidArgument("robust registration: source covariance " + std::to_string(i) +
+                              " is not finite");
+      }
+    }
+    (void)target.covariances_m2();  // throws if the target has none
   }
+  const std::vector<Mat3>* source_cov = p2d ? source_covariances_m2 : nullptr;
+
+  if (options.global_search) {
+    return align_global(source_points, target, options, T_target_source_init, t_start, source_cov);
+  }
+  const std::vector<Mat3> no_covariances;
+  const std::vector<Mat3>& target_cov = p2d ? target.covariances_m2() : no_covariances;
+  const double floor2 = options.p2d.covariance_floor_m * options.p2d.covariance_floor_m;
+  // The residual the IRLS kernel sees for pair i under the full estimate T_full (see
+  // KernelResidual): Euclidean metres, or the Mahalanobis distance rescaled to metres.
+  auto kernel_residual = [&](const Correspondence& c, const Vec3& r, const Isometry3& T_full,
+                             bool p2d_here) {
+    if (!p2d_here || options.kernel_residual == KernelResidual::kEuclidean) return r.norm();
+    const Mat3 R = T_full.linear();
+    Mat3 M = target_cov[c.target_index] + R * (*source_cov)[c.source_index] * R.transpose();
+    M.diagonal().array() += floor2;
+    const double m2 = r.dot(M.ldlt().solve(r));
+    return std::sqrt(std::max(0.0, m2)) * options.kernel_scale_m / options.kernel_scale_sigma;
+  };
 
   const std::vector<double> no_weights;
   const std::vector<double>& selection_weights =
@@ -412,29 +507,44 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
 
     // IRLS on fixed correspondences: weights from the residuals under the current increment.
     const double scale = std::max(options.kernel_scale_m, options.kernel_scale_ratio * d_level);
+    const bool p2d_level = p2d && d_level <= options.p2d_max_level_distance_m;
     Isometry3 increment = Isometry3::Identity();
+    Isometry3 T_p2d = T;  // the point-to-distribution estimate itself (not composed: see below)
     EstimationReport report;
     weights.assign(corr.size(), 1.0);
     const int irls = options.kernel == RobustKernel::kNone ? 1 : options.irls_iterations;
     for (int it = 0; it < irls; ++it) {
       for (std::size_t i = 0; i < corr.size(); ++i) {
-        const double r =
-            (increment * moved[corr[i].source_index] - tp[corr[i].target_index]).norm();
+        const Vec3 r = increment * moved[corr[i].source_index] - tp[corr[i].target_index];
         const double c = confidence ? (*confidence)[corr[i].target_index] : 1.0;
-        weights[i] = c * robust_weight(options.kernel, r, scale);
+        weights[i] =
+            c * robust_weight(options.kernel, kernel_residual(corr[i], r, increment * T, p2d_level),
+                              scale);
       }
       double wsum = 0.0;
       for (double w : weights) wsum += w;
       if (!(wsum > 0.0)) break;  // keep the last increment
-      increment = options.dof == DegreesOfFreedom::k6
-                      ? estimate_rigid_transform(moved, tp, corr, &weights, &report)
-                      : estimate_4dof_transform(moved, tp, corr, &weights, options.up_axis);
+      if (p2d_level) {
+        // Gauss-Newton on the source in its own frame (so the source covariances need no
+        // rotating), warm-started from the current increment.
+        const PointToDistributionResult g = estimate_point_to_distribution(
+            source_points, tp, corr, *source_cov, target_cov, &weights, options.p2d, increment * T);
+        T_p2d = g.T_target_source;
+        increment = T_p2d * T.inverse();
+        report.degenerate = g.degenerate;
+      } else {
+        increment = options.dof == DegreesOfFreedom::k6
+                        ? estimate_rigid_transform(moved, tp, corr, &weights, &report)
+                        : estimate_4dof_transform(moved, tp, corr, &weights, options.up_axis);
+      }
     }
     if (!is_finite(increment)) {
       result.termination = TerminationReason::kDegenerate;
       break;
     }
-    T = increment * T;
+    // Gauss-Newton returns the full estimate with an orthonormalised rotation: taking it as is
+    // (rather than composing increment * T, whose rounding would compound) keeps T rigid.
+    T = p2d_level ? T_p2d : increment * T;
     ++result.iterations;
     ++level_iterations;
     result.num_correspondences = corr.size();
@@ -473,17 +583,32 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
     const double scale =
         std::max(options.kernel_scale_m, options.kernel_scale_ratio * result.final_max_distance_m);
     weights.resize(corr.size());
+    const bool p2d_final = p2d && result.final_max_distance_m <= options.p2d_max_level_distance_m;
     double wsum = 0.0, wr2 = 0.0;
     for (std::size_t i = 0; i < corr.size(); ++i) {
-      const double r = std::sqrt(corr[i].distance_sq_m2);
+      const Vec3 r = moved[corr[i].source_index] - tp[corr[i].target_index];
       const double c = confidence ? (*confidence)[corr[i].target_index] : 1.0;
-      weights[i] = c * robust_weight(options.kernel, r, scale);
+      // Point-to-point keeps the pair's own distance (bit-identical to before P2D existed).
+      const double rn =
+          p2d_final ? kernel_residual(corr[i], r, T, true) : std::sqrt(corr[i].distance_sq_m2);
+      weights[i] = c * robust_weight(options.kernel, rn, scale);
       wsum += weights[i];
       wr2 += weights[i] * corr[i].distance_sq_m2;
     }
     result.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
-    const PoseCovariance cov = point_to_point_covariance(moved, tp, corr, &weights);
-    result.covariance = cov.valid ? cov.covariance : Mat6::Zero();
+    if (p2d_final) {
+      result.covariance = Mat6::Zero();
+      if (wsum > 0.0) {
+        PointToDistributionOptions eval = options.p2d;
+        eval.max_iterations = 0;  // the normal equations at T only
+        const PointToDistributionResult g = estimate_point_to_distribution(
+            source_points, tp, corr, *source_cov, target_cov, &weights, eval, T);
+        if (!g.degenerate) result.covariance = g.variance_factor * g.covariance;
+      }
+    } else {
+      const PoseCovariance cov = point_to_point_covariance(moved, tp, corr, &weights);
+      result.covariance = cov.valid ? cov.covariance : Mat6::Zero();
+    }
   }
   result.converged = result.termination == TerminationReason::kTransform;
   result.T_target_source = T;

@@ -81,6 +81,26 @@ TEST_F(CliAlign, DefaultIsTheRecommendedStrategyAndStrategyListsSelectByName) {
   }
 }
 
+TEST_F(CliAlign, PointToDistributionStrategiesRunWithTheMapsCovariances) {
+  // p2d and robust_p2d use both maps' landmark covariances; the displacement rotates the
+  // source's with its points.
+  write_transform(path("gt.txt"), T_true_);
+  const test::CliRun r = run("align " + source_ + " " + target_ +
+                             " --strategy p2d,robust_p2d --displace 0.1,-0.05,0,0,0,8" +
+                             " --ground-truth " + path("gt.txt") + " --json " + path("p.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.out.find("robust_p2d"), std::string::npos) << r.out;
+  const auto j = nlohmann::json::parse(test::read_text(path("p.json")));
+  ASSERT_EQ(j["results"].size(), 2u);
+  EXPECT_EQ(j["results"][0]["strategy"], "p2d");
+  EXPECT_EQ(j["results"][1]["strategy"], "robust_p2d");
+  for (const auto& res : j["results"]) {
+    EXPECT_TRUE(res["right_basin"].get<bool>()) << res["strategy"];
+    EXPECT_LT(res["rotation_error_deg"].get<double>(), 1e-3) << res["strategy"];
+    EXPECT_LT(res["translation_error_m"].get<double>(), 1e-4) << res["strategy"];
+  }
+}
+
 TEST_F(CliAlign, DisplaceIsUndoneInTheErrors) {
   write_transform(path("gt.txt"), T_true_);
   const test::CliRun r =

@@ -388,3 +388,36 @@ TEST(ExperimentRunner, CallbackExceptionsAndBadSettingsPropagate) {
 
 }  // namespace
 }  // namespace lmalign
+
+namespace lmalign {
+namespace {
+
+TEST(ExperimentRunner, PointToDistributionStrategiesNeedAndUseSourceCovariances) {
+  const ExperimentConfig c = config(
+      "  - {name: yaws, type: yaw, yaw_deg: [0, 10], strategies: [robust_obs, robust_p2d]}\n");
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  // Without the source covariances the P2D strategy is refused before any run.
+  EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true), InvalidArgument);
+  // The source's covariances: the target map's first 800, in the source frame.
+  std::vector<Mat3> cov;
+  const Mat3 R = pair().T_true.linear();
+  for (std::size_t i = 0; i < pair().source.size(); ++i) {
+    cov.push_back(R.transpose() * pair().target_map.landmarks[i].cov_world_m2 * R);
+  }
+  RunnerOptions opt;
+  opt.threads = 1;
+  opt.source_covariances_m2 = &cov;
+  const RunnerOutcome o = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+  ASSERT_EQ(o.records.size(), 4u);
+  for (const RunRecord& r : o.records) {
+    ASSERT_TRUE(r.error.has_value());
+    EXPECT_LT(r.error->rotation_deg, 0.01) << to_string(r.strategy);
+    EXPECT_LT(r.error->translation_m, 1e-3) << to_string(r.strategy);
+  }
+  const std::vector<Mat3> few(3, Mat3::Identity());
+  opt.source_covariances_m2 = &few;
+  EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true, opt), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace lmalign

@@ -98,6 +98,11 @@ struct RunnerOptions {
   /// outcome as they are and count for the escalations. Each case present must have all its
   /// strategies, in order. on_case_finished is not called for them.
   std::vector<RunRecord> already_finished;
+  /// The undisplaced source landmarks' position covariances (m^2, one per source point, source
+  /// frame), for strategies with the point-to-distribution cost (p2d, robust_p2d); each run
+  /// rotates them by its displacement D (R_D C R_D^T) as it moves the points. Not owned; null =
+  /// none, and such strategies are then refused before any run.
+  const std::vector<Mat3>* source_covariances_m2 = nullptr;
 };
 
 struct RunnerOutcome {

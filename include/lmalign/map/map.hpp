@@ -64,6 +64,8 @@ class Map {
 
   /// Landmark positions in the world frame (N x 3 as a vector of Vec3, metres), in landmark order.
   Points3 positions() const;
+  /// Landmark position covariances in the world frame (m^2), in landmark order.
+  std::vector<Mat3> covariances_m2() const;
 
   /// Throws InvalidArgument if an id is negative or duplicated, an observation names an unknown
   /// frame, a value is not finite, or a frame quaternion is zero. The message names the id.

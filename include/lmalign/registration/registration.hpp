@@ -39,10 +39,14 @@ enum class PaperStrategy {
   kGlobal,         ///< "global": global initialisation (any yaw, metres off; global_init.hpp), then
                    ///< robust_obs from its estimate; the initial guess is ignored
   kGlobalRobustObs,  ///< "global_robust_obs": robust_obs after a global yaw search (any start)
+  kP2D,        ///< "p2d": shrink with the point-to-distribution cost (landmark covariances of both
+               ///< maps; estimation_p2d.hpp)
+  kRobustP2D,  ///< "robust_p2d": robust_obs with the point-to-distribution cost
 };
 using Strategy = PaperStrategy;
 /// "base", "covariance", "observations", "distance", then "shrink", "shrink_cauchy", "trimmed",
-/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof", "global_robust_obs".
+/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof", "global", "global_robust_obs",
+/// "p2d", "robust_p2d".
 std::string to_string(PaperStrategy strategy);
 /// Inverse of to_string (also "none" for base, "mean_distance" for distance). Throws
 /// InvalidArgument listing the names.
@@ -120,16 +124,26 @@ struct RegistrationResult {
 /// A target prepared once for many alignments: the kd-tree and each kind of confidence weight.
 class PreparedTarget {
  public:
-  /// From a map: builds the kd-tree over the landmark positions and computes all four weights.
+  /// From a map: builds the kd-tree over the landmark positions, computes all four weights and
+  /// keeps the landmark covariances (for the point-to-distribution cost).
   /// Throws InvalidArgument if the map is invalid (see Map::validate()).
   explicit PreparedTarget(const Map& target, const WeightOptions& weight_options = {});
-  /// From bare points: only uniform weights until set_weights() provides others.
+  /// From bare points: only uniform weights until set_weights() provides others, and no
+  /// covariances until set_covariances() provides them.
   explicit PreparedTarget(Points3 points);
 
   /// Sets the weights used for `kind` (one per point, finite, >= 0). Throws InvalidArgument.
   void set_weights(WeightKind kind, std::vector<double> weights);
   /// Throws InvalidArgument if no weights of that kind are available.
   const std::vector<double>& weights(WeightKind kind) const;
+
+  /// Sets the landmark position covariances (one 3x3 per point, m^2, target frame, finite).
+  /// Throws InvalidArgument.
+  void set_covariances(std::vector<Mat3> covariances_m2);
+  bool has_covariances() const { return !covariances_.empty() || tree_.size() == 0; }
+  /// One 3x3 position covariance per point (m^2, target frame). Throws InvalidArgument if the
+  /// target has none (built from bare points without set_covariances()).
+  const std::vector<Mat3>& covariances_m2() const;
 
   const KdTree& tree() const { return tree_; }
   const Points3& points() const { return tree_.points(); }
@@ -138,6 +152,7 @@ class PreparedTarget {
  private:
   KdTree tree_;
   std::map<WeightKind, std::vector<double>> weights_;
+  std::vector<Mat3> covariances_;
 };
 
 /// Largest accepted |coordinate| of a source or target point, metres: beyond it a double cannot
