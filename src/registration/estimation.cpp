@@ -38,6 +38,9 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   // in parallel when not already inside a parallel region; no allocation.
   constexpr std::size_t kMaxBlocks = 16;
   constexpr std::size_t kMinBlock = 512;
+  // Waking the thread pool costs tens of microseconds (OMP_WAIT_POLICY=passive): only worth it
+  // for large sets (measured on the real pair: 3,050 correspondences lost 0.07 ms per iteration).
+  constexpr std::size_t kParallelMin = 50000;
   const std::size_t block = std::max(kMinBlock, (n + kMaxBlocks - 1) / kMaxBlocks);
   const std::size_t blocks = (n + block - 1) / block;
   struct Partial {
@@ -46,7 +49,7 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
     Mat3 H = Mat3::Zero();
   };
   std::array<Partial, kMaxBlocks> partial;
-  const bool parallel = blocks > 1 && !omp_in_parallel();
+  const bool parallel = n >= kParallelMin && blocks > 1 && !omp_in_parallel();
 
   // Pass 1: weighted centroids.
 #pragma omp parallel for schedule(static) if (parallel)

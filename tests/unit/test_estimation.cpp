@@ -86,7 +86,7 @@ TEST(EstimateRigidTransform, BlockedSumsAreTheSameForAnyThreadCountAndMatchTheTr
   std::normal_distribution<double> g(0.0, 1.0);
   std::uniform_real_distribution<double> u(0.1, 3.0);
   const Isometry3 T_true = pose_from_xyz_rpy_deg(0.3, -0.2, 0.1, 4.0, -2.0, 25.0);
-  for (std::size_t n : {511u, 513u, 4000u, 20000u}) {
+  for (std::size_t n : {511u, 513u, 4000u, 60000u}) {  // 60,000: parallel blocks
     Points3 src(n), tgt(n);
     std::vector<double> w(n);
     for (std::size_t i = 0; i < n; ++i) {
