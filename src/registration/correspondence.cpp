@@ -635,7 +635,8 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
       const Vec3 q = R * source_points[s] + t;
       double value = std::numeric_limits<double>::infinity();
       const std::size_t e = st.inv[s];
-      if (q.allFinite() && st.gap_k == 1 && kernel.fast(e, s, q, idx, d2) == 1) {
+      // The fast path serves any want <= k: the nearest is among an unchanged k nearest.
+      if (q.allFinite() && kernel.fast(e, s, q, idx, d2) >= 1) {
         value = d2[0];
         ++reused;
         ++fast;
