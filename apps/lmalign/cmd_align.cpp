@@ -45,6 +45,9 @@ struct AlignArgs {
   std::string json_path;
   std::string ply_path;
   bool history = false;
+  // Given explicitly on the command line: then they also limit lmalign's own strategies.
+  bool max_iterations_given = false;
+  bool max_distance_given = false;
 };
 
 /// Whether --k matters to a strategy (the weighted-kNN selections).
@@ -184,6 +187,15 @@ int run_align(const AlignArgs& a) {
               a.k, a.max_iterations,
               std::isinf(a.max_distance_m) ? "inf" : std::to_string(a.max_distance_m).c_str(),
               a.covariance_norm.c_str());
+  const bool any_own = std::any_of(strategies.begin(), strategies.end(),
+                                   [](PaperStrategy s) { return !is_paper_strategy(s); });
+  if (any_own) {
+    std::printf("lmalign's own strategies: %s\n",
+                a.max_iterations_given || a.max_distance_given
+                    ? "preset distance schedule and budget, limited by the options above"
+                    : "preset distance schedule (inf .. 0.05 m) and budget (300 iterations); "
+                      "the limits above apply to the paper's strategies");
+  }
   if (T_true) {
     std::printf(
         "ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
@@ -202,8 +214,14 @@ int run_align(const AlignArgs& a) {
       o.history_scores = a.history;
       result = align(source_points, prepared, o);
     } else {
-      result = align_robust(source_points, prepared, robust_strategy_options(s, a.k),
-                            Isometry3::Identity(), &source_covariances);
+      RobustRegistrationOptions ro = robust_strategy_options(s, a.k);
+      if (a.max_iterations_given || a.max_distance_given) {
+        ro = with_limits(
+            ro, a.max_iterations_given ? a.max_iterations : ro.max_iterations,
+            a.max_distance_given ? a.max_distance_m : std::numeric_limits<double>::infinity());
+      }
+      result =
+          align_robust(source_points, prepared, ro, Isometry3::Identity(), &source_covariances);
     }
     StrategyRun run{s, result, std::nullopt, false, {}, {}};
     run.trust =
@@ -378,17 +396,23 @@ CommandRunner add_align_command(CLI::App& root) {
       "robust_p2d); 'paper', "
       "'beyond' and "
       "'all' name groups. Default (neither --weight nor --strategy): robust_obs, the "
-      "recommended strategy (docs/accuracy.md). --max-iterations and --max-distance "
-      "apply to the paper's strategies only");
+      "recommended strategy (docs/accuracy.md). lmalign's own strategies run their preset "
+      "(a distance schedule inf, 1, 0.5, 0.25, 0.1, 0.05 m; 300 iterations) unless "
+      "--max-iterations or --max-distance is given: then the budget is replaced and the "
+      "schedule capped at that distance");
   cmd->add_option("--k", args->k, "neighbourhood size of the weighted strategies, [1, 4096]")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
-  cmd->add_option("--max-iterations", args->max_iterations, "ICP iteration budget, >= 1")
-      ->check(CLI::PositiveNumber)
-      ->capture_default_str();
-  cmd->add_option("--max-distance", args->max_distance_m,
-                  "maximum correspondence distance, metres (default: infinite, as the paper)")
-      ->check(CLI::PositiveNumber);
+  CLI::Option* max_iterations =
+      cmd->add_option("--max-iterations", args->max_iterations,
+                      "ICP iteration budget, >= 1 (paper's strategies: 150 by default)")
+          ->check(CLI::PositiveNumber)
+          ->capture_default_str();
+  CLI::Option* max_distance =
+      cmd->add_option("--max-distance", args->max_distance_m,
+                      "maximum correspondence distance, metres (paper's strategies: infinite by "
+                      "default, as the paper; lmalign's: caps the distance schedule)")
+          ->check(CLI::PositiveNumber);
   cmd->add_option("--covariance-norm", args->covariance_norm,
                   "matrix norm of the covariance weight: spectral (the paper's L2) or frobenius")
       ->check(CLI::IsMember({"spectral", "frobenius"}))
@@ -415,7 +439,11 @@ CommandRunner add_align_command(CLI::App& root) {
                   "strategies, one file each: NAME_<strategy>.ply");
   cmd->add_flag("--history", args->history,
                 "record per-iteration correspondences, MSE and score (into --json)");
-  return [args]() { return run_align(*args); };
+  return [args, max_iterations, max_distance]() {
+    args->max_iterations_given = max_iterations->count() > 0;
+    args->max_distance_given = max_distance->count() > 0;
+    return run_align(*args);
+  };
 }
 
 }  // namespace lmalign::cli

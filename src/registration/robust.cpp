@@ -306,6 +306,28 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k)
   return o;
 }
 
+RobustRegistrationOptions with_limits(RobustRegistrationOptions options, int max_iterations,
+                                      double max_distance_m) {
+  if (max_iterations < 1) {
+    throw InvalidArgument("with_limits: max_iterations = " + std::to_string(max_iterations) +
+                          " (expected >= 1)");
+  }
+  if (!(max_distance_m > 0.0)) {
+    throw InvalidArgument("with_limits: max_distance_m = " + std::to_string(max_distance_m) +
+                          " (expected > 0 metres, or inf)");
+  }
+  options.max_iterations = max_iterations;
+  options.max_iterations_per_level = std::min(options.max_iterations_per_level, max_iterations);
+  if (std::isfinite(max_distance_m)) {
+    std::vector<double> capped{max_distance_m};
+    for (double d : options.max_distance_schedule_m) {
+      if (d < max_distance_m) capped.push_back(d);
+    }
+    options.max_distance_schedule_m = capped;
+  }
+  return options;
+}
+
 namespace {
 
 /// Source points within `distance_m` of a target point at T (the global search's score).

@@ -101,6 +101,31 @@ TEST_F(CliAlign, PointToDistributionStrategiesRunWithTheMapsCovariances) {
   }
 }
 
+TEST_F(CliAlign, IterationAndDistanceLimitsApplyToOwnStrategiesWhenGiven) {
+  // Without the options, the preset runs to convergence (more than 2 iterations from 8 deg off);
+  // with --max-iterations 2 it stops at 2. --max-distance caps the schedule: a cap below the
+  // displacement's shift leaves no correspondence at the first level.
+  const std::string base =
+      "align " + source_ + " " + target_ + " --strategy shrink --displace 0.1,-0.05,0,0,0,8";
+  const test::CliRun preset = run(base + " --json " + path("a.json"));
+  ASSERT_EQ(preset.exit_code, 0) << preset.err;
+  EXPECT_NE(preset.out.find("preset distance schedule"), std::string::npos) << preset.out;
+  const auto a = nlohmann::json::parse(test::read_text(path("a.json")));
+  EXPECT_GT(a["results"][0]["iterations"].get<int>(), 2);
+
+  const test::CliRun limited = run(base + " --max-iterations 2 --json " + path("b.json"));
+  ASSERT_EQ(limited.exit_code, 0) << limited.err;
+  EXPECT_NE(limited.out.find("limited by the options above"), std::string::npos) << limited.out;
+  const auto b = nlohmann::json::parse(test::read_text(path("b.json")));
+  EXPECT_EQ(b["results"][0]["iterations"].get<int>(), 2);
+  EXPECT_EQ(b["results"][0]["termination"], "max_iterations");
+
+  const test::CliRun capped = run(base + " --max-distance 0.001 --json " + path("c.json"));
+  ASSERT_EQ(capped.exit_code, 0) << capped.err;
+  const auto c = nlohmann::json::parse(test::read_text(path("c.json")));
+  EXPECT_EQ(c["results"][0]["termination"], "no_correspondences");
+}
+
 TEST_F(CliAlign, DisplaceIsUndoneInTheErrors) {
   write_transform(path("gt.txt"), T_true_);
   const test::CliRun r =

@@ -8,7 +8,9 @@
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
+#include <limits>
 #include <random>
+#include <vector>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
@@ -309,6 +311,30 @@ TEST_F(RobustScene, RefusesInvalidInput) {
   RobustRegistrationOptions ow;
   ow.estimation_weight = WeightKind::kObservations;
   EXPECT_THROW(align_robust(scene_->source, bare, ow), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace lmalign
+
+namespace lmalign {
+namespace {
+
+TEST(RobustWithLimits, CapsTheScheduleAndReplacesTheBudget) {
+  const RobustRegistrationOptions preset = robust_strategy_options(PaperStrategy::kShrink);
+  const RobustRegistrationOptions capped = with_limits(preset, 40, 0.3);
+  EXPECT_EQ(capped.max_iterations, 40);
+  EXPECT_EQ(capped.max_iterations_per_level, 40);  // was 60: capped by the budget
+  EXPECT_EQ(capped.max_distance_schedule_m, (std::vector<double>{0.3, 0.25, 0.1, 0.05}));
+  EXPECT_TRUE(capped.is_valid());
+  // Below the finest level: one level at the cap.
+  EXPECT_EQ(with_limits(preset, 300, 0.01).max_distance_schedule_m, (std::vector<double>{0.01}));
+  // An infinite cap keeps the schedule.
+  EXPECT_EQ(
+      with_limits(preset, 300, std::numeric_limits<double>::infinity()).max_distance_schedule_m,
+      preset.max_distance_schedule_m);
+  EXPECT_THROW(with_limits(preset, 0, 1.0), InvalidArgument);
+  EXPECT_THROW(with_limits(preset, 10, 0.0), InvalidArgument);
+  EXPECT_THROW(with_limits(preset, 10, std::nan("")), InvalidArgument);
 }
 
 }  // namespace

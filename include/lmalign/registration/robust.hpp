@@ -203,6 +203,16 @@ struct RobustRegistrationResult : RegistrationResult {
 /// RegistrationOptions::paper()).
 RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k = 5);
 
+/// A user's limits applied to a preset (what `lmalign align --max-iterations / --max-distance`
+/// do to lmalign's own strategies): the iteration budget becomes `max_iterations` (>= 1; also
+/// capping max_iterations_per_level), and the distance schedule is capped at `max_distance_m`
+/// (> 0, metres; +inf = no cap): levels above it are replaced by one level at max_distance_m,
+/// the finer ones are kept (e.g. inf, 1, 0.5, 0.25, 0.1, 0.05 capped at 0.3 gives 0.3, 0.25,
+/// 0.1, 0.05). The global initialisation, if any, keeps its own schedule. Throws
+/// InvalidArgument on a bad limit.
+RobustRegistrationOptions with_limits(RobustRegistrationOptions options, int max_iterations,
+                                      double max_distance_m);
+
 /// Aligns `source_points` to `target` from T_target_source_init with the robust loop:
 /// per iteration, transform the source, find correspondences (nearest or weighted-kNN at the
 /// current level's maximum distance), keep mutual ones, trim, weight by robust kernel times
