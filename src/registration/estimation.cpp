@@ -123,7 +123,9 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
     if ((V * U.transpose()).determinant() < 0.0) D(2, 2) = -1.0;
     R = V * D * U.transpose();
   } else if (sigma(0) > 0.0) {
-    R = Quat::FromTwoVectors(U.col(0), V.col(0)).toRotationMatrix();
+    // Normalised: near-opposite vectors leave FromTwoVectors' quaternion off unit norm by up to
+    // 1e-4 (then R would not be a rotation; found by fuzz_map_reader).
+    R = Quat::FromTwoVectors(U.col(0), V.col(0)).normalized().toRotationMatrix();
   } else {
     R = Mat3::Identity();
   }

@@ -109,3 +109,31 @@ TEST(EstimateRigidTransform, BlockedSumsAreTheSameForAnyThreadCountAndMatchTheTr
 
 }  // namespace
 }  // namespace lmalign
+
+namespace lmalign {
+namespace {
+
+TEST(EstimateRigidTransform, CollinearNearlyOppositeLinesStillGiveARotation) {
+  // Rank-1 cross-covariance whose singular vectors are nearly opposite (the two lines differ by
+  // 180 degrees minus a few microradians): the smallest rotation between them is built from a
+  // quaternion whose norm rounding can move off 1 (found by fuzz_map_reader at 1e9 m).
+  for (double tiny_rad : {2e-6, 4e-6, 5e-6, 8e-6, 2e-5}) {
+    const Vec3 a = Vec3(1.0, 2.0, 0.5).normalized();
+    const Vec3 b = -(Eigen::AngleAxisd(tiny_rad, Vec3(0.3, -1.0, 2.0).normalized()) * a);
+    Points3 src, tgt;
+    for (int i = 0; i < 6; ++i) {
+      src.push_back(1e9 * Vec3::Ones() + 0.25 * i * a);
+      tgt.push_back(-3.0 * Vec3::Ones() + 0.25 * i * b);
+    }
+    EstimationReport report;
+    const Isometry3 T =
+        estimate_rigid_transform(src, tgt, identity_pairs(src.size()), nullptr, &report);
+    EXPECT_TRUE(report.degenerate);
+    const Mat3 R = T.linear();
+    EXPECT_LT((R.transpose() * R - Mat3::Identity()).cwiseAbs().maxCoeff(), 1e-12) << tiny_rad;
+    EXPECT_NEAR(R.determinant(), 1.0, 1e-12) << tiny_rad;
+  }
+}
+
+}  // namespace
+}  // namespace lmalign
