@@ -8,7 +8,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
-#include "support/data_path.hpp"
+#include "support/real_pair.hpp"
 
 namespace lmalign {
 namespace {
@@ -18,25 +18,8 @@ struct Case {
   double x, y, z, roll, pitch, yaw;
 };
 
-class RealPair : public ::testing::Test {
+class RealPair : public test::RealPairTest {
  protected:
-  static void SetUpTestSuite() {
-    const std::string a = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt");
-    const std::string b = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_b.txt");
-    if (!std::filesystem::exists(a) || !std::filesystem::exists(b)) return;
-    source_ = new Map(read_map(a));
-    target_ = new PreparedTarget(read_map(b));
-  }
-  static void TearDownTestSuite() {
-    delete source_;
-    delete target_;
-    source_ = nullptr;
-    target_ = nullptr;
-  }
-  void SetUp() override {
-    LMALIGN_REQUIRE_FILE(test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt"));
-  }
-
   // Error of the recovered map-to-map transform (T_est * D) against the identity.
   static TransformError run(PaperStrategy s, const Case& c, RegistrationResult* out = nullptr) {
     const Isometry3 D = pose_from_xyz_rpy_deg(c.x, c.y, c.z, c.roll, c.pitch, c.yaw);
@@ -45,12 +28,7 @@ class RealPair : public ::testing::Test {
     if (out != nullptr) *out = r;
     return transform_error(r.T_target_source * D, Isometry3::Identity());
   }
-
-  static Map* source_;
-  static PreparedTarget* target_;
 };
-Map* RealPair::source_ = nullptr;
-PreparedTarget* RealPair::target_ = nullptr;
 
 constexpr Case kTable1{"table1", 0, 1, 0.4, 10, 0, 22.5};
 

@@ -5,14 +5,14 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/robust.hpp"
-#include "support/data_path.hpp"
+#include "support/real_pair.hpp"
 
 namespace lmalign {
 namespace {
 
 TEST(GlobalRealPair, YawSearchFindsTheTruthFromAFarStart) {
-  const std::string a = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt");
-  const std::string b = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_b.txt");
+  const std::string a = test::real_pair_source_file();
+  const std::string b = test::real_pair_target_file();
   LMALIGN_REQUIRE_FILE(a);
   LMALIGN_REQUIRE_FILE(b);
   const Points3 source = read_map(a).positions();

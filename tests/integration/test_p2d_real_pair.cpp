@@ -9,30 +9,13 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/robust.hpp"
-#include "support/data_path.hpp"
+#include "support/real_pair.hpp"
 
 namespace lmalign {
 namespace {
 
-class P2DRealPair : public ::testing::Test {
+class P2DRealPair : public test::RealPairTest {
  protected:
-  static void SetUpTestSuite() {
-    const std::string a = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt");
-    const std::string b = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_b.txt");
-    if (!std::filesystem::exists(a) || !std::filesystem::exists(b)) return;
-    source_ = new Map(read_map(a));
-    target_ = new PreparedTarget(read_map(b));
-  }
-  static void TearDownTestSuite() {
-    delete source_;
-    delete target_;
-    source_ = nullptr;
-    target_ = nullptr;
-  }
-  void SetUp() override {
-    LMALIGN_REQUIRE_FILE(test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt"));
-    LMALIGN_REQUIRE_FILE(test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_b.txt"));
-  }
   /// Displaces the source by D (points and covariances), aligns, returns the map-to-map error.
   static TransformError run(PaperStrategy s, const Isometry3& D,
                             RobustRegistrationResult* out = nullptr) {
@@ -44,11 +27,7 @@ class P2DRealPair : public ::testing::Test {
     if (out) *out = r;
     return transform_error(r.T_target_source * D, Isometry3::Identity());
   }
-  static Map* source_;
-  static PreparedTarget* target_;
 };
-Map* P2DRealPair::source_ = nullptr;
-PreparedTarget* P2DRealPair::target_ = nullptr;
 
 TEST_F(P2DRealPair, RobustP2DReachesTheTruthFromTable1sDisplacement) {
   // Measured: 0.59 deg, 1.1 cm (robust_obs: 0.75 deg, 1.2 cm).

@@ -6,40 +6,19 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/robust.hpp"
-#include "support/data_path.hpp"
+#include "support/real_pair.hpp"
 
 namespace lmalign {
 namespace {
 
-class RobustRealPair : public ::testing::Test {
+class RobustRealPair : public test::RealPairTest {
  protected:
-  static void SetUpTestSuite() {
-    const std::string a = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt");
-    const std::string b = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_b.txt");
-    if (!std::filesystem::exists(a) || !std::filesystem::exists(b)) return;
-    source_ = new Map(read_map(a));
-    target_ = new PreparedTarget(read_map(b));
-  }
-  static void TearDownTestSuite() {
-    delete source_;
-    delete target_;
-    source_ = nullptr;
-    target_ = nullptr;
-  }
-  void SetUp() override {
-    LMALIGN_REQUIRE_FILE(test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt"));
-    LMALIGN_REQUIRE_FILE(test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_b.txt"));
-  }
   static TransformError run(PaperStrategy s, const Isometry3& D) {
     const RobustRegistrationResult r = align_robust(transform_points(D, source_->positions()),
                                                     *target_, robust_strategy_options(s));
     return transform_error(r.T_target_source * D, Isometry3::Identity());
   }
-  static Map* source_;
-  static PreparedTarget* target_;
 };
-Map* RobustRealPair::source_ = nullptr;
-PreparedTarget* RobustRealPair::target_ = nullptr;
 
 TEST_F(RobustRealPair, RecommendedStrategyReachesTheTruthWhereThePaperIsBiased) {
   // Table 1's displacement: the paper's base ends 4.6 deg / 4.7 cm from the truth.
