@@ -84,8 +84,8 @@ fuzz: deps
 	FUZZ_BUILD_DIR=$(FUZZ_BUILD_DIR) fuzz/run_fuzzers.sh $(FUZZ_SECONDS)
 
 # `make bench`: lmalign against PCL and Open3D on the real pair, in one script run (each
-# configuration in its own process for clean peak memory): a table on stdout with the ratios,
-# and bench/results/latest.json. BENCH_ARGS=--scaling adds the simulator from 1k to 1M landmarks
+# configuration in its own process for clean peak memory, interleaved in rounds), then the paper
+# protocol timed: a table on stdout with the ratios, and bench/results/latest.json. BENCH_ARGS=--scaling adds the simulator from 1k to 1M landmarks
 # (bench/results/scaling.json, docs/images/performance_scaling.png). See docs/performance.md.
 BENCH_ARGS ?=
 .PHONY: bench
