@@ -270,7 +270,8 @@ struct Kernel {
   // poses[fast_ref[e]] applied to source point s). If q has moved from there by less than the
   // half gap, its gap_k nearest are the entry's gap_k first candidates (triangle inequality:
   // each of them is nearer than d_k + moved, every other point farther than d_(k+1) - moved).
-  // Writes them sorted into idx/d2 and returns how many (0: the test failed).
+  // Writes them into idx/d2 in the entry's order, not sorted (select_match_unsorted() needs no
+  // order), and returns how many (0: the test failed).
   std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2) const {
     const float half_gap = st->half_gap[e];
     if (!(half_gap > 0.0f) || !(st->reach[e] >= 0.0f)) return 0;
@@ -289,7 +290,6 @@ struct Kernel {
       idx[j] = entry[j];
       d2[j] = squared_distance(q, target[entry[j]]);
     }
-    sort_candidates(idx, d2, got);
     return got;
   }
 
@@ -460,6 +460,42 @@ inline Correspondence select_match(PointIndex s, const PointIndex* idx, const do
   return c;
 }
 
+// select_match() for candidates in any order (the fast path's): the same choice, with "nearer"
+// spelled out as the total order (d2, index) instead of coming from the order of the list.
+inline Correspondence select_match_unsorted(PointIndex s, const PointIndex* idx, const double* d2,
+                                            std::size_t found, bool weighted, const double* weights,
+                                            double max_sq) {
+  Correspondence c{s, kNoMatch, 0.0};
+  std::size_t best = found;
+  auto nearer = [&](std::size_t a, std::size_t b) {
+    return d2[a] < d2[b] || (d2[a] == d2[b] && idx[a] < idx[b]);
+  };
+  if (!weighted) {
+    for (std::size_t j = 0; j < found; ++j) {
+      if (best == found || nearer(j, best)) best = j;
+    }
+    if (best < found && d2[best] <= max_sq) {
+      c.target_index = idx[best];
+      c.distance_sq_m2 = d2[best];
+    }
+    return c;
+  }
+  // Eq. 6 as in select_match(): the largest weight within range wins, the nearer on equal
+  // weights; weight 0 never matches.
+  double best_w = 0.0;
+  for (std::size_t j = 0; j < found; ++j) {
+    const double w = d2[j] <= max_sq ? weights[idx[j]] : 0.0;
+    const bool better = w > best_w || (w == best_w && best < found && nearer(j, best));
+    best_w = better ? w : best_w;
+    best = better ? j : best;
+  }
+  if (best < found) {
+    c.target_index = idx[best];
+    c.distance_sq_m2 = d2[best];
+  }
+  return c;
+}
+
 // Removes the kNoMatch slots, keeping source order.
 void compact(Correspondences& out) {
   std::size_t w = 0;
@@ -575,6 +611,9 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
         ++reused;
         ++fast;
         lender = j;
+        moved[s] = q;
+        out[s] = select_match_unsorted(s, idx, d2, found, weighted, w, max_sq);
+        continue;
       } else if (reuse) {
         bool did_search = false;
         found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender);
@@ -636,8 +675,9 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
       double value = std::numeric_limits<double>::infinity();
       const std::size_t e = st.inv[s];
       // The fast path serves any want <= k: the nearest is among an unchanged k nearest.
-      if (q.allFinite() && kernel.fast(e, s, q, idx, d2) >= 1) {
-        value = d2[0];
+      const std::size_t fast_found = q.allFinite() ? kernel.fast(e, s, q, idx, d2) : 0;
+      if (fast_found >= 1) {
+        value = *std::min_element(d2, d2 + fast_found);
         ++reused;
         ++fast;
         lender = static_cast<std::ptrdiff_t>(e);

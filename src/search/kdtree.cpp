@@ -182,15 +182,23 @@ struct KdTree::Impl {
         const double to_left = std::max(qd - static_cast<double>(nd.left_max), 0.0);
         const double to_right = std::min(qd - static_cast<double>(nd.right_min), 0.0);
         const bool left_near = -to_right > to_left;
-        Deferred& far = stack[top++];
-        far.node = left_near ? 2 * node + 2 : 2 * node + 1;
-        far.level = level + 1;
-        far.off[0] = off[0];
-        far.off[1] = off[1];
-        far.off[2] = off[2];
         const double off_far = left_near ? to_right : to_left;
-        far.off[axis] = off_far != 0.0 ? off_far : far.off[axis];
-        far.cell_d2 = norm2(far.off);
+        {
+          // The far half is deferred only if it can still hold a candidate: the bound never
+          // grows, so a half beyond it now stays beyond it (with tight seeds, most are).
+          double far_off[3] = {off[0], off[1], off[2]};
+          far_off[axis] = off_far != 0.0 ? off_far : far_off[axis];
+          const double far_d2 = norm2(far_off);
+          if (far_d2 <= best.bound()) {
+            Deferred& far = stack[top++];
+            far.node = left_near ? 2 * node + 2 : 2 * node + 1;
+            far.level = level + 1;
+            far.off[0] = far_off[0];
+            far.off[1] = far_off[1];
+            far.off[2] = far_off[2];
+            far.cell_d2 = far_d2;
+          }
+        }
         const double off_near = left_near ? to_left : to_right;
         off[axis] = off_near != 0.0 ? off_near : off[axis];
         cell_d2 = norm2(off);
