@@ -243,26 +243,32 @@ struct Kernel {
   // Re-evaluates the entry of source point e at q (sorted into idx/d2) and tells whether it
   // provably holds the `want` first neighbours of q: the reuse test (docs/performance.md).
   // *outside_m receives a lower bound on the distance from q of every target point that is not
-  // a candidate (+inf when every target point is one).
+  // a candidate (+inf when every target point is one). With a positive `give_up_below` (used
+  // for borrowed entries, whose values are not needed when they fail), an entry whose bound is
+  // below it is not re-evaluated: false, idx/d2 and *outside_m untouched.
   bool entry_holds(std::size_t e, const Vec3& q, std::size_t want, PointIndex* idx, double* d2,
-                   double* outside_m) const {
+                   double* outside_m, double give_up_below = 0.0) const {
     const std::size_t have = std::min(width, target_size);  // held by every entry
+    const float reach = st->reach[e];
+    const std::size_t got = std::min(want, have);
+    double outside = std::numeric_limits<double>::infinity();
+    if (!std::isinf(reach) && got > 0) {
+      const Vec3 q_ref = reference(e);
+      const double moved = std::sqrt(squared_distance(q, q_ref));
+      outside =
+          static_cast<double>(reach) * (1.0 - kSlack) - moved * (1.0 + kSlack) - abs_tol(q, q_ref);
+      if (give_up_below > 0.0 && !(outside > give_up_below)) return false;
+    }
     const PointIndex* entry = st->cand.data() + e * width;
     for (std::size_t j = 0; j < have; ++j) {
       idx[j] = entry[j];
       d2[j] = squared_distance(q, target[entry[j]]);
     }
     sort_candidates(idx, d2, have);
-    const float reach = st->reach[e];
-    *outside_m = std::numeric_limits<double>::infinity();
+    *outside_m = outside;
     if (std::isinf(reach)) return true;  // every target point is a candidate
-    const std::size_t got = std::min(want, have);
     if (got == 0) return false;
-    const Vec3 q_ref = reference(e);
-    const double moved = std::sqrt(squared_distance(q, q_ref));
     const double kth = std::sqrt(d2[got - 1]);
-    *outside_m =
-        static_cast<double>(reach) * (1.0 - kSlack) - moved * (1.0 + kSlack) - abs_tol(q, q_ref);
     return kth * (1.0 + kSlack) < *outside_m;
   }
 
@@ -337,7 +343,11 @@ struct Kernel {
     }
     if (*lender >= 0) {
       const auto l = static_cast<std::size_t>(*lender);
-      if (entry_holds(l, q, want, idx + width, d2 + width, &outside_m)) {  // adopt the lender's
+      // A lender whose bound is under 0.8 times the k-th distance of the point's own (failed)
+      // candidates almost never holds: skip its re-evaluation (measured on the real pair: 1.5%
+      // fewer instructions, 1.3% more searches; only the speed depends on this).
+      const double give_up_below = own && got > 0 ? 0.8 * std::sqrt(d2[got - 1]) : 0.0;
+      if (entry_holds(l, q, want, idx + width, d2 + width, &outside_m, give_up_below)) {
         std::copy(idx + width, idx + width + have, st->cand.data() + e * width);
         rebase_fast(e, d2 + width, have, outside_m);
         std::copy(idx + width, idx + width + got, idx);
