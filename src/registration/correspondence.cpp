@@ -276,7 +276,7 @@ struct Kernel {
   // poses[fast_ref[e]] applied to source point s). If q has moved from there by less than the
   // half gap, its gap_k nearest are the entry's gap_k first candidates (triangle inequality:
   // each of them is nearer than d_k + moved, every other point farther than d_(k+1) - moved).
-  // Writes them into idx/d2 in the entry's order, not sorted (select_match_unsorted() needs no
+  // Writes them into idx/d2 in the entry's order, not sorted (select_match<false> needs no
   // order), and returns how many (0: the test failed).
   std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2) const {
     const float half_gap = st->half_gap[e];
@@ -439,50 +439,26 @@ std::size_t CorrespondenceFinder::cache_width() const {
 
 namespace {
 
-// The strategy applied to the k first neighbours (sorted in the tree's total order). Returns the
-// chosen correspondence, or one with target_index == kNoMatch.
+// The strategy applied to the k first neighbours. Returns the chosen correspondence, or one with
+// target_index == kNoMatch. "Nearer" is the tree's total order (distance, then index): with
+// kSorted the candidates come in that order (the searches' output), otherwise in any order (the
+// fast path's); the choice is the same.
+template <bool kSorted>
 inline Correspondence select_match(PointIndex s, const PointIndex* idx, const double* d2,
                                    std::size_t found, bool weighted, const double* weights,
                                    double max_sq) {
-  Correspondence c{s, kNoMatch, 0.0};
-  if (!weighted) {
-    if (found >= 1 && d2[0] <= max_sq) {
-      c.target_index = idx[0];
-      c.distance_sq_m2 = d2[0];
-    }
-    return c;
-  }
-  // Eq. 6: argmax of the target weight over candidates within range; candidates come nearest
-  // first, so a strict '>' keeps the nearer one on equal weights. Weight 0 never matches.
-  // (Branch-free selection: the comparisons' outcomes are unpredictable.)
-  double best_w = 0.0;
-  std::size_t best = found;
-  for (std::size_t j = 0; j < found; ++j) {
-    const double w = d2[j] <= max_sq ? weights[idx[j]] : 0.0;
-    const bool better = w > best_w;
-    best_w = better ? w : best_w;
-    best = better ? j : best;
-  }
-  if (best < found) {
-    c.target_index = idx[best];
-    c.distance_sq_m2 = d2[best];
-  }
-  return c;
-}
-
-// select_match() for candidates in any order (the fast path's): the same choice, with "nearer"
-// spelled out as the total order (d2, index) instead of coming from the order of the list.
-inline Correspondence select_match_unsorted(PointIndex s, const PointIndex* idx, const double* d2,
-                                            std::size_t found, bool weighted, const double* weights,
-                                            double max_sq) {
   Correspondence c{s, kNoMatch, 0.0};
   std::size_t best = found;
   auto nearer = [&](std::size_t a, std::size_t b) {
     return d2[a] < d2[b] || (d2[a] == d2[b] && idx[a] < idx[b]);
   };
   if (!weighted) {
-    for (std::size_t j = 0; j < found; ++j) {
-      if (best == found || nearer(j, best)) best = j;
+    if (kSorted) {
+      best = found >= 1 ? 0 : found;
+    } else {
+      for (std::size_t j = 0; j < found; ++j) {
+        if (best == found || nearer(j, best)) best = j;
+      }
     }
     if (best < found && d2[best] <= max_sq) {
       c.target_index = idx[best];
@@ -490,12 +466,13 @@ inline Correspondence select_match_unsorted(PointIndex s, const PointIndex* idx,
     }
     return c;
   }
-  // Eq. 6 as in select_match(): the largest weight within range wins, the nearer on equal
-  // weights; weight 0 never matches.
+  // Eq. 6: argmax of the target weight over candidates within range, the nearer one on equal
+  // weights (sorted: a strict '>' keeps the earlier one); weight 0 never matches.
+  // (Branch-free selection: the comparisons' outcomes are unpredictable.)
   double best_w = 0.0;
   for (std::size_t j = 0; j < found; ++j) {
     const double w = d2[j] <= max_sq ? weights[idx[j]] : 0.0;
-    const bool better = w > best_w || (w == best_w && best < found && nearer(j, best));
+    const bool better = w > best_w || (!kSorted && w == best_w && best < found && nearer(j, best));
     best_w = better ? w : best_w;
     best = better ? j : best;
   }
@@ -534,8 +511,8 @@ void CorrespondenceFinder::find(const Points3& source_points, Correspondences& o
     for (std::ptrdiff_t s = 0; s < static_cast<std::ptrdiff_t>(n); ++s) {
       const auto si = static_cast<std::size_t>(s);
       const std::size_t found = target_->knn(source_points[si], k, idx.data(), dist.data());
-      out[si] = select_match(static_cast<PointIndex>(si), idx.data(), dist.data(), found, weighted,
-                             w, max_distance_sq_m2_);
+      out[si] = select_match<true>(static_cast<PointIndex>(si), idx.data(), dist.data(), found,
+                                   weighted, w, max_distance_sq_m2_);
     }
   }
   compact(out);
@@ -622,7 +599,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
         ++fast;
         lender = j;
         moved[s] = q;
-        out[s] = select_match_unsorted(s, idx, d2, found, weighted, w, max_sq);
+        out[s] = select_match<false>(s, idx, d2, found, weighted, w, max_sq);
         continue;
       } else if (reuse) {
         bool did_search = false;
@@ -640,7 +617,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       // map (landmarks numbered along the trajectory), so the threads' writes rarely share a
       // cache line, and no staging buffer is needed.
       moved[s] = q;
-      out[s] = select_match(s, idx, d2, found, weighted, w, max_sq);
+      out[s] = select_match<true>(s, idx, d2, found, weighted, w, max_sq);
     }
   }
   // No entry refers to this pose unless a point was searched or re-based (not all took the fast
