@@ -13,14 +13,15 @@ LMALIGN_DATA ?= $(abspath ../shared/data)
 export LMALIGN_DATA
 
 # Debian bookworm packages the project needs (build, tests, plots).
-DEB_PACKAGES := cmake make g++ pkg-config libeigen3-dev libnanoflann-dev libcli11-dev \
+DEB_PACKAGES := cmake make g++ pkg-config libeigen3-dev libcli11-dev \
                 libyaml-cpp-dev nlohmann-json3-dev libfmt-dev libgtest-dev libgmock-dev \
                 python3 python3-matplotlib python3-numpy \
                 libopencv-dev libceres-dev
 
 # Performance (docs/performance.md, docs/fidelity.md): PCL and Open3D, the optional peers of the
-# PCL drop-in tests and of `make bench`; Google Benchmark.
-DEB_PACKAGES += libpcl-dev libopen3d-dev libbenchmark-dev
+# PCL drop-in tests and of `make bench`; Google Benchmark. Open3D's headers include nanoflann's
+# (lmalign itself has its own exact kd-tree and does not use it).
+DEB_PACKAGES += libpcl-dev libopen3d-dev libnanoflann-dev libbenchmark-dev
 
 # Robustness (docs/robustness.md): clang and its libFuzzer/sanitizer runtimes, and clang's
 # OpenMP, for `make fuzz`.
