@@ -129,6 +129,10 @@ struct CorrespondenceWorkspace::State {
   std::vector<PointIndex> order;  // Morton position -> source index
   std::vector<PointIndex> inv;    // source index -> Morton position
   double coord_max = 0.0;         // largest absolute target coordinate (rounding allowance)
+  double source_norm_max = 0.0;   // largest |s| (m) over the finite source points
+  // Bounds every coordinate of P.R * s + P.t for every registered pose P and finite source point
+  // s: max over the poses of ||P.R||_F * source_norm_max + |P.t|_inf (rounding allowance).
+  double pose_bound_max = 0.0;
   // Per source point s: candidates cand[s * width, s * width + min(width, tree size)), the
   // conservative distance `reach` of the last one at the reference pose (< 0: no entry; +inf:
   // every target point is a candidate) and the reference pose `poses[ref[s]]`.
@@ -159,6 +163,7 @@ struct CorrespondenceWorkspace::State {
   void clear_cache() {
     std::fill(reach.begin(), reach.end(), -1.0f);
     poses.clear();
+    pose_bound_max = 0.0;
   }
   void ensure_cache() {
     if (reach.size() == n) return;
@@ -181,11 +186,17 @@ struct CorrespondenceWorkspace::State {
   // The id of pose (R, t) for entries made in this call; *pushed tells whether it was added.
   std::uint32_t register_pose(const Mat3& R, const Vec3& t, bool* pushed) {
     *pushed = false;
+    // |R s + t|_inf <= |R s|_2 + |t|_inf <= ||R||_F |s|_2 + |t|_inf.
+    const double bound = R.norm() * source_norm_max + t.cwiseAbs().maxCoeff();
     if (!poses.empty() && poses.back().R == R && poses.back().t == t) {
       return static_cast<std::uint32_t>(poses.size() - 1);
     }
     if (poses.size() >= kMaxPoses) clear_cache();
     poses.push_back({R, t});
+    // (NaN from 0 * inf, huge source points: no bound, then nothing is reused.)
+    if (!(bound <= pose_bound_max)) {
+      pose_bound_max = std::isnan(bound) ? std::numeric_limits<double>::infinity() : bound;
+    }
     *pushed = true;
     return static_cast<std::uint32_t>(poses.size() - 1);
   }
@@ -228,18 +239,22 @@ struct Kernel {
   CorrespondenceWorkspace::State* st;  // the cache (nullptr: plain search)
   std::size_t width;                   // == st->width
   std::uint32_t pose_id;
+  // Absolute allowance for the rounding of distances computed from coordinates this large
+  // (relative slack alone does not cover the cancellation in q - p far from the origin): one
+  // bound for the whole call, over the target's coordinates and every position a registered
+  // pose can produce (set by with_tolerance()).
+  double tol = 0.0;
+
+  void with_tolerance() {
+    // 1e-9: room for the rounding of the bound itself.
+    tol = 1e-13 * (st->coord_max + 2.0 * st->pose_bound_max * (1.0 + 1e-9));
+  }
 
   // The reference position of entry e for the wide test: where its candidates were searched.
   Vec3 reference(std::size_t e) const {
     const CorrespondenceWorkspace::State::Pose& P = st->poses[st->ref[e]];
     return P.R * source[st->ref_source[e]] + P.t;
   }
-  // Absolute allowance for the rounding of distances computed from coordinates this large
-  // (relative slack alone does not cover the cancellation in q - p far from the origin).
-  double abs_tol(const Vec3& a, const Vec3& b) const {
-    return 1e-13 * (st->coord_max + a.cwiseAbs().maxCoeff() + b.cwiseAbs().maxCoeff());
-  }
-
   // Re-evaluates the entry of source point e at q (sorted into idx/d2) and tells whether it
   // provably holds the `want` first neighbours of q: the reuse test (docs/performance.md).
   // *outside_m receives a lower bound on the distance from q of every target point that is not
@@ -255,8 +270,7 @@ struct Kernel {
     if (!std::isinf(reach) && got > 0) {
       const Vec3 q_ref = reference(e);
       const double moved = std::sqrt(squared_distance(q, q_ref));
-      outside =
-          static_cast<double>(reach) * (1.0 - kSlack) - moved * (1.0 + kSlack) - abs_tol(q, q_ref);
+      outside = static_cast<double>(reach) * (1.0 - kSlack) - moved * (1.0 + kSlack) - tol;
       if (give_up_below > 0.0 && !(outside > give_up_below)) return false;
     }
     const PointIndex* entry = st->cand.data() + e * width;
@@ -285,8 +299,7 @@ struct Kernel {
       const CorrespondenceWorkspace::State::Pose& P = st->poses[st->fast_ref[e]];
       const Vec3 q_ref = P.R * source[s] + P.t;
       const double moved = std::sqrt(squared_distance(q, q_ref));
-      if (!(moved * (1.0 + kSlack) + abs_tol(q, q_ref) <
-            static_cast<double>(half_gap) * (1.0 - kSlack))) {
+      if (!(moved * (1.0 + kSlack) + tol < static_cast<double>(half_gap) * (1.0 - kSlack))) {
         return 0;
       }
     }
@@ -538,6 +551,11 @@ void CorrespondenceFinder::bind(const Points3& source_points,
     for (const Vec3& p : target_->points()) {
       st.coord_max = std::max(st.coord_max, p.cwiseAbs().maxCoeff());
     }
+    st.source_norm_max = 0.0;
+    for (const Vec3& p : source_points) {
+      if (p.allFinite()) st.source_norm_max = std::max(st.source_norm_max, p.norm());
+    }
+    st.pose_bound_max = 0.0;
     st.cand.clear();
     st.reach.clear();
     st.ref.clear();
@@ -568,6 +586,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
     st.ensure_cache();
     kernel.pose_id =
         st.register_pose(T_target_source.linear(), T_target_source.translation(), &pushed);
+    kernel.with_tolerance();
   }
   st.ensure_scratch(std::max(2 * st.width, k));
   const std::size_t sw = st.scratch_stride;
@@ -644,6 +663,7 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
       target_, target_->points().data(), target_->size(), source_points.data(), &st, st.width, 0};
   kernel.pose_id =
       st.register_pose(T_target_source.linear(), T_target_source.translation(), &pushed);
+  kernel.with_tolerance();
   const std::size_t sw = st.scratch_stride;
   const Mat3 R = T_target_source.linear();
   const Vec3 t = T_target_source.translation();

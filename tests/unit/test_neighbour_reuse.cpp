@@ -214,6 +214,41 @@ TEST(NeighbourReuse, IdenticalToPlainSearchOnRandomWalks) {
   EXPECT_GT(fast_total, 5000u);  // and so did its fast path
 }
 
+TEST(NeighbourReuse, IdenticalFarFromTheOrigin) {
+  // Geo-referenced maps (UTM-like coordinates, 1e5-1e6 m): q - p cancels most digits, so the
+  // reuse tests rely on their absolute rounding allowance (one bound per call, from the target's
+  // coordinates and every registered pose).
+  const Vec3 offset(512345.25, 5412345.5, 231.0);
+  Points3 target = test::room_points(1500, 61);
+  Points3 source = test::room_points(1200, 62);
+  for (Vec3& p : target) p += offset;
+  for (Vec3& p : source) p += offset;
+  const KdTree tree(target);
+  std::mt19937 rng(63);
+  std::uniform_int_distribution<int> w(0, 4);
+  std::vector<double> weights(target.size());
+  for (double& x : weights) x = w(rng);
+  // Walks of small steps about the offset: a rotation about the origin would move the points
+  // by kilometres, so each pose turns about the map's own centre.
+  std::size_t reused = 0;
+  const std::size_t fast_before = fast_total;
+  std::uint32_t seed = 300;
+  for (int k : {1, 5}) {
+    CorrespondenceOptions o;
+    o.kind = k == 1 ? CorrespondenceKind::kNearest : CorrespondenceKind::kWeightedKnn;
+    o.k = k;
+    std::vector<Isometry3> walk = random_walk(seed++, 25, 0.004, 0.2);
+    for (Isometry3& T : walk) {
+      Isometry3 to_centre = Isometry3::Identity();
+      to_centre.translation() = -offset;
+      T = to_centre.inverse() * T * to_centre;
+    }
+    check_walk(source, tree, weights, o, walk, &reused);
+  }
+  EXPECT_GT(reused, 5000u);                    // the cache served despite the large coordinates
+  EXPECT_GT(fast_total - fast_before, 1000u);  // and so did its fast path
+}
+
 TEST(NeighbourReuse, IdenticalWithExactTiesEverywhere) {
   // Lattice target, lattice source: every distance is tied with others, at every rank.
   const Points3 target = lattice(12, 10, 4);
