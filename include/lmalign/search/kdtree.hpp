@@ -68,7 +68,7 @@ class KdTree {
   /// The nearest point; false if the set is empty (or the query is not finite).
   bool nearest(const Vec3& query, PointIndex* index, double* distance_sq_m2) const;
 
-  /// Heap bytes held by the tree (points, permutation, nodes): about 34 bytes per point.
+  /// Heap bytes held by the tree (points, permutation, nodes): about 29 bytes per point.
   std::size_t memory_bytes() const;
 
  private:
