@@ -19,6 +19,7 @@ import csv
 import platform
 import resource
 import shutil
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -114,13 +115,12 @@ def merge_rounds(recs):
     """One record per configuration from its per-round records: the median and minimum over every
     timed run of every round, the largest peak memory, and the per-round medians."""
     rec = dict(recs[0])
-    times = sorted(t for r in recs for t in r["times_s"])
-    mid = len(times) // 2
-    med = times[mid] if len(times) % 2 else 0.5 * (times[mid - 1] + times[mid])
-    rec["times_s"] = [t for r in recs for t in r["times_s"]]
+    times = [t for r in recs for t in r["times_s"]]
+    med = statistics.median(times)
+    rec["times_s"] = times
     rec["round_total_s"] = [r["total_s"] for r in recs]
     rec["total_s"] = med
-    rec["min_total_s"] = times[0]
+    rec["min_total_s"] = min(times)
     rec["per_iteration_s"] = med / rec["iterations"] if rec["iterations"] else 0.0
     rec["rounds"] = len(recs)
     for key in ("peak_rss_bytes", "added_peak_rss_bytes"):
@@ -129,17 +129,11 @@ def merge_rounds(recs):
     return rec
 
 
-def median(xs):
-    xs = sorted(xs)
-    m = len(xs) // 2
-    return xs[m] if len(xs) % 2 else 0.5 * (xs[m - 1] + xs[m])
-
-
 def paired_ratio(peer_rec, mine_rec):
     """peer time / lmalign time within each round (the two ran seconds apart, at the same machine
     speed): (median over the rounds, the per-round ratios)."""
     per = [p / m for p, m in zip(peer_rec["round_total_s"], mine_rec["round_total_s"])]
-    return median(per), per
+    return statistics.median(per), per
 
 
 def real_pair(args):

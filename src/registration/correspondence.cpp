@@ -610,6 +610,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       const PointIndex s = order[e];
       const Vec3 q = R * source_points[s] + t;
       std::size_t found = 0;
+      bool sorted = true;  // the fast path leaves its candidates in the entry's order
       if (!q.allFinite()) {
         if (reuse) st.reach[e] = -1.0f;
         if (lender == j) lender = -1;
@@ -617,9 +618,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
         ++reused;
         ++fast;
         lender = j;
-        moved[s] = q;
-        out[s] = select_match<false>(s, idx, d2, found, weighted, w, max_sq);
-        continue;
+        sorted = false;
       } else if (reuse) {
         bool did_search = false;
         found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender);
@@ -636,7 +635,8 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       // map (landmarks numbered along the trajectory), so the threads' writes rarely share a
       // cache line, and no staging buffer is needed.
       moved[s] = q;
-      out[s] = select_match<true>(s, idx, d2, found, weighted, w, max_sq);
+      out[s] = sorted ? select_match<true>(s, idx, d2, found, weighted, w, max_sq)
+                      : select_match<false>(s, idx, d2, found, weighted, w, max_sq);
     }
   }
   // No entry refers to this pose unless a point was searched or re-based (not all took the fast
