@@ -8,6 +8,10 @@
 
 #include "lmalign/core/error.hpp"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace lmalign {
 
 namespace {
@@ -58,16 +62,25 @@ class Best {
   // index, hence the same key) is not added twice.
   void offer(double d, PointIndex i) {
     if (n_ == cap_ && (d > bound_ || (d == bound_ && i >= idx_[n_ - 1]))) return;
-    // Insertion from the back: shift the held entries that come after (d, i) one place down
-    // (the last one falls off when full). An entry already held (same index, hence the same key:
-    // a seed) stops the insertion.
-    std::size_t pos = n_ < cap_ ? n_ : cap_ - 1;
-    while (pos > 0 && (d2_[pos - 1] > d || (d2_[pos - 1] == d && idx_[pos - 1] > i))) --pos;
-    if (pos > 0 && d2_[pos - 1] == d && idx_[pos - 1] == i) return;  // held already (a seed)
+    // The place of (d, i): the number of held entries before it, counted without branches (an
+    // insertion loop mispredicted its exit about once per offer). An entry already held (same
+    // index, hence the same key: a seed) is not added twice.
+    std::size_t pos = 0;
+    for (std::size_t j = 0; j < n_; ++j) {
+      pos += static_cast<std::size_t>((d2_[j] < d) | ((d2_[j] == d) & (idx_[j] < i)));
+    }
+    if (pos < n_ && idx_[pos] == i) return;  // held already (a seed)
+    // Shift the entries after `pos` one place down (the last one falls off when full), with
+    // selects over a fixed range.
     const std::size_t last = n_ < cap_ ? n_ : cap_ - 1;
-    for (std::size_t j = last; j > pos; --j) {
-      d2_[j] = d2_[j - 1];
-      idx_[j] = idx_[j - 1];
+    if (n_ < cap_) {  // the new slot (read by the selects below)
+      d2_[n_] = d;
+      idx_[n_] = i;
+    }
+    for (std::size_t j = last; j > 0; --j) {
+      const bool move = j > pos;
+      d2_[j] = move ? d2_[j - 1] : d2_[j];
+      idx_[j] = move ? idx_[j - 1] : idx_[j];
     }
     d2_[pos] = d;
     idx_[pos] = i;
@@ -129,15 +142,103 @@ struct KdTree::Impl {
     build(2 * node + 2, level + 1, mid, hi);
   }
 
-  // Offers every point of leaf j to `best`.
-  void scan_leaf(std::uint32_t leaf, const Vec3& q, Best& best) const {
+  // The float prefilter of the leaf scans: float copies of the coordinates, relative to the
+  // centre of the bounding box, in leaf-slot order (12 bytes per point). A point whose float
+  // distance exceeds a threshold provably lies beyond the exact bound (see threshold()), so the
+  // exact double distance is computed only for the few that pass: the offers to `best`, and so
+  // the result, are exactly those of the plain scan.
+  std::vector<float> fx, fy, fz;  // slot -> coordinate - centre (padded by 4 slots of +inf)
+  Vec3 centre = Vec3::Zero();
+  double rel_max = 0.0;  // largest |p - centre| over the points and axes
+  // Beyond this (relative coordinates), float copies could overflow: exact scans only.
+  static constexpr double kFilterMax = 1e30;
+
+  // What a query needs for the prefilter.
+  struct Query {
+    Vec3 q;
+    float qf[3];
+    bool filter;   // false: exact scans only (query or points too far from the centre)
+    double slack;  // absolute allowance for the float rounding: 2^-21 (rel_max + |q - centre|)
+  };
+  Query make_query(const Vec3& q) const {
+    Query Q;
+    Q.q = q;
+    const Vec3 rel = q - centre;
+    const double q_max = rel.cwiseAbs().maxCoeff();
+    Q.filter = rel_max <= kFilterMax && q_max <= kFilterMax;
+    for (int d = 0; d < 3; ++d) Q.qf[d] = Q.filter ? static_cast<float>(rel[d]) : 0.0f;
+    Q.slack = (rel_max + q_max) * 0x1p-21;
+    return Q;
+  }
+  // A float threshold that the float squared distance of every point within `bound` (exact,
+  // squared, m^2) stays below. Each float coordinate is within 2^-24 relative of its exact value,
+  // so each float difference is within 2^-23 (rel_max + |q - c|) of the exact one, the Euclidean
+  // norm within sqrt(3) times that, and the three products and two sums add at most 5 roundings
+  // of 2^-24 relative: `slack` (8 times 2^-24 (rel_max + |q - c|)) and the relative factors
+  // (1 + 2^-20 on the distance, 1 + 2^-19 on its square) cover all of it with room. Underflow
+  // only lowers the float distance (safe). The test that the prefilter never drops a point:
+  // KdTreeTotalOrder.FloatPrefilterKeepsEveryPointWithinTheBound (it fails without either).
+  static float threshold(double bound, double slack) {
+    if (!(bound < std::numeric_limits<double>::infinity())) {
+      return std::numeric_limits<float>::infinity();
+    }
+    const double r = std::sqrt(bound) * (1.0 + 0x1p-20) + slack;
+    // Round-to-nearest loses at most 2^-24 relative: the factor 1 + 2^-19 keeps it above.
+    const double t = r * r * (1.0 + 0x1p-19);
+    return t < static_cast<double>(std::numeric_limits<float>::max())
+               ? static_cast<float>(t)
+               : std::numeric_limits<float>::infinity();
+  }
+
+  // Offers every point of leaf j within the bound to `best`, in slot order.
+  void scan_leaf(std::uint32_t leaf, const Query& Q, Best& best) const {
+    const Vec3& q = Q.q;
     double bound = best.bound();
-    for (std::uint32_t s = leaf_begin[leaf]; s < leaf_begin[leaf + 1]; ++s) {
-      const PointIndex i = perm[s];
-      const double d = squared_distance(q, points[i]);
-      if (d <= bound) {
-        best.offer(d, i);
-        bound = best.bound();
+    const std::uint32_t begin = leaf_begin[leaf], end = leaf_begin[leaf + 1];
+    if (!Q.filter || !(bound < std::numeric_limits<double>::infinity())) {
+      for (std::uint32_t s = begin; s < end; ++s) {
+        const PointIndex i = perm[s];
+        const double d = squared_distance(q, points[i]);
+        if (d <= bound) {
+          best.offer(d, i);
+          bound = best.bound();
+        }
+      }
+      return;
+    }
+    const float thr = threshold(bound, Q.slack);
+    for (std::uint32_t s0 = begin; s0 < end; s0 += 32) {
+      const std::uint32_t count = std::min<std::uint32_t>(32, end - s0);
+      std::uint32_t mask = 0;
+#if defined(__SSE2__)
+      const __m128 qx = _mm_set1_ps(Q.qf[0]), qy = _mm_set1_ps(Q.qf[1]), qz = _mm_set1_ps(Q.qf[2]);
+      const __m128 t = _mm_set1_ps(thr);
+      for (std::uint32_t j = 0; j < count; j += 4) {
+        // (The arrays are padded: reading up to 3 slots past the last point is safe, and those
+        // bits are masked off below.)
+        const __m128 dx = _mm_sub_ps(_mm_loadu_ps(fx.data() + s0 + j), qx);
+        const __m128 dy = _mm_sub_ps(_mm_loadu_ps(fy.data() + s0 + j), qy);
+        const __m128 dz = _mm_sub_ps(_mm_loadu_ps(fz.data() + s0 + j), qz);
+        const __m128 d =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)), _mm_mul_ps(dz, dz));
+        mask |= static_cast<std::uint32_t>(_mm_movemask_ps(_mm_cmple_ps(d, t))) << j;
+      }
+#else
+      for (std::uint32_t j = 0; j < count; ++j) {
+        const float dx = fx[s0 + j] - Q.qf[0], dy = fy[s0 + j] - Q.qf[1], dz = fz[s0 + j] - Q.qf[2];
+        mask |= static_cast<std::uint32_t>(dx * dx + dy * dy + dz * dz <= thr) << j;
+      }
+#endif
+      if (count < 32) mask &= (std::uint32_t{1} << count) - 1;
+      while (mask != 0) {
+        const std::uint32_t s = s0 + static_cast<std::uint32_t>(__builtin_ctz(mask));
+        mask &= mask - 1;
+        const PointIndex i = perm[s];
+        const double d = squared_distance(q, points[i]);
+        if (d <= bound) {
+          best.offer(d, i);
+          bound = best.bound();
+        }
       }
     }
   }
@@ -158,7 +259,8 @@ struct KdTree::Impl {
     return off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
   }
 
-  void search(const Vec3& q, const double* off0, Best& best) const {
+  void search(const Query& Q, const double* off0, Best& best) const {
+    const Vec3& q = Q.q;
     Deferred stack[kMaxDepth + 1];
     int top = 0;
     std::uint32_t node = 0;
@@ -170,7 +272,7 @@ struct KdTree::Impl {
       // Descend towards the query, deferring the far halves.
       while (cell_d2 <= best.bound()) {
         if (level == depth) {
-          scan_leaf(node - first_leaf, q, best);
+          scan_leaf(node - first_leaf, Q, best);
           break;
         }
         const Node& nd = nodes[node];
@@ -222,6 +324,24 @@ struct KdTree::Impl {
     }
   }
 
+  void build_filter() {
+    const std::size_t n = points.size();
+    centre = 0.5 * (box_min + box_max);
+    rel_max = 0.5 * (box_max - box_min).maxCoeff();
+    for (const Vec3& p : points) rel_max = std::max(rel_max, (p - centre).cwiseAbs().maxCoeff());
+    const float pad = std::numeric_limits<float>::infinity();
+    fx.assign(n + 4, pad);
+    fy.assign(n + 4, pad);
+    fz.assign(n + 4, pad);
+    if (!(rel_max <= kFilterMax)) return;
+    for (std::size_t s = 0; s < n; ++s) {
+      const Vec3 rel = points[perm[s]] - centre;
+      fx[s] = static_cast<float>(rel[0]);
+      fy[s] = static_cast<float>(rel[1]);
+      fz[s] = static_cast<float>(rel[2]);
+    }
+  }
+
   std::size_t query(const Vec3& q, std::size_t k, const PointIndex* seed_idx, const double* seed_d2,
                     std::size_t num_seeds, PointIndex* indices, double* d2) const {
     if (points.empty() || k == 0 || !q.allFinite()) return 0;
@@ -236,7 +356,7 @@ struct KdTree::Impl {
     for (int d = 0; d < 3; ++d) {
       off[d] = q[d] < box_min[d] ? q[d] - box_min[d] : q[d] > box_max[d] ? q[d] - box_max[d] : 0.0;
     }
-    search(q, off, best);
+    search(make_query(q), off, best);
     return best.size();
   }
 };
@@ -270,6 +390,7 @@ KdTree::KdTree(Points3 points, std::size_t leaf_size) : impl_(std::make_unique<I
   impl_->leaf_begin.resize(leaves + 1);
   impl_->build(0, 0, 0, static_cast<std::uint32_t>(n));
   impl_->leaf_begin[leaves] = static_cast<std::uint32_t>(n);
+  impl_->build_filter();
 }
 
 KdTree::~KdTree() = default;
@@ -298,7 +419,8 @@ bool KdTree::nearest(const Vec3& query, PointIndex* index, double* distance_sq_m
 std::size_t KdTree::memory_bytes() const {
   return impl_->points.capacity() * sizeof(Vec3) + impl_->perm.capacity() * sizeof(PointIndex) +
          impl_->nodes.capacity() * sizeof(Node) +
-         impl_->leaf_begin.capacity() * sizeof(std::uint32_t);
+         impl_->leaf_begin.capacity() * sizeof(std::uint32_t) +
+         (impl_->fx.capacity() + impl_->fy.capacity() + impl_->fz.capacity()) * sizeof(float);
 }
 
 }  // namespace lmalign

@@ -74,6 +74,41 @@ TEST(KdTreeTotalOrder, TiesResolveByIndexAtEveryRank) {
   }
 }
 
+// The leaf scans prune with float copies of the coordinates (relative to the centre of the
+// points' box): a point within the bound must never be dropped, ties at the bound included, even
+// when float rounding is as coarse as the lattice; coordinates beyond the float range fall back
+// to exact scans.
+TEST(KdTreeTotalOrder, FloatPrefilterKeepsEveryPointWithinTheBound) {
+  std::mt19937 rng(17);
+  std::uniform_int_distribution<int> pick(0, 359);
+  std::uniform_real_distribution<double> jitter(-0.03, 0.03);
+  std::vector<PointIndex> idx(27);
+  std::vector<double> d2(27);
+  // far: one point so far away that the float copies of the lattice are rounded to ~1 cm
+  // (2e5 m from the centre: float spacing there 1.6 cm); at 1e31 m they cannot be floats at all.
+  for (const double far : {0.0, 2e5, 3e5, 1e31}) {
+    Points3 pts = lattice(9, 8, 5);  // 360 points, 0.05 m apart: ties at every rank
+    for (Vec3& p : pts) p += Vec3(0.0, 0.0, far > 1e30 ? 0.0 : 0.5 * far);
+    if (far > 0.0) pts.emplace_back(far, -far, 0.0);
+    const KdTree tree(pts, 4);
+    for (int trial = 0; trial < 200; ++trial) {
+      Vec3 q = pts[static_cast<std::size_t>(pick(rng))];
+      if (trial % 3 == 1) q += Vec3(0.025, 0.025, 0.0);
+      if (trial % 3 == 2) q += Vec3(jitter(rng), jitter(rng), jitter(rng));
+      if (trial == 199) q = Vec3(-2e31, 0.0, 0.0);  // a query beyond the float range
+      for (std::size_t k : {1u, 6u, 7u, 27u}) {
+        const std::size_t found = tree.knn(q, k, idx.data(), d2.data());
+        const std::vector<PointIndex> expect = brute_knn(pts, q, k);
+        ASSERT_EQ(found, expect.size());
+        for (std::size_t j = 0; j < found; ++j) {
+          ASSERT_EQ(idx[j], expect[j]) << "far " << far << " trial " << trial << " k " << k;
+          ASSERT_EQ(d2[j], squared_distance(q, pts[expect[j]]));
+        }
+      }
+    }
+  }
+}
+
 TEST(KdTreeTotalOrder, FirstKOfAWiderQueryAreTheKQuery) {
   const Points3 pts = test::room_points(4000, 41);
   const KdTree tree(pts);
