@@ -62,25 +62,17 @@ class Best {
   // index, hence the same key) is not added twice.
   void offer(double d, PointIndex i) {
     if (n_ == cap_ && (d > bound_ || (d == bound_ && i >= idx_[n_ - 1]))) return;
-    // The place of (d, i): the number of held entries before it, counted without branches (an
-    // insertion loop mispredicted its exit about once per offer). An entry already held (same
-    // index, hence the same key: a seed) is not added twice.
-    std::size_t pos = 0;
-    for (std::size_t j = 0; j < n_; ++j) {
-      pos += static_cast<std::size_t>((d2_[j] < d) | ((d2_[j] == d) & (idx_[j] < i)));
-    }
-    if (pos < n_ && idx_[pos] == i) return;  // held already (a seed)
-    // Shift the entries after `pos` one place down (the last one falls off when full), with
-    // selects over a fixed range.
+    // Insertion from the back: shift the held entries that come after (d, i) one place down
+    // (the last one falls off when full). An entry already held (same index, hence the same key:
+    // a seed) stops the insertion. (A branch-free count of the place mispredicts less but costs
+    // more instructions, which is what two threads sharing a core pay for: docs/performance.md.)
+    std::size_t pos = n_ < cap_ ? n_ : cap_ - 1;
+    while (pos > 0 && (d2_[pos - 1] > d || (d2_[pos - 1] == d && idx_[pos - 1] > i))) --pos;
+    if (pos > 0 && d2_[pos - 1] == d && idx_[pos - 1] == i) return;  // held already (a seed)
     const std::size_t last = n_ < cap_ ? n_ : cap_ - 1;
-    if (n_ < cap_) {  // the new slot (read by the selects below)
-      d2_[n_] = d;
-      idx_[n_] = i;
-    }
-    for (std::size_t j = last; j > 0; --j) {
-      const bool move = j > pos;
-      d2_[j] = move ? d2_[j - 1] : d2_[j];
-      idx_[j] = move ? idx_[j - 1] : idx_[j];
+    for (std::size_t j = last; j > pos; --j) {
+      d2_[j] = d2_[j - 1];
+      idx_[j] = idx_[j - 1];
     }
     d2_[pos] = d;
     idx_[pos] = i;
