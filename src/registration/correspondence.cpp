@@ -1,6 +1,7 @@
 #include "lmalign/registration/correspondence.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cfloat>
 #include <cmath>
 #include <limits>
@@ -22,12 +23,17 @@ constexpr std::size_t kMaxPoses = 1u << 16;
 // Relative slack of the reuse test: rounding errors of the distances involved are below 1e-15
 // relative; 1e-9 leaves six orders of magnitude of room (docs/performance.md).
 constexpr double kSlack = 1e-9;
+// State::fast_pick's two values that are not a set of slots (k <= 7 uses bits 0-6).
+constexpr std::uint32_t kPickUnknown = 0;
+constexpr std::uint32_t kPickAll = 0x80;
 
 // A float <= r (r >= 0) within 2^-19 relative of it: a conservative copy of the reuse radius.
 // (Scaling down before the round-to-nearest conversion keeps it below r without a data-dependent
-// branch, which the processor would mispredict half the time.)
+// branch, which the processor would mispredict half the time. Below FLT_MIN the conversion's
+// error is absolute, so such radii become 0: no reuse, which is always safe.)
 float round_down_to_float(double r) {
   if (!(r < static_cast<double>(FLT_MAX))) return FLT_MAX;
+  if (!(r >= static_cast<double>(FLT_MIN))) return 0.0f;
   return static_cast<float>(r * (1.0 - 0x1p-20));
 }
 
@@ -148,6 +154,12 @@ struct CorrespondenceWorkspace::State {
   std::vector<float> half_gap;
   std::vector<std::uint16_t> fast_ref;  // the pose of the fast reference position
   std::size_t gap_k = 1;                // the finder's k
+  // With the fast path, Eq. 6 needs only the candidates of the largest weight: bit j set when
+  // entry slot j < gap_k holds a target point of the largest weight among the gap_k (kPickAll:
+  // use them all; kPickUnknown: not found yet). Kept for weighted k <= 7 without a distance
+  // limit, for the finder `pick_serial`.
+  std::vector<std::uint8_t> fast_pick;
+  std::uint64_t pick_serial = 0;
   // Per-thread scratch: `scratch_width` entries for each thread, `scratch_stride` apart. The
   // stride pads every thread's slice to whole cache lines, plus one: threads never write to the
   // same line (false sharing made two threads slower than one).
@@ -155,6 +167,10 @@ struct CorrespondenceWorkspace::State {
   std::vector<double> scratch_d2;
   std::size_t scratch_width = 0;
   std::size_t scratch_stride = 0;
+  // Per-thread bit sets for the seeded searches (KdTree::knn_seeded's seed_marks: one bit per
+  // target point, all zero between searches), `marks_stride` words apart, whole cache lines.
+  std::vector<std::uint64_t> seed_marks;
+  std::size_t marks_stride = 0;
 
   std::size_t searched = 0;
   std::size_t reused = 0;
@@ -171,6 +187,7 @@ struct CorrespondenceWorkspace::State {
     reach.assign(n, -1.0f);
     half_gap.assign(n, -1.0f);
     fast_ref.assign(n, 0);
+    fast_pick.assign(n, 0);
     ref.assign(n, 0);
     ref_source.assign(n, 0);
     poses.clear();
@@ -182,6 +199,16 @@ struct CorrespondenceWorkspace::State {
     scratch_stride = (scratch_width + 7) / 8 * 8 + 8;  // 8 doubles = one 64-byte line
     scratch_idx.assign(threads * scratch_stride, 0);
     scratch_d2.assign(threads * scratch_stride, 0.0);
+  }
+  void ensure_marks() {
+    const std::size_t threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
+    const std::size_t stride = (tree->seed_mark_words() + 7) / 8 * 8 + 8;
+    if (marks_stride == stride && seed_marks.size() >= threads * stride) return;
+    marks_stride = stride;
+    seed_marks.assign(threads * stride, 0);
+  }
+  std::uint64_t* marks_of_this_thread() {
+    return seed_marks.data() + static_cast<std::size_t>(omp_get_thread_num()) * marks_stride;
   }
   // The id of pose (R, t) for entries made in this call; *pushed tells whether it was added.
   std::uint32_t register_pose(const Mat3& R, const Vec3& t, bool* pushed) {
@@ -222,8 +249,9 @@ std::size_t CorrespondenceWorkspace::memory_bytes() const {
          s.cand.capacity() * sizeof(PointIndex) + s.reach.capacity() * sizeof(float) +
          s.ref.capacity() * sizeof(std::uint16_t) + s.ref_source.capacity() * sizeof(PointIndex) +
          s.half_gap.capacity() * sizeof(float) + s.fast_ref.capacity() * sizeof(std::uint16_t) +
-         s.poses.capacity() * sizeof(State::Pose) + s.scratch_idx.capacity() * sizeof(PointIndex) +
-         s.scratch_d2.capacity() * sizeof(double);
+         s.fast_pick.capacity() * sizeof(std::uint8_t) + s.poses.capacity() * sizeof(State::Pose) +
+         s.scratch_idx.capacity() * sizeof(PointIndex) + s.scratch_d2.capacity() * sizeof(double) +
+         s.seed_marks.capacity() * sizeof(std::uint64_t);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -239,6 +267,9 @@ struct Kernel {
   CorrespondenceWorkspace::State* st;  // the cache (nullptr: plain search)
   std::size_t width;                   // == st->width
   std::uint32_t pose_id;
+  // The target weights when the fast path may keep only the largest-weight candidates
+  // (State::fast_pick), else nullptr.
+  const double* pick_weights = nullptr;
   // Absolute allowance for the rounding of distances computed from coordinates this large
   // (relative slack alone does not cover the cancellation in q - p far from the origin): one
   // bound for the whole call, over the target's coordinates and every position a registered
@@ -291,8 +322,11 @@ struct Kernel {
   // half gap, its gap_k nearest are the entry's gap_k first candidates (triangle inequality:
   // each of them is nearer than d_k + moved, every other point farther than d_(k+1) - moved).
   // Writes them into idx/d2 in the entry's order, not sorted (select_match<false> needs no
-  // order), and returns how many (0: the test failed).
-  std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2) const {
+  // order), and returns how many (0: the test failed). With `pick`, only those of the largest
+  // weight among them, where the entry has them marked (State::fast_pick): Eq. 6 chooses among
+  // those, the nearer on equal weights.
+  std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2,
+                   bool pick = false) const {
     const float half_gap = st->half_gap[e];
     if (!(half_gap > 0.0f) || !(st->reach[e] >= 0.0f)) return 0;
     if (!std::isinf(half_gap)) {
@@ -303,8 +337,37 @@ struct Kernel {
         return 0;
       }
     }
-    const std::size_t got = std::min(st->gap_k, target_size);
     const PointIndex* entry = st->cand.data() + e * width;
+    if (pick) {
+      std::uint32_t mask = st->fast_pick[e];
+      if (mask == kPickUnknown) {
+        // The slots of the largest weight among the first gap_k (the k nearest since the fast
+        // reference was set; candidates beyond a target of fewer points are never marked).
+        mask = 0;
+        double best_w = 0.0;
+        for (std::size_t j = 0; j < std::min(st->gap_k, target_size); ++j) {
+          const double w = pick_weights[entry[j]];
+          if (w > best_w) {
+            best_w = w;
+            mask = 0;
+          }
+          if (w == best_w && w > 0.0) mask |= 1u << j;
+        }
+        if (mask == 0) mask = kPickAll;
+        st->fast_pick[e] = static_cast<std::uint8_t>(mask);
+      }
+      if (mask != kPickAll) {
+        std::size_t got = 0;
+        for (; mask != 0; mask &= mask - 1) {
+          const PointIndex i = entry[__builtin_ctz(mask)];
+          idx[got] = i;
+          d2[got] = squared_distance(q, target[i]);
+          ++got;
+        }
+        return got;
+      }
+    }
+    const std::size_t got = std::min(st->gap_k, target_size);
     for (std::size_t j = 0; j < got; ++j) {
       idx[j] = entry[j];
       d2[j] = squared_distance(q, target[entry[j]]);
@@ -327,6 +390,7 @@ struct Kernel {
     }
     st->half_gap[e] = half_gap;
     st->fast_ref[e] = static_cast<std::uint16_t>(pose_id);
+    st->fast_pick[e] = kPickUnknown;  // found by the first fast() that needs it
   }
 
   // The `want` first neighbours of q = T * source[s] in the tree's total order, written sorted
@@ -336,8 +400,8 @@ struct Kernel {
   // a fresh search, seeded with entry e. Sets *searched if the tree was searched, and *lender
   // to e. Whatever serves, entry e's fast reference becomes q.
   std::size_t neighbours(std::size_t e, std::size_t s, const Vec3& q, std::size_t want,
-                         PointIndex* idx, double* d2, bool* searched,
-                         std::ptrdiff_t* lender) const {
+                         PointIndex* idx, double* d2, bool* searched, std::ptrdiff_t* lender,
+                         std::uint64_t* seed_marks) const {
     const std::size_t have = std::min(width, target_size);
     const std::size_t got = std::min(want, have);
     const bool own = st->reach[e] >= 0.0f;
@@ -374,8 +438,8 @@ struct Kernel {
     }
     // Search again, seeded with the old candidates re-evaluated at q (already sorted in idx/d2):
     // a tight bound from the start.
-    const std::size_t found =
-        own ? tree->knn_seeded(q, width, idx, d2, have, idx, d2) : tree->knn(q, width, idx, d2);
+    const std::size_t found = own ? tree->knn_seeded(q, width, idx, d2, have, idx, d2, seed_marks)
+                                  : tree->knn(q, width, idx, d2);
     *searched = true;
     if (found == 0) {
       st->reach[e] = -1.0f;
@@ -421,6 +485,8 @@ CorrespondenceFinder CorrespondenceFinder::borrowing(const KdTree& target,
 }
 
 void CorrespondenceFinder::init() {
+  static std::atomic<std::uint64_t> next_serial{1};
+  serial_ = next_serial.fetch_add(1);
   std::string why;
   if (!options_.is_valid(&why)) throw InvalidArgument("correspondence options: " + why);
   const std::vector<double>& w = weights();
@@ -587,8 +653,18 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
     kernel.pose_id =
         st.register_pose(T_target_source.linear(), T_target_source.translation(), &pushed);
     kernel.with_tolerance();
+    // The fast path keeps only the largest-weight candidates where the choice cannot depend on
+    // a distance limit; the marks are this finder's (another one's weights may differ).
+    if (weighted && k <= 7 && std::isinf(max_sq)) {
+      if (st.pick_serial != serial_) {
+        std::fill(st.fast_pick.begin(), st.fast_pick.end(), std::uint8_t{kPickUnknown});
+        st.pick_serial = serial_;
+      }
+      kernel.pick_weights = w;
+    }
   }
   st.ensure_scratch(std::max(2 * st.width, k));
+  if (reuse) st.ensure_marks();
   const std::size_t sw = st.scratch_stride;
   // Exactly transform_points(): R * p + t with R and t copied out of the isometry.
   const Mat3 R = T_target_source.linear();
@@ -603,6 +679,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     std::ptrdiff_t lender = -1;  // this thread's last served entry (Morton order)
+    std::uint64_t* marks = reuse ? st.marks_of_this_thread() : nullptr;
     // In Morton order: queries that follow each other touch the same parts of the tree.
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
@@ -614,14 +691,15 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       if (!q.allFinite()) {
         if (reuse) st.reach[e] = -1.0f;
         if (lender == j) lender = -1;
-      } else if (reuse && (found = kernel.fast(e, s, q, idx, d2)) > 0) {
+      } else if (reuse &&
+                 (found = kernel.fast(e, s, q, idx, d2, kernel.pick_weights != nullptr)) > 0) {
         ++reused;
         ++fast;
         lender = j;
         sorted = false;
       } else if (reuse) {
         bool did_search = false;
-        found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender);
+        found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender, marks);
         if (did_search) {
           ++searched;
         } else {
@@ -658,6 +736,7 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
   if (begin >= end) return;
   st.ensure_cache();
   st.ensure_scratch(2 * st.width);
+  st.ensure_marks();
   bool pushed = false;
   Kernel kernel{
       target_, target_->points().data(), target_->size(), source_points.data(), &st, st.width, 0};
@@ -674,6 +753,7 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     std::ptrdiff_t lender = -1;
+    std::uint64_t* marks = st.marks_of_this_thread();
 #pragma omp for schedule(static)
     for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(begin);
          i < static_cast<std::ptrdiff_t>(end); ++i) {
@@ -690,7 +770,9 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
         lender = static_cast<std::ptrdiff_t>(e);
       } else if (q.allFinite()) {
         bool did_search = false;
-        if (kernel.neighbours(e, s, q, 1, idx, d2, &did_search, &lender) == 1) value = d2[0];
+        if (kernel.neighbours(e, s, q, 1, idx, d2, &did_search, &lender, marks) == 1) {
+          value = d2[0];
+        }
         if (did_search) {
           ++searched;
         } else {

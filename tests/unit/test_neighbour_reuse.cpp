@@ -86,15 +86,18 @@ TEST(KdTreeTotalOrder, FloatPrefilterKeepsEveryPointWithinTheBound) {
   std::vector<double> d2(27);
   // far: one point so far away that the float copies of the lattice are rounded to ~1 cm
   // (2e5 m from the centre: float spacing there 1.6 cm); at 1e31 m they cannot be floats at all.
-  for (const double far : {0.0, 2e5, 3e5, 1e31}) {
+  // far < 0: the lattice shrunk to 1e-21 m, where float squares are subnormal or zero.
+  for (const double far : {0.0, 2e5, 3e5, 1e31, -1.0}) {
     Points3 pts = lattice(9, 8, 5);  // 360 points, 0.05 m apart: ties at every rank
-    for (Vec3& p : pts) p += Vec3(0.0, 0.0, far > 1e30 ? 0.0 : 0.5 * far);
+    for (Vec3& p : pts)
+      p = far < 0.0 ? Vec3(p * 2e-20) : Vec3(p + Vec3(0.0, 0.0, far > 1e30 ? 0.0 : 0.5 * far));
     if (far > 0.0) pts.emplace_back(far, -far, 0.0);
     const KdTree tree(pts, 4);
     for (int trial = 0; trial < 200; ++trial) {
       Vec3 q = pts[static_cast<std::size_t>(pick(rng))];
-      if (trial % 3 == 1) q += Vec3(0.025, 0.025, 0.0);
-      if (trial % 3 == 2) q += Vec3(jitter(rng), jitter(rng), jitter(rng));
+      const double unit = far < 0.0 ? 2e-20 : 1.0;
+      if (trial % 3 == 1) q += unit * Vec3(0.025, 0.025, 0.0);
+      if (trial % 3 == 2) q += unit * Vec3(jitter(rng), jitter(rng), jitter(rng));
       if (trial == 199) q = Vec3(-2e31, 0.0, 0.0);  // a query beyond the float range
       for (std::size_t k : {1u, 6u, 7u, 27u}) {
         const std::size_t found = tree.knn(q, k, idx.data(), d2.data());
@@ -247,6 +250,41 @@ TEST(NeighbourReuse, IdenticalToPlainSearchOnRandomWalks) {
   }
   EXPECT_GT(reused, 10000u);     // the cache did serve (the test is not vacuous)
   EXPECT_GT(fast_total, 5000u);  // and so did its fast path
+}
+
+TEST(NeighbourReuse, OneWorkspaceForFindersWithOtherWeights) {
+  // The fast path remembers which of a point's k nearest carry the largest weight. A workspace
+  // used by a finder with other weights (same target, k and source) must not use those marks.
+  const Points3 target = test::room_points(2000, 71);
+  const Points3 source = test::room_points(1500, 72);
+  const KdTree tree(target);
+  std::mt19937 rng(73);
+  std::uniform_int_distribution<int> w(1, 4);
+  std::vector<double> weights_a(target.size()), weights_b(target.size());
+  for (std::size_t i = 0; i < target.size(); ++i) {
+    weights_a[i] = w(rng);
+    weights_b[i] = 5.0 - weights_a[i];  // the opposite preference
+  }
+  CorrespondenceOptions o;
+  o.kind = CorrespondenceKind::kWeightedKnn;
+  o.k = 5;
+  const std::vector<Isometry3> walk = random_walk(400, 30, 0.002, 0.1);
+  CorrespondenceWorkspace ws;
+  Points3 moved, moved_plain;
+  Correspondences cached, plain;
+  std::size_t fast = 0;
+  for (std::size_t i = 0; i < walk.size(); ++i) {
+    // A fresh finder each time, alternating the weights (the same addresses may come back).
+    const CorrespondenceFinder finder(tree, i % 2 == 0 ? weights_a : weights_b, o);
+    for (int repeat = 0; repeat < 2; ++repeat) {
+      finder.find(source, walk[i], moved, cached, ws, /*reuse=*/true);
+      fast += ws.last_fast();
+      transform_points(walk[i], source, moved_plain);
+      finder.find(moved_plain, plain);
+      expect_same(cached, plain, "step " + std::to_string(i) + " repeat " + std::to_string(repeat));
+    }
+  }
+  EXPECT_GT(fast, 10000u);  // the fast path served, with the marks of the finder in use
 }
 
 TEST(NeighbourReuse, IdenticalFarFromTheOrigin) {

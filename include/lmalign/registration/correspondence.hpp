@@ -142,6 +142,9 @@ class CorrespondenceFinder {
   const std::vector<double>* borrowed_weights_ = nullptr;
   CorrespondenceOptions options_;
   double max_distance_sq_m2_ = 0.0;
+  // Unique in the process: a workspace's cached choices among tied weights are valid only for
+  // the finder (hence the weights) that made them.
+  std::uint64_t serial_ = 0;
 };
 
 }  // namespace lmalign
