@@ -302,9 +302,13 @@ struct KdTree::Impl {
             far.cell_d2 = far_d2;
           }
         }
+        // The near half's offset is 0 when the query lies within its bound (usually): then the
+        // offsets, and so the cell's squared distance, stay as they are.
         const double off_near = left_near ? to_left : to_right;
-        off[axis] = off_near != 0.0 ? off_near : off[axis];
-        cell_d2 = norm2(off);
+        if (off_near != 0.0) {
+          off[axis] = off_near;
+          cell_d2 = norm2(off);
+        }
         node = left_near ? 2 * node + 1 : 2 * node + 2;
         ++level;
       }
