@@ -38,11 +38,12 @@ inline double squared_distance(const Vec3& a, const Vec3& b) {
 class KdTree {
  public:
   /// Builds the tree: complete and balanced, leaves of at most leaf_size points, median splits on
-  /// the axis of largest spread (deterministic). The default, 16, costs the fewest instructions
-  /// per ICP run on the real pair for k = 1 to 20 (docs/performance.md). Throws InvalidArgument if
+  /// the axis of largest spread (deterministic). The default, 32, costs the fewest instructions
+  /// per ICP run on the real pair for k = 1 to 20 now that leaves are scanned with the float
+  /// prefilter (docs/performance.md; 16 before it). Throws InvalidArgument if
   /// a point is not finite, leaf_size is 0, or there are 2^31 points or more. An empty set is
   /// allowed (every query then returns 0 neighbours).
-  explicit KdTree(Points3 points, std::size_t leaf_size = 16);
+  explicit KdTree(Points3 points, std::size_t leaf_size = 32);
   ~KdTree();
   KdTree(KdTree&&) noexcept;
   KdTree& operator=(KdTree&&) noexcept;
