@@ -191,19 +191,20 @@ struct KdTree::Impl {
 
   // Offers every point of leaf j within the bound to `best`, in slot order.
   void scan_leaf(std::uint32_t leaf, const Query& Q, Best& best) const {
-    const Vec3& q = Q.q;
     double bound = best.bound();
+    // The exact test and offer of the point in slot s.
+    auto offer_slot = [&](std::uint32_t s) {
+      const PointIndex i = perm[s];
+      if (Q.is_seed(i)) return;
+      const double d = squared_distance(Q.q, points[i]);
+      if (d <= bound) {
+        best.offer(d, i);
+        bound = best.bound();
+      }
+    };
     const std::uint32_t begin = leaf_begin[leaf], end = leaf_begin[leaf + 1];
     if (!Q.filter || !(bound < std::numeric_limits<double>::infinity())) {
-      for (std::uint32_t s = begin; s < end; ++s) {
-        const PointIndex i = perm[s];
-        if (Q.is_seed(i)) continue;
-        const double d = squared_distance(q, points[i]);
-        if (d <= bound) {
-          best.offer(d, i);
-          bound = best.bound();
-        }
-      }
+      for (std::uint32_t s = begin; s < end; ++s) offer_slot(s);
       return;
     }
     const float thr = threshold(bound, Q.slack);
@@ -230,16 +231,8 @@ struct KdTree::Impl {
       }
 #endif
       if (count < 32) mask &= (std::uint32_t{1} << count) - 1;
-      while (mask != 0) {
-        const std::uint32_t s = s0 + static_cast<std::uint32_t>(__builtin_ctz(mask));
-        mask &= mask - 1;
-        const PointIndex i = perm[s];
-        if (Q.is_seed(i)) continue;
-        const double d = squared_distance(q, points[i]);
-        if (d <= bound) {
-          best.offer(d, i);
-          bound = best.bound();
-        }
+      for (; mask != 0; mask &= mask - 1) {
+        offer_slot(s0 + static_cast<std::uint32_t>(__builtin_ctz(mask)));
       }
     }
   }
