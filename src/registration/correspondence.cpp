@@ -628,6 +628,7 @@ void CorrespondenceFinder::bind(const Points3& source_points,
     st.ref_source.clear();
     st.half_gap.clear();
     st.fast_ref.clear();
+    st.fast_pick.clear();
     st.poses.clear();
   }
 }
