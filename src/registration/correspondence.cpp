@@ -37,6 +37,10 @@ float round_down_to_float(double r) {
   return static_cast<float>(r * (1.0 - 0x1p-20));
 }
 
+// A per-thread slice of n 8-byte elements padded to whole 64-byte cache lines, plus one: threads
+// never write to the same line (false sharing made two threads slower than one).
+std::size_t padded_stride(std::size_t n) { return (n + 7) / 8 * 8 + 8; }
+
 // Interleaves the low 21 bits of v with two zero bits between each.
 std::uint64_t spread_bits(std::uint64_t v) {
   v &= 0x1fffff;
@@ -160,9 +164,8 @@ struct CorrespondenceWorkspace::State {
   // limit, for the finder `pick_serial`.
   std::vector<std::uint8_t> fast_pick;
   std::uint64_t pick_serial = 0;
-  // Per-thread scratch: `scratch_width` entries for each thread, `scratch_stride` apart. The
-  // stride pads every thread's slice to whole cache lines, plus one: threads never write to the
-  // same line (false sharing made two threads slower than one).
+  // Per-thread scratch: `scratch_width` entries for each thread, `scratch_stride` apart
+  // (padded_stride(): no two threads write to one cache line).
   std::vector<PointIndex> scratch_idx;
   std::vector<double> scratch_d2;
   std::size_t scratch_width = 0;
@@ -196,13 +199,13 @@ struct CorrespondenceWorkspace::State {
     const std::size_t threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
     if (scratch_width >= w && scratch_idx.size() >= threads * scratch_stride) return;
     scratch_width = std::max(scratch_width, w);
-    scratch_stride = (scratch_width + 7) / 8 * 8 + 8;  // 8 doubles = one 64-byte line
+    scratch_stride = padded_stride(scratch_width);
     scratch_idx.assign(threads * scratch_stride, 0);
     scratch_d2.assign(threads * scratch_stride, 0.0);
   }
   void ensure_marks() {
     const std::size_t threads = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
-    const std::size_t stride = (tree->seed_mark_words() + 7) / 8 * 8 + 8;
+    const std::size_t stride = padded_stride(tree->seed_mark_words());
     if (marks_stride == stride && seed_marks.size() >= threads * stride) return;
     marks_stride = stride;
     seed_marks.assign(threads * stride, 0);

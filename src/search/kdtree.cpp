@@ -153,6 +153,10 @@ struct KdTree::Impl {
     double slack;  // absolute allowance for the float rounding: 2^-21 (rel_max + |q - centre|)
     // Bit i set: point i is a seed, held by `best` already (or beyond it): not offered again.
     const std::uint64_t* seed_marks = nullptr;
+    // The float threshold of the last leaf scan and the bound it was made for: the bound often
+    // does not change from one leaf to the next, and the threshold costs a square root.
+    double thr_bound = -1.0;
+    float thr = 0.0f;
     bool is_seed(PointIndex i) const {
       return seed_marks != nullptr && ((seed_marks[i >> 6] >> (i & 63)) & 1u) != 0;
     }
@@ -190,7 +194,7 @@ struct KdTree::Impl {
   }
 
   // Offers every point of leaf j within the bound to `best`, in slot order.
-  void scan_leaf(std::uint32_t leaf, const Query& Q, Best& best) const {
+  void scan_leaf(std::uint32_t leaf, Query& Q, Best& best) const {
     double bound = best.bound();
     // The exact test and offer of the point in slot s.
     auto offer_slot = [&](std::uint32_t s) {
@@ -207,7 +211,11 @@ struct KdTree::Impl {
       for (std::uint32_t s = begin; s < end; ++s) offer_slot(s);
       return;
     }
-    const float thr = threshold(bound, Q.slack);
+    if (bound != Q.thr_bound) {
+      Q.thr = threshold(bound, Q.slack);
+      Q.thr_bound = bound;
+    }
+    const float thr = Q.thr;
     for (std::uint32_t s0 = begin; s0 < end; s0 += 32) {
       const std::uint32_t count = std::min<std::uint32_t>(32, end - s0);
       std::uint32_t mask = 0;
@@ -253,7 +261,7 @@ struct KdTree::Impl {
     return off[0] * off[0] + off[1] * off[1] + off[2] * off[2];
   }
 
-  void search(const Query& Q, const double* off0, Best& best) const {
+  void search(Query& Q, const double* off0, Best& best) const {
     const Vec3& q = Q.q;
     Deferred stack[kMaxDepth + 1];
     int top = 0;
