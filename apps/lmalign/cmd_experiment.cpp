@@ -468,6 +468,8 @@ int run_experiment(ExperimentArgs a) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("\n%zu cases, %zu runs in %.1f s", outcome.cases_finished, outcome.records.size(),
               elapsed);
+  if (outcome.runs_shared > 0)
+    std::printf(" (%zu identical to another run: run once)", outcome.runs_shared);
   if (outcome.cases_skipped > 0)
     std::printf(" (%zu escalation levels not needed)", outcome.cases_skipped);
   std::printf("\n");

@@ -8,7 +8,9 @@
 #include <algorithm>
 #include <cmath>
 #include <exception>
+#include <map>
 #include <mutex>
+#include <string>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/io/transform_io.hpp"
@@ -247,9 +249,76 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     return rec;
   };
 
+  // --- runs with provably identical results (RunnerOptions::share_identical_runs): a key that
+  // two runs share only if align() gets the same points and the same correspondence rule.
+  std::map<WeightKind, bool> positive_weights;  // every target weight of the kind > 0
+  auto all_positive = [&](WeightKind kind) {
+    auto it = positive_weights.find(kind);
+    if (it != positive_weights.end()) return it->second;
+    bool positive = false;
+    try {
+      const std::vector<double>& w = target.weights(kind);
+      positive = std::all_of(w.begin(), w.end(), [](double x) { return x > 0.0; });
+    } catch (const InvalidArgument&) {
+      // No such weights: the run itself reports it.
+    }
+    positive_weights.emplace(kind, positive);
+    return positive;
+  };
+  // Empty: the run always executes.
+  auto identity_key = [&](const Task& t) {
+    const Case& c = cases[t.case_index];
+    const PaperStrategy s = c.strategies[t.slot];
+    std::string key;
+    if (!options.share_identical_runs || !is_paper_strategy(s) ||
+        (options.history_case && *options.history_case == c.index)) {
+      return key;
+    }
+    const RegistrationOptions ro = run_options(config, s, c.k);
+    // The points: transform_points(D, source), a function of D's bits.
+    key.assign(reinterpret_cast<const char*>(c.D.matrix().data()), 16 * sizeof(double));
+    // The rule: Eq. 6 with k = 1 keeps the nearest unless its weight is 0 (select_match).
+    const bool nearest =
+        ro.correspondence == CorrespondenceKind::kNearest || (ro.k == 1 && all_positive(ro.weight));
+    key += nearest ? std::string("|nearest") : "|" + to_string(s) + "|" + std::to_string(ro.k);
+    return key;
+  };
+
+  // Stores a finished run's record (under `mutex`).
+  auto store = [&](const Task& t, RunRecord rec) {
+    records[t.case_index][t.slot] = std::move(rec);
+    ++progress.runs_done;
+    if (--remaining[t.case_index] == 0) {
+      ++progress.cases_done;
+      if (options.on_case_finished) {
+        std::vector<RunRecord> finished;
+        for (const auto& r : records[t.case_index]) finished.push_back(*r);
+        options.on_case_finished(cases[t.case_index], finished);
+      }
+    }
+    if (options.on_progress) options.on_progress(progress);
+  };
+
   auto run_wave = [&](const std::vector<Task>& tasks) {
+    // The first run of each identity key executes; the others (copies[i] for runs[i]) take its
+    // record.
+    std::vector<Task> runs;
+    std::vector<std::vector<Task>> copies;
+    std::map<std::string, std::size_t> first_of_key;
+    for (const Task& t : tasks) {
+      const std::string key = identity_key(t);
+      if (!key.empty()) {
+        const auto [it, inserted] = first_of_key.emplace(key, runs.size());
+        if (!inserted) {
+          copies[it->second].push_back(t);
+          continue;
+        }
+      }
+      runs.push_back(t);
+      copies.emplace_back();
+    }
     const SingleLevelParallelism single_level;
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(tasks.size());
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(runs.size());
 #pragma omp parallel num_threads(threads) proc_bind(spread)
     {
       // Inner (ICP) parallel regions of this worker get one thread, even when the team has
@@ -258,22 +327,21 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
 #pragma omp for schedule(dynamic, 1)
       for (std::ptrdiff_t i = 0; i < n; ++i) {
         if (failed.load() || cancelled()) continue;
-        const Task& t = tasks[static_cast<std::size_t>(i)];
+        const Task& t = runs[static_cast<std::size_t>(i)];
         try {
           RunRecord rec = run_one(t);
           std::lock_guard<std::mutex> lock(mutex);
           if (failed.load()) continue;
-          records[t.case_index][t.slot] = std::move(rec);
-          ++progress.runs_done;
-          if (--remaining[t.case_index] == 0) {
-            ++progress.cases_done;
-            if (options.on_case_finished) {
-              std::vector<RunRecord> finished;
-              for (const auto& r : records[t.case_index]) finished.push_back(*r);
-              options.on_case_finished(cases[t.case_index], finished);
-            }
+          for (const Task& u : copies[static_cast<std::size_t>(i)]) {
+            // Same D, hence the same error and decision; only the labels differ.
+            RunRecord copy = rec;
+            copy.case_index = cases[u.case_index].index;
+            copy.strategy = cases[u.case_index].strategies[u.slot];
+            copy.k = cases[u.case_index].k;
+            store(u, std::move(copy));
+            ++outcome.runs_shared;
           }
-          if (options.on_progress) options.on_progress(progress);
+          store(t, std::move(rec));
         } catch (...) {
           std::lock_guard<std::mutex> lock(mutex);
           if (!failed.load()) {

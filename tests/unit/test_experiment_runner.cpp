@@ -166,6 +166,56 @@ TEST(ExperimentRunner, OutputIsIdenticalForAnyThreadCountApartFromTime) {
   for (const std::string& csv : csvs) EXPECT_EQ(without_time(csv), ref);
 }
 
+TEST(ExperimentRunner, IdenticalRunsRunOnceAndGiveTheRecordsOfRunningThemAll) {
+  // Base ignores k, and observations with k = 1 picks the nearest while every weight is
+  // positive: of these 6 runs, base at k = 5 and 7 and observations at k = 1 are base at k = 1.
+  const ExperimentConfig c =
+      config("  - {name: ks, type: k, k_values: [1, 5, 7], pose: {x_m: 0.1, yaw_deg: 5}}\n");
+  const std::vector<Case> cases = expand_cases(c, pair().source);
+  ASSERT_EQ(cases.size(), 3u);
+  RunnerOptions every;
+  every.share_identical_runs = false;
+  const RunnerOutcome all = run_cases(c, cases, pair().source, target(), pair().T_true, every);
+  const RunnerOutcome shared = run_cases(c, cases, pair().source, target(), pair().T_true);
+  EXPECT_EQ(all.runs_shared, 0u);
+  EXPECT_EQ(shared.runs_shared, 3u);
+  ASSERT_EQ(shared.records.size(), 6u);
+  EXPECT_EQ(without_time(csv_of(cases, shared.records)), without_time(csv_of(cases, all.records)));
+  // Not vacuous: observations at k = 5 is another run, with other results.
+  const auto record = [&](const RunnerOutcome& o, std::size_t ci, PaperStrategy s) {
+    for (const RunRecord& r : o.records) {
+      if (r.case_index == ci && r.strategy == s) return r;
+    }
+    ADD_FAILURE() << "no record";
+    return RunRecord{};
+  };
+  EXPECT_NE(record(all, 1, PaperStrategy::kObservations).T_target_source.matrix(),
+            record(all, 1, PaperStrategy::kBase).T_target_source.matrix());
+  // A copy carries the time of the run it copies, and its own labels.
+  const RunRecord copy = record(shared, 2, PaperStrategy::kBase);
+  EXPECT_EQ(copy.time_s, record(shared, 0, PaperStrategy::kBase).time_s);
+  EXPECT_EQ(copy.k, 7);
+
+  // The history case always runs (it records what a copy would not have).
+  RunnerOptions history;
+  history.history_case = 1;
+  const RunnerOutcome h = run_cases(c, cases, pair().source, target(), pair().T_true, history);
+  EXPECT_EQ(h.runs_shared, 2u);
+  EXPECT_EQ(record(h, 1, PaperStrategy::kBase).history.size(),
+            static_cast<std::size_t>(record(h, 1, PaperStrategy::kBase).iterations));
+
+  // With a zero weight, Eq. 6 at k = 1 leaves that landmark unmatched: observations at k = 1 is
+  // no longer base, and runs.
+  PreparedTarget zero(pair().target_map);
+  std::vector<double> w = zero.weights(WeightKind::kObservations);
+  w[0] = 0.0;
+  zero.set_weights(WeightKind::kObservations, w);
+  const RunnerOutcome z = run_cases(c, cases, pair().source, zero, pair().T_true);
+  const RunnerOutcome z_all = run_cases(c, cases, pair().source, zero, pair().T_true, every);
+  EXPECT_EQ(z.runs_shared, 2u);
+  EXPECT_EQ(without_time(csv_of(cases, z.records)), without_time(csv_of(cases, z_all.records)));
+}
+
 TEST(ExperimentRunner, CancellingLeavesExactlyTheFinishedCasesInTheCsv) {
   const ExperimentConfig c = config(kExperiments);
   const std::vector<Case> cases = expand_cases(c, pair().source);

@@ -103,6 +103,12 @@ struct RunnerOptions {
   /// rotates them by its displacement D (R_D C R_D^T) as it moves the points. Not owned; null =
   /// none, and such strategies are then refused before any run.
   const std::vector<Mat3>* source_covariances_m2 = nullptr;
+  /// Runs whose results are provably those of another run of the same wave are not executed but
+  /// take a copy of its record, time_s included (docs/experiments.md, "Running"): the same
+  /// displacement D (bit for bit) and the same correspondence rule. Base ignores k, and the
+  /// weighted kNN with k = 1 picks the nearest neighbour when every target weight of its kind is
+  /// positive. lmalign's own strategies and the history case always run. false: run everything.
+  bool share_identical_runs = true;
 };
 
 struct RunnerOutcome {
@@ -113,6 +119,8 @@ struct RunnerOutcome {
   std::size_t cases_planned = 0;
   /// Escalation levels not run because their quadrant stopped.
   std::size_t cases_skipped = 0;
+  /// Records copied from an identical run instead of being run (share_identical_runs).
+  std::size_t runs_shared = 0;
   bool cancelled = false;
 };
 
