@@ -674,11 +674,11 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   const Mat3 R = T_target_source.linear();
   const Vec3 t = T_target_source.translation();
   const PointIndex* order = st.order.data();
-  std::size_t searched = 0, reused = 0, fast = 0;
+  std::size_t searched = 0, reused = 0, fast = 0, unmatched = 0;
 
   // proc_bind(close): threads that migrate between cores lose their caches (measured on the
   // benchmark machine: docs/performance.md).
-#pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast)
+#pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast, unmatched)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
@@ -719,6 +719,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       moved[s] = q;
       out[s] = sorted ? select_match<true>(s, idx, d2, found, weighted, w, max_sq)
                       : select_match<false>(s, idx, d2, found, weighted, w, max_sq);
+      unmatched += out[s].target_index == kNoMatch ? 1 : 0;
     }
   }
   // No entry refers to this pose unless a point was searched or re-based (not all took the fast
@@ -727,7 +728,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   st.searched = searched;
   st.reused = reused;
   st.fast = fast;
-  compact(out);
+  if (unmatched > 0) compact(out);  // (never, without a distance limit or zero weights)
 }
 
 void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
