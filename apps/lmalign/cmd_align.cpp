@@ -166,8 +166,8 @@ int run_align(const AlignArgs& a) {
   // The paper displaces the source about the world origin, then starts ICP at the identity.
   const Points3 source_points = transform_points(T_displace, source.positions());
   // Their covariances move with them (C' = R C R^T), for the point-to-distribution strategies.
-  std::vector<Mat3> source_covariances = source.covariances_m2();
-  for (Mat3& C : source_covariances) C = T_displace.linear() * C * T_displace.linear().transpose();
+  const std::vector<Mat3> source_covariances =
+      transform_covariances(T_displace, source.covariances_m2());
   // Truth for the displaced source. Errors are measured on the recovered map-to-map transform
   // T_est * T_displace against T_gt, so they do not depend on the artificial displacement.
   std::optional<Isometry3> T_true;

@@ -61,6 +61,15 @@ void transform_points(const Isometry3& T, const Points3& points, Points3& out) {
   for (std::size_t i = 0; i < points.size(); ++i) out[i] = R * points[i] + t;
 }
 
+std::vector<Mat3> transform_covariances(const Isometry3& T,
+                                        const std::vector<Mat3>& covariances_m2) {
+  const Mat3 R = T.linear();
+  std::vector<Mat3> out;
+  out.reserve(covariances_m2.size());
+  for (const Mat3& C : covariances_m2) out.push_back(R * C * R.transpose());
+  return out;
+}
+
 bool is_finite(const Isometry3& T) { return T.matrix().allFinite(); }
 
 }  // namespace lmalign

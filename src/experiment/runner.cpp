@@ -220,15 +220,11 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       // lmalign's own strategies (issue 7): their preset schedule replaces the config's
       // max_distance_m; the iteration budget is the preset's (over all levels).
       const RobustRegistrationOptions ro = robust_strategy_options(s, c.k);
-      std::vector<Mat3> moved_cov;
-      if (ro.cost == EstimationCost::kPointToDistribution) {
-        // The covariances move with the points: C' = R_D C R_D^T.
-        const Mat3 R = c.D.linear();
-        moved_cov.reserve(options.source_covariances_m2->size());
-        for (const Mat3& C : *options.source_covariances_m2) {
-          moved_cov.push_back(R * C * R.transpose());
-        }
-      }
+      // The covariances move with the points: C' = R_D C R_D^T.
+      const std::vector<Mat3> moved_cov =
+          ro.cost == EstimationCost::kPointToDistribution
+              ? transform_covariances(c.D, *options.source_covariances_m2)
+              : std::vector<Mat3>{};
       r = align_robust(transform_points(c.D, source_points), target, ro, Isometry3::Identity(),
                        moved_cov.empty() ? nullptr : &moved_cov);
     }

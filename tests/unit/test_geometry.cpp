@@ -40,5 +40,22 @@ TEST(TransformError, AngleAndTranslation) {
   EXPECT_NEAR(rotation_angle_deg(pose_from_xyz_rpy_deg(0, 0, 0, 180, 0, 0).linear()), 180.0, 1e-9);
 }
 
+TEST(TransformCovariances, RotatesByTheLinearPartOnly) {
+  const Isometry3 T = pose_from_xyz_rpy_deg(3.0, -2.0, 1.0, 10.0, -20.0, 30.0);
+  Mat3 A;
+  A << 4, 1, 0, 1, 3, -1, 0, -1, 2;  // symmetric positive definite
+  const std::vector<Mat3> moved = transform_covariances(T, {A, Mat3::Identity()});
+  ASSERT_EQ(moved.size(), 2u);
+  const Mat3 R = T.linear();
+  EXPECT_TRUE(moved[0].isApprox(R * A * R.transpose(), 1e-15));
+  EXPECT_TRUE(moved[1].isApprox(Mat3::Identity(), 1e-15));  // isotropic stays isotropic
+  // The variance along a moved direction R u is that along u before the move.
+  const Vec3 u = Vec3(1, 2, -1).normalized();
+  EXPECT_NEAR((R * u).dot(moved[0] * (R * u)), u.dot(A * u), 1e-12);
+  // Moving back restores them.
+  EXPECT_TRUE(transform_covariances(T.inverse(), moved)[0].isApprox(A, 1e-14));
+  EXPECT_TRUE(transform_covariances(T, {}).empty());
+}
+
 }  // namespace
 }  // namespace lmalign

@@ -2,6 +2,8 @@
 // transforms to point lists, and errors of an estimate against a known true transform.
 #pragma once
 
+#include <vector>
+
 #include "lmalign/core/types.hpp"
 
 namespace lmalign {
@@ -36,6 +38,12 @@ Points3 transform_points(const Isometry3& T, const Points3& points);
 
 /// Writes T * p into `out` (resized to points.size()). `out` must not alias `points`.
 void transform_points(const Isometry3& T, const Points3& points, Points3& out);
+
+/// Returns R C R^T for every covariance (3x3, m^2), R = T.linear(): the covariances of points
+/// moved by T, expressed in T's output frame (a translation does not change a covariance). Used
+/// to move source landmark covariances with their displaced points.
+std::vector<Mat3> transform_covariances(const Isometry3& T,
+                                        const std::vector<Mat3>& covariances_m2);
 
 /// True if every entry of the 4x4 matrix is finite.
 bool is_finite(const Isometry3& T);
