@@ -325,11 +325,12 @@ struct Kernel {
   // half gap, its gap_k nearest are the entry's gap_k first candidates (triangle inequality:
   // each of them is nearer than d_k + moved, every other point farther than d_(k+1) - moved).
   // Writes them into idx/d2 in the entry's order, not sorted (select_match<false> needs no
-  // order), and returns how many (0: the test failed). With `pick`, only those of the largest
-  // weight among them, where the entry has them marked (State::fast_pick): Eq. 6 chooses among
-  // those, the nearer on equal weights.
+  // order), and returns how many (0: the test failed). With `pick`, where the entry has the
+  // candidates of the largest weight among them marked (State::fast_pick), Eq. 6 chooses among
+  // those, the nearer on equal weights (the total order): that choice is written into
+  // idx[0]/d2[0], *chosen set, and 1 returned.
   std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2,
-                   bool pick = false) const {
+                   bool pick = false, bool* chosen = nullptr) const {
     const float half_gap = st->half_gap[e];
     if (!(half_gap > 0.0f) || !(st->reach[e] >= 0.0f)) return 0;
     if (!std::isinf(half_gap)) {
@@ -360,14 +361,21 @@ struct Kernel {
         st->fast_pick[e] = static_cast<std::uint8_t>(mask);
       }
       if (mask != kPickAll) {
-        std::size_t got = 0;
-        for (; mask != 0; mask &= mask - 1) {
+        // All of one (positive) weight: the nearest of them, as select_match would choose.
+        PointIndex best_i = entry[__builtin_ctz(mask)];
+        double best_d2 = squared_distance(q, target[best_i]);
+        for (mask &= mask - 1; mask != 0; mask &= mask - 1) {
           const PointIndex i = entry[__builtin_ctz(mask)];
-          idx[got] = i;
-          d2[got] = squared_distance(q, target[i]);
-          ++got;
+          const double d = squared_distance(q, target[i]);
+          if (d < best_d2 || (d == best_d2 && i < best_i)) {
+            best_i = i;
+            best_d2 = d;
+          }
         }
-        return got;
+        idx[0] = best_i;
+        d2[0] = best_d2;
+        *chosen = true;
+        return 1;
       }
     }
     const std::size_t got = std::min(st->gap_k, target_size);
@@ -691,12 +699,13 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       const PointIndex s = order[e];
       const Vec3 q = R * source_points[s] + t;
       std::size_t found = 0;
-      bool sorted = true;  // the fast path leaves its candidates in the entry's order
+      bool sorted = true;   // the fast path leaves its candidates in the entry's order
+      bool chosen = false;  // the fast path chose the match (idx[0])
       if (!q.allFinite()) {
         if (reuse) st.reach[e] = -1.0f;
         if (lender == j) lender = -1;
-      } else if (reuse &&
-                 (found = kernel.fast(e, s, q, idx, d2, kernel.pick_weights != nullptr)) > 0) {
+      } else if (reuse && (found = kernel.fast(e, s, q, idx, d2, kernel.pick_weights != nullptr,
+                                               &chosen)) > 0) {
         ++reused;
         ++fast;
         lender = j;
@@ -717,8 +726,9 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       // map (landmarks numbered along the trajectory), so the threads' writes rarely share a
       // cache line, and no staging buffer is needed.
       moved[s] = q;
-      out[s] = sorted ? select_match<true>(s, idx, d2, found, weighted, w, max_sq)
-                      : select_match<false>(s, idx, d2, found, weighted, w, max_sq);
+      out[s] = chosen   ? Correspondence{static_cast<PointIndex>(s), idx[0], d2[0]}
+               : sorted ? select_match<true>(s, idx, d2, found, weighted, w, max_sq)
+                        : select_match<false>(s, idx, d2, found, weighted, w, max_sq);
       unmatched += out[s].target_index == kNoMatch ? 1 : 0;
     }
   }
