@@ -328,7 +328,7 @@ struct Kernel {
   // order), and returns how many (0: the test failed). With `pick`, where the entry has the
   // candidates of the largest weight among them marked (State::fast_pick), Eq. 6 chooses among
   // those, the nearer on equal weights (the total order): that choice is written into
-  // idx[0]/d2[0], *chosen set, and 1 returned.
+  // idx[0]/d2[0], *chosen set (if given), and 1 returned.
   std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2,
                    bool pick = false, bool* chosen = nullptr) const {
     const float half_gap = st->half_gap[e];
@@ -374,7 +374,7 @@ struct Kernel {
         }
         idx[0] = best_i;
         d2[0] = best_d2;
-        *chosen = true;
+        if (chosen != nullptr) *chosen = true;  // (else select_match picks it again)
         return 1;
       }
     }
