@@ -325,12 +325,12 @@ struct Kernel {
   // half gap, its gap_k nearest are the entry's gap_k first candidates (triangle inequality:
   // each of them is nearer than d_k + moved, every other point farther than d_(k+1) - moved).
   // Writes them into idx/d2 in the entry's order, not sorted (select_match<false> needs no
-  // order), and returns how many (0: the test failed). With `pick`, where the entry has the
-  // candidates of the largest weight among them marked (State::fast_pick), Eq. 6 chooses among
-  // those, the nearer on equal weights (the total order): that choice is written into
-  // idx[0]/d2[0], *chosen set (if given), and 1 returned.
+  // order), and returns how many (0: the test failed). Given `chosen`, and pick_weights, where
+  // the entry has the candidates of the largest weight among them marked (State::fast_pick),
+  // Eq. 6 chooses among those, the nearer on equal weights (the total order): that choice is
+  // written into idx[0]/d2[0], *chosen set, and 1 returned.
   std::size_t fast(std::size_t e, std::size_t s, const Vec3& q, PointIndex* idx, double* d2,
-                   bool pick = false, bool* chosen = nullptr) const {
+                   bool* chosen = nullptr) const {
     const float half_gap = st->half_gap[e];
     if (!(half_gap > 0.0f) || !(st->reach[e] >= 0.0f)) return 0;
     if (!std::isinf(half_gap)) {
@@ -342,7 +342,7 @@ struct Kernel {
       }
     }
     const PointIndex* entry = st->cand.data() + e * width;
-    if (pick) {
+    if (chosen != nullptr && pick_weights != nullptr) {
       std::uint32_t mask = st->fast_pick[e];
       if (mask == kPickUnknown) {
         // The slots of the largest weight among the first gap_k (the k nearest since the fast
@@ -374,7 +374,7 @@ struct Kernel {
         }
         idx[0] = best_i;
         d2[0] = best_d2;
-        if (chosen != nullptr) *chosen = true;  // (else select_match picks it again)
+        *chosen = true;
         return 1;
       }
     }
@@ -704,8 +704,7 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
       if (!q.allFinite()) {
         if (reuse) st.reach[e] = -1.0f;
         if (lender == j) lender = -1;
-      } else if (reuse && (found = kernel.fast(e, s, q, idx, d2, kernel.pick_weights != nullptr,
-                                               &chosen)) > 0) {
+      } else if (reuse && (found = kernel.fast(e, s, q, idx, d2, &chosen)) > 0) {
         ++reused;
         ++fast;
         lender = j;
