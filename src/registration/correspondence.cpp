@@ -27,6 +27,12 @@ constexpr double kSlack = 1e-9;
 constexpr std::uint32_t kPickUnknown = 0;
 constexpr std::uint32_t kPickAll = 0x80;
 
+// The total order of candidates, the kd-tree's: (squared distance, target index). Every choice
+// "the nearer one" below uses it, so that reused and fresh results agree, ties included.
+inline bool nearer_in_total_order(double d2_a, PointIndex a, double d2_b, PointIndex b) {
+  return d2_a < d2_b || (d2_a == d2_b && a < b);
+}
+
 // A float <= r (r >= 0) within 2^-19 relative of it: a conservative copy of the reuse radius.
 // (Scaling down before the round-to-nearest conversion keeps it below r without a data-dependent
 // branch, which the processor would mispredict half the time. Below FLT_MIN the conversion's
@@ -367,7 +373,7 @@ struct Kernel {
         for (mask &= mask - 1; mask != 0; mask &= mask - 1) {
           const PointIndex i = entry[__builtin_ctz(mask)];
           const double d = squared_distance(q, target[i]);
-          if (d < best_d2 || (d == best_d2 && i < best_i)) {
+          if (nearer_in_total_order(d, i, best_d2, best_i)) {
             best_i = i;
             best_d2 = d;
           }
@@ -540,7 +546,7 @@ inline Correspondence select_match(PointIndex s, const PointIndex* idx, const do
   Correspondence c{s, kNoMatch, 0.0};
   std::size_t best = found;
   auto nearer = [&](std::size_t a, std::size_t b) {
-    return d2[a] < d2[b] || (d2[a] == d2[b] && idx[a] < idx[b]);
+    return nearer_in_total_order(d2[a], idx[a], d2[b], idx[b]);
   };
   if (!weighted) {
     if (kSorted) {
