@@ -125,13 +125,7 @@ int run_build(const BuildArgs& args, const CLI::App& cmd) {
 
 CommandRunner add_build_map_command(CLI::App& root) {
   auto args = std::make_shared<BuildArgs>();
-  CLI::App* cmd = root.add_subcommand(
-      "build-map",
-      "Build a landmark map from a TUM RGB-D sequence folder (rgb.txt, depth.txt, images,\n"
-      "groundtruth.txt if present) with an RGB-D visual odometry: ORB features, PnP RANSAC\n"
-      "tracking, keyframes, sliding-window bundle adjustment (Ceres), BA-marginal covariances.\n"
-      "Writes the map (method.md section 1) and the keyframe trajectory (TUM format).\n"
-      "See docs/map-builder.md.");
+  CLI::App* cmd = root.add_subcommand("build-map", kBuildMapDescription);
   cmd->add_option("SEQUENCE", args->sequence, "TUM RGB-D sequence folder")->required();
   cmd->add_option("-o,--output", args->output, "Output map file, written atomically")
       ->required()

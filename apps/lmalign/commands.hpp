@@ -19,5 +19,7 @@ CommandRunner add_eval_trajectory_command(CLI::App& root);
 #ifdef LMALIGN_HAVE_VO
 CommandRunner add_build_map_command(CLI::App& root);
 #endif
+/// `build-map`'s description, shown by lmalign --help and by the helper that runs it.
+extern const char* const kBuildMapDescription;
 
 }  // namespace lmalign::cli

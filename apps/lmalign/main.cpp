@@ -1,95 +1,64 @@
 // lmalign: align sparse landmark maps from feature-based visual SLAM.
-#include <cstdio>
-#include <exception>
+//
+// `build-map` (the RGB-D map builder, OpenCV + Ceres) runs in a helper executable beside this one,
+// lmalign-build-map: this binary does not load those libraries, so that every other command
+// starts in milliseconds instead of the ~0.1 s that loading OpenCV's dependency chain takes
+// (docs/cli.md).
+#include <unistd.h>
+
+#include <cerrno>
+#include <climits>
+#include <cstring>
 #include <iostream>
-#include <map>
 #include <string>
 
-#include <CLI/CLI.hpp>
-
-#include "commands.hpp"
-#include "lmalign/core/error.hpp"
+#include "cli_main.hpp"
 
 namespace {
-// An error message as one printable line: control bytes of paths or file contents (a newline in
-// a file name, an escape sequence) are written as \xHH (docs/robustness.md).
-std::string one_line(const char* message) {
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out;
-  for (const char* p = message; *p != '\0'; ++p) {
-    const auto byte = static_cast<unsigned char>(*p);
-    if (byte < 0x20 || byte == 0x7f) {
-      out += "\\x";
-      out += kHex[byte >> 4];
-      out += kHex[byte & 0xf];
-    } else {
-      out += *p;
-    }
-  }
-  return out;
+
+#ifdef LMALIGN_BUILD_MAP_HELPER
+// The directory of this executable (/proc/self/exe), with a trailing '/'; empty if unknown.
+std::string own_directory() {
+  char buf[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", buf, sizeof(buf) - 1);
+  if (n <= 0) return {};
+  const std::string path(buf, static_cast<std::size_t>(n));
+  const std::size_t slash = path.rfind('/');
+  return slash == std::string::npos ? std::string() : path.substr(0, slash + 1);
 }
 
-// Output that could not be written (a full disk, a closed pipe) is an error, not a success.
-int check_stdout(int code) {
-  std::cout.flush();
-  if (std::fflush(stdout) != 0 || std::ferror(stdout) || !std::cout) {
-    std::cerr << "lmalign: error: cannot write the standard output\n";
-    return code == 0 ? 2 : code;
-  }
-  return code;
+// Replaces this process with the helper, same arguments (argv[0] included, so that its usage
+// lines name the command the user typed). Returns only on failure, with the exit code.
+int run_build_map_helper(char** argv) {
+  const std::string helper = own_directory() + LMALIGN_BUILD_MAP_HELPER;
+  ::execv(helper.c_str(), argv);
+  std::cerr << "lmalign: error: build-map runs in the helper executable '" << helper
+            << "', which could not be started (" << std::strerror(errno)
+            << "); build lmalign with OpenCV and Ceres (docs/map-builder.md)\n";
+  return 2;
 }
+
+// `build-map` in the command list and in --help; never parsed (main() hands it to the helper).
+lmalign::cli::CommandRunner add_build_map_stub(CLI::App& root) {
+  root.add_subcommand("build-map", lmalign::cli::kBuildMapDescription);
+  return [] { return 2; };
+}
+#endif
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App app{
-      "lmalign: rigid alignment of sparse landmark maps (mini-maps) from feature-based visual "
-      "SLAM,\nwith the confidence-weighted ICP of Saraiva et al. and the checks a careful "
-      "researcher would add.\n"
-      "Frames: results are T_target_source, with p_target = T_target_source * p_source.\n"
-      "Units: metres, degrees on the command line, m^2 for scores."};
-  app.set_version_flag("--version", std::string("lmalign ") + LMALIGN_VERSION);
-  app.require_subcommand(1);
-
-  std::map<CLI::App*, lmalign::cli::CommandRunner> runners;
-  auto add = [&](lmalign::cli::CommandRunner (*adder)(CLI::App&)) {
-    const std::size_t before = app.get_subcommands({}).size();
-    lmalign::cli::CommandRunner run = adder(app);
-    auto subs = app.get_subcommands({});
-    if (subs.size() > before) runners[subs.back()] = std::move(run);
-  };
-  add(&lmalign::cli::add_align_command);
-  add(&lmalign::cli::add_split_command);
-  add(&lmalign::cli::add_experiment_command);
-  add(&lmalign::cli::add_eval_trajectory_command);
-#ifdef LMALIGN_HAVE_VO
-  add(&lmalign::cli::add_build_map_command);
+#ifdef LMALIGN_BUILD_MAP_HELPER
+  if (argc >= 2 && std::strcmp(argv[1], "build-map") == 0) return run_build_map_helper(argv);
 #endif
-
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForAllHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::CallForVersion& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    // Usage errors are bad input like any other: one line, exit code 2.
-    std::cerr << "lmalign: error: " << one_line(e.what()) << " (see lmalign --help)\n";
-    return 2;
-  }
-
-  try {
-    for (auto& [sub, run] : runners) {
-      if (sub->parsed()) return check_stdout(run());
-    }
-    std::cerr << "lmalign: error: no command given (see lmalign --help)\n";
-    return 2;
-  } catch (const lmalign::Error& e) {
-    std::cerr << "lmalign: error: " << one_line(e.what()) << "\n";
-    return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "lmalign: internal error: " << one_line(e.what()) << "\n";
-    return 3;
-  }
+  return lmalign::cli::run_cli(argc, argv,
+                               {
+                                   &lmalign::cli::add_align_command,
+                                   &lmalign::cli::add_split_command,
+                                   &lmalign::cli::add_experiment_command,
+                                   &lmalign::cli::add_eval_trajectory_command,
+#ifdef LMALIGN_BUILD_MAP_HELPER
+                                   &add_build_map_stub,
+#endif
+                               });
 }

@@ -51,9 +51,13 @@ class CliTest : public ::testing::Test {
   std::string path(const std::string& name) const { return (dir_ / name).string(); }
 
   /// Runs `lmalign <args>` (args already shell-quoted as needed).
-  CliRun run(const std::string& args) const {
+  CliRun run(const std::string& args) const { return run_with_env("", args); }
+
+  /// Runs `env <assignments> lmalign <args>`, e.g. assignments "LD_DEBUG=libs".
+  CliRun run_with_env(const std::string& assignments, const std::string& args) const {
     const std::string out = path(".stdout"), err = path(".stderr");
-    const std::string command = shell_quote(LMALIGN_CLI_PATH) + " " + args + " >" +
+    const std::string command = (assignments.empty() ? "" : "env " + assignments + " ") +
+                                shell_quote(LMALIGN_CLI_PATH) + " " + args + " >" +
                                 shell_quote(out) + " 2>" + shell_quote(err) + " </dev/null";
     const int status = std::system(command.c_str());
     CliRun r;

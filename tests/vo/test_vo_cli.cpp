@@ -43,6 +43,46 @@ TEST_F(VoCli, BuildMapOnRealFramesThenEvaluate) {
   EXPECT_FALSE(std::filesystem::exists(path("m2.txt")));
 }
 
+// `lmalign` hands build-map over to its helper lmalign-build-map, arguments untouched (--help
+// included), and never loads OpenCV itself (main.cpp; docs/cli.md).
+TEST_F(VoCli, BuildMapRunsInTheHelperAndLmalignDoesNotLoadOpenCv) {
+  const auto help = run("build-map --help");
+  ASSERT_EQ(help.exit_code, 0) << help.err;
+  EXPECT_NE(help.out.find("--init-from-groundtruth"), std::string::npos) << help.out;
+  EXPECT_NE(help.out.find("build-map"), std::string::npos) << help.out;
+  // Listed among lmalign's commands.
+  const auto top = run("--help");
+  ASSERT_EQ(top.exit_code, 0) << top.err;
+  EXPECT_NE(top.out.find("build-map"), std::string::npos) << top.out;
+  // A usage error is the helper's, with lmalign's exit code and message format.
+  const auto bad = run("build-map");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("lmalign: error:"), std::string::npos) << bad.err;
+  EXPECT_NE(bad.err.find("SEQUENCE"), std::string::npos) << bad.err;
+  // The dynamic loader's own list of what it loads (glibc LD_DEBUG): no OpenCV for lmalign.
+  const auto libs = run_with_env("LD_DEBUG=libs", "--version");
+  ASSERT_EQ(libs.exit_code, 0) << libs.err;
+  EXPECT_NE(libs.err.find("libstdc++"), std::string::npos) << libs.err;  // the list is there
+  EXPECT_EQ(libs.err.find("libopencv"), std::string::npos) << libs.err;
+  EXPECT_EQ(libs.err.find("libceres"), std::string::npos) << libs.err;
+}
+
+// Without the helper beside it, build-map fails with a message naming the missing file.
+TEST_F(VoCli, BuildMapWithoutItsHelperSaysWhatIsMissing) {
+  const std::string copy = path("lmalign");
+  std::filesystem::copy_file(LMALIGN_CLI_PATH, copy);
+  std::filesystem::permissions(copy, std::filesystem::perms::owner_all);
+  const int status = std::system((shell_quote(copy) + " build-map x -o y >" +
+                                  shell_quote(path("out")) + " 2>" + shell_quote(path("err")))
+                                     .c_str());
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  const std::string err = test::read_text(path("err"));
+  EXPECT_NE(err.find(path("lmalign-build-map")), std::string::npos) << err;
+  EXPECT_NE(err.find("could not be started"), std::string::npos) << err;
+  EXPECT_FALSE(std::filesystem::exists(path("y")));
+}
+
 }  // namespace
 }  // namespace lmalign
 
