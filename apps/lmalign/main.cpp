@@ -38,10 +38,14 @@ int run_build_map_helper(char** argv) {
   return 2;
 }
 
-// `build-map` in the command list and in --help; never parsed (main() hands it to the helper).
+// The arguments main() was given, for the stub below.
+char** g_argv = nullptr;
+
+// `build-map` in the command list and in --help. main() hands `lmalign build-map ...` to the
+// helper before parsing; should the parser still reach this command, it is handed over the same.
 lmalign::cli::CommandRunner add_build_map_stub(CLI::App& root) {
-  root.add_subcommand("build-map", lmalign::cli::kBuildMapDescription);
-  return [] { return 2; };
+  root.add_subcommand("build-map", lmalign::cli::kBuildMapDescription)->allow_extras();
+  return [] { return run_build_map_helper(g_argv); };
 }
 #endif
 
@@ -49,6 +53,7 @@ lmalign::cli::CommandRunner add_build_map_stub(CLI::App& root) {
 
 int main(int argc, char** argv) {
 #ifdef LMALIGN_BUILD_MAP_HELPER
+  g_argv = argv;
   if (argc >= 2 && std::strcmp(argv[1], "build-map") == 0) return run_build_map_helper(argv);
 #endif
   return lmalign::cli::run_cli(argc, argv,
