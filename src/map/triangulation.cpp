@@ -171,7 +171,15 @@ std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views
   if (!lin.in_front || !well_conditioned(lin.H)) return std::nullopt;
   TriangulatedPoint result;
   result.p_world = p;
-  result.cov_world_m2 = lin.H.inverse() * (options.pixel_sigma_px * options.pixel_sigma_px);
+  // (J^T J)^-1 through the symmetric eigendecomposition, V diag(1 / lambda) V^T: positive definite
+  // by construction. The 3x3 cofactor inverse (Mat3::inverse()) is not: at a condition number
+  // near the 1e12 accepted above (a point a few centimetres from the cameras, found by
+  // fuzz_map_reader) it returned a matrix with a negative diagonal.
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(lin.H);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()(0) > 0.0)) return std::nullopt;
+  const Mat3& V = eig.eigenvectors();
+  result.cov_world_m2 = V * eig.eigenvalues().cwiseInverse().asDiagonal() * V.transpose() *
+                        (options.pixel_sigma_px * options.pixel_sigma_px);
   result.cov_world_m2 = 0.5 * (result.cov_world_m2 + result.cov_world_m2.transpose()).eval();
   result.max_parallax_deg = max_parallax_deg(cameras, p);
   result.rms_reprojection_px = std::sqrt(lin.cost / static_cast<double>(views.size()));

@@ -36,7 +36,9 @@ struct TriangulatedPoint {
 /// Triangulates from >= 2 views: DLT on normalised image coordinates (2N x 4, SVD), then
 /// Gauss-Newton on the pixel reprojection error in world coordinates, stopping after
 /// max_iterations or when the step is below 1e-12 (1 + |p|) m. cov = (J^T J)^-1 sigma^2 with J the
-/// 2N x 3 Jacobian of the pixel residuals wrt the world point at the final estimate.
+/// 2N x 3 Jacobian of the pixel residuals wrt the world point at the final estimate, computed
+/// through the eigendecomposition of J^T J: symmetric positive definite at every accepted
+/// condition number.
 /// Returns nullopt if fewer than 2 views, if the point is behind a camera (z <= 0 in its frame),
 /// if J^T J is singular or ill-conditioned (lambda_min / lambda_max <= 1e-12, e.g. zero
 /// parallax), if the intrinsics or sigma are invalid, or if any input or result is not finite.
