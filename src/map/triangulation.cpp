@@ -64,13 +64,16 @@ Linearisation linearise(const std::vector<WorldToCamera>& cameras,
   return lin;
 }
 
-bool well_conditioned(const Mat3& H) {
-  if (!H.allFinite()) return false;
-  const Eigen::SelfAdjointEigenSolver<Mat3> eig(H, Eigen::EigenvaluesOnly);
+// Whether a decomposition of H succeeded and H is positive definite and well conditioned.
+bool well_conditioned(const Eigen::SelfAdjointEigenSolver<Mat3>& eig) {
   if (eig.info() != Eigen::Success) return false;
   const double lmin = eig.eigenvalues()(0);
   const double lmax = eig.eigenvalues()(2);
   return lmax > 0.0 && lmin > kMinReciprocalCondition * lmax;
+}
+bool well_conditioned(const Mat3& H) {
+  return H.allFinite() &&
+         well_conditioned(Eigen::SelfAdjointEigenSolver<Mat3>(H, Eigen::EigenvaluesOnly));
 }
 
 std::optional<Vec3> dlt(const std::vector<WorldToCamera>& cameras,
@@ -168,15 +171,15 @@ std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views
     if (alpha * step.norm() <= kRelativeStepTolerance * (1.0 + p.norm())) break;
   }
 
-  if (!lin.in_front || !well_conditioned(lin.H)) return std::nullopt;
-  TriangulatedPoint result;
-  result.p_world = p;
-  // (J^T J)^-1 through the symmetric eigendecomposition, V diag(1 / lambda) V^T: positive definite
-  // by construction. The 3x3 cofactor inverse (Mat3::inverse()) is not: at a condition number
-  // near the 1e12 accepted above (a point a few centimetres from the cameras, found by
+  if (!lin.in_front || !lin.H.allFinite()) return std::nullopt;
+  // One decomposition for the conditioning test and for (J^T J)^-1 = V diag(1 / lambda) V^T:
+  // positive definite by construction. The 3x3 cofactor inverse (Mat3::inverse()) is not: at a
+  // condition number near the accepted 1e12 (a point a few centimetres from the cameras, found by
   // fuzz_map_reader) it returned a matrix with a negative diagonal.
   const Eigen::SelfAdjointEigenSolver<Mat3> eig(lin.H);
-  if (eig.info() != Eigen::Success || !(eig.eigenvalues()(0) > 0.0)) return std::nullopt;
+  if (!well_conditioned(eig)) return std::nullopt;
+  TriangulatedPoint result;
+  result.p_world = p;
   const Mat3& V = eig.eigenvectors();
   result.cov_world_m2 = V * eig.eigenvalues().cwiseInverse().asDiagonal() * V.transpose() *
                         (options.pixel_sigma_px * options.pixel_sigma_px);
