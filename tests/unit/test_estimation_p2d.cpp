@@ -142,6 +142,52 @@ TEST(PointToDistribution, BeatsPointToPointUnderAnisotropicNoiseAndIsCalibrated)
   EXPECT_LT(mean_nees, 8.5);
 }
 
+TEST(PointToDistribution, HugeVariancesCarryNoInformationInsteadOfCorruptingTheEstimate) {
+  // Every tenth target landmark has a needle covariance of 1e7 m along a random axis (1e14 m^2:
+  // a valid covariance for the map reader, e.g. a landmark seen without parallax) and lies
+  // 1 m off its true place along that axis. Its information along the needle is ~1e-14 m^-2:
+  // the noise-free pairs alone must give the truth. With Eigen's cofactor 3x3 inverse such a
+  // pair's "information" (condition ~4e18) had no correct digit: the estimator returned
+  // chi2 = NaN and a degenerate flag, at the start pose.
+  const Points3 src = test::room_points(200, 3);
+  const Isometry3 T_true = pose_from_xyz_rpy_deg(0.3, 0.0, 0.0, 4.0, -3.0, 10.0);
+  Points3 tgt = transform_points(T_true, src);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::vector<Mat3> cs, ct;
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    cs.push_back(needle_covariance(rng, 0.03, 0.002));
+    if (i % 10 == 0) {
+      const Vec3 axis = Vec3(g(rng), g(rng), g(rng)).normalized();
+      ct.push_back(1e14 * axis * axis.transpose() + 4e-6 * Mat3::Identity());
+      tgt[i] += axis;
+    } else {
+      ct.push_back(needle_covariance(rng, 0.03, 0.002));
+    }
+  }
+  PointToDistributionOptions o;
+  o.max_iterations = 30;
+  const PointToDistributionResult r =
+      estimate_point_to_distribution(src, tgt, identity_pairs(src.size()), cs, ct, nullptr, o);
+  EXPECT_FALSE(r.degenerate);
+  EXPECT_LT(max_abs_diff(r.T_target_source, T_true), 1e-7);
+  EXPECT_GE(r.chi2, 0.0);
+  EXPECT_LT(r.chi2, 1e-9);
+
+  // Against the contract (PSD expected, only finiteness checked): covariances of -floor^2 I
+  // cancel the floor, M = 0, which has no inverse. Still no NaN, and the truth.
+  const double f2 = o.covariance_floor_m * o.covariance_floor_m;
+  const Points3 exact = transform_points(T_true, src);
+  const std::vector<Mat3> zero(src.size(), Mat3::Zero());
+  const std::vector<Mat3> cancelling(src.size(), -f2 * Mat3::Identity());
+  const PointToDistributionResult z = estimate_point_to_distribution(
+      src, exact, identity_pairs(src.size()), zero, cancelling, nullptr, o);
+  EXPECT_TRUE(std::isfinite(z.chi2));
+  EXPECT_TRUE(z.T_target_source.matrix().allFinite());
+  EXPECT_TRUE(z.covariance.allFinite());
+  EXPECT_LT(max_abs_diff(z.T_target_source, T_true), 1e-7);
+}
+
 TEST(PointToDistribution, DegenerateInputGivesAFiniteResultAndAFlag) {
   const Isometry3 T0 = pose_from_xyz_rpy_deg(0.1, 0, 0, 0, 0, 3);
   // Two pairs: too few.

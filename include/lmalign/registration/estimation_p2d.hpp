@@ -68,7 +68,10 @@ struct PointToDistributionResult {
 ///   correspondences' source_index / target_index.
 /// - source_covariances_m2: one 3x3 covariance (m^2, source frame) per source point;
 ///   target_covariances_m2: one per target point (m^2, target frame). Symmetric PSD expected
-///   (only finiteness is checked; the floor keeps Omega positive definite).
+///   (only finiteness is checked). Omega is positive definite whatever their size: a combined
+///   covariance whose trace exceeds 1e8 floor^2 (or that is not positive definite) is inverted
+///   through its eigendecomposition, eigenvalues raised to at least floor^2, so that huge
+///   variances carry no information instead of round-off (docs/robustness.md).
 /// - weights: one per correspondence (>= 0, finite, positive sum), or nullptr for uniform; e.g.
 ///   IRLS kernel weight times landmark confidence. Scale-free: normalised to mean 1.
 /// Deterministic. Never returns NaN for finite inputs: degenerate input (fewer than 3
