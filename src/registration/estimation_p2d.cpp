@@ -29,6 +29,8 @@ Mat3 exp_so3(const Vec3& phi) {
 
 /// Smallest eigenvalue of H over its largest below this: singular normal equations.
 constexpr double kSingularRatio = 1e-12;
+/// Step halvings tried before a Gauss-Newton iteration gives up.
+constexpr int kMaxHalvings = 8;
 /// A pair's combined covariance M whose trace is at most this times floor^2 (so that its
 /// condition number is at most about this) is inverted in closed form (cofactors).
 constexpr double kClosedFormTraceRatio = 1e8;
@@ -37,12 +39,12 @@ constexpr double kClosedFormTraceRatio = 1e8;
 /// (symmetric; m^2, so Omega in m^-2). Within kClosedFormTraceRatio, Eigen's closed-form 3x3
 /// inverse, accurate there for PSD covariances. Beyond (variances of thousands of m^2 and more:
 /// a landmark seen without parallax), cofactors lose every digit: at a condition number of 4e18
-/// they gave NaN and negative curvatures (docs/robustness.md). There, and wherever the closed
+/// the estimate came out NaN (docs/robustness.md). There, and wherever the closed
 /// form is not a positive diagonal (covariances that are not PSD, against the contract), Omega =
 /// V diag(1 / max(lambda, floor^2)) V^T from the symmetric eigendecomposition, positive definite
 /// by construction: the pair carries no information along its huge axes. A non-finite M
 /// (entries beyond the double range after the sum) carries none at all: Omega = 0.
-Mat3 information_m_inv2(const Mat3& M, double floor2) {
+Mat3 information_per_m2(const Mat3& M, double floor2) {
   if (!M.allFinite()) return Mat3::Zero();
   if (M.trace() <= kClosedFormTraceRatio * floor2) {
     const Mat3 closed_form = M.inverse();
@@ -53,8 +55,6 @@ Mat3 information_m_inv2(const Mat3& M, double floor2) {
   const Vec3 inverse_eigenvalues = es.eigenvalues().cwiseMax(floor2).cwiseInverse();
   return es.eigenvectors() * inverse_eigenvalues.asDiagonal() * es.eigenvectors().transpose();
 }
-/// Step halvings tried before a Gauss-Newton iteration gives up.
-constexpr int kMaxHalvings = 8;
 
 }  // namespace
 
@@ -162,7 +162,7 @@ PointToDistributionResult estimate_point_to_distribution(
                R * source_covariances_m2[cr.source_index] * R.transpose();
       M = 0.5 * (M + M.transpose());
       M.diagonal().array() += floor2;
-      omega[i] = information_m_inv2(M, floor2);
+      omega[i] = information_per_m2(M, floor2);
       if (w == 0.0) continue;
       const Vec3 r = target_points[cr.target_index] - x[i];
       Mat36 J;
@@ -195,7 +195,7 @@ PointToDistributionResult estimate_point_to_distribution(
       M = 0.5 * (M + M.transpose());
       M.diagonal().array() += floor2;
       const Vec3 r = target_points[cr.target_index] - Tc * source_points[cr.source_index];
-      e += w * r.dot(information_m_inv2(M, floor2) * r);
+      e += w * r.dot(information_per_m2(M, floor2) * r);
     }
     return e;
   };
