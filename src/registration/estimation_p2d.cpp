@@ -1,6 +1,7 @@
 #include "lmalign/registration/estimation_p2d.hpp"
 
 #include <cmath>
+#include <cstdio>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -31,6 +32,10 @@ Mat3 exp_so3(const Vec3& phi) {
 constexpr double kSingularRatio = 1e-12;
 /// Step halvings tried before a Gauss-Newton iteration gives up.
 constexpr int kMaxHalvings = 8;
+/// The smallest covariance floor accepted (1 nm): its inverse square, 1e18 m^-2, keeps Omega
+/// and the normal equations far inside the double range (a floor whose square underflows
+/// would let zero covariances give Omega = 1/0).
+constexpr double kMinCovarianceFloorM = 1e-9;
 /// A pair's combined covariance M whose trace is at most this times floor^2 (so that its
 /// condition number is at most about this) is inverted in closed form (cofactors).
 constexpr double kClosedFormTraceRatio = 1e8;
@@ -69,9 +74,11 @@ bool PointToDistributionOptions::is_valid(std::string* why) const {
   if (!(step_tolerance >= 0.0) || !std::isfinite(step_tolerance)) {
     return fail("step_tolerance = " + std::to_string(step_tolerance) + " (expected finite >= 0)");
   }
-  if (!(covariance_floor_m > 0.0) || !std::isfinite(covariance_floor_m)) {
-    return fail("covariance_floor_m = " + std::to_string(covariance_floor_m) +
-                " (expected finite > 0)");
+  if (!(covariance_floor_m >= kMinCovarianceFloorM) || !std::isfinite(covariance_floor_m)) {
+    char buf[96];
+    std::snprintf(buf, sizeof(buf), "covariance_floor_m = %g (expected finite, >= %g m)",
+                  covariance_floor_m, kMinCovarianceFloorM);
+    return fail(buf);
   }
   return true;
 }

@@ -236,6 +236,13 @@ TEST(PointToDistribution, RefusesInvalidInput) {
   EXPECT_FALSE(o.is_valid(&why));
   EXPECT_NE(why.find("covariance_floor_m"), std::string::npos) << why;
   EXPECT_THROW(estimate_point_to_distribution(p, p, c, cov, cov, nullptr, o), InvalidArgument);
+  // A floor whose square underflows (or whose inverse square overflows the normal equations)
+  // would let zero covariances give Omega = 1/0: refused below a nanometre.
+  o.covariance_floor_m = 1e-200;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("1e-09"), std::string::npos) << why;
+  o.covariance_floor_m = 1e-9;
+  EXPECT_TRUE(o.is_valid(&why)) << why;
   o = {};
   o.max_iterations = -1;
   EXPECT_FALSE(o.is_valid(&why));

@@ -31,7 +31,8 @@ struct PointToDistributionOptions {
   int max_iterations = 3;
   /// Stop early once a step moves less than this (|rho| in m plus |phi| in rad), >= 0.
   double step_tolerance = 1e-12;
-  /// Covariance floor, metres, >= 0 and finite: sigma_floor^2 I is added to every combined
+  /// Covariance floor, metres, finite and >= 1e-9 (1 nm; below, its inverse square could
+  /// overflow the normal equations): sigma_floor^2 I is added to every combined
   /// covariance C_t + R C_s R^T, so that zero, tiny or rank-deficient SLAM covariances (a
   /// landmark seen from one direction is nearly flat) cannot make Omega singular or let one
   /// landmark dominate. 5 mm: about the smallest across-ray standard deviation of the real
