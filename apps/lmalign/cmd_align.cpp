@@ -22,6 +22,8 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
+#include "lmalign/registration/strategy.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign::cli {
@@ -45,6 +47,8 @@ struct AlignArgs {
   std::string json_path;
   std::string ply_path;
   bool history = false;
+  std::string initial_guess;  // 4x4 file; empty: none
+  std::string prior_sigma;    // ROT_DEG,TRANS_M; empty: none
   // Given explicitly on the command line: then they also limit lmalign's own strategies.
   bool max_iterations_given = false;
   bool max_distance_given = false;
@@ -57,12 +61,11 @@ bool uses_k(PaperStrategy s) {
 }
 
 struct StrategyRun {
-  PaperStrategy strategy;
+  PaperStrategy strategy = kRecommendedStrategy;
   RegistrationResult result;
   std::optional<TransformError> error;
   bool right_basin = false;
-  TrustVerdict trust;  // judge_alignment() at the estimate (no ground truth involved)
-  PoseCovariance cov;  // on the inliers of the estimate
+  StrategyOutcome outcome;  // the trust verdict (no ground truth involved) and the covariance
 };
 
 std::string ply_path_for(const std::string& base, const std::string& strategy, bool several) {
@@ -145,6 +148,30 @@ int run_align(const AlignArgs& a) {
                           ": must be > 0 metres (or inf)");
   }
 
+  std::optional<PriorSigma> prior;
+  if (!a.prior_sigma.empty()) {
+    const std::vector<double> v =
+        parse_number_list("--prior-sigma", a.prior_sigma, 2, "ROT_DEG,TRANS_M");
+    prior = PriorSigma{v[0], v[1]};
+    std::string why;
+    if (!prior->is_valid(&why)) throw InvalidArgument("--prior-sigma " + a.prior_sigma + ": " + why);
+    for (PaperStrategy s : strategies) {
+      if (s != PaperStrategy::kAdaptive) {
+        throw InvalidArgument("--prior-sigma: only the adaptive strategy uses a prior (got '" +
+                              to_string(s) + "')");
+      }
+    }
+  }
+  std::optional<Isometry3> initial_guess;
+  if (!a.initial_guess.empty()) {
+    initial_guess = read_transform(a.initial_guess);
+    if (!is_rigid_transform(*initial_guess)) {
+      throw InvalidArgument("--initial-guess " + a.initial_guess +
+                            ": not a rigid transform (expected [R t; 0 0 0 1] with R orthonormal "
+                            "and det R = +1)");
+    }
+  }
+
   std::optional<Isometry3> T_gt;  // ground truth for the undisplaced source
   if (a.ground_truth == "identity") {
     T_gt = Isometry3::Identity();
@@ -203,29 +230,31 @@ int run_align(const AlignArgs& a) {
   }
   std::printf("\n");
 
+  StrategySource src;
+  src.positions = source_points;
+  src.covariances_m2 = source_covariances;
+  if (const std::optional<Vec3> up = estimate_up_axis(source)) src.up = T_displace.linear() * *up;
   std::vector<StrategyRun> runs;
   for (PaperStrategy s : strategies) {
-    RegistrationResult result;
+    StrategyRequest req;
+    req.strategy = s;
+    req.k = a.k;
+    req.initial_guess = initial_guess;
+    req.prior = prior;
     if (is_paper_strategy(s)) {
-      RegistrationOptions o = RegistrationOptions::paper(s, a.k);
-      o.max_correspondence_distance_m = a.max_distance_m;
-      o.convergence.max_iterations = a.max_iterations;
-      o.record_history = a.history;
-      o.history_scores = a.history;
-      result = align(source_points, prepared, o);
+      req.max_iterations = a.max_iterations;
+      req.max_distance_m = a.max_distance_m;
+      req.record_history = a.history;
     } else {
-      RobustRegistrationOptions ro = robust_strategy_options(s, a.k);
-      if (a.max_iterations_given || a.max_distance_given) {
-        ro = with_limits(
-            ro, a.max_iterations_given ? a.max_iterations : ro.max_iterations,
-            a.max_distance_given ? a.max_distance_m : std::numeric_limits<double>::infinity());
+      if (a.max_iterations_given) req.max_iterations = a.max_iterations;
+      if (a.max_distance_given && s != PaperStrategy::kAdaptive) {
+        req.max_distance_m = a.max_distance_m;
       }
-      result =
-          align_robust(source_points, prepared, ro, Isometry3::Identity(), &source_covariances);
     }
-    StrategyRun run{s, result, std::nullopt, false, {}, {}};
-    run.trust =
-        judge_alignment(source_points, prepared.tree(), result.T_target_source, {}, &run.cov);
+    StrategyRun run;
+    run.strategy = s;
+    run.outcome = run_strategy(src, prepared, req);
+    run.result = run.outcome.result;
     if (T_true) {
       run.error = transform_error(run.result.T_target_source * T_displace, *T_gt);
       run.right_basin = run.error->rotation_deg < a.success_rotation_deg &&
@@ -250,16 +279,17 @@ int run_align(const AlignArgs& a) {
       std::printf(" %8.3f %8.4f %6s", r.error->rotation_deg, r.error->translation_m,
                   r.right_basin ? "yes" : "NO");
     }
-    std::printf(" %6s\n", r.trust.trustworthy ? "yes" : "NO");
+    std::printf(" %6s\n", r.outcome.trustworthy ? "yes" : "NO");
   }
   std::printf("\nscores are PCL fitness scores (mean squared nearest-neighbour distance, m^2)\n");
   std::printf(
-      "trust: the verdict without ground truth (docs/accuracy.md): inliers within 5 cm, of all "
-      "source landmarks and of those within 20 cm, and the covariance on them\n");
+      "trust: the verdict without ground truth (docs/accuracy.md): adaptive: covariance-gated "
+      "inliers and no distinct pose scoring nearly as well; the others: inliers within 5 cm, of "
+      "all source landmarks and of those within 20 cm, and the covariance on them\n");
   for (const StrategyRun& r : runs) {
-    if (!r.trust.trustworthy) {
+    if (!r.outcome.trustworthy) {
       std::printf("  %-13s not trusted: %s\n", to_string(r.strategy).c_str(),
-                  r.trust.reason.c_str());
+                  r.outcome.trust_reason.c_str());
     }
   }
   std::printf(
@@ -319,22 +349,36 @@ int run_align(const AlignArgs& a) {
       e["initial_score_m2"] = json_number(r.result.initial_score_m2);
       e["final_score_m2"] = json_number(r.result.final_score_m2);
       e["wall_time_s"] = r.result.wall_time_s;
-      e["trustworthy"] = r.trust.trustworthy;
-      e["trust_reason"] = r.trust.reason;
-      e["inlier_fraction"] = r.trust.inlier_fraction;
-      e["overlap_fraction"] = r.trust.overlap_fraction;
-      e["translation_sd_m"] = json_number(r.trust.translation_sd_m);
-      e["rotation_sd_deg"] = json_number(r.trust.rotation_sd_deg);
+      e["trustworthy"] = r.outcome.trustworthy;
+      e["trust_reason"] = r.outcome.trust_reason;
+      if (r.outcome.verdict) {
+        e["inlier_fraction"] = r.outcome.verdict->inlier_fraction;
+        e["overlap_fraction"] = r.outcome.verdict->overlap_fraction;
+      }
+      if (r.outcome.adaptive) {
+        const AdaptiveResult& ad = *r.outcome.adaptive;
+        e["initialisation"] = ad.initialisation;
+        e["gated_inliers"] = ad.num_inliers;
+        e["gated_score"] = ad.score;
+        e["gated_inlier_ratio"] = ad.inlier_ratio;
+        e["ambiguity"] = ad.ambiguity;
+        e["covariance_floor_m"] = ad.floor_m;
+        e["vote_cell_m"] = ad.vote_cell_m;
+        e["hypotheses"] = ad.hypotheses.size();
+      }
+      e["translation_sd_m"] = json_number(r.outcome.covariance.translation_sd_m());
+      e["rotation_sd_deg"] = json_number(r.outcome.covariance.rotation_sd_deg());
       {
         // Row-major 6x6, xi = (rho [m], phi [rad]) on the left in the target frame; null if the
         // inliers do not determine the transform.
         nlohmann::json c = nlohmann::json::array();
-        if (r.cov.valid) {
+        const PoseCovariance& cov = r.outcome.covariance;
+        if (cov.valid) {
           for (int i = 0; i < 6; ++i) {
-            for (int k = 0; k < 6; ++k) c.push_back(r.cov.covariance(i, k));
+            for (int k = 0; k < 6; ++k) c.push_back(cov.covariance(i, k));
           }
         }
-        e["covariance_6x6"] = r.cov.valid ? c : nlohmann::json();
+        e["covariance_6x6"] = cov.valid ? c : nlohmann::json();
       }
       if (r.error) {
         e["rotation_error_deg"] = r.error->rotation_deg;
@@ -379,8 +423,8 @@ CommandRunner add_align_command(CLI::App& root) {
   CLI::App* cmd = root.add_subcommand(
       "align",
       "Align SOURCE onto TARGET (map files, docs/map-format.md) with ICP and the paper's\n"
-      "confidence-weighted correspondences, or lmalign's own robust strategies (by default the\n"
-      "recommended one, robust_obs). Prints one row per strategy.\n"
+      "confidence-weighted correspondences, or lmalign's own strategies (by default the\n"
+      "recommended one, adaptive: no initial guess needed). Prints one row per strategy.\n"
       "Result: T_target_source, with p_target = T_target_source * p_source (metres).");
   cmd->add_option("SOURCE", args->source, "source map file (moved onto the target)")->required();
   cmd->add_option("TARGET", args->target, "target map file (fixed)")->required();
@@ -393,13 +437,16 @@ CommandRunner add_align_command(CLI::App& root) {
       "comma-separated strategies by name: the paper's (base, covariance, "
       "observations, distance) and lmalign's own (shrink, shrink_cauchy, trimmed, "
       "mutual, robust_obs, robust_obs_knn, robust_obs_4dof, global, global_robust_obs, p2d, "
-      "robust_p2d); 'paper', "
+      "robust_p2d, adaptive); 'paper', "
       "'beyond' and "
-      "'all' name groups. Default (neither --weight nor --strategy): robust_obs, the "
-      "recommended strategy (docs/accuracy.md). lmalign's own strategies run their preset "
+      "'all' name groups. Default (neither --weight nor --strategy): adaptive, the "
+      "recommended strategy (docs/accuracy.md): scales from the data, a global yaw search "
+      "(or one bounded by --prior-sigma), covariance-gated point-to-distribution ICP. "
+      "lmalign's robust presets run their preset "
       "(a distance schedule inf, 1, 0.5, 0.25, 0.1, 0.05 m; 300 iterations) unless "
       "--max-iterations or --max-distance is given: then the budget is replaced and the "
-      "schedule capped at that distance");
+      "schedule capped at that distance (adaptive: --max-iterations caps each refinement; "
+      "--max-distance does not apply)");
   cmd->add_option("--k", args->k, "neighbourhood size of the weighted strategies, [1, 4096]")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
@@ -437,6 +484,14 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--aligned-out", args->ply_path,
                   "write the aligned source landmarks (target frame) as PLY; with several "
                   "strategies, one file each: NAME_<strategy>.ply");
+  cmd->add_option("--initial-guess", args->initial_guess,
+                  "a first estimate of T_target_source (of the displaced source, if --displace): "
+                  "a 4x4 matrix file (p_target = T * p_source, metres). Every strategy starts "
+                  "from it; adaptive adds it to its hypotheses, or bounds its search around it "
+                  "with --prior-sigma");
+  cmd->add_option("--prior-sigma", args->prior_sigma,
+                  "ROT_DEG,TRANS_M: standard deviations of --initial-guess (identity if none), "
+                  "degrees and metres, each > 0: the adaptive search stays within 3 sigma of it");
   cmd->add_flag("--history", args->history,
                 "record per-iteration correspondences, MSE and score (into --json)");
   return [args, max_iterations, max_distance]() {

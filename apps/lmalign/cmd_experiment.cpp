@@ -29,6 +29,7 @@
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/experiment/report.hpp"
 #include "lmalign/experiment/runner.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/io/atomic_file.hpp"
 
 namespace lmalign::cli {
@@ -433,6 +434,7 @@ int run_experiment(ExperimentArgs a) {
   ro.already_finished = already_finished;
   const std::vector<Mat3> source_covariances = in.source.covariances_m2();
   ro.source_covariances_m2 = &source_covariances;
+  ro.source_up = estimate_up_axis(in.source);
 
   g_cancel.store(false);
   RunnerOutcome outcome;

@@ -262,11 +262,11 @@ class Parser {
       try {
         s = parse_paper_strategy(name);
       } catch (const InvalidArgument&) {
-        fail(*it, w,
-             "unknown strategy '" + name +
-                 "' (expected base, covariance, observations, distance, shrink, shrink_cauchy, "
-                 "trimmed, mutual, robust_obs, robust_obs_knn, robust_obs_4dof, global, "
-                 "global_robust_obs, p2d or robust_p2d)");
+        std::string names;
+        std::vector<PaperStrategy> every = all_paper_strategies();
+        for (PaperStrategy b : beyond_paper_strategies()) every.push_back(b);
+        for (PaperStrategy b : every) names += (names.empty() ? "" : ", ") + to_string(b);
+        fail(*it, w, "unknown strategy '" + name + "' (expected one of " + names + ")");
       }
       if (std::find(out.begin(), out.end(), s) != out.end()) {
         fail(*it, w, "strategy '" + to_string(s) + "' is listed twice");

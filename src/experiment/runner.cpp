@@ -17,6 +17,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/strategy.hpp"
 
 namespace lmalign {
 
@@ -128,6 +129,14 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     if (c.strategies.empty()) throw InvalidArgument("runner: case " + c.id() + " has no strategy");
     for (PaperStrategy s : c.strategies) {
       std::string why;
+      if (s == PaperStrategy::kAdaptive) {
+        if (options.source_covariances_m2 != nullptr &&
+            options.source_covariances_m2->size() != source_points.size()) {
+          throw InvalidArgument("runner: case " + c.id() +
+                                ", adaptive: one source covariance per source point expected");
+        }
+        continue;
+      }
       const bool valid = is_paper_strategy(s) ? run_options(config, s, c.k).is_valid(&why)
                                               : robust_strategy_options(s, c.k).is_valid(&why);
       if (!valid) {
@@ -217,16 +226,19 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       ro.history_scores = history;
       r = align(transform_points(c.D, source_points), target, ro);
     } else {
-      // lmalign's own strategies (issue 7): their preset schedule replaces the config's
-      // max_distance_m; the iteration budget is the preset's (over all levels).
-      const RobustRegistrationOptions ro = robust_strategy_options(s, c.k);
-      // The covariances move with the points: C' = R_D C R_D^T.
-      const std::vector<Mat3> moved_cov =
-          ro.cost == EstimationCost::kPointToDistribution
-              ? transform_covariances(c.D, *options.source_covariances_m2)
-              : std::vector<Mat3>{};
-      r = align_robust(transform_points(c.D, source_points), target, ro, Isometry3::Identity(),
-                       moved_cov.empty() ? nullptr : &moved_cov);
+      // lmalign's own strategies (run_strategy(), as `lmalign align`): the presets' distance
+      // schedules and budgets replace the config's max_distance_m and max_iterations. The
+      // covariances and the up axis move with the points: C' = R_D C R_D^T.
+      StrategySource moved;
+      moved.positions = transform_points(c.D, source_points);
+      if (options.source_covariances_m2 != nullptr) {
+        moved.covariances_m2 = transform_covariances(c.D, *options.source_covariances_m2);
+      }
+      if (options.source_up) moved.up = c.D.linear() * *options.source_up;
+      StrategyRequest req;
+      req.strategy = s;
+      req.k = c.k;
+      r = run_strategy(moved, target, req).result;
     }
     RunRecord rec;
     rec.case_index = c.index;

@@ -9,6 +9,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/estimation.hpp"
 #include "lmalign/registration/score.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
 
 namespace lmalign {
 
@@ -44,6 +45,8 @@ std::string to_string(PaperStrategy strategy) {
       return "p2d";
     case PaperStrategy::kRobustP2D:
       return "robust_p2d";
+    case PaperStrategy::kAdaptive:
+      return "adaptive";
   }
   return "?";
 }
@@ -59,7 +62,7 @@ PaperStrategy parse_paper_strategy(const std::string& name) {
   throw InvalidArgument("unknown strategy '" + name +
                         "' (expected base|none, covariance, observations, distance, shrink, "
                         "shrink_cauchy, trimmed, mutual, robust_obs, robust_obs_knn, "
-                        "robust_obs_4dof, global, global_robust_obs, p2d, robust_p2d)");
+                        "robust_obs_4dof, global, global_robust_obs, p2d, robust_p2d, adaptive)");
 }
 
 std::vector<PaperStrategy> all_paper_strategies() {
@@ -72,7 +75,7 @@ std::vector<PaperStrategy> beyond_paper_strategies() {
       PaperStrategy::kShrink,        PaperStrategy::kShrinkCauchy, PaperStrategy::kTrimmed,
       PaperStrategy::kMutual,        PaperStrategy::kRobustObs,    PaperStrategy::kRobustObsKnn,
       PaperStrategy::kRobustObs4Dof, PaperStrategy::kGlobal,       PaperStrategy::kGlobalRobustObs,
-      PaperStrategy::kP2D,           PaperStrategy::kRobustP2D};
+      PaperStrategy::kP2D,           PaperStrategy::kRobustP2D,    PaperStrategy::kAdaptive};
 }
 
 bool is_paper_strategy(PaperStrategy strategy) {
@@ -170,6 +173,17 @@ PreparedTarget::PreparedTarget(const Map& target, const WeightOptions& weight_op
     weights_[kind] = compute_weights(target, kind, weight_options);
   }
   covariances_ = target.covariances_m2();
+  up_axis_ = estimate_up_axis(target);
+}
+
+void PreparedTarget::set_up_axis(std::optional<Vec3> up) {
+  if (up.has_value()) {
+    if (!up->allFinite() || !(up->norm() > 0.0)) {
+      throw InvalidArgument("set_up_axis: the up axis must be finite and non-zero");
+    }
+    up->normalize();
+  }
+  up_axis_ = up;
 }
 
 PreparedTarget::PreparedTarget(Points3 points) : tree_(std::move(points)) {

@@ -299,6 +299,10 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k)
       o.estimation_weight = WeightKind::kObservations;
       o.cost = EstimationCost::kPointToDistribution;
       break;
+    case PaperStrategy::kAdaptive:
+      throw InvalidArgument(
+          "robust_strategy_options: 'adaptive' is the adaptive pipeline (use align_adaptive(), "
+          "registration/adaptive.hpp, or run_strategy(), registration/strategy.hpp)");
     default:
       throw InvalidArgument("robust_strategy_options: '" + to_string(strategy) +
                             "' is one of the paper's strategies (use align())");

@@ -60,7 +60,7 @@ TEST_F(CliAlign, DefaultIsTheRecommendedStrategyAndStrategyListsSelectByName) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   auto j = nlohmann::json::parse(test::read_text(path("d.json")));
   ASSERT_EQ(j["results"].size(), 1u);
-  EXPECT_EQ(j["results"][0]["strategy"], "robust_obs");
+  EXPECT_EQ(j["results"][0]["strategy"], "adaptive");
   EXPECT_TRUE(j["results"][0]["right_basin"].get<bool>());
   EXPECT_LT(j["results"][0]["translation_error_m"].get<double>(), 1e-3);
 

@@ -20,20 +20,20 @@ class RobustRealPair : public test::RealPairTest {
   }
 };
 
-TEST_F(RobustRealPair, RecommendedStrategyReachesTheTruthWhereThePaperIsBiased) {
+TEST_F(RobustRealPair, RobustObsReachesTheTruthWhereThePaperIsBiased) {
   // Table 1's displacement: the paper's base ends 4.6 deg / 4.7 cm from the truth.
-  const TransformError e = run(kRecommendedStrategy, pose_from_xyz_rpy_deg(0, 1, 0.4, 10, 0, 22.5));
+  const TransformError e = run(PaperStrategy::kRobustObs, pose_from_xyz_rpy_deg(0, 1, 0.4, 10, 0, 22.5));
   EXPECT_LT(e.rotation_deg, 1.0);
   EXPECT_LT(e.translation_m, 0.015);
 }
 
-TEST_F(RobustRealPair, RecommendedStrategyFindsTheBasinAtYaw50WhereBaseFails) {
+TEST_F(RobustRealPair, RobustObsFindsTheBasinAtYaw50WhereBaseFails) {
   // Table 2, yaw 50: base and shrink (unweighted) end in a wrong basin near 45 deg; the
   // observation weights in the estimation step pull the unlimited stage into the right one.
   const Isometry3 D = pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 50);
   const TransformError shrink = run(PaperStrategy::kShrink, D);
   EXPECT_GT(shrink.rotation_deg, 5.0);
-  const TransformError e = run(kRecommendedStrategy, D);
+  const TransformError e = run(PaperStrategy::kRobustObs, D);
   EXPECT_LT(e.rotation_deg, 1.0);
   EXPECT_LT(e.translation_m, 0.015);
 }

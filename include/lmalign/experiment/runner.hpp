@@ -103,6 +103,9 @@ struct RunnerOptions {
   /// rotates them by its displacement D (R_D C R_D^T) as it moves the points. Not owned; null =
   /// none, and such strategies are then refused before any run.
   const std::vector<Mat3>* source_covariances_m2 = nullptr;
+  /// The undisplaced source map's up axis (source frame; estimate_up_axis()), for the adaptive
+  /// strategy's yaw search; each run rotates it by its displacement. None: the pipeline's default.
+  std::optional<Vec3> source_up;
   /// Runs whose results are provably those of another run of the same wave are not executed but
   /// take a copy of its record, time_s included (docs/experiments.md, "Running"): the same
   /// displacement D (bit for bit) and the same correspondence rule. Base ignores k, and the

@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -42,11 +43,14 @@ enum class PaperStrategy {
   kP2D,        ///< "p2d": shrink with the point-to-distribution cost (landmark covariances of both
                ///< maps; estimation_p2d.hpp)
   kRobustP2D,  ///< "robust_p2d": robust_obs with the point-to-distribution cost
+  kAdaptive,   ///< "adaptive": the adaptive pipeline (registration/adaptive.hpp): data-derived
+               ///< scales, global yaw-vote search, Mahalanobis gating, point-to-distribution;
+               ///< the recommended default (issue 18)
 };
 using Strategy = PaperStrategy;
 /// "base", "covariance", "observations", "distance", then "shrink", "shrink_cauchy", "trimmed",
 /// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof", "global", "global_robust_obs",
-/// "p2d", "robust_p2d".
+/// "p2d", "robust_p2d", "adaptive".
 std::string to_string(PaperStrategy strategy);
 /// Inverse of to_string (also "none" for base, "mean_distance" for distance). Throws
 /// InvalidArgument listing the names.
@@ -55,10 +59,11 @@ PaperStrategy parse_paper_strategy(const std::string& name);
 std::vector<PaperStrategy> all_paper_strategies();
 /// lmalign's own strategies (issue 7), in declaration order.
 std::vector<PaperStrategy> beyond_paper_strategies();
-/// True for the paper's four (run by align()); false for lmalign's own (align_robust()).
+/// True for the paper's four (run by align()); false for lmalign's own (align_robust(), or
+/// align_adaptive() for kAdaptive).
 bool is_paper_strategy(PaperStrategy strategy);
 /// The strategy `lmalign align` uses by default, chosen by measurement (docs/accuracy.md).
-inline constexpr PaperStrategy kRecommendedStrategy = PaperStrategy::kRobustObs;
+inline constexpr PaperStrategy kRecommendedStrategy = PaperStrategy::kAdaptive;
 
 /// Every setting of one registration. Plain struct; check with is_valid().
 struct RegistrationOptions {
@@ -145,6 +150,12 @@ class PreparedTarget {
   /// target has none (built from bare points without set_covariances()).
   const std::vector<Mat3>& covariances_m2() const;
 
+  /// The target's up axis (unit, target frame): from the map's frames (estimate_up_axis(),
+  /// registration/stages/data_scales.hpp) when built from a Map, else none until set_up_axis().
+  const std::optional<Vec3>& up_axis() const { return up_axis_; }
+  /// Sets it (normalised); nullopt clears it. Throws InvalidArgument for a zero or non-finite axis.
+  void set_up_axis(std::optional<Vec3> up);
+
   const KdTree& tree() const { return tree_; }
   const Points3& points() const { return tree_.points(); }
   std::size_t size() const { return tree_.size(); }
@@ -153,6 +164,7 @@ class PreparedTarget {
   KdTree tree_;
   std::map<WeightKind, std::vector<double>> weights_;
   std::vector<Mat3> covariances_;
+  std::optional<Vec3> up_axis_;
 };
 
 /// Largest accepted |coordinate| of a source or target point, metres: beyond it a double cannot

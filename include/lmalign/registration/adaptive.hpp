@@ -1,0 +1,173 @@
+// The adaptive pipeline: lmalign's recommended default (issue 18; docs/accuracy.md, "The
+// adaptive default"). It is written as explicit stages, each in its own file under stages/:
+//   scales          DataScales of both maps: landmark spacing, covariance floor, size, up axis
+//                   (stages/data_scales.hpp). Every metric setting below is derived from them.
+//   initialisation  global: yaw-vote hypotheses over every yaw (stages/yaw_vote_search.hpp),
+//                   plus the initial guess if one is given; prior-bounded: the same search
+//                   confined to 3 sigma of the guess; given: the guess alone.
+//   selection       the k Euclidean nearest target landmarks of each source landmark, keeping
+//   + gating        the one with the smallest Mahalanobis distance under both landmarks'
+//                   covariances, the floor and the current pose uncertainty, if it passes a
+//                   chi-square test (stages/mahalanobis_gate.hpp). The pose uncertainty starts
+//                   at a fraction of the hypothesis' resolution (or of the prior) and halves each
+//                   time the estimate settles, down to zero: the gate never is unbounded.
+//   weighting       Cauchy kernel of the Mahalanobis distance times the pair's information.
+//   estimation      one point-to-distribution Gauss-Newton step per iteration (6 or 4 DoF;
+//                   stages/p2d_step.hpp).
+//   convergence     settled when a step is below 1e-3 of the covariance floor (and that over
+//                   the map's radius in rotation) at zero pose uncertainty; an iteration budget.
+//   scoring         each refined hypothesis is scored by its covariance-gated inliers
+//                   (gated_inlier_score); the best wins and is refined on every landmark.
+//   trust           enough gated inliers, most of the landmarks near a target landmark within
+//                   their covariances (inlier ratio), no distinct pose scoring nearly as well
+//                   (ambiguity), and a non-degenerate covariance.
+//
+// Frames: T_target_source, p_target = T_target_source * p_source. Deterministic for any thread
+// count.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/map/map.hpp"
+#include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
+#include "lmalign/registration/stages/mahalanobis_gate.hpp"
+#include "lmalign/registration/stages/yaw_vote_search.hpp"
+#include "lmalign/registration/uncertainty.hpp"
+
+namespace lmalign {
+
+/// A prior on the transform: standard deviations of the rotation (degrees, about any axis) and
+/// of the translation (metres) of the initial guess. Both finite and > 0.
+struct PriorSigma {
+  double rotation_deg = 0.0;
+  double translation_m = 0.0;
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+/// The source of an adaptive alignment: landmark positions (metres, source frame), optional
+/// covariances (one 3x3 per landmark, m^2, source frame; empty = none) and an optional up axis
+/// (unit, source frame; estimate_up_axis()).
+struct SourceLandmarks {
+  Points3 positions;
+  std::vector<Mat3> covariances_m2;
+  std::optional<Vec3> up;
+  /// From a map: positions, covariances and the up axis of its frames.
+  static SourceLandmarks from_map(const Map& map);
+};
+
+/// Settings of the adaptive pipeline. Every length is derived from the data (DataScales); what
+/// is left are dimensionless ratios, counts and probabilities. Plain struct; is_valid().
+struct AdaptiveOptions {
+  // --- initialisation ---
+  YawVoteOptions search;
+  /// The vote cell is max(spacing, 2 sin(step / 2) * source radius): what half a yaw step moves
+  /// a landmark twice the typical distance from the centre. Multiplied by this factor, > 0.
+  double vote_cell_factor = 1.5;
+  /// The pose uncertainty of the gate at the start of a hypothesis' refinement, as a fraction of
+  /// its resolution (two vote cells, one yaw step) or of the prior's sigmas; (0, 10].
+  double start_sigma_factor = 0.3;
+  /// Source landmarks (evenly strided) used to refine and score the hypotheses; the winner is
+  /// refined on all of them. >= 16.
+  std::size_t hypothesis_samples = 1024;
+  /// Up axis used for a map whose frames do not give one (unit after normalisation).
+  Vec3 default_up = Vec3::UnitZ();
+
+  // --- selection and gating ---
+  MahalanobisGateOptions gate;
+  /// Covariance floor, metres; 0 = the data's (the larger of the two maps' DataScales::floor_m).
+  double floor_m = 0.0;
+
+  // --- estimation ---
+  /// Estimate x, y, z and the yaw about the target's up axis only (4 DoF).
+  bool four_dof = false;
+
+  // --- convergence ---
+  int max_iterations = 120;        ///< per refinement, >= 1
+  int max_iterations_per_level = 15;  ///< before the pose uncertainty shrinks anyway, >= 1
+  /// Each time the estimate settles, the gate's pose uncertainty is multiplied by this; (0, 1).
+  /// Below the floor it becomes zero.
+  double sigma_decay = 0.5;
+  /// Settled: a step's translation below settle_ratio * floor and its rotation below
+  /// settle_ratio * floor / source radius (radians); (0, 1].
+  double settle_ratio = 1e-3;
+  /// At a level whose pose uncertainty is still above zero, a step below this fraction of it
+  /// (translation and rotation) also counts as settled; [0, 1).
+  double level_settle_ratio = 0.0;
+
+  // --- trust ---
+  /// Untrusted when a distinct pose scores at least this fraction of the best; (0, 1].
+  double max_ambiguity = 0.8;
+  /// Two refined hypotheses are distinct poses when they move a landmark at the source's
+  /// median distance from its centre apart by more than this many vote cells (the search's
+  /// resolution); > 0.
+  double distinct_cells = 4.0;
+  /// Untrusted below this many gated inliers, >= 3.
+  std::size_t min_inliers = 12;
+  /// Untrusted when fewer than this fraction of the source landmarks that pass the gate widened
+  /// by one vote cell of pose uncertainty (those near a target landmark) pass it at the estimate
+  /// itself: a right pose puts the overlapping landmarks within their covariances, a wrong one
+  /// only near some landmark. [0, 1]. Measured: 0.29 (KITTI disjoint pair) and 0.84 (desk) at
+  /// the right pose, 0.14-0.17 at the wrong poses found on KITTI (docs/accuracy.md).
+  double min_inlier_ratio = 0.2;
+
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+/// One hypothesis after its refinement.
+struct AdaptiveHypothesis {
+  Isometry3 T_start = Isometry3::Identity();
+  Isometry3 T_refined = Isometry3::Identity();
+  std::size_t votes = 0;  ///< 0 for the initial guess
+  double score = 0.0;     ///< gated_inlier_score on the hypothesis samples
+  bool from_guess = false;
+};
+
+/// The result: a RegistrationResult (termination kTransform when the final refinement settled,
+/// kMaxIterations, kNoCorrespondences or kDegenerate) plus what the pipeline knows.
+struct AdaptiveResult {
+  RegistrationResult registration;
+  /// "global", "prior" or "given".
+  std::string initialisation;
+  /// Gated inlier score and inliers of the estimate on every source landmark.
+  double score = 0.0;
+  std::size_t num_inliers = 0;
+  /// Source landmarks that pass the gate widened by one vote cell of pose uncertainty (those in
+  /// the overlap, roughly), and num_inliers over it.
+  std::size_t num_overlap = 0;
+  double inlier_ratio = 0.0;
+  /// Best score of a distinct hypothesis over the best's, on the hypothesis samples (0 if none).
+  double ambiguity = 0.0;
+  /// Covariance of the estimate (p2d_covariance; lmalign's convention, uncertainty.hpp).
+  PoseCovariance covariance;
+  bool trustworthy = false;
+  std::string trust_reason;  ///< why not, or "ok"
+  DataScales source_scales;
+  DataScales target_scales;
+  double floor_m = 0.0;
+  double vote_cell_m = 0.0;
+  Vec3 up_source = Vec3::UnitZ();
+  Vec3 up_target = Vec3::UnitZ();
+  std::vector<AdaptiveHypothesis> hypotheses;  ///< by decreasing score
+};
+
+/// Aligns `source` to `target` (see the file comment). Initialisation: with `prior`, the search
+/// confined to it around `initial_guess` (identity if null); without, the global search, with
+/// the initial guess added as one more hypothesis when given. The target's up axis comes from
+/// PreparedTarget::up_axis(), else options.default_up.
+/// Throws InvalidArgument on invalid options or prior, a non-finite or non-rigid initial guess,
+/// an empty source or target, a non-finite landmark, or covariance counts that do not match.
+/// Fewer than 3 landmarks on a side give termination kNoCorrespondences, untrusted.
+AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarget& target,
+                              const AdaptiveOptions& options = {},
+                              const Isometry3* initial_guess = nullptr,
+                              const PriorSigma* prior = nullptr);
+
+/// True when T's linear part is a rotation (orthonormal to 1e-6, determinant +1) and T is finite.
+bool is_rigid_transform(const Isometry3& T);
+
+}  // namespace lmalign

@@ -1,0 +1,55 @@
+// Scales read off the data, so that no registration constant is tuned to one scene
+// (docs/accuracy.md, "The adaptive default"). A desk map has landmarks millimetres apart and
+// covariances of millimetres; an outdoor stereo map has landmarks decimetres apart and
+// covariances of metres along the viewing rays. Every metric setting of the adaptive pipeline is
+// a multiple of one of these.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/map/map.hpp"
+
+namespace lmalign {
+
+/// What the adaptive pipeline needs to know of a landmark map's size and noise.
+struct DataScales {
+  /// Median distance from a landmark to its nearest other landmark, metres (> 0).
+  double spacing_m = 0.0;
+  /// Covariance floor, metres: the median over landmarks of the smallest-axis standard deviation
+  /// sqrt(lambda_min(C)) when the map carries covariances, else half the spacing. Added as
+  /// floor^2 I to every pair's combined covariance (unmodelled noise, and maps without
+  /// covariances). > 0.
+  double floor_m = 0.0;
+  /// Median distance of the landmarks from `centre_m`, metres (the map's size; > 0).
+  double radius_m = 0.0;
+  /// Coordinate-wise median of the landmark positions, metres, in the map's frame.
+  Vec3 centre_m = Vec3::Zero();
+  /// True when at least half of the landmarks have a non-zero covariance.
+  bool has_covariances = false;
+};
+
+/// Measures the scales of a landmark set: `points` (N x 3, metres) and, optionally, one 3x3
+/// covariance per point (m^2, same frame; nullptr or empty = none). At most `max_samples`
+/// landmarks (evenly strided) enter the spacing and floor medians. Deterministic.
+/// Throws InvalidArgument for fewer than 2 points, a non-finite point, or covariances whose
+/// count differs from the points'. Coincident landmarks (zero spacing) give the smallest
+/// positive spacing among the samples, or 1e-6 m if all coincide.
+DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* covariances_m2,
+                                std::size_t max_samples = 4096);
+
+/// The up (anti-gravity) direction of a SLAM or SfM map in its own frame, from its frames
+/// (keyframe poses T_world_camera; cameras with x right, y down, z forward, as in the map file):
+/// people and vehicles rarely roll a camera, so its x axis is nearly horizontal. The up axis is
+/// taken in the span of the directions that every frame's x axis is nearly orthogonal to
+/// (eigenvalues of the mean x x^T below 0.05, i.e. about 13 degrees), as the direction there
+/// nearest the mean of the frames' -y axes (which fixes the sign, and the direction when the
+/// camera only moved straight ahead). Returns nullopt for fewer than 2 frames, or when no
+/// direction is orthogonal to the x axes (a camera rolled through all angles).
+/// Measured: 5 degrees from the motion-capture z on the TUM desk (a hand-held camera pitched
+/// down by 30 degrees), within 1 degree of -y on KITTI (docs/accuracy.md).
+std::optional<Vec3> estimate_up_axis(const Map& map);
+
+}  // namespace lmalign

@@ -1,0 +1,47 @@
+// Estimation on gated pairs: one Gauss-Newton step of the point-to-distribution cost
+//   E(T) = sum_i w_i r_i^T Omega_i r_i,  r_i = q_i - T p_i,
+// with Omega_i the pair's information from the Mahalanobis gate (both landmarks' covariances, the
+// floor and the pose term; GICP's cost, Segal et al. 2009, with SLAM covariances), and w_i a
+// robust kernel of the pair's Mahalanobis distance (Cauchy: 1 / (1 + d^2 / chi2_threshold)).
+// 6 degrees of freedom, or 4 (translation and the rotation about a given up axis only).
+//
+// Parametrisation: a left perturbation about `pivot` (target frame), x -> Exp(phi)(x - pivot) +
+// pivot + rho, xi = (rho [m], phi [rad]); about the data's centre it is well conditioned even
+// when the map lies hundreds of metres from its origin.
+#pragma once
+
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/registration/stages/mahalanobis_gate.hpp"
+#include "lmalign/registration/uncertainty.hpp"
+
+namespace lmalign {
+
+/// One solved step.
+struct P2DStep {
+  bool ok = false;  ///< false: fewer pairs than unknowns, or singular normal equations
+  Vec6 xi = Vec6::Zero();  ///< (rho [m], phi [rad]) about the pivot
+  Mat6 hessian = Mat6::Zero();  ///< sum w J^T Omega J about the pivot (the 4-DoF rows/cols of
+                                ///< the unused rotations are zero)
+  double chi2 = 0.0;            ///< sum w r^T Omega r before the step
+  double weight_sum = 0.0;
+};
+
+/// Solves one step on `pairs` (their moved_source_m and information are used; the target points
+/// are `target_points[pair.target_index]`). `chi2_threshold` scales the Cauchy kernel (> 0).
+/// `up`: nullptr for 6 DoF, else the unit up axis of a 4-DoF step. Never throws for degenerate
+/// geometry (ok = false).
+P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& target_points,
+                       const Vec3& pivot_m, double chi2_threshold, const Vec3* up = nullptr);
+
+/// T <- Exp(xi) about pivot, composed on the left of T_target_source.
+Isometry3 apply_step(const Isometry3& T_target_source, const Vec6& xi, const Vec3& pivot_m);
+
+/// The 6x6 covariance of the estimate in lmalign's convention (uncertainty.hpp: left
+/// perturbation about the target frame's origin) from a step's Hessian about `pivot`:
+/// Cov = s^2 A H^-1 A^T with A = [[I, [pivot]x], [0, I]] and s^2 = chi2 / (3 n - 6) (the
+/// variance factor, invariant to the scale of the kernel weights; 1 when n <= 2). `valid` is false when H is singular.
+PoseCovariance p2d_covariance(const P2DStep& step, std::size_t num_pairs, const Vec3& pivot_m);
+
+}  // namespace lmalign

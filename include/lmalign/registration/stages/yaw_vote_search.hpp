@@ -1,0 +1,68 @@
+// Initialisation without a good initial guess: pose hypotheses from a yaw search and a
+// translation vote (a Hough transform over translations).
+//
+// SLAM and SfM maps are nearly gravity-aligned in their own frames, so the unknown rotation
+// between two of them is a rotation taking the source's up axis onto the target's, then a yaw
+// about the target's up axis. For every yaw on a grid the sampled source landmarks, rotated about
+// their centroid, vote for the translations q - R p towards every sampled target landmark in a
+// sparse grid of `cell_m` cells; landmarks present in both maps vote for the same cell, the rest
+// spread out, so partial overlap lowers the peak but does not move it. The peak (3x3x3 cells)
+// gives each yaw a translation and a vote count; the yaws whose counts are local maxima over yaw,
+// best first, are the hypotheses. With a prior (an initial guess and its sigmas) the yaws stay
+// within 3 sigma of the guess's rotation, and the votes within 3 sigma of its translation.
+//
+// Frames: T_target_source, p_target = T_target_source * p_source. Deterministic: strided
+// samples, no random draws, one slot per yaw.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+
+namespace lmalign {
+
+/// Settings of the yaw-vote search. Plain struct; check with is_valid().
+struct YawVoteOptions {
+  /// Spacing of the yaw grid, degrees, (0, 90]. A hypothesis is then at most half a step off in
+  /// yaw; the refinement's basin must cover that (measured: 5 deg steps on KITTI and the desk).
+  double yaw_step_deg = 3.0;
+  /// Landmarks that vote: evenly strided samples of each map, >= 3 each.
+  std::size_t source_samples = 128;
+  std::size_t target_samples = 1024;
+  /// How many hypotheses are returned at most, >= 1.
+  std::size_t hypotheses = 6;
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+/// A prior on T_target_source: the guess and its standard deviations.
+struct PoseWindow {
+  Isometry3 T_target_source_guess = Isometry3::Identity();
+  double rotation_sd_rad = 0.0;    ///< > 0
+  double translation_sd_m = 0.0;   ///< > 0
+};
+
+struct YawHypothesis {
+  Isometry3 T_target_source = Isometry3::Identity();
+  double yaw_rad = 0.0;     ///< about the target's up axis, relative to the base rotation
+  std::size_t votes = 0;    ///< peak votes (3x3x3 cells)
+};
+
+/// The hypotheses for aligning `source_points` to `target_points` (metres; see the file
+/// comment). `up_source`, `up_target`: unit up axes of the two maps in their own frames
+/// (estimate_up_axis()). `cell_m` (> 0): the vote cell. `window`: a prior, or nullptr (any yaw
+/// and translation). The returned list is sorted by decreasing votes (ties: lower yaw index).
+/// Throws InvalidArgument on invalid options, fewer than 3 points on a side, a non-finite point,
+/// a zero up axis, a non-positive cell, or an invalid window.
+std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
+                                               const Points3& target_points,
+                                               const Vec3& up_source, const Vec3& up_target,
+                                               double cell_m, const YawVoteOptions& options,
+                                               const PoseWindow* window = nullptr);
+
+/// The rotation taking unit vector `from` onto unit vector `to` by the smallest angle (about
+/// from x to; a half turn about any perpendicular axis when they are opposite).
+Mat3 rotation_between(const Vec3& from, const Vec3& to);
+
+}  // namespace lmalign

@@ -1,0 +1,386 @@
+#include "lmalign/registration/adaptive.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/score.hpp"
+#include "lmalign/registration/stages/p2d_step.hpp"
+
+namespace lmalign {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string num(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
+std::vector<std::uint32_t> strided_indices(std::size_t n, std::size_t want) {
+  std::vector<std::uint32_t> out;
+  const std::size_t m = std::min(n, want);
+  out.reserve(m);
+  for (std::size_t i = 0; i < m; ++i) out.push_back(static_cast<std::uint32_t>(i * n / m));
+  return out;
+}
+
+// One refinement: the gate's pose uncertainty starts at `sigma0` and halves each time the
+// estimate settles (or after max_iterations_per_level), down to zero; ends when it settles at
+// zero, or after max_iterations.
+struct Refinement {
+  Isometry3 T = Isometry3::Identity();
+  TerminationReason termination = TerminationReason::kNotTerminated;
+  int iterations = 0;
+  std::size_t num_pairs = 0;
+  P2DStep last_step;
+  Vec3 pivot = Vec3::Zero();
+};
+
+struct Context {
+  const SourceLandmarks* source;
+  const PreparedTarget* target;
+  const AdaptiveOptions* options;
+  GateSide side;
+  double floor_m;
+  double source_radius_m;
+  Vec3 source_centre;
+  Vec3 up_target;
+};
+
+Refinement refine(const Context& c, const Isometry3& T0, PoseSigma sigma0,
+                  const std::vector<std::uint32_t>* subset) {
+  const AdaptiveOptions& o = *c.options;
+  Refinement out;
+  out.T = T0;
+  PoseSigma sigma = sigma0;
+  const double settle_t = o.settle_ratio * c.floor_m;
+  const double settle_r = settle_t / c.source_radius_m;
+  const Vec3* up4 = o.four_dof ? &c.up_target : nullptr;
+  std::vector<GatedPair> pairs;
+  int level_iterations = 0;
+  while (out.iterations < o.max_iterations) {
+    sigma.pivot_m = out.T * c.source_centre;
+    gate_correspondences(c.side, *c.target, out.T, c.floor_m, sigma, o.gate, subset, &pairs);
+    out.num_pairs = pairs.size();
+    if (pairs.size() < (o.four_dof ? 2u : 3u)) {
+      out.termination = TerminationReason::kNoCorrespondences;
+      return out;
+    }
+    const P2DStep step = solve_p2d_step(pairs, c.target->points(), sigma.pivot_m,
+                                        o.gate.chi2_threshold, up4);
+    out.last_step = step;
+    out.pivot = sigma.pivot_m;
+    if (!step.ok) {
+      out.termination = TerminationReason::kDegenerate;
+      return out;
+    }
+    out.T = apply_step(out.T, step.xi, sigma.pivot_m);
+    ++out.iterations;
+    ++level_iterations;
+    const bool at_zero = sigma.translation_m == 0.0 && sigma.rotation_rad == 0.0;
+    // While the gate is wider than the floor, a step well below its width is settled enough.
+    const bool settled =
+        step.xi.head<3>().norm() < std::max(settle_t, o.level_settle_ratio * sigma.translation_m) &&
+        step.xi.tail<3>().norm() < std::max(settle_r, o.level_settle_ratio * sigma.rotation_rad);
+    if (settled && at_zero) {
+      out.termination = TerminationReason::kTransform;
+      return out;
+    }
+    if ((settled || level_iterations >= o.max_iterations_per_level) && !at_zero) {
+      sigma.translation_m *= o.sigma_decay;
+      sigma.rotation_rad *= o.sigma_decay;
+      if (sigma.translation_m < c.floor_m && sigma.rotation_rad * c.source_radius_m < c.floor_m) {
+        sigma.translation_m = 0.0;
+        sigma.rotation_rad = 0.0;
+      }
+      level_iterations = 0;
+    }
+  }
+  out.termination = TerminationReason::kMaxIterations;
+  return out;
+}
+
+// Two estimates are distinct poses when they move a landmark at the source's typical distance
+// from its centre apart by more than `distance_m`.
+bool distinct(const Isometry3& a, const Isometry3& b, const Vec3& centre, double radius_m,
+              double distance_m) {
+  const double angle = Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle();
+  return ((a * centre) - (b * centre)).norm() + angle * radius_m > distance_m;
+}
+
+}  // namespace
+
+bool PriorSigma::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& m) {
+    if (why != nullptr) *why = m;
+    return false;
+  };
+  if (!(rotation_deg > 0.0) || !std::isfinite(rotation_deg)) {
+    return fail("prior rotation sigma must be > 0 and finite (degrees), got " + num(rotation_deg));
+  }
+  if (!(translation_m > 0.0) || !std::isfinite(translation_m)) {
+    return fail("prior translation sigma must be > 0 and finite (metres), got " +
+                num(translation_m));
+  }
+  return true;
+}
+
+SourceLandmarks SourceLandmarks::from_map(const Map& map) {
+  map.validate();
+  SourceLandmarks s;
+  s.positions = map.positions();
+  s.covariances_m2 = map.covariances_m2();
+  s.up = estimate_up_axis(map);
+  return s;
+}
+
+bool AdaptiveOptions::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& m) {
+    if (why != nullptr) *why = m;
+    return false;
+  };
+  std::string inner;
+  if (!search.is_valid(&inner)) return fail("search." + inner);
+  if (!gate.is_valid(&inner)) return fail("gate." + inner);
+  if (!(vote_cell_factor > 0.0) || !std::isfinite(vote_cell_factor)) {
+    return fail("vote_cell_factor must be > 0 and finite, got " + num(vote_cell_factor));
+  }
+  if (!(start_sigma_factor > 0.0 && start_sigma_factor <= 10.0)) {
+    return fail("start_sigma_factor must be in (0, 10], got " + num(start_sigma_factor));
+  }
+  if (hypothesis_samples < 16) return fail("hypothesis_samples must be >= 16");
+  if (!default_up.allFinite() || !(default_up.norm() > 0.0)) {
+    return fail("default_up must be finite and non-zero");
+  }
+  if (!(floor_m >= 0.0) || !std::isfinite(floor_m)) {
+    return fail("floor_m must be >= 0 and finite (0 = from the data), got " + num(floor_m));
+  }
+  if (max_iterations < 1) return fail("max_iterations must be >= 1");
+  if (max_iterations_per_level < 1) return fail("max_iterations_per_level must be >= 1");
+  if (!(sigma_decay > 0.0 && sigma_decay < 1.0)) {
+    return fail("sigma_decay must be in (0, 1), got " + num(sigma_decay));
+  }
+  if (!(level_settle_ratio >= 0.0 && level_settle_ratio < 1.0)) {
+    return fail("level_settle_ratio must be in [0, 1), got " + num(level_settle_ratio));
+  }
+  if (!(settle_ratio > 0.0 && settle_ratio <= 1.0)) {
+    return fail("settle_ratio must be in (0, 1], got " + num(settle_ratio));
+  }
+  if (!(max_ambiguity > 0.0 && max_ambiguity <= 1.0)) {
+    return fail("max_ambiguity must be in (0, 1], got " + num(max_ambiguity));
+  }
+  if (min_inliers < 3) return fail("min_inliers must be >= 3");
+  if (!(min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0)) {
+    return fail("min_inlier_ratio must be in [0, 1], got " + num(min_inlier_ratio));
+  }
+  if (!(distinct_cells > 0.0) || !std::isfinite(distinct_cells)) {
+    return fail("distinct_cells must be > 0 and finite, got " + num(distinct_cells));
+  }
+  return true;
+}
+
+bool is_rigid_transform(const Isometry3& T) {
+  if (!T.matrix().allFinite()) return false;
+  const Mat3 R = T.linear();
+  if (!((R.transpose() * R - Mat3::Identity()).cwiseAbs().maxCoeff() < 1e-6)) return false;
+  if (!(std::abs(R.determinant() - 1.0) < 1e-6)) return false;
+  const Eigen::RowVector4d last = T.matrix().row(3);
+  return last.isApprox(Eigen::RowVector4d(0, 0, 0, 1), 1e-12);
+}
+
+AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarget& target,
+                              const AdaptiveOptions& options, const Isometry3* initial_guess,
+                              const PriorSigma* prior) {
+  const auto t_start = std::chrono::steady_clock::now();
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("adaptive options: " + why);
+  if (prior != nullptr && !prior->is_valid(&why)) throw InvalidArgument(why);
+  if (initial_guess != nullptr && !is_rigid_transform(*initial_guess)) {
+    throw InvalidArgument(
+        "initial guess: not a rigid transform (expected a finite 4x4 [R t; 0 0 0 1] with R "
+        "orthonormal and det R = +1)");
+  }
+  if (source.positions.empty()) throw InvalidArgument("adaptive alignment: the source is empty");
+  if (target.size() == 0) throw InvalidArgument("adaptive alignment: the target is empty");
+  for (std::size_t i = 0; i < source.positions.size(); ++i) {
+    if (!source.positions[i].allFinite()) {
+      throw InvalidArgument("adaptive alignment: source landmark " + std::to_string(i) +
+                            " is not finite");
+    }
+  }
+  if (!source.covariances_m2.empty() &&
+      source.covariances_m2.size() != source.positions.size()) {
+    throw InvalidArgument("adaptive alignment: " + std::to_string(source.covariances_m2.size()) +
+                          " source covariances for " + std::to_string(source.positions.size()) +
+                          " landmarks");
+  }
+
+  AdaptiveResult result;
+  const Isometry3 guess = initial_guess != nullptr ? *initial_guess : Isometry3::Identity();
+  result.registration.T_target_source = guess;
+  result.initialisation = prior != nullptr ? "prior" : "global";
+  auto finish = [&]() -> AdaptiveResult {
+    result.registration.wall_time_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    return std::move(result);
+  };
+  if (source.positions.size() < 3 || target.size() < 3) {
+    result.registration.termination = TerminationReason::kNoCorrespondences;
+    result.trust_reason = "fewer than 3 landmarks in a map";
+    return finish();
+  }
+
+  // --- scales ---
+  result.source_scales = estimate_data_scales(source.positions, &source.covariances_m2);
+  const std::vector<Mat3>* tgt_cov = target.has_covariances() ? &target.covariances_m2() : nullptr;
+  result.target_scales = estimate_data_scales(target.points(), tgt_cov);
+  result.floor_m = options.floor_m > 0.0
+                       ? options.floor_m
+                       : std::max(result.source_scales.floor_m, result.target_scales.floor_m);
+  result.up_source = source.up.value_or(options.default_up).normalized();
+  result.up_target = target.up_axis().value_or(options.default_up).normalized();
+  const double step_rad = options.search.yaw_step_deg * kPi / 180.0;
+  result.vote_cell_m =
+      options.vote_cell_factor *
+      std::max(result.target_scales.spacing_m,
+               2.0 * std::sin(0.5 * step_rad) * result.source_scales.radius_m);
+
+  Context c;
+  c.source = &source;
+  c.target = &target;
+  c.options = &options;
+  c.side.points = &source.positions;
+  c.side.covariances_m2 = &source.covariances_m2;
+  c.floor_m = result.floor_m;
+  c.source_radius_m = result.source_scales.radius_m;
+  c.source_centre = result.source_scales.centre_m;
+  c.up_target = result.up_target;
+
+  // --- initialisation: hypotheses and the gate's starting pose uncertainty ---
+  PoseWindow window;
+  if (prior != nullptr) {
+    window.T_target_source_guess = guess;
+    window.rotation_sd_rad = prior->rotation_deg * kPi / 180.0;
+    window.translation_sd_m = prior->translation_m;
+  }
+  const bool search_needed =
+      prior == nullptr || window.rotation_sd_rad > 0.5 * step_rad ||
+      window.translation_sd_m > result.vote_cell_m;
+  std::vector<AdaptiveHypothesis> hyps;
+  PoseSigma sigma_search;
+  sigma_search.translation_m = options.start_sigma_factor * 2.0 * result.vote_cell_m;
+  sigma_search.rotation_rad = options.start_sigma_factor * step_rad;
+  if (search_needed) {
+    const std::vector<YawHypothesis> yh = yaw_vote_hypotheses(
+        source.positions, target.points(), result.up_source, result.up_target,
+        result.vote_cell_m, options.search, prior != nullptr ? &window : nullptr);
+    for (const YawHypothesis& h : yh) {
+      AdaptiveHypothesis a;
+      a.T_start = h.T_target_source;
+      a.votes = h.votes;
+      hyps.push_back(a);
+    }
+  } else {
+    result.initialisation = "given";
+  }
+  if (initial_guess != nullptr || !search_needed) {
+    AdaptiveHypothesis a;
+    a.T_start = guess;
+    a.from_guess = true;
+    hyps.push_back(a);
+  }
+  PoseSigma sigma_guess = sigma_search;
+  if (prior != nullptr) {
+    sigma_guess.translation_m = options.start_sigma_factor * window.translation_sd_m;
+    sigma_guess.rotation_rad = options.start_sigma_factor * window.rotation_sd_rad;
+  }
+
+  // --- refine and score every hypothesis on the samples (one per thread: deterministic) ---
+  const std::vector<std::uint32_t> samples =
+      strided_indices(source.positions.size(), options.hypothesis_samples);
+  std::vector<Refinement> refined(hyps.size());
+  int total_iterations = 0;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(hyps.size()); ++i) {
+    AdaptiveHypothesis& h = hyps[static_cast<std::size_t>(i)];
+    Refinement r = refine(c, h.T_start, h.from_guess ? sigma_guess : sigma_search, &samples);
+    h.T_refined = r.T;
+    h.score = gated_inlier_score(c.side, target, r.T, c.floor_m, options.gate, &samples);
+    refined[static_cast<std::size_t>(i)] = r;
+  }
+  for (const Refinement& r : refined) total_iterations += r.iterations;
+  std::vector<std::size_t> order(hyps.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return hyps[a].score > hyps[b].score; });
+  std::vector<AdaptiveHypothesis> sorted;
+  for (std::size_t i : order) sorted.push_back(hyps[i]);
+  result.hypotheses = sorted;
+  const AdaptiveHypothesis& best = sorted.front();
+  for (std::size_t i = 1; i < sorted.size(); ++i) {
+    if (distinct(sorted[i].T_refined, best.T_refined, c.source_centre, c.source_radius_m,
+                 options.distinct_cells * result.vote_cell_m)) {
+      result.ambiguity = best.score > 0.0 ? sorted[i].score / best.score : 1.0;
+      break;
+    }
+  }
+
+  // --- the winner on every landmark ---
+  PoseSigma final_sigma;  // zero: the hypothesis has settled on the samples
+  const Refinement fin = refine(c, best.T_refined, final_sigma, nullptr);
+  total_iterations += fin.iterations;
+  RegistrationResult& reg = result.registration;
+  reg.T_target_source = fin.T;
+  reg.termination = fin.termination;
+  reg.converged = fin.termination == TerminationReason::kTransform;
+  reg.iterations = total_iterations;
+  reg.num_correspondences = fin.num_pairs;
+  reg.initial_score_m2 = fitness_score(source.positions, target.tree(), guess).mean_sq_m2;
+  reg.final_score_m2 = fitness_score(source.positions, target.tree(), fin.T).mean_sq_m2;
+  result.score = gated_inlier_score(c.side, target, fin.T, c.floor_m, options.gate, nullptr,
+                                    &result.num_inliers);
+  {
+    PoseSigma wide;
+    wide.translation_m = result.vote_cell_m;
+    wide.pivot_m = fin.T * c.source_centre;
+    std::vector<GatedPair> pairs;
+    gate_correspondences(c.side, target, fin.T, c.floor_m, wide, options.gate, nullptr, &pairs);
+    result.num_overlap = pairs.size();
+    result.inlier_ratio = pairs.empty() ? 0.0
+                                        : static_cast<double>(result.num_inliers) /
+                                              static_cast<double>(pairs.size());
+  }
+  if (fin.last_step.ok) result.covariance = p2d_covariance(fin.last_step, fin.num_pairs, fin.pivot);
+
+  // --- trust ---
+  if (fin.termination == TerminationReason::kNoCorrespondences) {
+    result.trust_reason = "no covariance-gated correspondences";
+  } else if (fin.termination == TerminationReason::kDegenerate || !result.covariance.valid) {
+    result.trust_reason = "degenerate: the normal equations are singular";
+  } else if (result.num_inliers < options.min_inliers) {
+    result.trust_reason = "too few covariance-gated inliers (" +
+                          std::to_string(result.num_inliers) + " < " +
+                          std::to_string(options.min_inliers) + ")";
+  } else if (result.inlier_ratio < options.min_inlier_ratio) {
+    result.trust_reason = "few landmarks agree within their covariances (" +
+                          std::to_string(result.num_inliers) + " of " +
+                          std::to_string(result.num_overlap) + " near a target landmark)";
+  } else if (result.ambiguity >= options.max_ambiguity) {
+    result.trust_reason = "ambiguous: a distinct pose scores " +
+                          std::to_string(static_cast<int>(std::lround(100.0 * result.ambiguity))) +
+                          "% of the best";
+  } else {
+    result.trustworthy = true;
+    result.trust_reason = "ok";
+  }
+  return finish();
+}
+
+}  // namespace lmalign

@@ -1,0 +1,122 @@
+#include "lmalign/registration/stages/data_scales.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/search/kdtree.hpp"
+
+namespace lmalign {
+
+namespace {
+
+double median_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const std::size_t mid = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(mid), v.end());
+  return v[mid];
+}
+
+}  // namespace
+
+DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* covariances_m2,
+                                std::size_t max_samples) {
+  if (points.size() < 2) {
+    throw InvalidArgument("estimate_data_scales: need at least 2 landmarks, got " +
+                          std::to_string(points.size()));
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite()) {
+      throw InvalidArgument("estimate_data_scales: landmark " + std::to_string(i) +
+                            " is not finite");
+    }
+  }
+  const bool with_cov = covariances_m2 != nullptr && !covariances_m2->empty();
+  if (with_cov && covariances_m2->size() != points.size()) {
+    throw InvalidArgument("estimate_data_scales: " + std::to_string(covariances_m2->size()) +
+                          " covariances for " + std::to_string(points.size()) + " landmarks");
+  }
+  const std::size_t n = points.size();
+  const std::size_t m = std::max<std::size_t>(2, std::min(n, max_samples));
+  DataScales s;
+
+  // Centre and radius: coordinate-wise median, then the median distance to it.
+  std::vector<double> coord(n);
+  for (int d = 0; d < 3; ++d) {
+    for (std::size_t i = 0; i < n; ++i) coord[i] = points[i][d];
+    s.centre_m[d] = median_of(coord);
+  }
+  std::vector<double> dist(n);
+  for (std::size_t i = 0; i < n; ++i) dist[i] = (points[i] - s.centre_m).norm();
+  s.radius_m = std::max(median_of(dist), 1e-6);
+
+  // Spacing: nearest other landmark of every strided sample.
+  const KdTree tree(points);
+  std::vector<double> nn;
+  nn.reserve(m);
+  double smallest_positive = 0.0;
+  for (std::size_t j = 0; j < m; ++j) {
+    const std::size_t i = j * n / m;
+    PointIndex idx[2];
+    double d2[2];
+    if (tree.knn(points[i], 2, idx, d2) == 2) {
+      const double d = std::sqrt(d2[1]);
+      nn.push_back(d);
+      if (d > 0.0 && (smallest_positive == 0.0 || d < smallest_positive)) smallest_positive = d;
+    }
+  }
+  s.spacing_m = median_of(nn);
+  if (!(s.spacing_m > 0.0)) s.spacing_m = smallest_positive > 0.0 ? smallest_positive : 1e-6;
+
+  // Floor: the median smallest-axis standard deviation of the covariances present.
+  std::vector<double> sd_min;
+  std::size_t nonzero = 0;
+  if (with_cov) {
+    for (std::size_t j = 0; j < m; ++j) {
+      const Mat3& c = (*covariances_m2)[j * n / m];
+      if (!c.allFinite() || c.isZero(0.0)) continue;
+      ++nonzero;
+      const Eigen::SelfAdjointEigenSolver<Mat3> es(0.5 * (c + c.transpose()),
+                                                   Eigen::EigenvaluesOnly);
+      sd_min.push_back(std::sqrt(std::max(es.eigenvalues()[0], 0.0)));
+    }
+  }
+  s.has_covariances = with_cov && 2 * nonzero >= m;
+  const double cov_floor = s.has_covariances ? median_of(sd_min) : 0.0;
+  s.floor_m = cov_floor > 0.0 ? cov_floor : 0.5 * s.spacing_m;
+  return s;
+}
+
+std::optional<Vec3> estimate_up_axis(const Map& map) {
+  if (map.frames.size() < 2) return std::nullopt;
+  Mat3 xx = Mat3::Zero();
+  Vec3 minus_y = Vec3::Zero();
+  for (const Frame& f : map.frames) {
+    const Mat3 R = f.T_world_camera().linear();
+    xx += R.col(0) * R.col(0).transpose();
+    minus_y -= R.col(1);
+  }
+  xx /= static_cast<double>(map.frames.size());
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(xx);
+  // Eigenvalues ascending: the near-null space of the x axes.
+  Vec3 up = Vec3::Zero();
+  for (int k = 0; k < 3; ++k) {
+    if (es.eigenvalues()[k] < 0.05) {
+      const Vec3 e = es.eigenvectors().col(k);
+      up += e * e.dot(minus_y);
+    }
+  }
+  if (!(up.norm() > 1e-9)) {
+    if (!(es.eigenvalues()[0] < 0.05)) return std::nullopt;
+    up = es.eigenvectors().col(0);
+    if (up.dot(minus_y) < 0.0) up = -up;
+  }
+  up.normalize();
+  if (!up.allFinite()) return std::nullopt;
+  return up;
+}
+
+}  // namespace lmalign

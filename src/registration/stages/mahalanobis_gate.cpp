@@ -1,0 +1,145 @@
+#include "lmalign/registration/stages/mahalanobis_gate.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "lmalign/core/error.hpp"
+
+namespace lmalign {
+
+namespace {
+
+constexpr int kMaxK = 64;
+
+// S^-1 of a symmetric positive-definite 3x3 (the floor keeps it so), by the adjugate; false when
+// the determinant is not positive and finite.
+bool invert_spd(const Mat3& S, Mat3* out) {
+  const double a = S(0, 0), b = S(0, 1), c = S(0, 2), d = S(1, 1), e = S(1, 2), f = S(2, 2);
+  const double A = d * f - e * e, B = c * e - b * f, C = b * e - c * d;
+  const double det = a * A + b * B + c * C;
+  if (!(det > 0.0) || !std::isfinite(det)) return false;
+  const double inv = 1.0 / det;
+  (*out)(0, 0) = A * inv;
+  (*out)(0, 1) = (*out)(1, 0) = B * inv;
+  (*out)(0, 2) = (*out)(2, 0) = C * inv;
+  (*out)(1, 1) = (a * f - c * c) * inv;
+  (*out)(1, 2) = (*out)(2, 1) = (b * c - a * e) * inv;
+  (*out)(2, 2) = (a * d - b * b) * inv;
+  return out->allFinite();
+}
+
+void check_inputs(const GateSide& source, const PreparedTarget& target, double floor_m,
+                  const PoseSigma& sigma, const MahalanobisGateOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("Mahalanobis gate: " + why);
+  if (source.points == nullptr) throw InvalidArgument("Mahalanobis gate: no source points");
+  if (source.covariances_m2 != nullptr && !source.covariances_m2->empty() &&
+      source.covariances_m2->size() != source.points->size()) {
+    throw InvalidArgument("Mahalanobis gate: " + std::to_string(source.covariances_m2->size()) +
+                          " source covariances for " + std::to_string(source.points->size()) +
+                          " source landmarks");
+  }
+  if (!(floor_m > 0.0) || !std::isfinite(floor_m)) {
+    throw InvalidArgument("Mahalanobis gate: floor_m must be > 0 and finite");
+  }
+  if (!(sigma.translation_m >= 0.0) || !std::isfinite(sigma.translation_m) ||
+      !(sigma.rotation_rad >= 0.0) || !std::isfinite(sigma.rotation_rad) ||
+      !sigma.pivot_m.allFinite()) {
+    throw InvalidArgument("Mahalanobis gate: pose sigma must be finite and >= 0");
+  }
+  (void)target;
+}
+
+// The best target landmark of one source landmark; false when none passes the gate.
+bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
+              const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
+              double chi2, GatedPair* out) {
+  const Vec3 x = T * p_s;
+  PointIndex idx[kMaxK];
+  double d2e[kMaxK];
+  const std::size_t found = target.tree().knn(x, static_cast<std::size_t>(k), idx, d2e);
+  if (found == 0) return false;
+  const double lever2 = (x - sigma.pivot_m).squaredNorm();
+  const double iso = iso_base_m2 + sigma.rotation_rad * sigma.rotation_rad * lever2;
+  Mat3 S_src = Mat3::Zero();
+  if (C_s != nullptr) S_src = T.linear() * (*C_s) * T.linear().transpose();
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t c = 0; c < found; ++c) {
+    const Vec3 r = target.points()[idx[c]] - x;
+    Mat3 S = S_src;
+    if (C_t != nullptr) S += (*C_t)[idx[c]];
+    S.diagonal().array() += iso;
+    Mat3 info;
+    if (!invert_spd(S, &info)) continue;
+    const double d2 = r.dot(info * r);
+    if (d2 < best) {
+      best = d2;
+      out->target_index = idx[c];
+      out->d2 = d2;
+      out->moved_source_m = x;
+      out->information = info;
+    }
+  }
+  return best < chi2;
+}
+
+}  // namespace
+
+bool MahalanobisGateOptions::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& m) {
+    if (why != nullptr) *why = m;
+    return false;
+  };
+  if (k < 1 || k > kMaxK) return fail("k must be in [1, 64], got " + std::to_string(k));
+  if (!(chi2_threshold > 0.0) || !std::isfinite(chi2_threshold)) {
+    return fail("chi2_threshold must be > 0 and finite");
+  }
+  return true;
+}
+
+void gate_correspondences(const GateSide& source, const PreparedTarget& target,
+                          const Isometry3& T_target_source, double floor_m,
+                          const PoseSigma& pose_sigma, const MahalanobisGateOptions& options,
+                          const std::vector<std::uint32_t>* subset, std::vector<GatedPair>* pairs) {
+  check_inputs(source, target, floor_m, pose_sigma, options);
+  const Points3& P = *source.points;
+  const bool src_cov = source.covariances_m2 != nullptr && !source.covariances_m2->empty();
+  const std::vector<Mat3>* tgt_cov =
+      target.has_covariances() && target.size() > 0 ? &target.covariances_m2() : nullptr;
+  const std::size_t n = subset != nullptr ? subset->size() : P.size();
+  const double iso_base = floor_m * floor_m + pose_sigma.translation_m * pose_sigma.translation_m;
+  std::vector<GatedPair> slot(n);
+  std::vector<unsigned char> kept(n, 0);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
+    const std::size_t i =
+        subset != nullptr ? (*subset)[static_cast<std::size_t>(j)] : static_cast<std::size_t>(j);
+    GatedPair g;
+    g.source_index = static_cast<std::uint32_t>(i);
+    if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
+                 tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, &g)) {
+      slot[static_cast<std::size_t>(j)] = g;
+      kept[static_cast<std::size_t>(j)] = 1;
+    }
+  }
+  pairs->clear();
+  for (std::size_t j = 0; j < n; ++j) {
+    if (kept[j] != 0) pairs->push_back(slot[j]);
+  }
+}
+
+double gated_inlier_score(const GateSide& source, const PreparedTarget& target,
+                          const Isometry3& T_target_source, double floor_m,
+                          const MahalanobisGateOptions& options,
+                          const std::vector<std::uint32_t>* subset, std::size_t* num_inliers) {
+  std::vector<GatedPair> pairs;
+  gate_correspondences(source, target, T_target_source, floor_m, PoseSigma{}, options, subset,
+                       &pairs);
+  double score = 0.0;
+  for (const GatedPair& g : pairs) score += 1.0 - g.d2 / options.chi2_threshold;
+  if (num_inliers != nullptr) *num_inliers = pairs.size();
+  return score;
+}
+
+}  // namespace lmalign

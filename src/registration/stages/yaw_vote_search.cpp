@@ -1,0 +1,295 @@
+#include "lmalign/registration/stages/yaw_vote_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+
+#include "lmalign/core/error.hpp"
+
+namespace lmalign {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr std::int64_t kCellLimit = std::int64_t{1} << 20;  // 21 bits per axis in a key
+constexpr std::uint64_t kEmpty = ~std::uint64_t{0};
+
+Points3 strided(const Points3& points, std::size_t want) {
+  if (points.size() <= want) return points;
+  Points3 out;
+  out.reserve(want);
+  for (std::size_t i = 0; i < want; ++i) out.push_back(points[i * points.size() / want]);
+  return out;
+}
+
+std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
+  return (static_cast<std::uint64_t>(x + kCellLimit) << 42) |
+         (static_cast<std::uint64_t>(y + kCellLimit) << 21) |
+         static_cast<std::uint64_t>(z + kCellLimit);
+}
+
+// A sparse vote grid: open addressing, linear probing, sized for the number of votes.
+class VoteGrid {
+ public:
+  void reset(std::size_t max_votes) {
+    std::size_t size = 64;
+    while (size < 2 * max_votes) size <<= 1;
+    keys_.assign(size, kEmpty);
+    counts_.assign(size, 0);
+    mask_ = size - 1;
+  }
+  void add(std::uint64_t key) { ++counts_[slot(key)]; }
+  std::uint32_t count(std::uint64_t key) const {
+    std::size_t i = hash(key);
+    while (keys_[i] != kEmpty) {
+      if (keys_[i] == key) return counts_[i];
+      i = (i + 1) & mask_;
+    }
+    return 0;
+  }
+  const std::vector<std::uint64_t>& keys() const { return keys_; }
+  const std::vector<std::uint32_t>& counts() const { return counts_; }
+
+ private:
+  std::size_t hash(std::uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 20) & mask_;
+  }
+  std::size_t slot(std::uint64_t key) {
+    std::size_t i = hash(key);
+    while (keys_[i] != kEmpty && keys_[i] != key) i = (i + 1) & mask_;
+    keys_[i] = key;
+    return i;
+  }
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> counts_;
+  std::size_t mask_ = 0;
+};
+
+struct Peak {
+  std::size_t votes = 0;
+  Vec3 t = Vec3::Zero();
+};
+
+// The translation with the most votes among translations t = q - x for the rotated, centred
+// source samples x; within `radius` of `centre` when radius is finite. The vote is over the
+// horizontal part of t (in the plane normal to `up`, 3x3 cells): an error in either map's up axis
+// (a hand-held camera gives it to a few degrees) tilts the source, which moves its landmarks
+// mostly vertically. The vertical part of t is then the median of the peak's votes.
+Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3& up,
+          const Vec3& centre, double radius, VoteGrid& grid, std::vector<double>& heights) {
+  const Vec3 e1 = up.unitOrthogonal();
+  const Vec3 e2 = up.cross(e1);
+  grid.reset(rotated.size() * target.size());
+  const double inv = 1.0 / cell;
+  const double r2 = radius * radius;
+  auto accepted = [&](const Vec3& t) {
+    return !std::isfinite(radius) || (t - centre).squaredNorm() <= r2;
+  };
+  for (const Vec3& x : rotated) {
+    for (const Vec3& q : target) {
+      const Vec3 t = q - x;
+      if (!accepted(t)) continue;
+      const double a = std::floor(t.dot(e1) * inv);
+      const double b = std::floor(t.dot(e2) * inv);
+      if (std::abs(a) >= static_cast<double>(kCellLimit - 2) ||
+          std::abs(b) >= static_cast<double>(kCellLimit - 2)) {
+        continue;
+      }
+      grid.add(pack(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b), 0));
+    }
+  }
+  // The 32 fullest cells, then their 3x3 sums.
+  std::vector<std::pair<std::uint32_t, std::uint64_t>> top;
+  const auto& keys = grid.keys();
+  const auto& counts = grid.counts();
+  for (std::size_t i = 0; i < keys.size(); ++i) {
+    if (keys[i] != kEmpty) top.emplace_back(counts[i], keys[i]);
+  }
+  const std::size_t keep = std::min<std::size_t>(32, top.size());
+  std::partial_sort(top.begin(), top.begin() + static_cast<std::ptrdiff_t>(keep), top.end(),
+                    [](const auto& l, const auto& r) {
+                      return l.first != r.first ? l.first > r.first : l.second < r.second;
+                    });
+  Peak best;
+  double best_a = 0.0, best_b = 0.0;
+  std::int64_t best_x = 0, best_y = 0;
+  for (std::size_t j = 0; j < keep; ++j) {
+    const std::uint64_t key = top[j].second;
+    const std::int64_t x = static_cast<std::int64_t>(key >> 42) - kCellLimit;
+    const std::int64_t y = static_cast<std::int64_t>((key >> 21) & ((1u << 21) - 1)) - kCellLimit;
+    std::size_t sum = 0;
+    double wa = 0.0, wb = 0.0;
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        const std::uint32_t c = grid.count(pack(x + dx, y + dy, 0));
+        sum += c;
+        wa += c * (static_cast<double>(x + dx) + 0.5);
+        wb += c * (static_cast<double>(y + dy) + 0.5);
+      }
+    }
+    if (sum > best.votes) {
+      best.votes = sum;
+      best_a = cell * wa / static_cast<double>(sum);
+      best_b = cell * wb / static_cast<double>(sum);
+      best_x = x;
+      best_y = y;
+    }
+  }
+  if (best.votes == 0) return best;
+  // The vertical part: median over the votes in the peak's 3x3 cells.
+  heights.clear();
+  for (const Vec3& x : rotated) {
+    for (const Vec3& q : target) {
+      const Vec3 t = q - x;
+      if (!accepted(t)) continue;
+      const double a = std::floor(t.dot(e1) * inv);
+      const double b = std::floor(t.dot(e2) * inv);
+      if (std::abs(a - static_cast<double>(best_x)) <= 1.0 &&
+          std::abs(b - static_cast<double>(best_y)) <= 1.0) {
+        heights.push_back(t.dot(up));
+      }
+    }
+  }
+  const std::size_t mid = heights.size() / 2;
+  std::nth_element(heights.begin(), heights.begin() + static_cast<std::ptrdiff_t>(mid),
+                   heights.end());
+  best.t = best_a * e1 + best_b * e2 + heights[mid] * up;
+  return best;
+}
+
+}  // namespace
+
+bool YawVoteOptions::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& m) {
+    if (why != nullptr) *why = m;
+    return false;
+  };
+  if (!(yaw_step_deg > 0.0 && yaw_step_deg <= 90.0)) {
+    return fail("yaw_step_deg must be in (0, 90], got " + std::to_string(yaw_step_deg));
+  }
+  if (source_samples < 3 || target_samples < 3) {
+    return fail("source_samples and target_samples must be >= 3");
+  }
+  if (hypotheses < 1) return fail("hypotheses must be >= 1");
+  return true;
+}
+
+Mat3 rotation_between(const Vec3& from, const Vec3& to) {
+  const Vec3 a = from.normalized();
+  const Vec3 b = to.normalized();
+  const Vec3 axis = a.cross(b);
+  const double s = axis.norm();
+  const double c = a.dot(b);
+  if (s < 1e-12) {
+    if (c > 0.0) return Mat3::Identity();
+    // Opposite: a half turn about any axis perpendicular to a.
+    Vec3 perp = a.cross(Vec3::UnitX());
+    if (perp.norm() < 1e-6) perp = a.cross(Vec3::UnitY());
+    return Eigen::AngleAxisd(kPi, perp.normalized()).toRotationMatrix();
+  }
+  return Eigen::AngleAxisd(std::atan2(s, c), axis / s).toRotationMatrix();
+}
+
+std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
+                                               const Points3& target_points,
+                                               const Vec3& up_source, const Vec3& up_target,
+                                               double cell_m, const YawVoteOptions& options,
+                                               const PoseWindow* window) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("yaw-vote search: " + why);
+  if (source_points.size() < 3 || target_points.size() < 3) {
+    throw InvalidArgument("yaw-vote search: each map needs at least 3 landmarks");
+  }
+  if (!(up_source.norm() > 0.0) || !(up_target.norm() > 0.0) || !up_source.allFinite() ||
+      !up_target.allFinite()) {
+    throw InvalidArgument("yaw-vote search: the up axes must be finite and non-zero");
+  }
+  if (!(cell_m > 0.0) || !std::isfinite(cell_m)) {
+    throw InvalidArgument("yaw-vote search: cell_m must be > 0 and finite");
+  }
+  if (window != nullptr &&
+      (!(window->rotation_sd_rad > 0.0) || !(window->translation_sd_m > 0.0) ||
+       !std::isfinite(window->rotation_sd_rad) || !std::isfinite(window->translation_sd_m) ||
+       !window->T_target_source_guess.matrix().allFinite())) {
+    throw InvalidArgument("yaw-vote search: the prior's sigmas must be > 0 and finite");
+  }
+  const Points3 src = strided(source_points, options.source_samples);
+  const Points3 tgt = strided(target_points, options.target_samples);
+  for (const Vec3& p : src) {
+    if (!p.allFinite()) throw InvalidArgument("yaw-vote search: a source landmark is not finite");
+  }
+  for (const Vec3& p : tgt) {
+    if (!p.allFinite()) throw InvalidArgument("yaw-vote search: a target landmark is not finite");
+  }
+  Vec3 centroid = Vec3::Zero();
+  for (const Vec3& p : src) centroid += p;
+  centroid /= static_cast<double>(src.size());
+  const Vec3 up = up_target.normalized();
+
+  // The base rotation and the yaw grid.
+  Mat3 base;
+  double yaw_from = -kPi;
+  int n_yaw = 0;
+  const double step = options.yaw_step_deg * kPi / 180.0;
+  Vec3 t_centre = Vec3::Zero();
+  double t_radius = std::numeric_limits<double>::infinity();
+  bool circular = true;
+  if (window == nullptr) {
+    base = rotation_between(up_source, up);
+    n_yaw = static_cast<int>(std::ceil(2.0 * kPi / step - 1e-9));
+  } else {
+    base = window->T_target_source_guess.linear();
+    const double half = 3.0 * window->rotation_sd_rad;
+    if (half >= kPi) {
+      n_yaw = static_cast<int>(std::ceil(2.0 * kPi / step - 1e-9));
+    } else {
+      circular = false;
+      const int per_side = static_cast<int>(std::ceil(half / step));
+      n_yaw = 2 * per_side + 1;
+      yaw_from = -per_side * step;
+    }
+    // Where the guess puts the source centroid; the votes are for that point's image.
+    t_centre = window->T_target_source_guess * centroid;
+    t_radius = 3.0 * window->translation_sd_m + 2.0 * cell_m;
+  }
+
+  std::vector<YawHypothesis> all(static_cast<std::size_t>(n_yaw));
+#pragma omp parallel
+  {
+    VoteGrid grid;
+    std::vector<double> heights;
+    Points3 rotated(src.size());
+#pragma omp for schedule(dynamic, 1)
+    for (int i = 0; i < n_yaw; ++i) {
+      const double yaw = yaw_from + step * i;
+      const Mat3 R = Eigen::AngleAxisd(yaw, up).toRotationMatrix() * base;
+      for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * (src[j] - centroid);
+      const Peak peak = vote(rotated, tgt, cell_m, up, t_centre, t_radius, grid, heights);
+      YawHypothesis& h = all[static_cast<std::size_t>(i)];
+      h.yaw_rad = yaw;
+      h.votes = peak.votes;
+      h.T_target_source.linear() = R;
+      // p -> R (p - centroid) + t_peak
+      h.T_target_source.translation() = peak.t - R * centroid;
+    }
+  }
+  // Local maxima over yaw (circular without a window), best first.
+  std::vector<YawHypothesis> out;
+  for (int i = 0; i < n_yaw; ++i) {
+    const std::size_t v = all[static_cast<std::size_t>(i)].votes;
+    if (v == 0) continue;
+    const bool has_prev = circular || i > 0;
+    const bool has_next = circular || i + 1 < n_yaw;
+    const std::size_t prev = has_prev ? all[static_cast<std::size_t>((i + n_yaw - 1) % n_yaw)].votes : 0;
+    const std::size_t next = has_next ? all[static_cast<std::size_t>((i + 1) % n_yaw)].votes : 0;
+    if (v >= prev && v >= next) out.push_back(all[static_cast<std::size_t>(i)]);
+  }
+  std::stable_sort(out.begin(), out.end(), [](const YawHypothesis& a, const YawHypothesis& b) {
+    return a.votes > b.votes;
+  });
+  if (out.size() > options.hypotheses) out.resize(options.hypotheses);
+  return out;
+}
+
+}  // namespace lmalign
