@@ -112,6 +112,10 @@ demo: build
 	@echo "== lmalign demo: the paper's four experiments (configs/paper.yaml: Tables 1-4, 45 cases) on the same pair"
 	$(LMALIGN) experiment configs/paper.yaml -o $(BUILD_DIR)/demo/paper
 	@echo "== report: $(BUILD_DIR)/demo/paper/ (tables.md, summary.json, results.csv, plots/*.png)"
+	@if [ -d $(BUILD_DIR)/python/lmalign ]; then \
+	  echo "== lmalign demo: the same alignment from Python (examples/python/align_and_plot.py)"; \
+	  PYTHONPATH=$(abspath $(BUILD_DIR))/python MPLBACKEND=Agg $(PYTHON) \
+	    examples/python/align_and_plot.py -o $(BUILD_DIR)/demo/aligned.png; fi
 
 # `make install`: everything `make build` built, under PREFIX (docs/packaging.md). With the
 # default prefix, Debian's python3 finds the package in /usr/local/lib/python3.X/dist-packages;
