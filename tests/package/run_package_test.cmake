@@ -3,7 +3,8 @@
 #         -P run_package_test.cmake
 # 1. installs BUILD_DIR into the fresh prefix WORK_DIR/prefix (cmake --install --prefix);
 # 2. configures and builds CONSUMER_DIR against it (find_package(lmalign CONFIG) and pkg-config);
-# 3. runs both executables (each recovers a known transform);
+# 3. runs both executables (each recovers a known transform), and, when PCL is found, a user of
+#    the pcl component (find_package(lmalign COMPONENTS pcl), lmalign::pcl);
 # 4. with PYTHON: imports the installed Python module from another directory and aligns.
 function(run)
   execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
@@ -30,6 +31,11 @@ run(${CMAKE_COMMAND} -S ${CONSUMER_DIR} -B ${WORK_DIR}/consumer-build -DCMAKE_BU
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/consumer-build -j 2)
 run(${WORK_DIR}/consumer-build/consumer_cmake)
 run(${WORK_DIR}/consumer-build/consumer_pkgconfig)
+if(EXISTS ${WORK_DIR}/consumer-build/consumer_pcl)
+  run(${WORK_DIR}/consumer-build/consumer_pcl)
+else()
+  message(STATUS "package test: PCL not found: the pcl component is not tested")
+endif()
 run(${prefix}/bin/lmalign --version)
 if(PYTHON)
   set(ENV{PYTHONPATH} ${prefix}/${PYTHON_DIR})
