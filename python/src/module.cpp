@@ -145,6 +145,14 @@ Map read_map_file(const std::filesystem::path& path, std::size_t min_observation
   return read_map(path.string(), o);
 }
 
+/// Builds the map's lazy frame-id index while the GIL is held: a Map may be shared by Python
+/// threads, and the first find_frame() must not run on two of them at once
+/// (docs/architecture.md, "Thread safety"); lookups afterwards are concurrent reads.
+const Map& with_frame_index(const Map& map) {
+  if (!map.frames.empty()) map.frame_index(map.frames.front().id);
+  return map;
+}
+
 template <typename F>
 py::array_t<std::int64_t> per_landmark(const Map& m, F f) {
   py::array_t<std::int64_t> a(static_cast<py::ssize_t>(m.landmarks.size()));
@@ -297,7 +305,7 @@ PYBIND11_MODULE(_lmalign, m) {
       .def(
           "transformed",
           [](const Map& map, const py::handle& T) {
-            return transform_map(map, transform_from(T, "T_new_old"));
+            return transform_map(with_frame_index(map), transform_from(T, "T_new_old"));
           },
           py::arg("T_new_old"),
           "The map expressed in frame `new`: positions, covariances (R C R^T) and frame poses "
@@ -314,6 +322,7 @@ PYBIND11_MODULE(_lmalign, m) {
   m.def(
       "write_map",
       [](const std::filesystem::path& path, const Map& map) {
+        with_frame_index(map);
         py::gil_scoped_release release;
         write_map(path.string(), map);
       },
@@ -439,7 +448,7 @@ PYBIND11_MODULE(_lmalign, m) {
         if (py::isinstance<Map>(target)) {
           if (!target_covariances.is_none() || !target_weights.is_none())
             throw InvalidArgument("target_covariances / target_weights: give them only with an array target");
-          const Map& t = target.cast<const Map&>();
+          const Map& t = with_frame_index(target.cast<const Map&>());
           py::gil_scoped_release release;
           prepared.emplace(t, wopt);
         } else {
@@ -484,6 +493,7 @@ PYBIND11_MODULE(_lmalign, m) {
         o.min_observations = min_observations;
         o.retriangulate = retriangulate;
         o.min_parallax_deg = min_parallax_deg;
+        with_frame_index(map);
         py::gil_scoped_release release;
         return split_map(map, o);
       },
