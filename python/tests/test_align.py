@@ -37,7 +37,7 @@ def assert_same_as_cli(result, cli_result):
         assert result.covariance.reshape(-1).tolist() == cli_result["covariance_6x6"]
 
 
-STRATEGIES = ["base", "observations", "robust_obs", "robust_p2d"]
+STRATEGIES = ["base", "observations", "robust_obs"]  # p2d: the next test
 
 
 def test_equals_cli_bit_for_bit_on_the_desk_pair(desk_pair, cli, tmp_path):
@@ -111,8 +111,8 @@ def test_weighted_strategy_with_array_target_uses_target_weights():
 
 def test_threads_do_not_change_the_result(desk_pair):
     source, target = (lmalign.read_map(p) for p in desk_pair)
-    one = lmalign.align(source, target, threads=1)
-    two = lmalign.align(source, target, threads=2)
+    one = lmalign.align(source, target, strategy="covariance", threads=1)
+    two = lmalign.align(source, target, strategy="covariance", threads=2)
     assert one.T_target_source.tolist() == two.T_target_source.tolist()
 
 
