@@ -48,7 +48,13 @@ std::string shape_text(const py::array& a) {
 /// `n` when n >= 0). Real dtypes (float, int, uint) are converted once; others are refused.
 Array as_array(const py::handle& obj, const char* name, std::vector<py::ssize_t> shape,
                const char* expected, py::ssize_t n = -1) {
-  py::array a = py::module_::import("numpy").attr("asarray")(obj);
+  py::array a;
+  try {
+    a = py::module_::import("numpy").attr("asarray")(obj);
+  } catch (const py::error_already_set& e) {  // e.g. a ragged nested list
+    throw py::value_error(std::string(name) + ": expected an array of shape " + expected +
+                          ", got an object numpy cannot convert (" + e.what() + ")");
+  }
   const char kind = a.dtype().kind();
   if (kind != 'f' && kind != 'i' && kind != 'u') {
     throw py::value_error(std::string(name) + ": expected a real array of shape " + expected +

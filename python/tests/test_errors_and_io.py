@@ -48,6 +48,20 @@ def test_wrong_optional_arrays_raise_value_error(keyword, bad, expected):
         lmalign.align(GOOD, GOOD, strategy="base", **{keyword: bad})
 
 
+@pytest.mark.parametrize("call, expected", [
+    (lambda: lmalign.transform_points(np.eye(4), np.zeros((3, 4))),
+     r"^points: expected shape \(N, 3\), got \(3, 4\)"),
+    (lambda: lmalign.transform_points(np.eye(4)[:3], GOOD), r"^T: expected shape \(4, 4\)"),
+    (lambda: lmalign.transform_covariances(np.eye(4), np.zeros((2, 3))),
+     r"^covariances: expected shape \(N, 3, 3\)"),
+    (lambda: lmalign.align([[0, 0, 0], [1, 1]], GOOD),
+     r"^source: expected an array of shape \(N, 3\), got an object numpy cannot convert"),
+])
+def test_wrong_arrays_of_the_helpers_raise_value_error(call, expected):
+    with pytest.raises(ValueError, match=expected):
+        call()
+
+
 def test_non_rigid_initial_guess_is_invalid_argument():
     guess = np.eye(4)
     guess[0, 0] = 2.0
