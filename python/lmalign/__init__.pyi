@@ -103,7 +103,8 @@ def split(
     min_observations: int = 2,
     retriangulate: bool = False,
     min_parallax_deg: float = 2.0,
-) -> Map: ...
+    return_stats: bool = False,
+) -> Union[Map, Tuple[Map, Dict[str, int]]]: ...
 def experiment(
     config: PathLike,
     output_dir: PathLike,

@@ -492,7 +492,7 @@ PYBIND11_MODULE(_lmalign, m) {
   m.def(
       "split",
       [](const Map& map, Id first, Id last, std::size_t min_observations, bool retriangulate,
-         double min_parallax_deg) {
+         double min_parallax_deg, bool return_stats) -> py::object {
         SplitOptions o;
         o.first_frame_id = first;
         o.last_frame_id = last;
@@ -500,17 +500,33 @@ PYBIND11_MODULE(_lmalign, m) {
         o.retriangulate = retriangulate;
         o.min_parallax_deg = min_parallax_deg;
         with_frame_index(map);
-        py::gil_scoped_release release;
-        return split_map(map, o);
+        SplitStats stats;
+        Map mini;
+        {
+          py::gil_scoped_release release;
+          mini = split_map(map, o, &stats);
+        }
+        if (!return_stats) return py::cast(std::move(mini));
+        py::dict d;
+        d["frames_kept"] = stats.frames_kept;
+        d["landmarks_kept"] = stats.landmarks_kept;
+        d["landmarks_outside_window"] = stats.landmarks_outside_window;
+        d["dropped_too_few_observations"] = stats.dropped_too_few_observations;
+        d["dropped_low_parallax"] = stats.dropped_low_parallax;
+        d["dropped_triangulation_failed"] = stats.dropped_triangulation_failed;
+        return py::make_tuple(std::move(mini), d);
       },
       py::arg("map"), py::arg("first_frame_id"), py::arg("last_frame_id"),
       py::arg("min_observations") = 2, py::arg("retriangulate") = false,
-      py::arg("min_parallax_deg") = 2.0,
+      py::arg("min_parallax_deg") = 2.0, py::arg("return_stats") = false,
       "The mini-map of frames [first_frame_id, last_frame_id] (inclusive), as `lmalign split` "
       "(docs/split.md): those frames, and the landmarks with >= min_observations observations "
       "among them (observations outside the window removed). retriangulate=True re-estimates "
       "positions and covariances from the window alone and drops landmarks below "
-      "min_parallax_deg. Same world frame, ids kept. Raises InvalidArgument.");
+      "min_parallax_deg. Same world frame, ids kept. return_stats=True returns (map, dict) "
+      "with what `lmalign split` prints: frames_kept, landmarks_kept, "
+      "landmarks_outside_window, dropped_too_few_observations, dropped_low_parallax, "
+      "dropped_triangulation_failed. Raises InvalidArgument.");
 
   // ------------------------------------------------------------ trajectories
   m.def(

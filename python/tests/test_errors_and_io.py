@@ -130,6 +130,12 @@ def test_split_keeps_only_the_window(desk_pair):
     assert 0 < len(mini) < len(m)
     assert set(mini.frame_ids.tolist()) == {i for i in m.frame_ids.tolist() if first <= i <= last}
     assert (mini.observation_counts >= 2).all()
+    again, stats = lmalign.split(m, first, last, return_stats=True)
+    assert again.positions.tolist() == mini.positions.tolist()
+    assert stats["landmarks_kept"] == len(mini) and stats["frames_kept"] == mini.num_frames
+    # Every landmark of the map is kept, outside the window, or dropped for too few observations.
+    assert (stats["landmarks_kept"] + stats["landmarks_outside_window"]
+            + stats["dropped_too_few_observations"]) == len(m)
     with pytest.raises(lmalign.InvalidArgument, match="first_frame_id"):
         lmalign.split(m, last, first)
 
