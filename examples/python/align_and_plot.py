@@ -63,6 +63,7 @@ def main():
     fig.suptitle("lmalign: top view in the target frame; final score %.2e m^2"
                  % result.final_score_m2)
     fig.tight_layout()
+    os.makedirs(os.path.dirname(os.path.abspath(args.output)), exist_ok=True)
     fig.savefig(args.output, dpi=100)
     print("plot written to", args.output)
 
