@@ -133,6 +133,18 @@ py::array_t<double> covariances_out(const std::vector<Mat3>& c) {
   return a;
 }
 
+/// (N, 4, 4) from n poses, pose(i) giving the i-th (an Isometry3).
+template <typename F>
+py::array_t<double> poses_out(std::size_t n, F pose) {
+  py::array_t<double> a({static_cast<py::ssize_t>(n), py::ssize_t{4}, py::ssize_t{4}});
+  for (std::size_t i = 0; i < n; ++i) {
+    const Mat4 T = pose(i).matrix();
+    for (int r = 0; r < 4; ++r)
+      for (int k = 0; k < 4; ++k) a.mutable_data()[16 * i + 4 * r + k] = T(r, k);
+  }
+  return a;
+}
+
 template <int R, int C>
 py::array_t<double> matrix_out(const Eigen::Matrix<double, R, C>& m) {
   py::array_t<double> a({py::ssize_t{R}, py::ssize_t{C}});
@@ -295,14 +307,8 @@ PYBIND11_MODULE(_lmalign, m) {
       .def_property_readonly(
           "frame_poses",
           [](const Map& map) {
-            const auto F = static_cast<py::ssize_t>(map.frames.size());
-            py::array_t<double> a({F, py::ssize_t{4}, py::ssize_t{4}});
-            for (std::size_t i = 0; i < map.frames.size(); ++i) {
-              const Mat4 T = map.frames[i].T_world_camera().matrix();
-              for (int r = 0; r < 4; ++r)
-                for (int k = 0; k < 4; ++k) a.mutable_data()[16 * i + 4 * r + k] = T(r, k);
-            }
-            return a;
+            return poses_out(map.frames.size(),
+                             [&](std::size_t i) { return map.frames[i].T_world_camera(); });
           },
           "(F, 4, 4) float64: T_world_camera of each frame (p_world = T @ p_camera), metres.")
       .def_property_readonly("num_frames", [](const Map& map) { return map.frames.size(); })
@@ -534,14 +540,9 @@ PYBIND11_MODULE(_lmalign, m) {
       [](const std::filesystem::path& path) {
         const Trajectory t = read_tum_trajectory(path.string());
         py::array_t<double> stamps(static_cast<py::ssize_t>(t.size()));
-        py::array_t<double> poses({static_cast<py::ssize_t>(t.size()), py::ssize_t{4}, py::ssize_t{4}});
-        for (std::size_t i = 0; i < t.size(); ++i) {
-          stamps.mutable_data()[i] = t[i].timestamp_s;
-          const Mat4 T = t[i].T_world_camera.matrix();
-          for (int r = 0; r < 4; ++r)
-            for (int k = 0; k < 4; ++k) poses.mutable_data()[16 * i + 4 * r + k] = T(r, k);
-        }
-        return py::make_tuple(stamps, poses);
+        for (std::size_t i = 0; i < t.size(); ++i) stamps.mutable_data()[i] = t[i].timestamp_s;
+        return py::make_tuple(
+            stamps, poses_out(t.size(), [&](std::size_t i) { return t[i].T_world_camera; }));
       },
       py::arg("path"),
       "Reads a TUM trajectory file: (timestamps_s (N,), T_world_camera (N, 4, 4)), sorted by "

@@ -154,3 +154,29 @@ def test_trajectory_evaluation_recovers_a_known_world_offset():
     assert np.abs(d["T_gt_est"] - T_gt_est).max() < 1e-9
     with pytest.raises(ValueError, match=r"estimate: expected shape \(N, 4, 4\)"):
         lmalign.evaluate_trajectory((stamps, est[:, :3]), (stamps, poses))
+
+
+def test_tum_trajectory_file_round_trip_and_errors(tmp_path):
+    """read_tum_trajectory: 'timestamp tx ty tz qx qy qz qw' (scalar last), sorted by time."""
+    path = tmp_path / "traj.txt"
+    # yaw 90 deg about z: q = (x y z w) = (0, 0, sin 45, cos 45); written out of time order.
+    s = np.sqrt(0.5)
+    path.write_text("# t tx ty tz qx qy qz qw\n"
+                    "2.0 1 2 3 0 0 %.17g %.17g\n" % (s, s) +
+                    "1.0 0 0 0 0 0 0 1\n"
+                    "3.0 0 1 0 0 0 0 1\n")
+    stamps, poses = lmalign.read_tum_trajectory(path)
+    assert stamps.tolist() == [1.0, 2.0, 3.0]
+    assert poses.shape == (3, 4, 4) and poses.dtype == np.float64
+    expected = lmalign.pose_from_xyz_rpy_deg(1, 2, 3, 0, 0, 90)
+    assert np.abs(poses[1] - expected).max() < 1e-12
+    # The same trajectory from a file and from arrays evaluates the same.
+    d = lmalign.evaluate_trajectory(path, (stamps, poses), align=False)
+    assert d["pairs"] == 3 and d["ate_translation_m"]["max"] == 0.0
+    bad = tmp_path / "bad.txt"
+    bad.write_text("1.0 0 0 0 0 0 0 1\n2.0 0 0 0 0 0 0\n")
+    with pytest.raises(lmalign.ParseError) as info:
+        lmalign.read_tum_trajectory(bad)
+    assert info.value.line == 2
+    with pytest.raises(lmalign.IoError):
+        lmalign.evaluate_trajectory(tmp_path / "missing.txt", (stamps, poses))
