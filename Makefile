@@ -3,6 +3,8 @@
 #               runs the paper's protocol (configs/paper.yaml) into $(BUILD_DIR)/demo/paper.
 #   make test   same set-up, then builds and runs every test, then builds and runs the whole suite
 #               again under ASan + UBSan in $(ASAN_BUILD_DIR) (make test-sanitize).
+#   make install  installs the library, headers, CMake/pkg-config package, CLI and Python package
+#               under PREFIX (default /usr/local; docs/packaging.md).
 # Also: make bench (against PCL and Open3D), make test-sanitize (the sanitizer half alone),
 # make fuzz (libFuzzer targets, FUZZ_SECONDS each; .ci/run runs it after make test).
 # Real data: ../shared/data by default; set LMALIGN_DATA to point elsewhere.
@@ -23,6 +25,9 @@ DEB_PACKAGES := cmake make g++ pkg-config libeigen3-dev libcli11-dev \
 # (lmalign itself has its own exact kd-tree and does not use it).
 DEB_PACKAGES += libpcl-dev libopen3d-dev libnanoflann-dev libbenchmark-dev
 
+# Python bindings and their tests (docs/python.md): pybind11, Python's headers, pytest.
+DEB_PACKAGES += pybind11-dev python3-dev python3-pytest
+
 # Robustness (docs/robustness.md): clang and its libFuzzer/sanitizer runtimes, and clang's
 # OpenMP, for `make fuzz`.
 DEB_PACKAGES += clang libclang-rt-14-dev libomp-dev
@@ -38,7 +43,7 @@ LMALIGN := $(BUILD_DIR)/apps/lmalign/lmalign
 PYTHON ?= $(shell test -x /usr/bin/python3 && echo /usr/bin/python3 || echo python3)
 GT_PAIR := $(LMALIGN_DATA)/tum_fr1_desk/ground_truth_pair
 
-.PHONY: all deps configure build test demo clean
+.PHONY: all deps configure build test demo clean install
 
 all: build
 
@@ -107,6 +112,17 @@ demo: build
 	@echo "== lmalign demo: the paper's four experiments (configs/paper.yaml: Tables 1-4, 45 cases) on the same pair"
 	$(LMALIGN) experiment configs/paper.yaml -o $(BUILD_DIR)/demo/paper
 	@echo "== report: $(BUILD_DIR)/demo/paper/ (tables.md, summary.json, results.csv, plots/*.png)"
+	@if [ -d $(BUILD_DIR)/python/lmalign ]; then \
+	  echo "== lmalign demo: the same alignment from Python (examples/python/align_and_plot.py)"; \
+	  PYTHONPATH=$(abspath $(BUILD_DIR))/python MPLBACKEND=Agg $(PYTHON) \
+	    examples/python/align_and_plot.py -o $(BUILD_DIR)/demo/aligned.png; fi
+
+# `make install`: everything `make build` built, under PREFIX (docs/packaging.md). With the
+# default prefix, Debian's python3 finds the package in /usr/local/lib/python3.X/dist-packages;
+# with another, add that folder under PREFIX to PYTHONPATH.
+PREFIX ?= /usr/local
+install: build
+	cmake --install $(BUILD_DIR) --prefix $(PREFIX)
 
 clean:
 	rm -rf $(BUILD_DIR) $(ASAN_BUILD_DIR) $(FUZZ_BUILD_DIR)

@@ -1,0 +1,69 @@
+# Install rules and the CMake / pkg-config package (docs/packaging.md). Included last by the
+# top-level CMakeLists.txt, once every target exists.
+#
+#   find_package(lmalign 0.1 CONFIG REQUIRED)              -> lmalign::lmalign
+#   find_package(lmalign CONFIG REQUIRED COMPONENTS vo)    -> also lmalign::vo (OpenCV + Ceres)
+#   find_package(lmalign CONFIG REQUIRED COMPONENTS pcl)   -> also lmalign::pcl (the PCL drop-in)
+#   pkg-config --cflags --libs lmalign
+include(GNUInstallDirs)
+include(CMakePackageConfigHelpers)
+
+set(LMALIGN_INSTALL_CMAKEDIR "${CMAKE_INSTALL_LIBDIR}/cmake/lmalign"
+    CACHE STRING "Where lmalignConfig.cmake is installed (relative to the prefix)")
+
+# --- the core library and its headers
+set_target_properties(lmalign PROPERTIES EXPORT_NAME lmalign)
+install(TARGETS lmalign EXPORT lmalignTargets
+        ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+        RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+# Every public header; vo/ only with the map builder, pcl.hpp always (header-only; the pcl
+# component checks that PCL itself is there).
+install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
+        FILES_MATCHING PATTERN "*.hpp" PATTERN "vo" EXCLUDE)
+install(EXPORT lmalignTargets NAMESPACE lmalign:: FILE lmalignTargets.cmake
+        DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
+
+# --- optional component: the map builder
+set(LMALIGN_INSTALLED_VO OFF)
+if(TARGET lmalign_vo)
+  set(LMALIGN_INSTALLED_VO ON)
+  set_target_properties(lmalign_vo PROPERTIES EXPORT_NAME vo)
+  install(TARGETS lmalign_vo EXPORT lmalignVoTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign/vo
+          DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lmalign FILES_MATCHING PATTERN "*.hpp")
+  install(EXPORT lmalignVoTargets NAMESPACE lmalign:: FILE lmalignVoTargets.cmake
+          DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
+endif()
+
+# --- the command-line tool (and its build-map helper, found beside it)
+if(TARGET lmalign_cli)
+  install(TARGETS lmalign_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()
+if(TARGET lmalign_build_map_cli)
+  install(TARGETS lmalign_build_map_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+endif()
+
+# --- the package files
+configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/lmalignConfig.cmake.in
+  ${PROJECT_BINARY_DIR}/package/lmalignConfig.cmake
+  INSTALL_DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
+write_basic_package_version_file(${PROJECT_BINARY_DIR}/package/lmalignConfigVersion.cmake
+  VERSION ${PROJECT_VERSION} COMPATIBILITY SameMinorVersion)
+install(FILES ${PROJECT_BINARY_DIR}/package/lmalignConfig.cmake
+              ${PROJECT_BINARY_DIR}/package/lmalignConfigVersion.cmake
+              # finds PCL's parts without PCL's own config (see the file), for the pcl component
+              ${PROJECT_SOURCE_DIR}/cmake/lmalign_pcl.cmake
+        DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
+
+# pkg-config: the core library only. It is static by default, so its private dependencies are
+# listed for static linking (Libs.private / Requires.private).
+set(LMALIGN_PC_LIBS_PRIVATE "-fopenmp")
+# Relocatable: the prefix is found from the .pc file's own place (cmake --install --prefix X).
+string(REGEX REPLACE "[^/]+" ".." LMALIGN_PC_UP "${CMAKE_INSTALL_LIBDIR}/pkgconfig")
+configure_file(${PROJECT_SOURCE_DIR}/cmake/lmalign.pc.in ${PROJECT_BINARY_DIR}/package/lmalign.pc
+               @ONLY)
+install(FILES ${PROJECT_BINARY_DIR}/package/lmalign.pc
+        DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)

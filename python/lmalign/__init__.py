@@ -1,0 +1,127 @@
+"""lmalign: align sparse landmark maps ("mini-maps") of feature-based visual SLAM / SfM.
+
+Frames and units: T_target_source is a (4, 4) rigid transform with
+p_target = T_target_source @ p_source; positions in metres, covariances in m^2, scores in m^2
+(PCL's fitness score: mean squared nearest-neighbour distance). Arrays are float64 and
+C-contiguous; arrays of another real dtype or layout are converted once, anything else (wrong
+shape, complex, bool, object, strings) raises ValueError naming the argument and the expected
+shape. See docs/python.md.
+
+Errors: ParseError (file, line, detail; a ValueError), InvalidArgument (a ValueError),
+IoError (an OSError), all subclasses of lmalign.Error.
+"""
+
+import json as _json
+import os as _os
+
+from ._lmalign import (  # noqa: F401  (re-exported)
+    RECOMMENDED_STRATEGY,
+    AlignmentResult,
+    Error,
+    InvalidArgument,
+    IoError,
+    Map,
+    ParseError,
+    evaluate_trajectory,
+    pose_from_xyz_rpy_deg,
+    read_map,
+    read_tum_trajectory,
+    split,
+    strategies,
+    transform_covariances,
+    transform_points,
+    write_map,
+)
+from . import _lmalign
+
+__version__ = "@PROJECT_VERSION@"
+
+__all__ = [
+    "AlignmentResult", "Error", "InvalidArgument", "IoError", "Map", "ParseError",
+    "RECOMMENDED_STRATEGY", "align", "evaluate_trajectory", "experiment", "pose_from_xyz_rpy_deg",
+    "read_map", "read_tum_trajectory", "split", "strategies", "transform_covariances",
+    "transform_points", "write_map",
+]
+
+_ALIGN_OPTIONS = ("k", "max_iterations", "max_distance_m", "covariance_norm")
+
+
+def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, threads=0, *,
+          source_covariances=None, target_covariances=None, target_weights=None, **options):
+    """Align `source` onto `target`; returns an AlignmentResult.
+
+    Equals `lmalign align SOURCE TARGET --strategy STRATEGY` bit for bit (same options, same
+    trust verdict). The GIL is released while it runs.
+
+    source, target: a Map, or an (N, 3) array of landmark positions (metres; source frame and
+        target frame). With an array source, source_covariances (N, 3, 3) m^2 (needed by
+        'p2d' / 'robust_p2d'); with an array target, target_covariances (M, 3, 3) m^2 and
+        target_weights (M,) >= 0, the landmark confidence used by every weighted strategy (a
+        Map target computes its own weights and covariances). Bare arrays carry no confidence:
+        the weighted strategies (the paper's three weighted ones, and 'robust_obs', the
+        default) then raise InvalidArgument unless target_weights is given; 'base',
+        'shrink', 'shrink_cauchy', 'trimmed' and 'mutual' need none.
+    strategy: one of lmalign.strategies(): the paper's 'base', 'covariance', 'observations',
+        'distance', or lmalign's own ('robust_obs', the recommended default, 'shrink', 'p2d', ...;
+        docs/accuracy.md).
+    initial_guess: (4, 4) rigid T_target_source to start from (default identity). Ignored by
+        'global'.
+    threads: OpenMP threads for this call (0: every core). The result does not depend on it.
+    options (as the CLI's): k (neighbourhood of the weighted strategies, default 5),
+        max_iterations (paper's strategies: 150; lmalign's: replaces the preset budget),
+        max_distance_m (paper's: unlimited; lmalign's: caps the distance schedule),
+        covariance_norm ('spectral' or 'frobenius', for a Map target's covariance weight).
+
+    Result: T_target_source (4, 4), converged, termination, iterations, num_correspondences,
+    initial_score_m2, final_score_m2, wall_time_s, started_s, finished_s (time.monotonic()
+    clock), trustworthy, trust_reason, inlier_fraction,
+    overlap_fraction, translation_sd_m, rotation_sd_deg, covariance (6, 6) or None.
+    Raises InvalidArgument (unknown strategy or option, empty or non-finite input, a weight or
+    covariance the strategy needs is missing), ValueError (wrong shape or dtype).
+    """
+    unknown = sorted(set(options) - set(_ALIGN_OPTIONS))
+    if unknown:
+        raise InvalidArgument("align: unknown option(s) %s; options: %s"
+                              % (", ".join(unknown), ", ".join(_ALIGN_OPTIONS)))
+    try:
+        return _lmalign._align(
+            source, target, strategy, initial_guess, int(threads), source_covariances,
+            target_covariances, target_weights, int(options.get("k", 5)),
+            options.get("max_iterations"), options.get("max_distance_m"),
+            options.get("covariance_norm", "spectral"))
+    except InvalidArgument as e:
+        if "built from bare points" not in str(e):
+            raise
+        raise InvalidArgument(
+            "%s: strategy '%s' needs landmark confidences (or covariances) of the target: pass "
+            "target_weights (M,) (e.g. observation counts) or target_covariances (M, 3, 3), a Map "
+            "target, or a strategy without them ('base', 'shrink', 'shrink_cauchy', 'trimmed', "
+            "'mutual')" % (e, strategy)) from None
+
+
+def _data_dir():
+    """$LMALIGN_DATA, else empty (then a config that uses ${LMALIGN_DATA} is refused)."""
+    return _os.environ.get("LMALIGN_DATA", "")
+
+
+def experiment(config, output_dir, only=None, threads=0, data_dir=None):
+    """Run an experiment protocol (YAML, docs/experiments.md), as `lmalign experiment`.
+
+    Writes config.yaml (resolved), results.csv, summary.json and tables.md into output_dir (the
+    same files as the CLI's, without plots, --resume or history files) and returns a dict:
+    output_dir, results_csv, summary_json, tables_md (paths), cases, runs (counts), and
+    summary (summary.json, parsed). only: experiment names to run (default all). threads: worker
+    threads (0: every core). data_dir: what ${LMALIGN_DATA} in the config expands to (default
+    $LMALIGN_DATA). The GIL is released while the cases run.
+    Raises ParseError (config file, line), InvalidArgument, IoError.
+    """
+    output_dir = _os.fspath(output_dir)
+    cases, runs = _lmalign._experiment(config, output_dir, list(only or []), int(threads),
+                                       _data_dir() if data_dir is None else _os.fspath(data_dir))
+    paths = {name: _os.path.join(output_dir, name + "." + ext)
+             for name, ext in (("results", "csv"), ("summary", "json"), ("tables", "md"))}
+    with open(paths["summary"], encoding="utf-8") as f:
+        summary = _json.load(f)
+    return {"output_dir": output_dir, "results_csv": paths["results"],
+            "summary_json": paths["summary"], "tables_md": paths["tables"], "cases": cases,
+            "runs": runs, "summary": summary}

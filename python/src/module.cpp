@@ -1,0 +1,630 @@
+// lmalign's Python module (_lmalign, wrapped by python/lmalign/__init__.py; docs/python.md).
+// Arrays in and out are float64, C-contiguous; other real dtypes or layouts are converted once,
+// anything else is refused with ValueError naming the argument and the expected shape.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "align_binding.hpp"
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/eval/trajectory.hpp"
+#include "lmalign/experiment/cases.hpp"
+#include "lmalign/experiment/config.hpp"
+#include "lmalign/experiment/report.hpp"
+#include "lmalign/experiment/runner.hpp"
+#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/map/map_io.hpp"
+#include "lmalign/map/split.hpp"
+#include "lmalign/registration/registration.hpp"
+
+namespace py = pybind11;
+using namespace lmalign;
+
+namespace {
+
+// ---------------------------------------------------------------- arrays in
+
+using Array = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+std::string shape_text(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+/// `obj` as a float64 C-contiguous array of the given shape (-1: any size, the same N as
+/// `n` when n >= 0). Real dtypes (float, int, uint) are converted once; others are refused.
+Array as_array(const py::handle& obj, const char* name, std::vector<py::ssize_t> shape,
+               const char* expected, py::ssize_t n = -1) {
+  py::array a;
+  try {
+    a = py::module_::import("numpy").attr("asarray")(obj);
+  } catch (const py::error_already_set& e) {  // e.g. a ragged nested list
+    throw py::value_error(std::string(name) + ": expected an array of shape " + expected +
+                          ", got an object numpy cannot convert (" + e.what() + ")");
+  }
+  const char kind = a.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u') {
+    throw py::value_error(std::string(name) + ": expected a real array of shape " + expected +
+                          " (float64), got dtype " + py::str(a.dtype()).cast<std::string>());
+  }
+  bool ok = a.ndim() == static_cast<py::ssize_t>(shape.size());
+  for (std::size_t i = 0; ok && i < shape.size(); ++i) {
+    const py::ssize_t want = shape[i] >= 0 ? shape[i] : n;
+    ok = want < 0 || a.shape(static_cast<py::ssize_t>(i)) == want;
+  }
+  if (!ok) {
+    throw py::value_error(std::string(name) + ": expected shape " + expected + ", got " +
+                          shape_text(a));
+  }
+  return Array::ensure(a);
+}
+
+Points3 points_from(const py::handle& obj, const char* name) {
+  const Array a = as_array(obj, name, {-1, 3}, "(N, 3)");
+  Points3 p(static_cast<std::size_t>(a.shape(0)));
+  const double* d = a.data();
+  for (std::size_t i = 0; i < p.size(); ++i) p[i] = Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]);
+  return p;
+}
+
+std::vector<Mat3> covariances_from(const py::handle& obj, const char* name, py::ssize_t n) {
+  const Array a = as_array(obj, name, {-1, 3, 3}, "(N, 3, 3) with N the number of points", n);
+  std::vector<Mat3> c(static_cast<std::size_t>(a.shape(0)));
+  const double* d = a.data();
+  for (std::size_t i = 0; i < c.size(); ++i) {
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) c[i](r, k) = d[9 * i + 3 * r + k];
+  }
+  return c;
+}
+
+std::vector<double> vector_from(const py::handle& obj, const char* name, py::ssize_t n) {
+  const Array a = as_array(obj, name, {-1}, "(N,) with N the number of points", n);
+  return std::vector<double>(a.data(), a.data() + a.shape(0));
+}
+
+/// A 4x4 rigid transform: last row (0, 0, 0, 1), rotation orthonormal with det +1 (1e-6).
+Isometry3 transform_from(const py::handle& obj, const char* name) {
+  const Array a = as_array(obj, name, {4, 4}, "(4, 4)");
+  Mat4 m;
+  for (int r = 0; r < 4; ++r)
+    for (int k = 0; k < 4; ++k) m(r, k) = a.data()[4 * r + k];
+  const Mat3 R = m.topLeftCorner<3, 3>();
+  if (!m.allFinite() || m.row(3) != Eigen::RowVector4d(0, 0, 0, 1) ||
+      !(R.transpose() * R).isApprox(Mat3::Identity(), 1e-6) || !(R.determinant() > 0)) {
+    throw InvalidArgument(std::string(name) +
+                          ": expected a rigid 4x4 transform (finite, rotation orthonormal with "
+                          "determinant +1, last row 0 0 0 1)");
+  }
+  Isometry3 T = Isometry3::Identity();
+  T.matrix() = m;
+  return T;
+}
+
+// ---------------------------------------------------------------- arrays out
+
+py::array_t<double> points_out(const Points3& p) {
+  py::array_t<double> a({static_cast<py::ssize_t>(p.size()), py::ssize_t{3}});
+  double* d = a.mutable_data();
+  for (std::size_t i = 0; i < p.size(); ++i)
+    for (int k = 0; k < 3; ++k) d[3 * i + k] = p[i][k];
+  return a;
+}
+
+py::array_t<double> covariances_out(const std::vector<Mat3>& c) {
+  py::array_t<double> a({static_cast<py::ssize_t>(c.size()), py::ssize_t{3}, py::ssize_t{3}});
+  double* d = a.mutable_data();
+  for (std::size_t i = 0; i < c.size(); ++i)
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) d[9 * i + 3 * r + k] = c[i](r, k);
+  return a;
+}
+
+/// (N, 4, 4) from n poses, pose(i) giving the i-th (an Isometry3).
+template <typename F>
+py::array_t<double> poses_out(std::size_t n, F pose) {
+  py::array_t<double> a({static_cast<py::ssize_t>(n), py::ssize_t{4}, py::ssize_t{4}});
+  for (std::size_t i = 0; i < n; ++i) {
+    const Mat4 T = pose(i).matrix();
+    for (int r = 0; r < 4; ++r)
+      for (int k = 0; k < 4; ++k) a.mutable_data()[16 * i + 4 * r + k] = T(r, k);
+  }
+  return a;
+}
+
+template <int R, int C>
+py::array_t<double> matrix_out(const Eigen::Matrix<double, R, C>& m) {
+  py::array_t<double> a({py::ssize_t{R}, py::ssize_t{C}});
+  for (int r = 0; r < R; ++r)
+    for (int k = 0; k < C; ++k) a.mutable_data()[C * r + k] = m(r, k);
+  return a;
+}
+
+// ---------------------------------------------------------------- map I/O
+
+/// The one place that reads a map file (a dispatching reader for more formats goes here).
+Map read_map_file(const std::filesystem::path& path, std::size_t min_observations) {
+  MapReadOptions o;
+  o.min_observations = min_observations;
+  py::gil_scoped_release release;
+  return read_map(path.string(), o);
+}
+
+/// Builds the map's lazy frame-id index while the GIL is held: a Map may be shared by Python
+/// threads, and the first find_frame() must not run on two of them at once
+/// (docs/architecture.md, "Thread safety"); lookups afterwards are concurrent reads.
+const Map& with_frame_index(const Map& map) {
+  if (!map.frames.empty()) map.frame_index(map.frames.front().id);
+  return map;
+}
+
+template <typename F>
+py::array_t<std::int64_t> per_landmark(const Map& m, F f) {
+  py::array_t<std::int64_t> a(static_cast<py::ssize_t>(m.landmarks.size()));
+  for (std::size_t i = 0; i < m.landmarks.size(); ++i) a.mutable_data()[i] = f(m.landmarks[i]);
+  return a;
+}
+
+// ---------------------------------------------------------------- trajectories
+
+Trajectory trajectory_from(const py::handle& obj, const char* name) {
+  if (py::isinstance<py::str>(obj) || py::hasattr(obj, "__fspath__")) {
+    return read_tum_trajectory(py::str(py::module_::import("os").attr("fspath")(obj)));
+  }
+  if (!py::isinstance<py::tuple>(obj) || py::len(obj) != 2) {
+    throw py::value_error(std::string(name) +
+                          ": expected a TUM trajectory file path or a tuple (timestamps_s (N,), "
+                          "T_world_camera (N, 4, 4))");
+  }
+  const py::tuple t = obj.cast<py::tuple>();
+  const Array stamps = as_array(t[0], name, {-1}, "(N,) timestamps in seconds");
+  const Array poses =
+      as_array(t[1], name, {-1, 4, 4}, "(N, 4, 4) T_world_camera with N timestamps",
+               stamps.shape(0));
+  Trajectory out(static_cast<std::size_t>(stamps.shape(0)));
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i].timestamp_s = stamps.data()[i];
+    const Array one = Array::ensure(poses[py::int_(i)]);
+    out[i].T_world_camera = transform_from(one, name);
+  }
+  std::sort(out.begin(), out.end(), [](const StampedPose& a, const StampedPose& b) {
+    return a.timestamp_s < b.timestamp_s;
+  });
+  return out;
+}
+
+py::dict stats_out(const ErrorStats& s) {
+  py::dict d;
+  d["count"] = s.count;
+  d["rmse"] = s.rmse;
+  d["mean"] = s.mean;
+  d["median"] = s.median;
+  d["std"] = s.std_dev;
+  d["min"] = s.min;
+  d["max"] = s.max;
+  return d;
+}
+
+// ---------------------------------------------------------------- exceptions
+
+PyObject* g_error = nullptr;
+PyObject* g_invalid_argument = nullptr;
+PyObject* g_io_error = nullptr;
+PyObject* g_parse_error = nullptr;
+
+PyObject* new_exception(py::module_& m, const char* name, PyObject* bases, const char* doc) {
+  const std::string full = std::string("lmalign.") + name;
+  PyObject* type = PyErr_NewExceptionWithDoc(full.c_str(), doc, bases, nullptr);
+  if (type == nullptr) throw py::error_already_set();
+  m.add_object(name, py::handle(type));
+  return type;
+}
+
+void raise(PyObject* type, const std::string& message) {
+  PyErr_SetString(type, message.c_str());
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_lmalign, m) {
+  m.doc() = "lmalign's compiled core; use the lmalign package (docs/python.md).";
+
+  g_error = new_exception(m, "Error", PyExc_Exception,
+                          "Base class of every error lmalign raises on purpose.");
+  g_invalid_argument = new_exception(
+      m, "InvalidArgument", py::make_tuple(py::handle(g_error), py::handle(PyExc_ValueError)).release().ptr(),
+      "A bad argument or option value (also a ValueError); the message names it.");
+  g_io_error = new_exception(
+      m, "IoError", py::make_tuple(py::handle(g_error), py::handle(PyExc_OSError)).release().ptr(),
+      "A file could not be opened, read or written (also an OSError); the message names the "
+      "path and the reason.");
+  g_parse_error = new_exception(
+      m, "ParseError",
+      py::make_tuple(py::handle(g_error), py::handle(PyExc_ValueError)).release().ptr(),
+      "A malformed input file (also a ValueError). Attributes: file (str), line (int, 1-based; "
+      "0 = the file as a whole), detail (the message without 'file:line: ').");
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const ParseError& e) {
+      py::object exc = py::reinterpret_borrow<py::object>(g_parse_error)(e.what());
+      exc.attr("file") = e.file();
+      exc.attr("line") = e.line();
+      exc.attr("detail") = e.detail();
+      PyErr_SetObject(g_parse_error, exc.ptr());
+    } catch (const InvalidArgument& e) {
+      raise(g_invalid_argument, e.what());
+    } catch (const IoError& e) {
+      raise(g_io_error, e.what());
+    } catch (const Error& e) {
+      raise(g_error, e.what());
+    }
+  });
+
+  // ------------------------------------------------------------ Map
+  py::class_<Map>(m, "Map",
+                  "A landmark map: frames (keyframe poses) and landmarks, in the map's world "
+                  "frame; metres, m^2. Array properties are copies (float64, C-contiguous).")
+      .def_property_readonly(
+          "positions", [](const Map& map) { return points_out(map.positions()); },
+          "(N, 3) float64: landmark positions p_world, metres.")
+      .def_property_readonly(
+          "covariances", [](const Map& map) { return covariances_out(map.covariances_m2()); },
+          "(N, 3, 3) float64: landmark position covariances in the world frame, m^2.")
+      .def_property_readonly(
+          "observation_counts",
+          [](const Map& map) {
+            return per_landmark(map, [](const Landmark& l) {
+              return static_cast<std::int64_t>(l.num_observations());
+            });
+          },
+          "(N,) int64: number of observations of each landmark.")
+      .def_property_readonly(
+          "landmark_ids",
+          [](const Map& map) { return per_landmark(map, [](const Landmark& l) { return l.id; }); },
+          "(N,) int64: landmark ids, in landmark order.")
+      .def_property_readonly(
+          "frame_ids",
+          [](const Map& map) {
+            py::array_t<std::int64_t> a(static_cast<py::ssize_t>(map.frames.size()));
+            for (std::size_t i = 0; i < map.frames.size(); ++i) a.mutable_data()[i] = map.frames[i].id;
+            return a;
+          },
+          "(F,) int64: frame (keyframe) ids, in file order.")
+      .def_property_readonly(
+          "frame_poses",
+          [](const Map& map) {
+            return poses_out(map.frames.size(),
+                             [&](std::size_t i) { return map.frames[i].T_world_camera(); });
+          },
+          "(F, 4, 4) float64: T_world_camera of each frame (p_world = T @ p_camera), metres.")
+      .def_property_readonly("num_frames", [](const Map& map) { return map.frames.size(); })
+      .def("__len__", [](const Map& map) { return map.landmarks.size(); },
+           "Number of landmarks.")
+      .def(
+          "transformed",
+          [](const Map& map, const py::handle& T) {
+            return transform_map(with_frame_index(map), transform_from(T, "T_new_old"));
+          },
+          py::arg("T_new_old"),
+          "The map expressed in frame `new`: positions, covariances (R C R^T) and frame poses "
+          "moved by the rigid (4, 4) T_new_old. Raises InvalidArgument if it is not rigid.")
+      .def("__repr__", [](const Map& map) {
+        return "<lmalign.Map: " + std::to_string(map.landmarks.size()) + " landmarks, " +
+               std::to_string(map.frames.size()) + " frames>";
+      });
+
+  m.def("read_map", &read_map_file, py::arg("path"), py::arg("min_observations") = 2,
+        "Reads a map file (docs/map-format.md). Landmarks with fewer than min_observations "
+        "observations are dropped (2: the paper's loader, and `lmalign align`'s default).\n"
+        "Raises ParseError (file, line), IoError, InvalidArgument.");
+  m.def(
+      "write_map",
+      [](const std::filesystem::path& path, const Map& map) {
+        with_frame_index(map);
+        py::gil_scoped_release release;
+        write_map(path.string(), map);
+      },
+      py::arg("path"), py::arg("map"),
+      "Writes a map file atomically (temporary file, then rename); write -> read is exact.\n"
+      "Raises IoError, InvalidArgument (map invalid).");
+
+  // ------------------------------------------------------------ geometry helpers
+  m.def(
+      "pose_from_xyz_rpy_deg",
+      [](double x, double y, double z, double roll, double pitch, double yaw) {
+        return matrix_out<4, 4>(pose_from_xyz_rpy_deg(x, y, z, roll, pitch, yaw).matrix());
+      },
+      py::arg("x_m"), py::arg("y_m"), py::arg("z_m"), py::arg("roll_deg"), py::arg("pitch_deg"),
+      py::arg("yaw_deg"),
+      "(4, 4) rigid transform with translation (x, y, z) m and R = Rz(yaw) Ry(pitch) Rx(roll), "
+      "degrees (the paper's displacement, `lmalign align --displace`).");
+  m.def(
+      "transform_points",
+      [](const py::handle& T, const py::handle& points) {
+        return points_out(transform_points(transform_from(T, "T"), points_from(points, "points")));
+      },
+      py::arg("T"), py::arg("points"),
+      "(N, 3) points moved by the rigid (4, 4) T: T @ p for each row, metres. Bit-identical to "
+      "what the CLI's --displace does.");
+  m.def(
+      "transform_covariances",
+      [](const py::handle& T, const py::handle& covariances) {
+        const Array a = as_array(covariances, "covariances", {-1, 3, 3}, "(N, 3, 3)");
+        return covariances_out(
+            transform_covariances(transform_from(T, "T"), covariances_from(a, "covariances", -1)));
+      },
+      py::arg("T"), py::arg("covariances"),
+      "(N, 3, 3) covariances (m^2) rotated by T: R C R^T.");
+
+  // ------------------------------------------------------------ align
+  py::class_<python::AlignOutcome>(m, "AlignmentResult",
+                                   "What lmalign.align() returns (see its docstring).")
+      .def_property_readonly(
+          "T_target_source",
+          [](const python::AlignOutcome& o) { return matrix_out<4, 4>(o.result.T_target_source.matrix()); },
+          "(4, 4) float64: the estimate, p_target = T_target_source @ p_source (metres).")
+      .def_property_readonly("strategy", [](const python::AlignOutcome& o) { return o.strategy; })
+      .def_property_readonly("converged", [](const python::AlignOutcome& o) { return o.result.converged; },
+                             "True when a convergence criterion stopped the run (not the budget).")
+      .def_property_readonly(
+          "termination", [](const python::AlignOutcome& o) { return to_string(o.result.termination); },
+          "Why the run stopped: 'transform', 'max_iterations', 'no_correspondences', ...")
+      .def_property_readonly("iterations", [](const python::AlignOutcome& o) { return o.result.iterations; })
+      .def_property_readonly("num_correspondences",
+                             [](const python::AlignOutcome& o) { return o.result.num_correspondences; })
+      .def_property_readonly(
+          "initial_score_m2", [](const python::AlignOutcome& o) { return o.result.initial_score_m2; },
+          "PCL fitness score at the initial guess: mean squared nearest-neighbour distance, m^2.")
+      .def_property_readonly("final_score_m2",
+                             [](const python::AlignOutcome& o) { return o.result.final_score_m2; },
+                             "PCL fitness score at the estimate, m^2.")
+      .def_property_readonly("wall_time_s", [](const python::AlignOutcome& o) { return o.result.wall_time_s; },
+                             "Wall time of the alignment (not of target preparation), seconds.")
+      .def_property_readonly(
+          "started_s", [](const python::AlignOutcome& o) { return o.started_s; },
+          "When the alignment began (after the target preparation), seconds on the clock of "
+          "time.monotonic() (Linux: CLOCK_MONOTONIC).")
+      .def_property_readonly(
+          "finished_s", [](const python::AlignOutcome& o) { return o.finished_s; },
+          "When the alignment and its trust verdict ended, seconds on the clock of "
+          "time.monotonic().")
+      .def_property_readonly("trustworthy", [](const python::AlignOutcome& o) { return o.trust.trustworthy; },
+                             "The verdict without ground truth (docs/accuracy.md).")
+      .def_property_readonly("trust_reason", [](const python::AlignOutcome& o) { return o.trust.reason; },
+                             "'ok', or why the estimate is not trusted.")
+      .def_property_readonly("inlier_fraction", [](const python::AlignOutcome& o) { return o.trust.inlier_fraction; })
+      .def_property_readonly("overlap_fraction", [](const python::AlignOutcome& o) { return o.trust.overlap_fraction; })
+      .def_property_readonly("translation_sd_m", [](const python::AlignOutcome& o) { return o.trust.translation_sd_m; })
+      .def_property_readonly("rotation_sd_deg", [](const python::AlignOutcome& o) { return o.trust.rotation_sd_deg; })
+      .def_property_readonly(
+          "covariance",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.inlier_covariance.valid) return py::none();
+            return matrix_out<6, 6>(o.inlier_covariance.covariance);
+          },
+          "(6, 6) float64 or None: covariance of xi = (tx, ty, tz [m], rx, ry, rz [rad]), a left "
+          "perturbation in the target frame, on the inliers of the estimate (the CLI's "
+          "covariance_6x6); None when the inliers do not determine the transform.")
+      .def("__repr__", [](const python::AlignOutcome& o) {
+        return "<lmalign.AlignmentResult " + o.strategy + ": " + o.result.brief_report() +
+               ", trustworthy=" + (o.trust.trustworthy ? "True" : "False") + ">";
+      });
+
+  m.def(
+      "_align",
+      [](const py::handle& source, const py::handle& target, const std::string& strategy,
+         const py::handle& initial_guess, int threads, const py::handle& source_covariances,
+         const py::handle& target_covariances, const py::handle& target_weights, int k,
+         std::optional<int> max_iterations, std::optional<double> max_distance_m,
+         const std::string& covariance_norm) {
+        python::AlignRequest req;
+        req.strategy = strategy;
+        req.k = k;
+        req.max_iterations = max_iterations;
+        req.max_distance_m = max_distance_m;
+        req.threads = threads;
+        if (!initial_guess.is_none()) req.T_target_source_init = transform_from(initial_guess, "initial_guess");
+        WeightOptions wopt;
+        wopt.covariance_norm = parse_covariance_norm(covariance_norm);
+        // Source: a Map, or (N, 3) points with optional (N, 3, 3) covariances.
+        Points3 source_points;
+        std::vector<Mat3> source_cov;
+        if (py::isinstance<Map>(source)) {
+          if (!source_covariances.is_none())
+            throw InvalidArgument("source_covariances: give them only with an array source (a Map has its own)");
+          const Map& s = source.cast<const Map&>();
+          source_points = s.positions();
+          source_cov = s.covariances_m2();
+        } else {
+          source_points = points_from(source, "source");
+          if (!source_covariances.is_none())
+            source_cov = covariances_from(source_covariances, "source_covariances",
+                                          static_cast<py::ssize_t>(source_points.size()));
+        }
+        // Target: a Map (weights and covariances from it), or points with optional extras.
+        std::optional<PreparedTarget> prepared;
+        if (py::isinstance<Map>(target)) {
+          if (!target_covariances.is_none() || !target_weights.is_none())
+            throw InvalidArgument("target_covariances / target_weights: give them only with an array target");
+          const Map& t = with_frame_index(target.cast<const Map&>());
+          py::gil_scoped_release release;
+          prepared.emplace(t, wopt);
+        } else {
+          Points3 tp = points_from(target, "target");
+          const auto n = static_cast<py::ssize_t>(tp.size());
+          std::vector<Mat3> tc;
+          if (!target_covariances.is_none()) tc = covariances_from(target_covariances, "target_covariances", n);
+          std::vector<double> tw;
+          if (!target_weights.is_none()) tw = vector_from(target_weights, "target_weights", n);
+          py::gil_scoped_release release;
+          prepared.emplace(std::move(tp));
+          if (!tc.empty()) prepared->set_covariances(std::move(tc));
+          if (!tw.empty()) {
+            for (WeightKind kind : {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance})
+              prepared->set_weights(kind, tw);
+          }
+        }
+        py::gil_scoped_release release;
+        return python::run_alignment(source_points, source_cov, *prepared, req);
+      },
+      py::arg("source"), py::arg("target"), py::arg("strategy"), py::arg("initial_guess"),
+      py::arg("threads"), py::arg("source_covariances"), py::arg("target_covariances"),
+      py::arg("target_weights"), py::arg("k"), py::arg("max_iterations"),
+      py::arg("max_distance_m"), py::arg("covariance_norm"));
+
+  m.def("strategies", []() {
+    std::vector<std::string> names;
+    for (PaperStrategy s : all_paper_strategies()) names.push_back(to_string(s));
+    for (PaperStrategy s : beyond_paper_strategies()) names.push_back(to_string(s));
+    return names;
+  }, "Every strategy name align() accepts: the paper's four, then lmalign's own.");
+  m.attr("RECOMMENDED_STRATEGY") = to_string(kRecommendedStrategy);
+
+  // ------------------------------------------------------------ split
+  m.def(
+      "split",
+      [](const Map& map, Id first, Id last, std::size_t min_observations, bool retriangulate,
+         double min_parallax_deg, bool return_stats) -> py::object {
+        SplitOptions o;
+        o.first_frame_id = first;
+        o.last_frame_id = last;
+        o.min_observations = min_observations;
+        o.retriangulate = retriangulate;
+        o.min_parallax_deg = min_parallax_deg;
+        with_frame_index(map);
+        SplitStats stats;
+        Map mini;
+        {
+          py::gil_scoped_release release;
+          mini = split_map(map, o, &stats);
+        }
+        if (!return_stats) return py::cast(std::move(mini));
+        py::dict d;
+        d["frames_kept"] = stats.frames_kept;
+        d["landmarks_kept"] = stats.landmarks_kept;
+        d["landmarks_outside_window"] = stats.landmarks_outside_window;
+        d["dropped_too_few_observations"] = stats.dropped_too_few_observations;
+        d["dropped_low_parallax"] = stats.dropped_low_parallax;
+        d["dropped_triangulation_failed"] = stats.dropped_triangulation_failed;
+        return py::make_tuple(std::move(mini), d);
+      },
+      py::arg("map"), py::arg("first_frame_id"), py::arg("last_frame_id"),
+      py::arg("min_observations") = 2, py::arg("retriangulate") = false,
+      py::arg("min_parallax_deg") = 2.0, py::arg("return_stats") = false,
+      "The mini-map of frames [first_frame_id, last_frame_id] (inclusive), as `lmalign split` "
+      "(docs/split.md): those frames, and the landmarks with >= min_observations observations "
+      "among them (observations outside the window removed). retriangulate=True re-estimates "
+      "positions and covariances from the window alone and drops landmarks below "
+      "min_parallax_deg. Same world frame, ids kept. return_stats=True returns (map, dict) "
+      "with what `lmalign split` prints: frames_kept, landmarks_kept, "
+      "landmarks_outside_window, dropped_too_few_observations, dropped_low_parallax, "
+      "dropped_triangulation_failed. Raises InvalidArgument.");
+
+  // ------------------------------------------------------------ trajectories
+  m.def(
+      "read_tum_trajectory",
+      [](const std::filesystem::path& path) {
+        const Trajectory t = read_tum_trajectory(path.string());
+        py::array_t<double> stamps(static_cast<py::ssize_t>(t.size()));
+        for (std::size_t i = 0; i < t.size(); ++i) stamps.mutable_data()[i] = t[i].timestamp_s;
+        return py::make_tuple(
+            stamps, poses_out(t.size(), [&](std::size_t i) { return t[i].T_world_camera; }));
+      },
+      py::arg("path"),
+      "Reads a TUM trajectory file: (timestamps_s (N,), T_world_camera (N, 4, 4)), sorted by "
+      "time. Raises ParseError (file, line), IoError.");
+  m.def(
+      "evaluate_trajectory",
+      [](const py::handle& estimate, const py::handle& ground_truth, double max_difference_s,
+         double offset_s, double delta_s, bool align) {
+        const Trajectory est = trajectory_from(estimate, "estimate");
+        const Trajectory gt = trajectory_from(ground_truth, "ground_truth");
+        AteOptions ao;
+        ao.max_difference_s = max_difference_s;
+        ao.offset_s = offset_s;
+        ao.align = align;
+        RpeOptions ro;
+        ro.max_difference_s = max_difference_s;
+        ro.offset_s = offset_s;
+        ro.delta_s = delta_s;
+        AteResult ate;
+        RpeResult rpe;
+        {
+          py::gil_scoped_release release;
+          ate = absolute_trajectory_error(est, gt, ao);
+          rpe = relative_pose_error(est, gt, ro);
+        }
+        py::dict d;
+        d["pairs"] = ate.pairs.size();
+        d["T_gt_est"] = matrix_out<4, 4>(ate.T_gt_est.matrix());
+        d["ate_translation_m"] = stats_out(ate.translation_m);
+        d["ate_rotation_deg"] = stats_out(ate.rotation_deg);
+        d["rpe_translation_m"] = stats_out(rpe.translation_m);
+        d["rpe_rotation_deg"] = stats_out(rpe.rotation_deg);
+        return d;
+      },
+      py::arg("estimate"), py::arg("ground_truth"), py::arg("max_difference_s") = 0.02,
+      py::arg("offset_s") = 0.0, py::arg("delta_s") = 1.0, py::arg("align") = true,
+      "Absolute trajectory error and relative pose error as the TUM RGB-D benchmark defines "
+      "them (`lmalign eval-trajectory`). estimate, ground_truth: a TUM file path, or a tuple "
+      "(timestamps_s (N,), T_world_camera (N, 4, 4)). Returns a dict: pairs, T_gt_est (4, 4; "
+      "maps the estimate's world onto the ground truth's), ate_translation_m, ate_rotation_deg, "
+      "rpe_translation_m, rpe_rotation_deg (each: count, rmse, mean, median, std, min, max). "
+      "Raises InvalidArgument (fewer than 3 associated poses), ParseError, IoError.");
+
+  // ------------------------------------------------------------ experiment
+  m.def(
+      "_experiment",
+      [](const std::filesystem::path& config_path, const std::filesystem::path& output_dir,
+         const std::vector<std::string>& only, int threads, const std::string& data_dir) {
+        namespace fs = std::filesystem;
+        ConfigLoadOptions lo;
+        lo.data_dir = data_dir;
+        ExperimentConfig config = load_experiment_config(config_path.string(), lo);
+        if (!only.empty()) select_experiments(config, only);
+        const ExperimentInputs in = load_experiment_inputs(config);
+        const Points3 source_points = in.source.positions();
+        const std::vector<Case> cases = expand_cases(config, source_points);
+        const fs::path& out = output_dir;
+        std::error_code ec;
+        fs::create_directories(out, ec);
+        if (ec) throw IoError("cannot create the output folder '" + output_dir.string() + "': " + ec.message());
+        write_file_atomically((out / "config.yaml").string(),
+                              [&](std::ostream& o) { o << resolved_config_yaml(config); });
+        const std::vector<Mat3> source_covariances = in.source.covariances_m2();
+        RunnerOptions ro;
+        ro.threads = threads;
+        ro.source_covariances_m2 = &source_covariances;
+        RunnerOutcome outcome;
+        {
+          py::gil_scoped_release release;
+          const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
+          outcome = run_cases(config, cases, source_points, target, in.ground_truth, ro);
+        }
+        write_file_atomically((out / "results.csv").string(),
+                              [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
+        const Summary summary = summarize(config, cases, outcome);
+        write_file_atomically((out / "summary.json").string(),
+                              [&](std::ostream& o) { write_summary_json(o, config, summary); });
+        write_file_atomically((out / "tables.md").string(), [&](std::ostream& o) {
+          write_tables_markdown(o, config, cases, outcome, summary);
+        });
+        return py::make_tuple(outcome.cases_finished, outcome.records.size());
+      },
+      py::arg("config"), py::arg("output_dir"), py::arg("only"), py::arg("threads"),
+      py::arg("data_dir"));
+}

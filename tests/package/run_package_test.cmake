@@ -1,0 +1,43 @@
+# ctest: the installed package works for a project outside this build (docs/packaging.md).
+#   cmake -DBUILD_DIR=... -DWORK_DIR=... -DCONSUMER_DIR=... [-DPYTHON=... -DPYTHON_DIR=...]
+#         -P run_package_test.cmake
+# 1. installs BUILD_DIR into the fresh prefix WORK_DIR/prefix (cmake --install --prefix);
+# 2. configures and builds CONSUMER_DIR against it (find_package(lmalign CONFIG) and pkg-config);
+# 3. runs both executables (each recovers a known transform), and, when PCL is found, a user of
+#    the pcl component (find_package(lmalign COMPONENTS pcl), lmalign::pcl);
+# 4. with PYTHON: imports the installed Python module from another directory and aligns.
+function(run)
+  execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
+                  WORKING_DIRECTORY ${WORK_DIR})
+  message(STATUS "$ ${ARGN}\n${out}${err}")
+  if(NOT rc EQUAL 0)
+    message(FATAL_ERROR "package test: failed (exit ${rc}): ${ARGN}")
+  endif()
+endfunction()
+
+file(REMOVE_RECURSE ${WORK_DIR})
+file(MAKE_DIRECTORY ${WORK_DIR})
+set(prefix ${WORK_DIR}/prefix)
+run(${CMAKE_COMMAND} --install ${BUILD_DIR} --prefix ${prefix})
+foreach(f lib/cmake/lmalign/lmalignConfig.cmake lib/cmake/lmalign/lmalignConfigVersion.cmake
+          lib/pkgconfig/lmalign.pc include/lmalign/registration/registration.hpp bin/lmalign)
+  if(NOT EXISTS ${prefix}/${f})
+    message(FATAL_ERROR "package test: ${f} was not installed")
+  endif()
+endforeach()
+set(ENV{PKG_CONFIG_PATH} ${prefix}/lib/pkgconfig)
+run(${CMAKE_COMMAND} -S ${CONSUMER_DIR} -B ${WORK_DIR}/consumer-build -DCMAKE_BUILD_TYPE=Release
+    -DCMAKE_PREFIX_PATH=${prefix})
+run(${CMAKE_COMMAND} --build ${WORK_DIR}/consumer-build -j 2)
+run(${WORK_DIR}/consumer-build/consumer_cmake)
+run(${WORK_DIR}/consumer-build/consumer_pkgconfig)
+if(EXISTS ${WORK_DIR}/consumer-build/consumer_pcl)
+  run(${WORK_DIR}/consumer-build/consumer_pcl)
+else()
+  message(STATUS "package test: PCL not found: the pcl component is not tested")
+endif()
+run(${prefix}/bin/lmalign --version)
+if(PYTHON)
+  set(ENV{PYTHONPATH} ${prefix}/${PYTHON_DIR})
+  run(${PYTHON} ${CMAKE_CURRENT_LIST_DIR}/check_installed_python.py ${prefix})
+endif()
