@@ -47,7 +47,8 @@ _ALIGN_OPTIONS = ("k", "max_iterations", "max_distance_m", "covariance_norm")
 
 
 def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, threads=0, *,
-          source_covariances=None, target_covariances=None, target_weights=None, **options):
+          prior_sigma=None, source_covariances=None, target_covariances=None,
+          target_weights=None, **options):
     """Align `source` onto `target`; returns an AlignmentResult.
 
     Equals `lmalign align SOURCE TARGET --strategy STRATEGY` bit for bit (same options, same
@@ -58,14 +59,18 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
         'p2d' / 'robust_p2d'); with an array target, target_covariances (M, 3, 3) m^2 and
         target_weights (M,) >= 0, the landmark confidence used by every weighted strategy (a
         Map target computes its own weights and covariances). Bare arrays carry no confidence:
-        the weighted strategies (the paper's three weighted ones, and 'robust_obs', the
-        default) then raise InvalidArgument unless target_weights is given; 'base',
-        'shrink', 'shrink_cauchy', 'trimmed' and 'mutual' need none.
+        the weighted strategies (the paper's three weighted ones, and 'robust_obs') then raise
+        InvalidArgument unless target_weights is given; 'adaptive' (the default), 'base',
+        'shrink', 'shrink_cauchy', 'trimmed' and 'mutual' need none. 'adaptive' uses the
+        covariances when given, and a Map's frames for its up axis (else +z).
     strategy: one of lmalign.strategies(): the paper's 'base', 'covariance', 'observations',
-        'distance', or lmalign's own ('robust_obs', the recommended default, 'shrink', 'p2d', ...;
-        docs/accuracy.md).
+        'distance', or lmalign's own ('adaptive', the recommended default, 'robust_obs',
+        'shrink', 'p2d', ...; docs/accuracy.md).
     initial_guess: (4, 4) rigid T_target_source to start from (default identity). Ignored by
-        'global'.
+        'global'; for 'adaptive', one more hypothesis of its search, or with prior_sigma the
+        centre of the bounded search.
+    prior_sigma: (rot_deg, trans_m), each > 0: the standard deviations of initial_guess;
+        'adaptive' only (the CLI's --prior-sigma).
     threads: OpenMP threads for this call (0: every core). The result does not depend on it.
     options (as the CLI's): k (neighbourhood of the weighted strategies, default 5),
         max_iterations (paper's strategies: 150; lmalign's: replaces the preset budget),
@@ -74,8 +79,9 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
 
     Result: T_target_source (4, 4), converged, termination, iterations, num_correspondences,
     initial_score_m2, final_score_m2, wall_time_s, started_s, finished_s (time.monotonic()
-    clock), trustworthy, trust_reason, inlier_fraction,
-    overlap_fraction, translation_sd_m, rotation_sd_deg, covariance (6, 6) or None.
+    clock), trustworthy, trust_reason, inlier_fraction and overlap_fraction (None for
+    'adaptive'), gated_inlier_ratio and ambiguity ('adaptive' only, else None),
+    translation_sd_m, rotation_sd_deg, covariance (6, 6) or None.
     Raises InvalidArgument (unknown strategy or option, empty or non-finite input, a weight or
     covariance the strategy needs is missing), ValueError (wrong shape or dtype).
     """
@@ -85,7 +91,8 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
                               % (", ".join(unknown), ", ".join(_ALIGN_OPTIONS)))
     try:
         return _lmalign._align(
-            source, target, strategy, initial_guess, int(threads), source_covariances,
+            source, target, strategy, initial_guess, prior_sigma, int(threads),
+            source_covariances,
             target_covariances, target_weights, int(options.get("k", 5)),
             options.get("max_iterations"), options.get("max_distance_m"),
             options.get("covariance_norm", "spectral"))

@@ -5,6 +5,8 @@
 #include <chrono>
 
 #include "lmalign/core/error.hpp"
+#include <limits>
+
 #include "lmalign/registration/robust.hpp"
 
 namespace lmalign::python {
@@ -43,24 +45,25 @@ AlignOutcome run_alignment(const Points3& source_points,
   AlignOutcome out;
   out.started_s = now_s();
   out.strategy = to_string(s);
-  // As apps/lmalign/cmd_align.cpp, run_align().
+  // As apps/lmalign/cmd_align.cpp, run_align(): the paper's strategies always get the budget
+  // and distance (150 iterations and unlimited by default); lmalign's own only those given.
+  StrategyRequest req;
+  req.strategy = s;
+  req.k = request.k;
+  req.initial_guess = request.initial_guess;
+  req.prior = request.prior;
   if (is_paper_strategy(s)) {
-    RegistrationOptions o = RegistrationOptions::paper(s, request.k);
-    o.max_correspondence_distance_m =
-        request.max_distance_m.value_or(std::numeric_limits<double>::infinity());
-    o.convergence.max_iterations = request.max_iterations.value_or(150);
-    out.result = align(source_points, target, o, request.T_target_source_init);
+    req.max_iterations = request.max_iterations.value_or(150);
+    req.max_distance_m = request.max_distance_m.value_or(std::numeric_limits<double>::infinity());
   } else {
-    RobustRegistrationOptions ro = robust_strategy_options(s, request.k);
-    if (request.max_iterations || request.max_distance_m) {
-      ro = with_limits(ro, request.max_iterations.value_or(ro.max_iterations),
-                       request.max_distance_m.value_or(std::numeric_limits<double>::infinity()));
-    }
-    out.result = align_robust(source_points, target, ro, request.T_target_source_init,
-                              source_covariances_m2.empty() ? nullptr : &source_covariances_m2);
+    req.max_iterations = request.max_iterations;
+    if (s != PaperStrategy::kAdaptive) req.max_distance_m = request.max_distance_m;
   }
-  out.trust = judge_alignment(source_points, target.tree(), out.result.T_target_source, {},
-                              &out.inlier_covariance);
+  StrategySource src;
+  src.positions = source_points;
+  src.covariances_m2 = source_covariances_m2;
+  src.up = request.source_up;
+  out.outcome = run_strategy(src, target, req);
   out.finished_s = now_s();
   return out;
 }

@@ -10,6 +10,7 @@
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/strategy.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign::python {
@@ -22,18 +23,21 @@ struct AlignRequest {
   int k = 5;
   std::optional<int> max_iterations;
   std::optional<double> max_distance_m;
-  /// Start of the iterations, p_target = T * p_source (the CLI starts at the identity).
-  Isometry3 T_target_source_init = Isometry3::Identity();
+  /// The CLI's --initial-guess: p_target = T * p_source (none: the identity, or for
+  /// 'adaptive' no guess at all).
+  std::optional<Isometry3> initial_guess;
+  /// The CLI's --prior-sigma (degrees, metres); 'adaptive' only.
+  std::optional<PriorSigma> prior;
+  /// The source's up axis (source frame), for 'adaptive'; from a Map's frames.
+  std::optional<Vec3> source_up;
   /// OpenMP threads for this call (0: OpenMP's default). Results do not depend on it.
   int threads = 0;
 };
 
-/// The result, with the trust verdict judge_alignment() gives at the estimate (as the CLI).
+/// The result and its trust verdict, as run_strategy() gives them (as the CLI).
 struct AlignOutcome {
   std::string strategy;
-  RegistrationResult result;
-  TrustVerdict trust;
-  PoseCovariance inlier_covariance;  ///< on the inliers of the estimate (CLI: covariance_6x6)
+  StrategyOutcome outcome;
   /// When run_alignment() began and ended (alignment and trust verdict), seconds of
   /// std::chrono::steady_clock: CLOCK_MONOTONIC on Linux, the clock of Python's
   /// time.monotonic(). Lets callers see what ran at the same time.
@@ -41,10 +45,10 @@ struct AlignOutcome {
   double finished_s = 0.0;
 };
 
-/// Runs the strategy: the paper's four through align() with RegistrationOptions::paper(), the
-/// others through align_robust() with robust_strategy_options() (and with_limits() when a limit
-/// is given). `source_covariances_m2` may be empty (needed only by p2d / robust_p2d).
-/// Throws InvalidArgument (bad strategy name or option) and what align()/align_robust() throw.
+/// Runs the strategy through run_strategy() (registration/strategy.hpp), with the limits as the
+/// CLI passes them. `source_covariances_m2` may be empty (needed only by p2d / robust_p2d; used
+/// by adaptive when present). Throws InvalidArgument (bad strategy name or option) and what
+/// run_strategy() throws.
 /// Does not touch Python: the caller releases the GIL around it.
 AlignOutcome run_alignment(const Points3& source_points,
                            const std::vector<Mat3>& source_covariances_m2,

@@ -28,6 +28,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
 
 namespace py = pybind11;
 using namespace lmalign;
@@ -375,24 +376,24 @@ PYBIND11_MODULE(_lmalign, m) {
                                    "What lmalign.align() returns (see its docstring).")
       .def_property_readonly(
           "T_target_source",
-          [](const python::AlignOutcome& o) { return matrix_out<4, 4>(o.result.T_target_source.matrix()); },
+          [](const python::AlignOutcome& o) { return matrix_out<4, 4>(o.outcome.result.T_target_source.matrix()); },
           "(4, 4) float64: the estimate, p_target = T_target_source @ p_source (metres).")
       .def_property_readonly("strategy", [](const python::AlignOutcome& o) { return o.strategy; })
-      .def_property_readonly("converged", [](const python::AlignOutcome& o) { return o.result.converged; },
+      .def_property_readonly("converged", [](const python::AlignOutcome& o) { return o.outcome.result.converged; },
                              "True when a convergence criterion stopped the run (not the budget).")
       .def_property_readonly(
-          "termination", [](const python::AlignOutcome& o) { return to_string(o.result.termination); },
+          "termination", [](const python::AlignOutcome& o) { return to_string(o.outcome.result.termination); },
           "Why the run stopped: 'transform', 'max_iterations', 'no_correspondences', ...")
-      .def_property_readonly("iterations", [](const python::AlignOutcome& o) { return o.result.iterations; })
+      .def_property_readonly("iterations", [](const python::AlignOutcome& o) { return o.outcome.result.iterations; })
       .def_property_readonly("num_correspondences",
-                             [](const python::AlignOutcome& o) { return o.result.num_correspondences; })
+                             [](const python::AlignOutcome& o) { return o.outcome.result.num_correspondences; })
       .def_property_readonly(
-          "initial_score_m2", [](const python::AlignOutcome& o) { return o.result.initial_score_m2; },
+          "initial_score_m2", [](const python::AlignOutcome& o) { return o.outcome.result.initial_score_m2; },
           "PCL fitness score at the initial guess: mean squared nearest-neighbour distance, m^2.")
       .def_property_readonly("final_score_m2",
-                             [](const python::AlignOutcome& o) { return o.result.final_score_m2; },
+                             [](const python::AlignOutcome& o) { return o.outcome.result.final_score_m2; },
                              "PCL fitness score at the estimate, m^2.")
-      .def_property_readonly("wall_time_s", [](const python::AlignOutcome& o) { return o.result.wall_time_s; },
+      .def_property_readonly("wall_time_s", [](const python::AlignOutcome& o) { return o.outcome.result.wall_time_s; },
                              "Wall time of the alignment (not of target preparation), seconds.")
       .def_property_readonly(
           "started_s", [](const python::AlignOutcome& o) { return o.started_s; },
@@ -402,32 +403,64 @@ PYBIND11_MODULE(_lmalign, m) {
           "finished_s", [](const python::AlignOutcome& o) { return o.finished_s; },
           "When the alignment and its trust verdict ended, seconds on the clock of "
           "time.monotonic().")
-      .def_property_readonly("trustworthy", [](const python::AlignOutcome& o) { return o.trust.trustworthy; },
+      .def_property_readonly("trustworthy", [](const python::AlignOutcome& o) { return o.outcome.trustworthy; },
                              "The verdict without ground truth (docs/accuracy.md).")
-      .def_property_readonly("trust_reason", [](const python::AlignOutcome& o) { return o.trust.reason; },
+      .def_property_readonly("trust_reason", [](const python::AlignOutcome& o) { return o.outcome.trust_reason; },
                              "'ok', or why the estimate is not trusted.")
-      .def_property_readonly("inlier_fraction", [](const python::AlignOutcome& o) { return o.trust.inlier_fraction; })
-      .def_property_readonly("overlap_fraction", [](const python::AlignOutcome& o) { return o.trust.overlap_fraction; })
-      .def_property_readonly("translation_sd_m", [](const python::AlignOutcome& o) { return o.trust.translation_sd_m; })
-      .def_property_readonly("rotation_sd_deg", [](const python::AlignOutcome& o) { return o.trust.rotation_sd_deg; })
+      .def_property_readonly(
+          "inlier_fraction",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.outcome.verdict) return py::none();
+            return py::float_(o.outcome.verdict->inlier_fraction);
+          },
+          "Strategies other than 'adaptive': source landmarks within 5 cm of a target landmark, of "
+          "all (judge_alignment); None for 'adaptive' (see gated_inlier_ratio).")
+      .def_property_readonly(
+          "overlap_fraction",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.outcome.verdict) return py::none();
+            return py::float_(o.outcome.verdict->overlap_fraction);
+          },
+          "Strategies other than 'adaptive': source landmarks within 20 cm, of all; else None.")
+      .def_property_readonly(
+          "gated_inlier_ratio",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.outcome.adaptive) return py::none();
+            return py::float_(o.outcome.adaptive->inlier_ratio);
+          },
+          "'adaptive' only (else None): covariance-gated inliers over the landmarks near a "
+          "target landmark (registration/adaptive.hpp).")
+      .def_property_readonly(
+          "ambiguity",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.outcome.adaptive) return py::none();
+            return py::float_(o.outcome.adaptive->ambiguity);
+          },
+          "'adaptive' only (else None): the best distinct pose's score over the best's.")
+      .def_property_readonly("translation_sd_m", [](const python::AlignOutcome& o) { return o.outcome.covariance.translation_sd_m(); },
+                             "Standard deviation of the translation along its worst axis, metres.")
+      .def_property_readonly("rotation_sd_deg", [](const python::AlignOutcome& o) { return o.outcome.covariance.rotation_sd_deg(); },
+                             "Standard deviation of the rotation about its worst axis, degrees.")
       .def_property_readonly(
           "covariance",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.inlier_covariance.valid) return py::none();
-            return matrix_out<6, 6>(o.inlier_covariance.covariance);
+            if (!o.outcome.covariance.valid) return py::none();
+            return matrix_out<6, 6>(o.outcome.covariance.covariance);
           },
           "(6, 6) float64 or None: covariance of xi = (tx, ty, tz [m], rx, ry, rz [rad]), a left "
-          "perturbation in the target frame, on the inliers of the estimate (the CLI's "
-          "covariance_6x6); None when the inliers do not determine the transform.")
+          "perturbation in the target frame (the CLI's covariance_6x6): 'adaptive''s "
+          "point-to-distribution covariance, else the point-to-point one on the inliers of the "
+          "estimate; None when it is not determined.")
       .def("__repr__", [](const python::AlignOutcome& o) {
-        return "<lmalign.AlignmentResult " + o.strategy + ": " + o.result.brief_report() +
-               ", trustworthy=" + (o.trust.trustworthy ? "True" : "False") + ">";
+        return "<lmalign.AlignmentResult " + o.strategy + ": " + o.outcome.result.brief_report() +
+               ", trustworthy=" + (o.outcome.trustworthy ? "True" : "False") + ">";
       });
 
   m.def(
       "_align",
       [](const py::handle& source, const py::handle& target, const std::string& strategy,
-         const py::handle& initial_guess, int threads, const py::handle& source_covariances,
+         const py::handle& initial_guess, const py::handle& prior_sigma, int threads,
+         const py::handle& source_covariances,
          const py::handle& target_covariances, const py::handle& target_weights, int k,
          std::optional<int> max_iterations, std::optional<double> max_distance_m,
          const std::string& covariance_norm) {
@@ -437,7 +470,13 @@ PYBIND11_MODULE(_lmalign, m) {
         req.max_iterations = max_iterations;
         req.max_distance_m = max_distance_m;
         req.threads = threads;
-        if (!initial_guess.is_none()) req.T_target_source_init = transform_from(initial_guess, "initial_guess");
+        if (!initial_guess.is_none()) req.initial_guess = transform_from(initial_guess, "initial_guess");
+        if (!prior_sigma.is_none()) {
+          const std::vector<double> ps = vector_from(prior_sigma, "prior_sigma", 2);
+          req.prior = PriorSigma{ps[0], ps[1]};
+          std::string why;
+          if (!req.prior->is_valid(&why)) throw InvalidArgument("prior_sigma: " + why);
+        }
         WeightOptions wopt;
         wopt.covariance_norm = parse_covariance_norm(covariance_norm);
         // Source: a Map, or (N, 3) points with optional (N, 3, 3) covariances.
@@ -449,6 +488,7 @@ PYBIND11_MODULE(_lmalign, m) {
           const Map& s = source.cast<const Map&>();
           source_points = s.positions();
           source_cov = s.covariances_m2();
+          req.source_up = estimate_up_axis(s);
         } else {
           source_points = points_from(source, "source");
           if (!source_covariances.is_none())
@@ -482,7 +522,7 @@ PYBIND11_MODULE(_lmalign, m) {
         return python::run_alignment(source_points, source_cov, *prepared, req);
       },
       py::arg("source"), py::arg("target"), py::arg("strategy"), py::arg("initial_guess"),
-      py::arg("threads"), py::arg("source_covariances"), py::arg("target_covariances"),
+      py::arg("prior_sigma"), py::arg("threads"), py::arg("source_covariances"), py::arg("target_covariances"),
       py::arg("target_weights"), py::arg("k"), py::arg("max_iterations"),
       py::arg("max_distance_m"), py::arg("covariance_norm"));
 
@@ -609,6 +649,7 @@ PYBIND11_MODULE(_lmalign, m) {
         RunnerOptions ro;
         ro.threads = threads;
         ro.source_covariances_m2 = &source_covariances;
+        ro.source_up = estimate_up_axis(in.source);
         RunnerOutcome outcome;
         {
           py::gil_scoped_release release;
