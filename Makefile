@@ -42,6 +42,7 @@ LMALIGN := $(BUILD_DIR)/apps/lmalign/lmalign
 # Debian's python3, which has python3-matplotlib (a python3 earlier on PATH may not).
 PYTHON ?= $(shell test -x /usr/bin/python3 && echo /usr/bin/python3 || echo python3)
 GT_PAIR := $(LMALIGN_DATA)/tum_fr1_desk/ground_truth_pair
+KITTI   := $(LMALIGN_DATA)/kitti_stereo_vo
 
 .PHONY: all deps configure build test demo clean install
 
@@ -104,11 +105,19 @@ demo: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign demo: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; \
 	  echo "  (set LMALIGN_DATA to the folder that holds tum_fr1_desk/)" >&2; exit 1; fi
-	@echo "== lmalign demo: align desk_gt_a onto desk_gt_b (true transform: identity)"
+	@echo "== lmalign demo: align desk_gt_a onto desk_gt_b (indoor RGB-D; true transform: identity)"
 	@echo "== source displaced by the paper's Table 1 pose: x=0 y=1 z=0.4 m, roll=10 pitch=0 yaw=22.5 deg"
+	@echo "== adaptive (the recommended default: no initial guess) next to the paper's four strategies"
 	$(LMALIGN) align $(GT_PAIR)/desk_gt_a.txt $(GT_PAIR)/desk_gt_b.txt \
-	  --weight all --k 5 --displace 0,1,0.4,10,0,22.5 --ground-truth identity \
+	  --strategy adaptive,paper --k 5 --displace 0,1,0.4,10,0,22.5 --ground-truth identity \
 	  --json $(BUILD_DIR)/demo/align.json
+	@if [ -f "$(KITTI)/kitti_vo_a.txt" ]; then \
+	  echo "== lmalign demo: outdoor stereo (KITTI): kitti_vo_a onto kitti_vo_b, disjoint windows (true transform: identity)"; \
+	  echo "== source turned by 30 deg about the vertical (-y here) and moved 3.6 m along the road; right basin: 5 deg, 1 m"; \
+	  $(LMALIGN) align $(KITTI)/kitti_vo_a.txt $(KITTI)/kitti_vo_b.txt \
+	    --strategy adaptive,paper --displace 2,0,3,0,-30,0 --ground-truth identity \
+	    --success-translation-m 1 --json $(BUILD_DIR)/demo/align_kitti.json; \
+	 else echo "lmalign demo: KITTI maps not found in $(KITTI): outdoor part skipped" >&2; fi
 	@echo "== lmalign demo: the paper's four experiments (configs/paper.yaml: Tables 1-4, 45 cases) on the same pair"
 	$(LMALIGN) experiment configs/paper.yaml -o $(BUILD_DIR)/demo/paper
 	@echo "== report: $(BUILD_DIR)/demo/paper/ (tables.md, summary.json, results.csv, plots/*.png)"
