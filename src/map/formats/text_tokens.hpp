@@ -1,0 +1,128 @@
+// Whitespace-separated tokens of a whole text file, with line numbers, for the strict readers
+// of other formats (private to src/map/formats).
+#pragma once
+
+#include <charconv>
+#include <cmath>
+#include <cstddef>
+#include <istream>
+#include <iterator>
+#include <string>
+#include <string_view>
+#include <system_error>
+
+#include "lmalign/core/error.hpp"
+
+namespace lmalign::formats_detail {
+
+/// A token quoted for an error message: at most 32 bytes, control bytes as \xHH.
+inline std::string quoted(std::string_view token) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out = "'";
+  for (std::size_t i = 0; i < token.size() && i < 32; ++i) {
+    const auto byte = static_cast<unsigned char>(token[i]);
+    if (byte < 0x20 || byte >= 0x7f) {
+      out += "\\x";
+      out += kHex[byte >> 4];
+      out += kHex[byte & 0xf];
+    } else {
+      out += token[i];
+    }
+  }
+  if (token.size() > 32) out += "...";
+  return out + "'";
+}
+
+/// Reads the whole stream; throws IoError naming `name` on a read error.
+inline std::string slurp(std::istream& in, const std::string& name) {
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw IoError("cannot read '" + name + "'");
+  return text;
+}
+
+/// Strict parse of a whole token as a finite double (std::from_chars syntax).
+inline bool parse_double(std::string_view token, double& value) {
+  const char* end = token.data() + token.size();
+  const auto [ptr, ec] = std::from_chars(token.data(), end, value);
+  return ec == std::errc() && ptr == end && std::isfinite(value);
+}
+
+/// Strict parse of a whole token as a decimal integer.
+inline bool parse_integer(std::string_view token, long long& value) {
+  const char* end = token.data() + token.size();
+  const auto [ptr, ec] = std::from_chars(token.data(), end, value);
+  return ec == std::errc() && ptr == end;
+}
+
+class TokenReader {
+ public:
+  TokenReader(std::string_view text, std::string name, std::size_t first_line = 1)
+      : text_(text), name_(std::move(name)), line_(first_line) {}
+
+  /// The next token, or an empty view at the end of the text. Counts newlines.
+  std::string_view next() {
+    skip_space();
+    token_line_ = line_;
+    const std::size_t start = pos_;
+    while (pos_ < text_.size() && !is_space(text_[pos_])) ++pos_;
+    return text_.substr(start, pos_ - start);
+  }
+
+  /// A finite number named `what`; ParseError otherwise.
+  double number(const std::string& what) {
+    const std::string_view token = require(what);
+    double value = 0.0;
+    if (!parse_double(token, value)) fail(what + " is not a finite number: " + quoted(token));
+    return value;
+  }
+
+  /// An integer in [min, max] named `what`; ParseError otherwise.
+  long long integer(const std::string& what, long long min, long long max) {
+    const std::string_view token = require(what);
+    long long value = 0;
+    if (!parse_integer(token, value) || value < min || value > max) {
+      fail(what + " is not an integer in [" + std::to_string(min) + ", " + std::to_string(max) +
+           "]: " + quoted(token));
+    }
+    return value;
+  }
+
+  /// True if only whitespace remains.
+  bool at_end() {
+    skip_space();
+    token_line_ = line_;
+    return pos_ >= text_.size();
+  }
+  std::size_t remaining_bytes() const { return text_.size() - pos_; }
+  /// Line of the last token read (1-based).
+  std::size_t line() const { return token_line_; }
+  const std::string& name() const { return name_; }
+
+  [[noreturn]] void fail(const std::string& detail) const {
+    throw ParseError(name_, token_line_, detail);
+  }
+
+ private:
+  static bool is_space(char c) {
+    return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f';
+  }
+  void skip_space() {
+    while (pos_ < text_.size() && is_space(text_[pos_])) {
+      if (text_[pos_] == '\n') ++line_;
+      ++pos_;
+    }
+  }
+  std::string_view require(const std::string& what) {
+    const std::string_view token = next();
+    if (token.empty()) fail("file ends where " + what + " was expected (truncated?)");
+    return token;
+  }
+
+  std::string_view text_;
+  std::string name_;
+  std::size_t pos_ = 0;
+  std::size_t line_ = 1;
+  std::size_t token_line_ = 1;
+};
+
+}  // namespace lmalign::formats_detail
