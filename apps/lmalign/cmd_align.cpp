@@ -19,6 +19,7 @@
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/io/ply.hpp"
 #include "lmalign/io/transform_io.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/robust.hpp"
@@ -44,6 +45,7 @@ struct AlignArgs {
   double success_translation_m = 0.10;
   std::string json_path;
   std::string ply_path;
+  std::string format = "auto";  // --format: the reader of SOURCE and TARGET
   bool history = false;
   // Given explicitly on the command line: then they also limit lmalign's own strategies.
   bool max_iterations_given = false;
@@ -154,8 +156,8 @@ int run_align(const AlignArgs& a) {
 
   MapReadOptions ropt;
   ropt.min_observations = a.min_observations;
-  const Map source = read_map(a.source, ropt);
-  const Map target = read_map(a.target, ropt);
+  const Map source = read_any_map(a.source, {ropt, parse_map_format(a.format)});
+  const Map target = read_any_map(a.target, {ropt, parse_map_format(a.format)});
   if (source.landmarks.empty())
     throw InvalidArgument("source map '" + a.source +
                           "' has no landmarks (after the --min-observations filter)");
@@ -437,6 +439,9 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--aligned-out", args->ply_path,
                   "write the aligned source landmarks (target frame) as PLY; with several "
                   "strategies, one file each: NAME_<strategy>.ply");
+  cmd->add_option("--format", args->format,
+                  "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
+                  "colmap-bin (docs/map-format.md)");
   cmd->add_flag("--history", args->history,
                 "record per-iteration correspondences, MSE and score (into --json)");
   return [args, max_iterations, max_distance]() {

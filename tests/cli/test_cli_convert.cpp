@@ -1,0 +1,66 @@
+// `lmalign convert` and the dispatching reader of align / split on real Bundler data
+// (../shared/data/bundler_balbianello): Bundler -> ours and -> COLMAP text, then align and split
+// reading the COLMAP folder by content.
+#include <filesystem>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "lmalign/map/formats/colmap.hpp"
+#include "lmalign/map/map_io.hpp"
+#include "support/data_path.hpp"
+#include "support/run_cli.hpp"
+
+namespace lmalign {
+namespace {
+
+using test::shell_quote;
+
+class CliConvert : public test::CliTest {};
+
+TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
+  const std::string bundler = test::data_file("bundler_balbianello/Balbianello.out");
+  LMALIGN_REQUIRE_FILE(bundler);
+  const std::string ours = path("balbianello.txt");
+  const std::string colmap = path("colmap") + "/";
+
+  const test::CliRun no_size = run("convert " + shell_quote(bundler) + " " + shell_quote(ours));
+  EXPECT_EQ(no_size.exit_code, 2);
+  EXPECT_NE(no_size.err.find("image size"), std::string::npos) << no_size.err;
+  EXPECT_FALSE(std::filesystem::exists(ours));
+
+  const test::CliRun to_ours = run("convert " + shell_quote(bundler) + " " + shell_quote(ours) +
+                                   " --image-size 640,427");
+  ASSERT_EQ(to_ours.exit_code, 0) << to_ours.err;
+  EXPECT_NE(to_ours.out.find("(bundler)"), std::string::npos) << to_ours.out;
+  MapReadOptions keep_all;
+  keep_all.min_observations = 0;
+  const Map map = read_map(ours, keep_all);
+  EXPECT_EQ(map.frames.size(), 5u);
+  EXPECT_GT(map.landmarks.size(), 200u);
+
+  const test::CliRun to_colmap = run("convert " + shell_quote(bundler) + " " +
+                                     shell_quote(colmap) + " --image-size 640,427");
+  ASSERT_EQ(to_colmap.exit_code, 0) << to_colmap.err;
+  const Map from_colmap = read_colmap(colmap, false);
+  ASSERT_EQ(from_colmap.frames.size(), 5u);
+  EXPECT_EQ(from_colmap.frames[0].camera->model, CameraModel::kRadial);
+
+  // align reads the COLMAP folder by content; the same landmarks align at the identity.
+  const test::CliRun align = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
+                                 " --ground-truth identity --min-observations 0");
+  EXPECT_EQ(align.exit_code, 0) << align.err;
+  const test::CliRun forced = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
+                                  " --format lmalign --ground-truth identity");
+  EXPECT_EQ(forced.exit_code, 2);  // a folder is not an lmalign map file
+
+  // split --retriangulate uses the frames' own RADIAL intrinsics from the COLMAP folder.
+  const test::CliRun split = run("split " + shell_quote(colmap) + " --frames 0-4 -o " +
+                                 shell_quote(path("split.txt")) + " --retriangulate");
+  ASSERT_EQ(split.exit_code, 0) << split.err;
+  const Map split_map = read_map(path("split.txt"), keep_all);
+  EXPECT_GT(split_map.landmarks.size(), map.landmarks.size() / 2);
+}
+
+}  // namespace
+}  // namespace lmalign
