@@ -69,6 +69,10 @@ struct StrategyRun {
 
 std::string ply_path_for(const std::string& base, const std::string& strategy, bool several) {
   if (!several) return base;
+  if (writes_colmap_text(base)) {  // a COLMAP folder: one folder per strategy
+    const std::string stem = base.back() == '/' ? base.substr(0, base.size() - 1) : base;
+    return stem + "_" + strategy + "/";
+  }
   std::filesystem::path p(base);
   const std::string ext = p.has_extension() ? p.extension().string() : ".ply";
   p.replace_extension();
@@ -281,7 +285,8 @@ int run_align(const AlignArgs& a) {
   if (!a.ply_path.empty()) {
     for (const StrategyRun& r : runs) {
       const std::string path = ply_path_for(a.ply_path, to_string(r.strategy), runs.size() > 1);
-      write_ply(path, transform_points(r.result.T_target_source, source_points));
+      // The writer by extension: .ply (with covariances), a folder (COLMAP text), else ours.
+      write_any_map(path, transform_map(source, r.result.T_target_source * T_displace));
       std::printf("aligned source (%s) written to %s\n", to_string(r.strategy).c_str(),
                   path.c_str());
     }
@@ -437,11 +442,12 @@ CommandRunner add_align_command(CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--json", args->json_path, "also write the results as JSON to this file");
   cmd->add_option("--aligned-out", args->ply_path,
-                  "write the aligned source landmarks (target frame) as PLY; with several "
-                  "strategies, one file each: NAME_<strategy>.ply");
+                  "write the aligned source map (target frame): FILE.ply as PLY with "
+                  "covariances, a folder as COLMAP text, any other name as an lmalign map; with "
+                  "several strategies, one each: NAME_<strategy>.ply");
   cmd->add_option("--format", args->format,
                   "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
-                  "colmap-bin (docs/map-format.md)");
+                  "colmap-bin, ply (docs/map-format.md)");
   cmd->add_flag("--history", args->history,
                 "record per-iteration correspondences, MSE and score (into --json)");
   return [args, max_iterations, max_distance]() {

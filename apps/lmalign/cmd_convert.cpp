@@ -54,10 +54,10 @@ int run_convert(const ConvertArgs& args) {
   options.confidence.pixel_sigma_px = args.pixel_sigma_px;
   options.confidence.min_parallax_deg = args.min_parallax_deg;
   options.keep_unknown_covariance = args.keep_unknown;
-  if (args.keep_unknown && !writes_colmap_text(args.output)) {
+  if (args.keep_unknown && written_map_format(args.output) == MapFormat::kLmalign) {
     throw InvalidArgument(
         "--keep-unknown-covariance: the lmalign map format cannot hold an unknown covariance; "
-        "use it only when OUT is a folder (COLMAP text)");
+        "use it only when OUT is a folder (COLMAP text) or a .ply");
   }
   const MapFormat format =
       options.format == MapFormat::kAuto ? detect_map_format(args.input) : options.format;
@@ -65,7 +65,7 @@ int run_convert(const ConvertArgs& args) {
   const Map map = read_any_map(args.input, options);
   write_any_map(args.output, map);
   std::cout << "convert " << args.input << " (" << map_format_name(format) << ") -> "
-            << args.output << (writes_colmap_text(args.output) ? " (colmap-text)" : " (lmalign)")
+            << args.output << " (" << map_format_name(written_map_format(args.output)) << ")"
             << "\n  frames:    " << map.frames.size()
             << "\n  landmarks: " << map.landmarks.size() << "\n";
   return 0;
@@ -78,15 +78,15 @@ CommandRunner add_convert_command(CLI::App& root) {
   CLI::App* cmd = root.add_subcommand(
       "convert",
       "Convert a map to the lmalign map text format (or, if OUT is a folder, to a COLMAP text\n"
-      "model). IN may be an lmalign map, a Bundler v0.3 .out file or a COLMAP model folder\n"
-      "(text or binary), chosen by content. Formats without covariances get them re-estimated\n"
+      "model; if OUT ends in .ply, to PLY with the covariances). IN may be an lmalign map, a\n"
+      "Bundler v0.3 .out file, a COLMAP model folder (text or binary) or a PLY, chosen by content. Formats without covariances get them re-estimated\n"
       "by triangulation; landmarks where that is impossible are dropped (docs/map-format.md).");
   cmd->add_option("IN", args->input, "input map (file or COLMAP model folder)")->required();
   cmd->add_option("OUT", args->output,
                   "output: a file (lmalign map text) or a folder ending in / (COLMAP text)")
       ->required();
   cmd->add_option("--format", args->format,
-                  "reader of IN: auto (by content), lmalign, bundler, colmap-text, colmap-bin");
+                  "reader of IN: auto (by content), lmalign, bundler, colmap-text, colmap-bin, ply");
   cmd->add_option("--image-size", args->image_size,
                   "Bundler: image size W,H in pixels (Bundler pixels are centred)");
   cmd->add_option("--pixel-sigma", args->pixel_sigma_px,
@@ -100,7 +100,7 @@ CommandRunner add_convert_command(CLI::App& root) {
                   "drop landmarks with fewer observations")
       ->capture_default_str();
   cmd->add_flag("--keep-unknown-covariance", args->keep_unknown,
-                "keep landmarks whose covariance cannot be estimated (COLMAP output only)");
+                "keep landmarks whose covariance cannot be estimated (COLMAP or PLY output only)");
   return [args]() { return run_convert(*args); };
 }
 

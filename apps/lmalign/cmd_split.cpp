@@ -144,8 +144,8 @@ CommandRunner add_split_command(CLI::App& root) {
       "--min-parallax. See docs/split.md.");
   cmd->add_option("MAP", args->input, "Input map file (method.md section 1 format)")->required();
   cmd->add_option("--format", args->format,
-                  "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin "
-                  "(docs/map-format.md)");
+                  "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin, "
+                  "ply (docs/map-format.md)");
   cmd->add_option("--frames", args->frames,
                   "Frame-id window A-B, inclusive, non-negative integers with A <= B (e.g. 0-119)")
       ->required()

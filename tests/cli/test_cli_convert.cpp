@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include "lmalign/map/formats/colmap.hpp"
+#include "lmalign/map/formats/ply.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "support/data_path.hpp"
 #include "support/run_cli.hpp"
@@ -47,9 +48,24 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
   EXPECT_EQ(from_colmap.frames[0].camera->model, CameraModel::kRadial);
 
   // align reads the COLMAP folder by content; the same landmarks align at the identity.
+  // --aligned-out picks the writer by extension: PLY with covariances, or our format.
   const test::CliRun align = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
-                                 " --ground-truth identity --min-observations 0");
-  EXPECT_EQ(align.exit_code, 0) << align.err;
+                                 " --ground-truth identity --min-observations 0 --aligned-out " +
+                                 shell_quote(path("aligned.ply")));
+  ASSERT_EQ(align.exit_code, 0) << align.err;
+  const Map aligned_ply = read_ply_map(path("aligned.ply"));
+  ASSERT_EQ(aligned_ply.landmarks.size(), map.landmarks.size());
+  for (std::size_t i = 0; i < map.landmarks.size(); ++i) {
+    EXPECT_FALSE(aligned_ply.landmarks[i].covariance_unknown);
+    EXPECT_LT((aligned_ply.landmarks[i].p_world - map.landmarks[i].p_world).norm(),
+              1e-6 * (1.0 + map.landmarks[i].p_world.norm()));
+  }
+  const test::CliRun align_txt = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
+                                     " --ground-truth identity --aligned-out " +
+                                     shell_quote(path("aligned.txt")));
+  ASSERT_EQ(align_txt.exit_code, 0) << align_txt.err;
+  const Map aligned_map = read_map(path("aligned.txt"), keep_all);
+  EXPECT_EQ(aligned_map.frames.size(), 5u);
   const test::CliRun forced = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
                                   " --format lmalign --ground-truth identity");
   EXPECT_EQ(forced.exit_code, 2);  // a folder is not an lmalign map file

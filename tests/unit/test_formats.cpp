@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -15,6 +16,7 @@
 #include "lmalign/map/formats/bundler.hpp"
 #include "lmalign/map/formats/colmap.hpp"
 #include "lmalign/map/formats/formats.hpp"
+#include "lmalign/map/formats/ply.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "support/temp_dir.hpp"
 
@@ -338,11 +340,13 @@ TEST(DetectMapFormat, ByContentNotExtension) {
   write_text(dir.file("ours.out"), "# comment\n\nFRAME 0 0 0 0 1 0 0 0\n");
   write_text(dir.file("bundle.txt"), "# Bundle file v0.3\r\n0 0\n");
   write_text(dir.file("empty.bin"), "# only a comment\n");
-  write_text(dir.file("other.txt"), "ply\nformat ascii 1.0\n");
+  write_text(dir.file("other.txt"), "solid cube\n");
+  write_text(dir.file("cloud.txt"), "ply\nformat ascii 1.0\n");
   EXPECT_EQ(detect_map_format(dir.file("ours.out")), MapFormat::kLmalign);
   EXPECT_EQ(detect_map_format(dir.file("bundle.txt")), MapFormat::kBundler);
   EXPECT_EQ(detect_map_format(dir.file("empty.bin")), MapFormat::kLmalign);
   EXPECT_THROW(detect_map_format(dir.file("other.txt")), InvalidArgument);
+  EXPECT_EQ(detect_map_format(dir.file("cloud.txt")), MapFormat::kPly);
   EXPECT_THROW(detect_map_format(dir.path()), InvalidArgument);  // a folder without a model
   EXPECT_THROW(detect_map_format(dir.file("missing")), IoError);
   EXPECT_EQ(parse_map_format("colmap-bin"), MapFormat::kColmapBinary);
@@ -378,6 +382,137 @@ TEST(CameraModel, DistortionMatchesColmapEquationsAndUndistortInverts) {
   EXPECT_NEAR(undistorted->y(), 400 * -0.1 + 240, 1e-8);
   k.params.pop_back();
   EXPECT_FALSE(k.is_valid());
+}
+
+// ---- PLY ----
+
+TEST(Ply, WriterRoundTripsPositionsCovariancesAndFlagsBitExactly) {
+  ScratchDir dir("ply_rt");
+  Map map;
+  for (int i = 0; i < 3; ++i) {
+    Landmark l;
+    l.id = 10 + i;
+    l.p_world = Vec3(0.1 * i, -1.0 / 3.0, 1e-300 * i);
+    l.cov_world_m2 << 2e-4, 1e-5, -3e-6, 1e-5, 1e-4, 0, -3e-6, 0, 5e-4;
+    l.cov_world_m2 *= (i + 1);
+    map.landmarks.push_back(l);
+  }
+  map.landmarks[1].covariance_unknown = true;
+  write_ply_map(dir.file("m.ply"), map);
+  EXPECT_EQ(detect_map_format(dir.file("m.ply")), MapFormat::kPly);
+  const Map back = read_ply_map(dir.file("m.ply"));
+  ASSERT_EQ(back.landmarks.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(back.landmarks[i].id, i);  // PLY has no ids: the vertex index
+    EXPECT_EQ(back.landmarks[i].p_world, map.landmarks[i].p_world);
+    EXPECT_EQ(back.landmarks[i].covariance_unknown, i == 1);
+    EXPECT_EQ(back.landmarks[i].cov_world_m2,
+              i == 1 ? Mat3::Zero().eval() : map.landmarks[i].cov_world_m2);
+  }
+  // read_any_map keeps the two known ones (no observation filter for PLY).
+  const Map any = read_any_map(dir.file("m.ply"));
+  EXPECT_EQ(any.landmarks.size(), 2u);
+  // write_any_map picks the PLY writer by extension (any case).
+  write_any_map(dir.file("again.PLY"), map);
+  EXPECT_EQ(read_ply_map(dir.file("again.PLY")).landmarks.size(), 3u);
+}
+
+TEST(Ply, BinaryLittleEndianWithOtherElementsAndTypes) {
+  ScratchDir dir("ply_bin");
+  std::string ply =
+      "ply\nformat binary_little_endian 1.0\ncomment hand-written\n"
+      "element camera 1\nproperty list uchar int ids\nproperty float f\n"
+      "element vertex 2\nproperty float x\nproperty float y\nproperty float z\n"
+      "property uchar red\nproperty double cov_xx\nproperty double cov_xy\n"
+      "property double cov_xz\nproperty double cov_yy\nproperty double cov_yz\n"
+      "property double cov_zz\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  put<std::uint8_t>(ply, 2);  // camera: list of 2 ints, then a float
+  put<std::int32_t>(ply, 7);
+  put<std::int32_t>(ply, 8);
+  put<float>(ply, 3.5f);
+  for (int v = 0; v < 2; ++v) {
+    for (float c : {1.5f, -2.25f, 4.0f + v}) put<float>(ply, c);
+    put<std::uint8_t>(ply, 200);
+    for (double c : {1e-4, 0.0, 0.0, 2e-4, 0.0, 3e-4 * (v + 1)}) put<double>(ply, c);
+  }
+  put<std::uint8_t>(ply, 3);  // the face after the vertices is not read
+  write_text(dir.file("b.ply"), ply);
+  const Map map = read_ply_map(dir.file("b.ply"));
+  ASSERT_EQ(map.landmarks.size(), 2u);
+  EXPECT_EQ(map.landmarks[1].p_world, Vec3(1.5, -2.25, 5.0));
+  EXPECT_EQ(map.landmarks[1].cov_world_m2(2, 2), 6e-4);
+  EXPECT_EQ(map.landmarks[1].cov_world_m2(1, 1), 2e-4);
+  EXPECT_FALSE(map.landmarks[0].covariance_unknown);
+  // A count that the rest cannot hold names the element's header line.
+  write_text(dir.file("c.ply"), ply.substr(0, ply.size() - 20));
+  EXPECT_THROW(
+      try { read_ply_map(dir.file("c.ply")); } catch (const ParseError& e) {
+        EXPECT_EQ(e.line(), 7u) << e.what();
+        throw;
+      },
+      ParseError);
+  // Truncated inside the camera's list: the byte offset of the missing field.
+  const std::size_t body = ply.find("end_header\n") + 11;
+  write_text(dir.file("t.ply"), ply.substr(0, body + 7));
+  try {
+    read_ply_map(dir.file("t.ply"));
+    ADD_FAILURE() << "no error";
+  } catch (const ParseError& e) {
+    EXPECT_NE(std::string(e.what()).find(": byte " + std::to_string(body + 5)), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("truncated"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Ply, HostileInputNamesLineAndExpectation) {
+  const std::string head = "ply\nformat ascii 1.0\nelement vertex 1\n";
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  struct Case {
+    std::string text;
+    std::string fragment;
+  };
+  const std::vector<Case> cases = {
+      {"PLY\n", ":1: expected 'ply'"},
+      {"ply\nformat binary_big_endian 1.0\n", ":2: format 'binary_big_endian' is not supported"},
+      {head + "property float x\nproperty float y\nend_header\n1 2\n", "no 'z' property"},
+      {head + xyz + "property double cov_xx\nend_header\n1 2 3 4\n", "1 of the 6 covariance"},
+      {"ply\nformat ascii 1.0\nelement vertex 99999999\n" + xyz + "end_header\n1 2 3\n",
+       ":3: element 'vertex' count 99999999 cannot fit"},
+      {head + xyz + "end_header\n1 nan 3\n", ":8: vertex 0 y is not a finite number"},
+      {head + xyz + "end_header\n1 2\n", "file ends where vertex 0 z"},
+      {head + xyz + "property blob q\nend_header\n", ":7: unknown property type 'blob'"},
+      {head + xyz, "file ends inside the header"},
+      {head + xyz +
+           "property double cov_xx\nproperty double cov_xy\nproperty double cov_xz\n"
+           "property double cov_yy\nproperty double cov_yz\nproperty double cov_zz\n"
+           "end_header\n0 0 0 1 2 0 1 0 1\n",
+       "not positive semi-definite"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    std::istringstream in(c.text);
+    try {
+      read_ply_map(in, "p.ply");
+      ADD_FAILURE() << "no error; expected " << c.fragment;
+    } catch (const ParseError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.fragment), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Ply, WithoutCovariancesReadAnyMapRefusesUnlessKept) {
+  ScratchDir dir("ply_nocov");
+  write_text(dir.file("c.ply"),
+             "ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\n"
+             "property double y\nproperty double z\nend_header\n1 2 3\n4 5 6\n");
+  EXPECT_THROW(read_any_map(dir.file("c.ply")), InvalidArgument);
+  AnyMapReadOptions keep;
+  keep.keep_unknown_covariance = true;
+  const Map map = read_any_map(dir.file("c.ply"), keep);
+  ASSERT_EQ(map.landmarks.size(), 2u);
+  EXPECT_TRUE(map.landmarks[1].covariance_unknown);
+  EXPECT_EQ(map.landmarks[1].p_world, Vec3(4, 5, 6));
 }
 
 }  // namespace

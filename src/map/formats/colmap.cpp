@@ -22,6 +22,7 @@ namespace lmalign {
 
 namespace {
 
+using formats_detail::Bytes;
 using formats_detail::quoted;
 using formats_detail::TokenReader;
 using Fail = std::function<void(const std::string&)>;
@@ -271,61 +272,6 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
 
 // ---- binary ---------------------------------------------------------------------------------
 
-class Bytes {
- public:
-  Bytes(std::string_view text, std::string name) : text_(text), name_(std::move(name)) {}
-  template <typename T>
-  T read(const std::string& what) {
-    if (text_.size() - pos_ < sizeof(T)) {
-      fail("file ends where " + what + " (" + std::to_string(sizeof(T)) +
-           " bytes) was expected (truncated?)");
-    }
-    T value;
-    std::memcpy(&value, text_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return value;
-  }
-  double number(const std::string& what) {
-    const std::size_t at = pos_;
-    const double v = read<double>(what);
-    if (!std::isfinite(v)) fail_at(at, what + " is not finite");
-    return v;
-  }
-  /// A count of records of at least `min_record_bytes` each; refused if the rest of the file
-  /// cannot hold them.
-  std::uint64_t count(const std::string& what, std::size_t min_record_bytes) {
-    const std::size_t at = pos_;
-    const auto n = read<std::uint64_t>(what);
-    if (n > remaining() / min_record_bytes) {
-      fail_at(at, what + " " + std::to_string(n) + " cannot fit in the " +
-                      std::to_string(remaining()) + " bytes that follow (at least " +
-                      std::to_string(min_record_bytes) + " bytes each)");
-    }
-    return n;
-  }
-  std::string name_string(const std::string& what) {
-    const std::size_t nul = text_.find('\0', pos_);
-    if (nul == std::string::npos) fail("file ends inside " + what + " (no terminating NUL)");
-    std::string s(text_.substr(pos_, nul - pos_));
-    pos_ = nul + 1;
-    return s;
-  }
-  std::size_t remaining() const { return text_.size() - pos_; }
-  std::size_t offset() const { return pos_; }
-  std::string where() const { return name_ + ": byte " + std::to_string(pos_); }
-  [[noreturn]] void fail(const std::string& detail) const { fail_at(pos_, detail); }
-  [[noreturn]] void fail_at(std::size_t at, const std::string& detail) const {
-    throw ParseError(name_, 0, "byte " + std::to_string(at) + ": " + detail);
-  }
-  void expect_end() const {
-    if (remaining() != 0) fail(std::to_string(remaining()) + " unexpected bytes after the last record");
-  }
-
- private:
-  std::string_view text_;
-  std::string name_;
-  std::size_t pos_ = 0;
-};
 
 void read_binary(const ColmapFiles& files, const ColmapReadOptions& options, Model& m) {
   {

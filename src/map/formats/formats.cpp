@@ -3,6 +3,7 @@
 #include "lmalign/map/formats/formats.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +13,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/map/formats/bundler.hpp"
 #include "lmalign/map/formats/colmap.hpp"
+#include "lmalign/map/formats/ply.hpp"
 #include "lmalign/map/triangulation.hpp"
 
 namespace lmalign {
@@ -28,6 +30,7 @@ constexpr FormatName kNames[] = {
     {MapFormat::kBundler, "bundler"},
     {MapFormat::kColmapText, "colmap-text"},
     {MapFormat::kColmapBinary, "colmap-bin"},
+    {MapFormat::kPly, "ply"},
 };
 
 std::string accepted_names() {
@@ -83,6 +86,7 @@ MapFormat detect_map_format(const std::string& path) {
     if (in.bad()) throw IoError("cannot read map file '" + path + "'");
     if (!line.empty() && line.back() == '\r') line.pop_back();
     if (first && line == "# Bundle file v0.3") return MapFormat::kBundler;
+    if (first && line == "ply") return MapFormat::kPly;
     first = false;
     const std::size_t start = line.find_first_not_of(" \t");
     if (start != std::string::npos && line[start] != '#') {
@@ -96,7 +100,8 @@ MapFormat detect_map_format(const std::string& path) {
       }
       throw InvalidArgument("cannot tell the format of '" + path +
                             "': not a COLMAP model folder, not Bundler v0.3 (first line '# "
-                            "Bundle file v0.3'), not an lmalign map (FRAME / LANDMARK records); "
+                            "Bundle file v0.3'), not PLY (first line 'ply'), not an lmalign map "
+                            "(FRAME / LANDMARK records); "
                             "use --format to choose a reader");
     }
     if (!in) return MapFormat::kLmalign;  // only blank and comment lines: an empty map
@@ -182,6 +187,23 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
 
   Map map;
   std::vector<double> sigma_px;
+  if (format == MapFormat::kPly) {
+    map = read_ply_map(path);
+    const bool any_known = std::any_of(map.landmarks.begin(), map.landmarks.end(),
+                                       [](const Landmark& l) { return !l.covariance_unknown; });
+    if (!map.landmarks.empty() && !any_known && !options.keep_unknown_covariance) {
+      throw InvalidArgument("'" + path +
+                            "' is a PLY without per-vertex covariances (cov_xx cov_xy cov_xz "
+                            "cov_yy cov_yz cov_zz) and without observations to derive them from; "
+                            "set keep_unknown_covariance to read it flagged");
+    }
+    if (!options.keep_unknown_covariance) {
+      map.landmarks.erase(std::remove_if(map.landmarks.begin(), map.landmarks.end(),
+                                         [](const Landmark& l) { return l.covariance_unknown; }),
+                          map.landmarks.end());
+    }
+    return map;
+  }
   if (format == MapFormat::kBundler) {
     if (!options.image_size_px) {
       throw InvalidArgument("'" + path +
@@ -215,11 +237,24 @@ bool writes_colmap_text(const std::string& path) {
   return (!path.empty() && path.back() == '/') || std::filesystem::is_directory(path, ec);
 }
 
+MapFormat written_map_format(const std::string& path) {
+  if (writes_colmap_text(path)) return MapFormat::kColmapText;
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".ply" ? MapFormat::kPly : MapFormat::kLmalign;
+}
+
 void write_any_map(const std::string& path, const Map& map) {
-  if (writes_colmap_text(path)) {
-    write_colmap_text(path, map);
-  } else {
-    write_map(path, map);
+  switch (written_map_format(path)) {
+    case MapFormat::kColmapText:
+      write_colmap_text(path, map);
+      break;
+    case MapFormat::kPly:
+      write_ply_map(path, map);
+      break;
+    default:
+      write_map(path, map);
   }
 }
 

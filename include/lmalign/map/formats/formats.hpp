@@ -17,16 +17,18 @@ enum class MapFormat {
   kBundler,       ///< Bundler v0.3 `.out` (formats/bundler.hpp)
   kColmapText,    ///< COLMAP sparse model folder with cameras.txt, images.txt, points3D.txt
   kColmapBinary,  ///< COLMAP sparse model folder with cameras.bin, images.bin, points3D.bin
+  kPly,           ///< PLY point cloud, optional per-vertex covariance (formats/ply.hpp)
 };
 
-/// The name used by `--format`: auto, lmalign, bundler, colmap-text, colmap-bin.
+/// The name used by `--format`: auto, lmalign, bundler, colmap-text, colmap-bin, ply.
 std::string map_format_name(MapFormat format);
 /// Parses a `--format` name. Throws InvalidArgument listing the accepted names.
 MapFormat parse_map_format(const std::string& name);
 
 /// The format of `path`, by content: a folder is a COLMAP model (binary if it holds
 /// cameras.bin, images.bin and points3D.bin, else text if it holds the three .txt files); a file
-/// whose first line is "# Bundle file v0.3" is Bundler; a file whose first record (after blank and
+/// whose first line is "# Bundle file v0.3" is Bundler, one whose first line is "ply" is PLY; a
+/// file whose first record (after blank and
 /// comment lines) starts with FRAME or LANDMARK, or that holds no record, is ours.
 /// Throws IoError if `path` cannot be read, InvalidArgument naming the path and the formats
 /// looked for if it is none of them.
@@ -87,17 +89,23 @@ std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
 /// Reads a map in any supported format (options.format, or detect_map_format()). For formats
 /// without covariances they are derived by estimate_covariances(); then landmarks with fewer
 /// than options.map.min_observations observations, and (unless keep_unknown_covariance) those
-/// with an unknown covariance, are dropped. Throws what the chosen reader throws (ParseError
+/// with an unknown covariance, are dropped. PLY has no observations: min_observations does not
+/// apply, and a PLY with no covariance properties is an InvalidArgument unless
+/// keep_unknown_covariance is set. Throws what the chosen reader throws (ParseError
 /// with file:line or byte offset, IoError), and InvalidArgument for bad options.
 Map read_any_map(const std::string& path, const AnyMapReadOptions& options = {});
 
 /// True if write_any_map() writes a COLMAP text model to `path`: it ends in '/' or is an
 /// existing folder.
 bool writes_colmap_text(const std::string& path);
+/// The format write_any_map() writes to `path`: kColmapText (a folder), kPly (extension .ply,
+/// any case) or kLmalign (anything else).
+MapFormat written_map_format(const std::string& path);
 
-/// Writes `map` by the form of `path`: a folder (ending in '/' or existing) gets a COLMAP text
-/// model (write_colmap_text, formats/colmap.hpp), any other path our text format (write_map;
-/// see there for what is refused). Each file is written atomically.
+/// Writes `map` by the form of `path` (written_map_format): a folder (ending in '/' or existing)
+/// gets a COLMAP text model (write_colmap_text, formats/colmap.hpp), a `.ply` path a PLY with
+/// the covariances as properties (write_ply_map, formats/ply.hpp), any other path our text
+/// format (write_map; see there for what is refused). Each file is written atomically.
 void write_any_map(const std::string& path, const Map& map);
 
 }  // namespace lmalign
