@@ -447,7 +447,7 @@ CommandRunner add_align_command(CLI::App& root) {
                   "several strategies, one each: NAME_<strategy>.ply");
   cmd->add_option("--format", args->format,
                   "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
-                  "colmap-bin, ply (docs/map-format.md)");
+                  "colmap-bin, ply, stella-vslam (docs/map-format.md)");
   cmd->add_flag("--history", args->history,
                 "record per-iteration correspondences, MSE and score (into --json)");
   return [args, max_iterations, max_distance]() {

@@ -79,14 +79,17 @@ CommandRunner add_convert_command(CLI::App& root) {
       "convert",
       "Convert a map to the lmalign map text format (or, if OUT is a folder, to a COLMAP text\n"
       "model; if OUT ends in .ply, to PLY with the covariances). IN may be an lmalign map, a\n"
-      "Bundler v0.3 .out file, a COLMAP model folder (text or binary) or a PLY, chosen by content. Formats without covariances get them re-estimated\n"
-      "by triangulation; landmarks where that is impossible are dropped (docs/map-format.md).");
+      "Bundler v0.3 .out file, a COLMAP model folder (text or binary), a stella_vslam .msg or\n"
+      "a PLY, chosen by content. Formats without covariances get them re-estimated by\n"
+      "triangulation; landmarks where that is impossible are dropped (docs/map-format.md).");
   cmd->add_option("IN", args->input, "input map (file or COLMAP model folder)")->required();
   cmd->add_option("OUT", args->output,
-                  "output: a file (lmalign map text) or a folder ending in / (COLMAP text)")
+                  "output: a file (lmalign map text), FILE.ply (PLY) or a folder ending in / "
+                  "(COLMAP text)")
       ->required();
   cmd->add_option("--format", args->format,
-                  "reader of IN: auto (by content), lmalign, bundler, colmap-text, colmap-bin, ply");
+                  "reader of IN: auto (by content), lmalign, bundler, colmap-text, colmap-bin, "
+                  "ply, stella-vslam");
   cmd->add_option("--image-size", args->image_size,
                   "Bundler: image size W,H in pixels (Bundler pixels are centred)");
   cmd->add_option("--pixel-sigma", args->pixel_sigma_px,

@@ -145,7 +145,7 @@ CommandRunner add_split_command(CLI::App& root) {
   cmd->add_option("MAP", args->input, "Input map file (method.md section 1 format)")->required();
   cmd->add_option("--format", args->format,
                   "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin, "
-                  "ply (docs/map-format.md)");
+                  "ply, stella-vslam (docs/map-format.md)");
   cmd->add_option("--frames", args->frames,
                   "Frame-id window A-B, inclusive, non-negative integers with A <= B (e.g. 0-119)")
       ->required()

@@ -17,7 +17,9 @@
 #include "lmalign/map/formats/colmap.hpp"
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/formats/ply.hpp"
+#include "lmalign/map/formats/stella_vslam.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "support/msgpack_writer.hpp"
 #include "support/temp_dir.hpp"
 
 namespace lmalign {
@@ -513,6 +515,133 @@ TEST(Ply, WithoutCovariancesReadAnyMapRefusesUnlessKept) {
   ASSERT_EQ(map.landmarks.size(), 2u);
   EXPECT_TRUE(map.landmarks[1].covariance_unknown);
   EXPECT_EQ(map.landmarks[1].p_world, Vec3(4, 5, 6));
+}
+
+// ---- stella_vslam ----
+
+// A one-keyframe map database; the arguments spoil one field each.
+struct StellaSpoil {
+  std::string model = "perspective";
+  double k1 = 0.0;
+  double k3 = 0.0;
+  std::string cam = "c";
+  double qw = 1.0;
+  std::int64_t lm_id = 5;
+  bool extra_lm_id = false;
+};
+std::string stella_bytes(const StellaSpoil& s) {
+  test::MsgpackWriter w;
+  w.map_header(3);
+  w.str("cameras");
+  w.map_header(1);
+  w.str("c");
+  w.map_header(12);
+  const std::pair<const char*, double> values[] = {{"cx", 320}, {"cy", 240}, {"fx", 500},
+                                                   {"fy", 400}, {"k1", s.k1}, {"k2", 0},
+                                                   {"k3", s.k3}, {"p1", 0},   {"p2", 0}};
+  for (const auto& [key, value] : values) {
+    w.str(key);
+    w.f64(value);
+  }
+  w.str("cols");
+  w.integer(640);
+  w.str("model_type");
+  w.str(s.model);
+  w.str("rows");
+  w.integer(480);
+  w.str("keyframes");
+  w.map_header(1);
+  w.str("3");
+  w.map_header(5);
+  w.str("cam");
+  w.str(s.cam);
+  w.str("keypts");
+  w.array_header(2);
+  for (double u : {195.0, 10.0}) {
+    w.map_header(1);
+    w.str("pt");
+    w.array_header(2);
+    w.f64(u);
+    w.f64(440);
+  }
+  w.str("lm_ids");
+  w.array_header(s.extra_lm_id ? 3 : 2);
+  w.integer(s.lm_id);
+  w.integer(-1);
+  if (s.extra_lm_id) w.integer(-1);
+  w.str("rot_cw");  // x y z w: identity
+  w.array_header(4);
+  for (double v : {0.0, 0.0, 0.0, s.qw}) w.f64(v);
+  w.str("trans_cw");
+  w.array_header(3);
+  for (double v : {1.0, 0.0, 0.0}) w.f64(v);
+  w.str("landmarks");
+  w.map_header(1);
+  w.str("5");
+  w.map_header(1);
+  w.str("pos_w");
+  w.array_header(3);
+  for (double v : {-2.0, 2.0, 4.0}) w.f64(v);
+  return w.bytes();
+}
+
+TEST(StellaVslam, OneKeyframeMapEveryNumber) {
+  const Map map = read_stella_vslam_bytes(stella_bytes({}), "m.msg");
+  ASSERT_EQ(map.frames.size(), 1u);
+  EXPECT_EQ(map.frames[0].id, 3);
+  // trans_cw = (1, 0, 0) with R = I: the camera centre is -t = (-1, 0, 0).
+  EXPECT_EQ(map.frames[0].p_world_camera, Vec3(-1, 0, 0));
+  EXPECT_EQ(map.frames[0].camera->model, CameraModel::kPinhole);
+  ASSERT_EQ(map.landmarks.size(), 1u);
+  EXPECT_EQ(map.landmarks[0].id, 5);
+  ASSERT_EQ(map.landmarks[0].observations.size(), 1u);  // lm_id -1 is no observation
+  // (-2, 2, 4) in the camera: (-1, 2, 4) -> (500 * -0.25 + 320, 400 * 0.5 + 240) = (195, 440).
+  EXPECT_EQ(map.landmarks[0].observations[0].u_px, 195.0);
+  const Vec3 p_camera = map.frames[0].T_world_camera().inverse() * map.landmarks[0].p_world;
+  EXPECT_LT((map.frames[0].camera->project(p_camera) - Eigen::Vector2d(195, 440)).norm(), 1e-12);
+  StellaSpoil distorted;
+  distorted.k1 = 0.1;
+  EXPECT_EQ(read_stella_vslam_bytes(stella_bytes(distorted), "m.msg").frames[0].camera->model,
+            CameraModel::kOpenCv);
+}
+
+TEST(StellaVslam, HostileInputNamesRecordFieldAndExpectation) {
+  struct Case {
+    StellaSpoil spoil;
+    std::string fragment;
+  };
+  std::vector<Case> cases(6);
+  cases[0].spoil.model = "fisheye";
+  cases[0].fragment = "camera 'c'.model_type: unknown camera model 'fisheye'";
+  cases[1].spoil.k3 = 0.01;
+  cases[1].fragment = "camera 'c'.k3";
+  cases[2].spoil.cam = "other";
+  cases[2].fragment = "keyframe 3.cam: names no camera";
+  cases[3].spoil.qw = 2.0;
+  cases[3].fragment = "keyframe 3.rot_cw: quaternion norm is 2";
+  cases[4].spoil.lm_id = 99;
+  cases[4].fragment = "keyframe 3.lm_ids[0]: names unknown landmark 99";
+  cases[5].spoil.extra_lm_id = true;
+  cases[5].fragment = "same length";
+  for (const Case& c : cases) {
+    try {
+      read_stella_vslam_bytes(stella_bytes(c.spoil), "m.msg");
+      ADD_FAILURE() << "no error; expected " << c.fragment;
+    } catch (const ParseError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.fragment), std::string::npos) << e.what();
+    }
+  }
+  const std::string good = stella_bytes({});
+  try {
+    read_stella_vslam_bytes(good.substr(0, good.size() - 5), "m.msg");
+    ADD_FAILURE() << "truncation accepted";
+  } catch (const ParseError& e) {
+    EXPECT_NE(std::string(e.what()).find("m.msg: byte "), std::string::npos) << e.what();
+  }
+  // An array header claiming 2^32 - 1 elements in a few bytes: refused, not allocated.
+  test::MsgpackWriter huge;
+  huge.array_header(0xffffffffu);
+  EXPECT_THROW(read_stella_vslam_bytes(huge.bytes(), "m.msg"), ParseError);
 }
 
 }  // namespace

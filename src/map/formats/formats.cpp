@@ -14,6 +14,7 @@
 #include "lmalign/map/formats/bundler.hpp"
 #include "lmalign/map/formats/colmap.hpp"
 #include "lmalign/map/formats/ply.hpp"
+#include "lmalign/map/formats/stella_vslam.hpp"
 #include "lmalign/map/triangulation.hpp"
 
 namespace lmalign {
@@ -31,6 +32,7 @@ constexpr FormatName kNames[] = {
     {MapFormat::kColmapText, "colmap-text"},
     {MapFormat::kColmapBinary, "colmap-bin"},
     {MapFormat::kPly, "ply"},
+    {MapFormat::kStellaVslam, "stella-vslam"},
 };
 
 std::string accepted_names() {
@@ -74,6 +76,22 @@ MapFormat detect_map_format(const std::string& path) {
   }
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError("cannot open map file '" + path + "'");
+  {
+    // stella_vslam: a MessagePack map (fixmap, map 16 or map 32) whose first key, in
+    // nlohmann's sorted order, is the 7-byte string "cameras" (fixstr 0xa7).
+    char head[16] = {};
+    in.read(head, sizeof(head));
+    const std::string_view bytes(head, static_cast<std::size_t>(in.gcount()));
+    const auto first = bytes.empty() ? 0 : static_cast<unsigned char>(bytes[0]);
+    const std::size_t key_at = (first >= 0x80 && first <= 0x8f) ? 1 : first == 0xde ? 3
+                               : first == 0xdf                  ? 5
+                                                                : 0;
+    if (key_at > 0 && bytes.substr(key_at, 8) == std::string_view("\xa7" "cameras", 8)) {
+      return MapFormat::kStellaVslam;
+    }
+    in.clear();
+    in.seekg(0);
+  }
   // The first non-blank, non-comment line decides (at most 4 KiB of each line is looked at).
   std::string line;
   bool first = true;
@@ -204,7 +222,9 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
     }
     return map;
   }
-  if (format == MapFormat::kBundler) {
+  if (format == MapFormat::kStellaVslam) {
+    map = read_stella_vslam(path);
+  } else if (format == MapFormat::kBundler) {
     if (!options.image_size_px) {
       throw InvalidArgument("'" + path +
                             "' is a Bundler file: its pixels are relative to the image centre, "

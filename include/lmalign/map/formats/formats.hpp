@@ -18,17 +18,20 @@ enum class MapFormat {
   kColmapText,    ///< COLMAP sparse model folder with cameras.txt, images.txt, points3D.txt
   kColmapBinary,  ///< COLMAP sparse model folder with cameras.bin, images.bin, points3D.bin
   kPly,           ///< PLY point cloud, optional per-vertex covariance (formats/ply.hpp)
+  kStellaVslam,   ///< stella_vslam / OpenVSLAM map database .msg (formats/stella_vslam.hpp)
 };
 
-/// The name used by `--format`: auto, lmalign, bundler, colmap-text, colmap-bin, ply.
+/// The name used by `--format`: auto, lmalign, bundler, colmap-text, colmap-bin, ply,
+/// stella-vslam.
 std::string map_format_name(MapFormat format);
 /// Parses a `--format` name. Throws InvalidArgument listing the accepted names.
 MapFormat parse_map_format(const std::string& name);
 
 /// The format of `path`, by content: a folder is a COLMAP model (binary if it holds
 /// cameras.bin, images.bin and points3D.bin, else text if it holds the three .txt files); a file
-/// whose first line is "# Bundle file v0.3" is Bundler, one whose first line is "ply" is PLY; a
-/// file whose first record (after blank and
+/// whose first line is "# Bundle file v0.3" is Bundler, one whose first line is "ply" is PLY, one
+/// that starts with a MessagePack map whose first key is "cameras" is a stella_vslam map
+/// database; a file whose first record (after blank and
 /// comment lines) starts with FRAME or LANDMARK, or that holds no record, is ours.
 /// Throws IoError if `path` cannot be read, InvalidArgument naming the path and the formats
 /// looked for if it is none of them.
