@@ -484,6 +484,7 @@ TEST(Ply, HostileInputNamesLineAndExpectation) {
       {head + xyz + "end_header\n1 nan 3\n", ":8: vertex 0 y is not a finite number"},
       {head + xyz + "end_header\n1 2\n", "file ends where vertex 0 z"},
       {head + xyz + "property blob q\nend_header\n", ":7: unknown property type 'blob'"},
+      {head + xyz + "property float y\nend_header\n", ":7: duplicate property 'y'"},
       {head + xyz, "file ends inside the header"},
       {head + xyz +
            "property double cov_xx\nproperty double cov_xy\nproperty double cov_xz\n"

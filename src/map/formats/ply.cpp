@@ -177,6 +177,12 @@ Map read_ply_map(std::istream& in, const std::string& name) {
       p.type = *scalar;
       p.name = std::string(t.next());
       if (p.name.empty()) t.fail("expected a property name");
+      // A repeated name would make the covariance count ambiguous (found by fuzz_ply_reader).
+      for (const Property& other : elements.back().properties) {
+        if (other.name == p.name) {
+          t.fail("duplicate property '" + p.name + "' in element '" + elements.back().name + "'");
+        }
+      }
       elements.back().properties.push_back(std::move(p));
     } else {
       t.fail("unknown header keyword " + quoted(keyword));
