@@ -1,6 +1,8 @@
 // Other map formats on real data: Balbianello (a real Bundler reconstruction from GTSAM's
 // examples, ../shared/data/bundler_balbianello) and the real desk map written as COLMAP text.
 #include <algorithm>
+#include <cstdint>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <tuple>
@@ -16,6 +18,7 @@
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/formats/stella_vslam.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "lmalign/weights/weights.hpp"
 #include "support/data_path.hpp"
 #include "support/map_compare.hpp"
 #include "support/stella_map_writer.hpp"
@@ -187,6 +190,101 @@ TEST(StellaVslamReal, DeskMapThroughTheTestsOwnMessagePackWriter) {
   // Through read_any_map: covariances derived (1 px), most landmarks keep one.
   const Map any = read_any_map(dir.file("desk.msg"));
   EXPECT_GT(any.landmarks.size(), desk.landmarks.size() / 2);
+}
+
+// The real desk map as a COLMAP binary model written by the test's own minimal writer (COLMAP's
+// layout: cameras.bin, images.bin, points3D.bin), read back by the dispatching reader.
+template <typename T>
+void put(std::string& out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  out.append(bytes, sizeof(T));
+}
+
+TEST(ColmapReal, DeskMapThroughTheTestsOwnBinaryWriter) {
+  const std::string path = test::data_file(kDesk);
+  LMALIGN_REQUIRE_FILE(path);
+  const Map desk = read_map(path);
+  std::string cameras, images, points;
+  put<std::uint64_t>(cameras, 1);
+  put<std::uint32_t>(cameras, 1);
+  put<std::int32_t>(cameras, 1);  // PINHOLE
+  put<std::uint64_t>(cameras, 640);
+  put<std::uint64_t>(cameras, 480);
+  for (double p : {517.3, 516.5, 318.6, 255.3}) put(cameras, p);
+  // 2-D points per frame, and each landmark's track (image id, index).
+  std::map<Id, std::vector<std::pair<const Observation*, Id>>> points2d;
+  std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> tracks(desk.landmarks.size());
+  for (std::size_t l = 0; l < desk.landmarks.size(); ++l) {
+    for (const Observation& o : desk.landmarks[l].observations) {
+      auto& list = points2d[o.frame_id];
+      tracks[l].emplace_back(static_cast<std::uint32_t>(o.frame_id + 1),
+                             static_cast<std::uint32_t>(list.size()));
+      list.emplace_back(&o, desk.landmarks[l].id);
+    }
+  }
+  put<std::uint64_t>(images, desk.frames.size());
+  for (const Frame& f : desk.frames) {
+    const Quat q_cw = f.q_world_camera.normalized().conjugate();
+    const Vec3 t_cw = -(q_cw * f.p_world_camera);
+    put<std::uint32_t>(images, static_cast<std::uint32_t>(f.id + 1));  // COLMAP ids from 1
+    for (double v : {q_cw.w(), q_cw.x(), q_cw.y(), q_cw.z(), t_cw.x(), t_cw.y(), t_cw.z()}) {
+      put(images, v);
+    }
+    put<std::uint32_t>(images, 1);
+    images += "frame.png";
+    images.push_back('\0');
+    const auto& list = points2d[f.id];
+    put<std::uint64_t>(images, list.size());
+    for (const auto& [o, landmark_id] : list) {
+      put(images, o->u_px);
+      put(images, o->v_px);
+      put<std::uint64_t>(images, static_cast<std::uint64_t>(landmark_id + 1));
+    }
+  }
+  put<std::uint64_t>(points, desk.landmarks.size());
+  for (std::size_t l = 0; l < desk.landmarks.size(); ++l) {
+    put<std::uint64_t>(points, static_cast<std::uint64_t>(desk.landmarks[l].id + 1));
+    for (int i = 0; i < 3; ++i) put(points, desk.landmarks[l].p_world(i));
+    for (int i = 0; i < 3; ++i) put<std::uint8_t>(points, 128);
+    put(points, 0.0);
+    put<std::uint64_t>(points, tracks[l].size());
+    for (const auto& [image, index] : tracks[l]) {
+      put(points, image);
+      put(points, index);
+    }
+  }
+  test::ScratchDir dir("colmap_desk_bin");
+  for (const auto& [file, bytes] : {std::pair<const char*, const std::string*>{"cameras.bin", &cameras},
+                                    {"images.bin", &images},
+                                    {"points3D.bin", &points}}) {
+    std::ofstream(dir.file(file), std::ios::binary) << *bytes;
+  }
+  EXPECT_EQ(detect_map_format(dir.path()), MapFormat::kColmapBinary);
+  AnyMapReadOptions options;
+  options.map.min_observations = 0;
+  options.keep_unknown_covariance = true;
+  const Map back = read_any_map(dir.path(), options);
+  ASSERT_EQ(back.frames.size(), desk.frames.size());
+  for (std::size_t i = 0; i < desk.frames.size(); ++i) {
+    EXPECT_EQ(back.frames[i].id, desk.frames[i].id + 1);
+    EXPECT_LT((back.frames[i].p_world_camera - desk.frames[i].p_world_camera).norm(), 1e-12);
+  }
+  ASSERT_EQ(back.landmarks.size(), desk.landmarks.size());
+  for (std::size_t l = 0; l < desk.landmarks.size(); ++l) {
+    EXPECT_EQ(back.landmarks[l].p_world, desk.landmarks[l].p_world);
+    ASSERT_EQ(back.landmarks[l].observations.size(), desk.landmarks[l].observations.size());
+    for (std::size_t k = 0; k < desk.landmarks[l].observations.size(); ++k) {
+      EXPECT_EQ(back.landmarks[l].observations[k].frame_id,
+                desk.landmarks[l].observations[k].frame_id + 1);
+      EXPECT_EQ(back.landmarks[l].observations[k].u_px, desk.landmarks[l].observations[k].u_px);
+    }
+  }
+  // Observation count and mean viewing distance come from the tracks: the same as the desk map's.
+  for (std::size_t l = 0; l < desk.landmarks.size(); l += 97) {
+    EXPECT_NEAR(mean_observation_distance_m(back.landmarks[l], back),
+                mean_observation_distance_m(desk.landmarks[l], desk), 1e-9);
+  }
 }
 
 }  // namespace
