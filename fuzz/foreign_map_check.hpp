@@ -1,12 +1,14 @@
 // The fuzz oracle of the readers of other map formats (Bundler, COLMAP text and binary, PLY),
 // shared by fuzz_bundler_reader.cpp, fuzz_colmap_reader.cpp, fuzz_ply_reader.cpp and the
 // regression test that replays
-// fuzz/regressions/<target>/ and fuzz/corpus/<target>/ (tests/unit/test_degenerate_fuzz_regressions.cpp).
+// fuzz/regressions/<target>/ and fuzz/corpus/<target>/
+// (tests/unit/test_degenerate_fuzz_regressions.cpp).
 //
 // For any bytes the reader throws lmalign::Error or returns a map; a returned map is valid
 // (Map::validate), every frame has valid intrinsics, and (after estimate_covariances() for the
-// formats with observations; as read for PLY) every landmark has either a finite symmetric positive semi-definite covariance or the unknown flag with a
-// zero covariance. Any other exception, a crash, a sanitizer report, a leak or a hang is a bug.
+// formats with observations; as read for PLY) every landmark has either a finite symmetric positive
+// semi-definite covariance or the unknown flag with a zero covariance. Any other exception, a
+// crash, a sanitizer report, a leak or a hang is a bug.
 #pragma once
 
 #include <algorithm>

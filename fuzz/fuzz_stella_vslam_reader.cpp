@@ -1,5 +1,6 @@
 // libFuzzer target: the stella_vslam reader, with the oracle of foreign_map_check.hpp
-// (docs/robustness.md). Build: cmake -DLMALIGN_FUZZ=ON -DCMAKE_CXX_COMPILER=clang++; run: make fuzz.
+// (docs/robustness.md). Build: cmake -DLMALIGN_FUZZ=ON -DCMAKE_CXX_COMPILER=clang++; run: make
+// fuzz.
 #include <cstddef>
 #include <cstdint>
 

@@ -64,10 +64,10 @@ int run_convert(const ConvertArgs& args) {
   options.format = format;
   const Map map = read_any_map(args.input, options);
   write_any_map(args.output, map);
-  std::cout << "convert " << args.input << " (" << map_format_name(format) << ") -> "
-            << args.output << " (" << map_format_name(written_map_format(args.output)) << ")"
-            << "\n  frames:    " << map.frames.size()
-            << "\n  landmarks: " << map.landmarks.size() << "\n";
+  std::cout << "convert " << args.input << " (" << map_format_name(format) << ") -> " << args.output
+            << " (" << map_format_name(written_map_format(args.output)) << ")"
+            << "\n  frames:    " << map.frames.size() << "\n  landmarks: " << map.landmarks.size()
+            << "\n";
   return 0;
 }
 

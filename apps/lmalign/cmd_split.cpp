@@ -163,7 +163,8 @@ CommandRunner add_split_command(CLI::App& root) {
       ->type_name("DEG");
   cmd->add_option("--intrinsics", args->intrinsics,
                   "With --retriangulate: pinhole intrinsics fx,fy,cx,cy in pixels, no distortion "
-                  "(default TUM fr1)")
+                  "(default TUM fr1), for frames without their own (frames read from COLMAP, "
+                  "Bundler or stella_vslam carry theirs)")
       ->capture_default_str()
       ->type_name("FX,FY,CX,CY");
   cmd->add_option("--pixel-sigma", args->pixel_sigma_px,

@@ -127,8 +127,8 @@ double max_parallax_deg(const std::vector<WorldToCamera>& cameras, const Vec3& p
 }  // namespace
 
 std::optional<PixelView> make_pixel_view(const Isometry3& T_world_camera,
-                                         const std::optional<CameraIntrinsics>& camera,
-                                         double u_px, double v_px) {
+                                         const std::optional<CameraIntrinsics>& camera, double u_px,
+                                         double v_px) {
   PixelView view{T_world_camera, u_px, v_px, std::nullopt};
   if (!camera) return view;
   if (!camera->is_valid()) return std::nullopt;

@@ -30,8 +30,8 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
   EXPECT_NE(no_size.err.find("image size"), std::string::npos) << no_size.err;
   EXPECT_FALSE(std::filesystem::exists(ours));
 
-  const test::CliRun to_ours = run("convert " + shell_quote(bundler) + " " + shell_quote(ours) +
-                                   " --image-size 640,427");
+  const test::CliRun to_ours =
+      run("convert " + shell_quote(bundler) + " " + shell_quote(ours) + " --image-size 640,427");
   ASSERT_EQ(to_ours.exit_code, 0) << to_ours.err;
   EXPECT_NE(to_ours.out.find("(bundler)"), std::string::npos) << to_ours.out;
   MapReadOptions keep_all;
@@ -40,8 +40,8 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
   EXPECT_EQ(map.frames.size(), 5u);
   EXPECT_GT(map.landmarks.size(), 200u);
 
-  const test::CliRun to_colmap = run("convert " + shell_quote(bundler) + " " +
-                                     shell_quote(colmap) + " --image-size 640,427");
+  const test::CliRun to_colmap =
+      run("convert " + shell_quote(bundler) + " " + shell_quote(colmap) + " --image-size 640,427");
   ASSERT_EQ(to_colmap.exit_code, 0) << to_colmap.err;
   const Map from_colmap = read_colmap(colmap, false);
   ASSERT_EQ(from_colmap.frames.size(), 5u);
@@ -60,9 +60,9 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
     EXPECT_LT((aligned_ply.landmarks[i].p_world - map.landmarks[i].p_world).norm(),
               1e-6 * (1.0 + map.landmarks[i].p_world.norm()));
   }
-  const test::CliRun align_txt = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
-                                     " --ground-truth identity --aligned-out " +
-                                     shell_quote(path("aligned.txt")));
+  const test::CliRun align_txt =
+      run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
+          " --ground-truth identity --aligned-out " + shell_quote(path("aligned.txt")));
   ASSERT_EQ(align_txt.exit_code, 0) << align_txt.err;
   const Map aligned_map = read_map(path("aligned.txt"), keep_all);
   EXPECT_EQ(aligned_map.frames.size(), 5u);

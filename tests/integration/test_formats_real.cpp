@@ -1,17 +1,17 @@
 // Other map formats on real data: Balbianello (a real Bundler reconstruction from GTSAM's
 // examples, ../shared/data/bundler_balbianello) and the real desk map written as COLMAP text.
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <fstream>
 #include <map>
-#include <tuple>
-#include <cmath>
 #include <string>
+#include <tuple>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include "lmalign/map/formats/bundler.hpp"
 #include "lmalign/map/formats/colmap.hpp"
@@ -255,9 +255,10 @@ TEST(ColmapReal, DeskMapThroughTheTestsOwnBinaryWriter) {
     }
   }
   test::ScratchDir dir("colmap_desk_bin");
-  for (const auto& [file, bytes] : {std::pair<const char*, const std::string*>{"cameras.bin", &cameras},
-                                    {"images.bin", &images},
-                                    {"points3D.bin", &points}}) {
+  for (const auto& [file, bytes] :
+       {std::pair<const char*, const std::string*>{"cameras.bin", &cameras},
+        {"images.bin", &images},
+        {"points3D.bin", &points}}) {
     std::ofstream(dir.file(file), std::ios::binary) << *bytes;
   }
   EXPECT_EQ(detect_map_format(dir.path()), MapFormat::kColmapBinary);

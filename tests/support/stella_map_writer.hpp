@@ -27,9 +27,14 @@ inline std::string stella_map_bytes(const Map& map, const PinholeIntrinsics& k) 
   w.map_header(1);
   w.str("tum");
   w.map_header(12);
-  for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{
-           {"cols", 640}, {"cx", k.cx_px}, {"cy", k.cy_px}, {"fx", k.fx_px}, {"fy", k.fy_px},
-           {"k1", 0}, {"k2", 0}, {"k3", 0}}) {
+  for (const auto& [key, value] : std::vector<std::pair<std::string, double>>{{"cols", 640},
+                                                                              {"cx", k.cx_px},
+                                                                              {"cy", k.cy_px},
+                                                                              {"fx", k.fx_px},
+                                                                              {"fy", k.fy_px},
+                                                                              {"k1", 0},
+                                                                              {"k2", 0},
+                                                                              {"k3", 0}}) {
     w.str(key);
     if (key == "cols") {
       w.integer(static_cast<std::int64_t>(value));

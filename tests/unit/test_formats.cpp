@@ -261,8 +261,8 @@ TEST(ColmapText, HostileInputNamesFileLineAndExpectation) {
        "images.txt:1", "unknown POINT3D_ID 99"},
       {"points3D.txt", "7 -1 2 4 255 0 0 0.5 1 5\n", "points3D.txt:1", "POINT2D_IDX 5"},
       {"points3D.txt", "7 -1 2 4 255 0 0 0.5 9 0\n", "points3D.txt:1", "unknown IMAGE_ID 9"},
-      {"points3D.txt", "7 -1 2 4 255 0 0 0.5 1 0\n7 -1 2 4 255 0 0 0.5 1 0\n",
-       "points3D.txt:2", "duplicate POINT3D_ID 7"},
+      {"points3D.txt", "7 -1 2 4 255 0 0 0.5 1 0\n7 -1 2 4 255 0 0 0.5 1 0\n", "points3D.txt:2",
+       "duplicate POINT3D_ID 7"},
   };
   for (const Case& c : cases) {
     ScratchDir dir("colmap_bad");
@@ -537,9 +537,9 @@ std::string stella_bytes(const StellaSpoil& s) {
   w.map_header(1);
   w.str("c");
   w.map_header(12);
-  const std::pair<const char*, double> values[] = {{"cx", 320}, {"cy", 240}, {"fx", 500},
-                                                   {"fy", 400}, {"k1", s.k1}, {"k2", 0},
-                                                   {"k3", s.k3}, {"p1", 0},   {"p2", 0}};
+  const std::pair<const char*, double> values[] = {{"cx", 320},  {"cy", 240},  {"fx", 500},
+                                                   {"fy", 400},  {"k1", s.k1}, {"k2", 0},
+                                                   {"k3", s.k3}, {"p1", 0},    {"p2", 0}};
   for (const auto& [key, value] : values) {
     w.str(key);
     w.f64(value);

@@ -28,8 +28,8 @@ struct PixelView {
 /// own (TriangulationOptions::intrinsics apply). nullopt if the intrinsics are invalid or the
 /// undistortion does not converge.
 std::optional<PixelView> make_pixel_view(const Isometry3& T_world_camera,
-                                         const std::optional<CameraIntrinsics>& camera,
-                                         double u_px, double v_px);
+                                         const std::optional<CameraIntrinsics>& camera, double u_px,
+                                         double v_px);
 
 struct TriangulationOptions {
   PinholeIntrinsics intrinsics = PinholeIntrinsics::tum_fr1();
@@ -54,7 +54,8 @@ struct TriangulatedPoint {
 /// condition number.
 /// Returns nullopt if fewer than 2 views, if the point is behind a camera (z <= 0 in its frame),
 /// if J^T J is singular or ill-conditioned (lambda_min / lambda_max <= 1e-12, e.g. zero
-/// parallax), if the intrinsics (shared or per view) or sigma are invalid, or if any input or result is not finite.
+/// parallax), if the intrinsics (shared or per view) or sigma are invalid, or if any input or
+/// result is not finite.
 std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views,
                                              const TriangulationOptions& options = {});
 

@@ -39,9 +39,8 @@ Map read_bundler(std::istream& in, const std::string& name, const BundlerReadOpt
   std::string_view first(text.data(), eol == std::string::npos ? text.size() : eol);
   if (!first.empty() && first.back() == '\r') first.remove_suffix(1);
   if (first != kHeader) {
-    throw ParseError(name, 1,
-                     "expected the header '# Bundle file v0.3', got " +
-                         formats_detail::quoted(first));
+    throw ParseError(
+        name, 1, "expected the header '# Bundle file v0.3', got " + formats_detail::quoted(first));
   }
   TokenReader tokens(std::string_view(text).substr(first.size()), name);
   const long long kMaxCount = std::numeric_limits<int>::max();

@@ -203,8 +203,8 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
         k.params.push_back(t.number(camera_model_name(*model) + " parameter " +
                                     std::to_string(i + 1) + " of " + std::to_string(n)));
       }
-      if (!t.at_end()) t.fail("more than " + std::to_string(n) + " parameters for " +
-                              camera_model_name(*model));
+      if (!t.at_end())
+        t.fail("more than " + std::to_string(n) + " parameters for " + camera_model_name(*model));
       add_camera(m, id, std::move(k), options, fail);
     }
   }
@@ -236,8 +236,8 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
         Point2D point;
         point.x = p.number(what + "X");
         point.y = p.number(what + "Y");
-        point.point3d_id = p.integer(what + "POINT3D_ID (-1 for none)", -1,
-                                     std::numeric_limits<long long>::max());
+        point.point3d_id =
+            p.integer(what + "POINT3D_ID (-1 for none)", -1, std::numeric_limits<long long>::max());
         points.push_back(point);
       }
       add_image(m, id, qt, camera_id, std::move(points), options, where, fail);
@@ -264,14 +264,12 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
         const long long idx = t.integer(what + "POINT2D_IDX", 0, kMaxId);
         add_track_element(m, landmark, image_id, idx, fail);
       }
-      add_point(m, std::move(landmark), error_px, path + ":" + std::to_string(lines.line()),
-                fail);
+      add_point(m, std::move(landmark), error_px, path + ":" + std::to_string(lines.line()), fail);
     }
   }
 }
 
 // ---- binary ---------------------------------------------------------------------------------
-
 
 void read_binary(const ColmapFiles& files, const ColmapReadOptions& options, Model& m) {
   {
@@ -286,7 +284,8 @@ void read_binary(const ColmapFiles& files, const ColmapReadOptions& options, Mod
       const std::optional<CameraModel> model = camera_model_from_id(model_id);
       if (!model) {
         fail("camera " + std::to_string(id) + ": unknown camera model id " +
-             std::to_string(model_id) + " (expected 0-4: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, "
+             std::to_string(model_id) +
+             " (expected 0-4: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, "
              "RADIAL, OPENCV)");
       }
       CameraIntrinsics k;
@@ -457,8 +456,8 @@ void write_colmap_text(const std::string& dir, const Map& map, const PinholeIntr
       const Vec3 t = -(q_camera_world * frame.p_world_camera);
       out << frame.id << ' ' << shortest(q_camera_world.w()) << ' ' << shortest(q_camera_world.x())
           << ' ' << shortest(q_camera_world.y()) << ' ' << shortest(q_camera_world.z()) << ' '
-          << shortest(t.x()) << ' ' << shortest(t.y()) << ' ' << shortest(t.z()) << ' '
-          << frame.id << " frame_" << frame.id << "\n";
+          << shortest(t.x()) << ' ' << shortest(t.y()) << ' ' << shortest(t.z()) << ' ' << frame.id
+          << " frame_" << frame.id << "\n";
       bool first = true;
       for (const auto& [obs, landmark_id] : points2d[i]) {
         out << (first ? "" : " ") << shortest(obs->u_px) << ' ' << shortest(obs->v_px) << ' '

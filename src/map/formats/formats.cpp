@@ -4,7 +4,9 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <string_view>
@@ -74,8 +76,12 @@ MapFormat detect_map_format(const std::string& path) {
                           "' is a folder but not a COLMAP model (expected cameras, images and "
                           "points3D as .bin or .txt)");
   }
+  errno = 0;
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw IoError("cannot open map file '" + path + "'");
+  if (!in) {  // the same message as read_map's
+    throw IoError("cannot open map file '" + path +
+                  "': " + std::strerror(errno != 0 ? errno : ENOENT));
+  }
   {
     // stella_vslam: a MessagePack map (fixmap, map 16 or map 32) whose first key, in
     // nlohmann's sorted order, is the 7-byte string "cameras" (fixstr 0xa7).
@@ -83,10 +89,13 @@ MapFormat detect_map_format(const std::string& path) {
     in.read(head, sizeof(head));
     const std::string_view bytes(head, static_cast<std::size_t>(in.gcount()));
     const auto first = bytes.empty() ? 0 : static_cast<unsigned char>(bytes[0]);
-    const std::size_t key_at = (first >= 0x80 && first <= 0x8f) ? 1 : first == 0xde ? 3
+    const std::size_t key_at = (first >= 0x80 && first <= 0x8f) ? 1
+                               : first == 0xde                  ? 3
                                : first == 0xdf                  ? 5
                                                                 : 0;
-    if (key_at > 0 && bytes.substr(key_at, 8) == std::string_view("\xa7" "cameras", 8)) {
+    if (key_at > 0 && bytes.substr(key_at, 8) == std::string_view("\xa7"
+                                                                  "cameras",
+                                                                  8)) {
       return MapFormat::kStellaVslam;
     }
     in.clear();
@@ -136,8 +145,7 @@ bool ConfidenceOptions::is_valid(std::string* why) const {
                 ") must be finite and >= 0 (0: the default)");
   }
   if (!(min_parallax_deg >= 0.0 && min_parallax_deg <= 180.0)) {
-    return fail("min_parallax_deg (" + std::to_string(min_parallax_deg) +
-                ") must be in [0, 180]");
+    return fail("min_parallax_deg (" + std::to_string(min_parallax_deg) + ") must be in [0, 180]");
   }
   if (max_iterations < 0) return fail("max_iterations must be >= 0");
   return true;

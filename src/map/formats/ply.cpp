@@ -33,11 +33,11 @@ std::optional<Scalar> scalar_of(std::string_view name) {
     Scalar type;
   };
   static constexpr Entry kTypes[] = {
-      {"char", Scalar::kInt8},     {"int8", Scalar::kInt8},       {"uchar", Scalar::kUint8},
-      {"uint8", Scalar::kUint8},   {"short", Scalar::kInt16},     {"int16", Scalar::kInt16},
-      {"ushort", Scalar::kUint16}, {"uint16", Scalar::kUint16},   {"int", Scalar::kInt32},
-      {"int32", Scalar::kInt32},   {"uint", Scalar::kUint32},     {"uint32", Scalar::kUint32},
-      {"float", Scalar::kFloat32}, {"float32", Scalar::kFloat32}, {"double", Scalar::kFloat64},
+      {"char", Scalar::kInt8},      {"int8", Scalar::kInt8},       {"uchar", Scalar::kUint8},
+      {"uint8", Scalar::kUint8},    {"short", Scalar::kInt16},     {"int16", Scalar::kInt16},
+      {"ushort", Scalar::kUint16},  {"uint16", Scalar::kUint16},   {"int", Scalar::kInt32},
+      {"int32", Scalar::kInt32},    {"uint", Scalar::kUint32},     {"uint32", Scalar::kUint32},
+      {"float", Scalar::kFloat32},  {"float32", Scalar::kFloat32}, {"double", Scalar::kFloat64},
       {"float64", Scalar::kFloat64}};
   for (const Entry& e : kTypes) {
     if (name == e.name) return e.type;
@@ -134,7 +134,8 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   bool have_format = false;
   std::vector<Element> elements;
   for (;;) {
-    if (!next_line(line)) throw ParseError(name, line_no, "file ends inside the header (no end_header)");
+    if (!next_line(line))
+      throw ParseError(name, line_no, "file ends inside the header (no end_header)");
     TokenReader t(line, name, line_no);
     const std::string_view keyword = t.next();
     if (keyword == "end_header") break;
@@ -265,7 +266,8 @@ Map read_ply_map(std::istream& in, const std::string& name) {
           const double n = binary ? read_binary_scalar(bytes, p.count_type, what + " count")
                                   : static_cast<double>(tokens.integer(
                                         what + " count", 0, std::numeric_limits<int>::max()));
-          if (!(n >= 0.0) || n > static_cast<double>(binary ? bytes.remaining() : tokens.remaining_bytes())) {
+          if (!(n >= 0.0) ||
+              n > static_cast<double>(binary ? bytes.remaining() : tokens.remaining_bytes())) {
             if (binary) bytes.fail(what + " count " + std::to_string(n) + " is out of range");
             tokens.fail(what + " count is out of range");
           }
@@ -295,7 +297,8 @@ Map read_ply_map(std::istream& in, const std::string& name) {
       };
       Landmark landmark;
       landmark.id = static_cast<Id>(i);
-      for (int k = 0; k < 3; ++k) landmark.p_world(k) = values[static_cast<std::size_t>(layout.xyz[k])];
+      for (int k = 0; k < 3; ++k)
+        landmark.p_world(k) = values[static_cast<std::size_t>(layout.xyz[k])];
       landmark.covariance_unknown = !layout.has_covariance;
       if (layout.has_covariance) {
         const auto c = [&](int k) { return values[static_cast<std::size_t>(layout.cov[k])]; };

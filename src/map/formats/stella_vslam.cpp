@@ -83,10 +83,11 @@ class Reader {
 CameraIntrinsics read_camera(const Reader& r, const Json& camera, const std::string& where) {
   const Json& model = r.member(camera, "model_type", where);
   if (!model.is_string() || model.get<std::string>() != "perspective") {
-    r.fail(where + ".model_type", "unknown camera model " +
-                                      (model.is_string() ? formats_detail::quoted(model.get<std::string>())
-                                                         : std::string(model.type_name())) +
-                                      " (expected perspective)");
+    r.fail(where + ".model_type",
+           "unknown camera model " +
+               (model.is_string() ? formats_detail::quoted(model.get<std::string>())
+                                  : std::string(model.type_name())) +
+               " (expected perspective)");
   }
   CameraIntrinsics k;
   k.width_px = r.integer(r.member(camera, "cols", where), where + ".cols");
@@ -139,7 +140,8 @@ Map read_stella_vslam_bytes(std::string_view bytes, const std::string& name) {
   const Json& json_cameras = r.member(root, "cameras", top);
   if (!json_cameras.is_object()) r.fail("cameras", "expected a map of camera name -> camera");
   for (const auto& [camera_name, camera] : json_cameras.items()) {
-    cameras.emplace(camera_name, read_camera(r, camera, "camera " + formats_detail::quoted(camera_name)));
+    cameras.emplace(camera_name,
+                    read_camera(r, camera, "camera " + formats_detail::quoted(camera_name)));
   }
 
   Map map;
@@ -153,7 +155,8 @@ Map read_stella_vslam_bytes(std::string_view bytes, const std::string& name) {
   for (const auto& [id, landmark] : landmarks_by_id) {
     Landmark l;
     l.id = id;
-    const std::vector<double> p = r.numbers(*landmark, "pos_w", 3, "landmark " + std::to_string(id));
+    const std::vector<double> p =
+        r.numbers(*landmark, "pos_w", 3, "landmark " + std::to_string(id));
     l.p_world = Vec3(p[0], p[1], p[2]);
     l.covariance_unknown = true;
     landmark_at.emplace(id, map.landmarks.size());
@@ -191,17 +194,19 @@ Map read_stella_vslam_bytes(std::string_view bytes, const std::string& name) {
     const Json& keypts = r.member(*keyframe, "keypts", where);
     const Json& lm_ids = r.member(*keyframe, "lm_ids", where);
     if (!keypts.is_array() || !lm_ids.is_array() || keypts.size() != lm_ids.size()) {
-      r.fail(where, "expected arrays keypts and lm_ids of the same length (one landmark id per "
-                    "keypoint), got " +
-                        std::to_string(keypts.is_array() ? keypts.size() : 0) + " and " +
-                        std::to_string(lm_ids.is_array() ? lm_ids.size() : 0));
+      r.fail(where,
+             "expected arrays keypts and lm_ids of the same length (one landmark id per "
+             "keypoint), got " +
+                 std::to_string(keypts.is_array() ? keypts.size() : 0) + " and " +
+                 std::to_string(lm_ids.is_array() ? lm_ids.size() : 0));
     }
     for (std::size_t i = 0; i < lm_ids.size(); ++i) {
       const std::string at = where + ".lm_ids[" + std::to_string(i) + "]";
       const long long landmark_id = r.integer(lm_ids[i], at);
       if (landmark_id < 0) continue;
       const auto it = landmark_at.find(landmark_id);
-      if (it == landmark_at.end()) r.fail(at, "names unknown landmark " + std::to_string(landmark_id));
+      if (it == landmark_at.end())
+        r.fail(at, "names unknown landmark " + std::to_string(landmark_id));
       const std::vector<double> pt =
           r.numbers(keypts[i], "pt", 2, where + ".keypts[" + std::to_string(i) + "]");
       map.landmarks[it->second].observations.push_back({id, pt[0], pt[1]});

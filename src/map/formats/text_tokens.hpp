@@ -3,10 +3,10 @@
 #pragma once
 
 #include <charconv>
-#include <cstdint>
-#include <cstring>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <cstring>
 #include <istream>
 #include <iterator>
 #include <string>
@@ -177,7 +177,8 @@ class Bytes {
     throw ParseError(name_, 0, "byte " + std::to_string(base_ + at) + ": " + detail);
   }
   void expect_end() const {
-    if (remaining() != 0) fail(std::to_string(remaining()) + " unexpected bytes after the last record");
+    if (remaining() != 0)
+      fail(std::to_string(remaining()) + " unexpected bytes after the last record");
   }
 
  private:
