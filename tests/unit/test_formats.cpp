@@ -11,6 +11,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/map/formats/bundler.hpp"
@@ -334,6 +335,79 @@ TEST(Bundler, HostileInputNamesLineAndExpectation) {
     } catch (const ParseError& e) {
       EXPECT_NE(std::string(e.what()).find(c.fragment), std::string::npos) << e.what();
     }
+  }
+}
+
+// A Bundler scene whose truth is known: the file is written here with Bundler's own equations
+// (X_cam = R X + t, p = -P / P_z, r = 1 + k1 |p|^2 + k2 |p|^4, pixel f r p, centred, y up); the
+// reader must give the camera centres -R^T t and raw pixels (x + w/2, h/2 - y) that the frame's
+// RADIAL model reproduces.
+TEST(Bundler, KnownSceneConventionsAndProjection) {
+  const double w = 640, h = 480;
+  struct Cam {
+    double f, k1, k2;
+    Mat3 R;
+    Vec3 centre;
+  };
+  const double a = 20.0 * 3.14159265358979323846 / 180.0;
+  Mat3 Ry;
+  Ry << std::cos(a), 0, std::sin(a), 0, 1, 0, -std::sin(a), 0, std::cos(a);
+  const std::vector<Cam> cams = {{500, -0.05, 0.01, Mat3::Identity(), Vec3(0, 0, 5)},
+                                 {450, 0.02, 0.0, Ry, Vec3(1, 0.5, 5)}};
+  const std::vector<Vec3> points = {{0.1, 0.2, 0.3}, {-0.4, 0.1, -0.2}, {0.3, -0.3, 0.0}};
+  std::ostringstream file;
+  file.precision(17);
+  file << "# Bundle file v0.3\n" << cams.size() << " " << points.size() << "\n";
+  for (const Cam& c : cams) {
+    const Vec3 t = -(c.R * c.centre);
+    file << c.f << " " << c.k1 << " " << c.k2 << "\n"
+         << c.R.row(0) << "\n"
+         << c.R.row(1) << "\n"
+         << c.R.row(2) << "\n"
+         << t.transpose() << "\n";
+  }
+  std::vector<std::vector<Eigen::Vector2d>> expected(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    file << points[i].transpose() << "\n255 255 255\n" << cams.size();
+    for (std::size_t c = 0; c < cams.size(); ++c) {
+      const Vec3 P = cams[c].R * points[i] - cams[c].R * cams[c].centre;
+      ASSERT_LT(P.z(), 0.0);  // in front of a Bundler camera
+      const Eigen::Vector2d pn = -P.head<2>() / P.z();
+      const double r =
+          1 + cams[c].k1 * pn.squaredNorm() + cams[c].k2 * std::pow(pn.squaredNorm(), 2);
+      const Eigen::Vector2d xy = cams[c].f * r * pn;
+      file << " " << c << " " << i << " " << xy.x() << " " << xy.y();
+      expected[i].emplace_back(xy.x() + w / 2, h / 2 - xy.y());
+    }
+    file << "\n";
+  }
+  std::istringstream in(file.str());
+  const Map map = read_bundler(in, "scene.out", {640, 480});
+  ASSERT_EQ(map.frames.size(), 2u);
+  for (std::size_t c = 0; c < cams.size(); ++c) {
+    EXPECT_LT((map.frames[c].p_world_camera - cams[c].centre).norm(), 1e-12);
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    ASSERT_EQ(map.landmarks[i].observations.size(), 2u);
+    for (std::size_t c = 0; c < cams.size(); ++c) {
+      const Observation& o = map.landmarks[i].observations[c];
+      EXPECT_NEAR(o.u_px, expected[i][c].x(), 1e-9);
+      EXPECT_NEAR(o.v_px, expected[i][c].y(), 1e-9);
+      const Frame& frame = map.frames[c];
+      const Vec3 p_camera = frame.T_world_camera().inverse() * points[i];
+      EXPECT_GT(p_camera.z(), 0.0);  // z forward in our convention
+      EXPECT_LT((frame.camera->project(p_camera) - expected[i][c]).norm(), 1e-9);
+    }
+  }
+  // Derived covariances: two views with parallax, so known and positive definite.
+  AnyMapReadOptions options;
+  options.image_size_px = std::array<long long, 2>{640, 480};
+  ScratchDir dir("bundler_scene");
+  write_text(dir.file("scene.out"), file.str());
+  const Map any = read_any_map(dir.file("scene.out"), options);
+  ASSERT_EQ(any.landmarks.size(), 3u);
+  for (const Landmark& l : any.landmarks) {
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Mat3>(l.cov_world_m2).eigenvalues()(0), 0.0);
   }
 }
 
