@@ -65,16 +65,29 @@ inline void check_foreign_map(Map& map, bool derive_covariances = true) {
   }
 }
 
-/// Bundler: the bytes are a .out file, read with a 640 x 480 image size.
-inline void check_bundler_bytes(const std::uint8_t* data, std::size_t size) {
+/// Runs `read` (bytes -> Map); a clear refusal (lmalign::Error) is a correct outcome, a map is
+/// checked by check_foreign_map.
+template <typename Read>
+void check_read(const Read& read, bool derive_covariances = true) {
   Map map;
   try {
-    std::istringstream in(std::string(reinterpret_cast<const char*>(data), size));
-    map = read_bundler(in, "fuzz.out", BundlerReadOptions{640, 480});
+    map = read();
   } catch (const Error&) {
     return;
   }
-  check_foreign_map(map);
+  check_foreign_map(map, derive_covariances);
+}
+
+inline std::string_view as_text(const std::uint8_t* data, std::size_t size) {
+  return {reinterpret_cast<const char*>(data), size};
+}
+
+/// Bundler: the bytes are a .out file, read with a 640 x 480 image size.
+inline void check_bundler_bytes(const std::uint8_t* data, std::size_t size) {
+  check_read([&] {
+    std::istringstream in{std::string(as_text(data, size))};
+    return read_bundler(in, "fuzz.out", BundlerReadOptions{640, 480});
+  });
 }
 
 /// COLMAP: the first byte's low bit chooses binary (1) or text (0); the rest is the three files
@@ -82,44 +95,29 @@ inline void check_bundler_bytes(const std::uint8_t* data, std::size_t size) {
 inline void check_colmap_bytes(const std::uint8_t* data, std::size_t size) {
   if (size == 0) return;
   const bool binary = (data[0] & 1) != 0;
-  std::string_view rest(reinterpret_cast<const char*>(data) + 1, size - 1);
+  std::string_view rest = as_text(data + 1, size - 1);
   ColmapFiles files;
   for (int i = 0; i < 3; ++i) {
     const std::size_t cut = i < 2 ? rest.find("\n@@@\n") : std::string_view::npos;
     files.contents[i] = std::string(rest.substr(0, cut));
     rest = cut == std::string_view::npos ? std::string_view() : rest.substr(cut + 5);
   }
-  Map map;
-  try {
-    map = read_colmap(files, binary);
-  } catch (const Error&) {
-    return;
-  }
-  check_foreign_map(map);
+  check_read([&] { return read_colmap(files, binary); });
 }
 
 /// stella_vslam: the bytes are a .msg map database.
 inline void check_stella_vslam_bytes(const std::uint8_t* data, std::size_t size) {
-  Map map;
-  try {
-    map = read_stella_vslam_bytes(std::string_view(reinterpret_cast<const char*>(data), size),
-                                  "fuzz.msg");
-  } catch (const Error&) {
-    return;
-  }
-  check_foreign_map(map);
+  check_read([&] { return read_stella_vslam_bytes(as_text(data, size), "fuzz.msg"); });
 }
 
 /// PLY: the bytes are a .ply file; covariances are checked as read.
 inline void check_ply_bytes(const std::uint8_t* data, std::size_t size) {
-  Map map;
-  try {
-    std::istringstream in(std::string(reinterpret_cast<const char*>(data), size));
-    map = read_ply_map(in, "fuzz.ply");
-  } catch (const Error&) {
-    return;
-  }
-  check_foreign_map(map, false);
+  check_read(
+      [&] {
+        std::istringstream in{std::string(as_text(data, size))};
+        return read_ply_map(in, "fuzz.ply");
+      },
+      false);
 }
 
 }  // namespace lmalign::fuzz

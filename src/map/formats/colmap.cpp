@@ -23,6 +23,7 @@ namespace lmalign {
 namespace {
 
 using formats_detail::Bytes;
+using formats_detail::Lines;
 using formats_detail::quoted;
 using formats_detail::TokenReader;
 using Fail = std::function<void(const std::string&)>;
@@ -143,40 +144,6 @@ void check_points2d(const Model& m) {
 }
 
 // ---- text -----------------------------------------------------------------------------------
-
-// Calls `record(tokens, line)` for each line that is not blank or a comment; `record` may pull
-// the following raw line through `next_raw`.
-class Lines {
- public:
-  Lines(const std::string& text, std::string name) : text_(text), name_(std::move(name)) {}
-  /// The next raw line (without '\n' and one '\r'), false at the end.
-  bool next_raw(std::string_view& line) {
-    if (pos_ >= text_.size()) return false;
-    const std::size_t eol = text_.find('\n', pos_);
-    const std::size_t end = eol == std::string::npos ? text_.size() : eol;
-    line = std::string_view(text_).substr(pos_, end - pos_);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    pos_ = eol == std::string::npos ? text_.size() : eol + 1;
-    ++line_;
-    return true;
-  }
-  /// The next line that is not blank or a comment.
-  bool next_record(std::string_view& line) {
-    while (next_raw(line)) {
-      const std::size_t start = line.find_first_not_of(" \t");
-      if (start != std::string_view::npos && line[start] != '#') return true;
-    }
-    return false;
-  }
-  std::size_t line() const { return line_; }
-  const std::string& name() const { return name_; }
-
- private:
-  const std::string& text_;
-  std::string name_;
-  std::size_t pos_ = 0;
-  std::size_t line_ = 0;
-};
 
 void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model& m) {
   {

@@ -22,6 +22,7 @@ namespace lmalign {
 namespace {
 
 using formats_detail::Bytes;
+using formats_detail::Lines;
 using formats_detail::quoted;
 using formats_detail::TokenReader;
 
@@ -114,18 +115,8 @@ struct VertexLayout {
 Map read_ply_map(std::istream& in, const std::string& name) {
   const std::string text = formats_detail::slurp(in, name);
   // ---- header
-  std::size_t pos = 0;
-  std::size_t line_no = 0;
-  auto next_line = [&](std::string_view& line) {
-    if (pos >= text.size()) return false;
-    const std::size_t eol = text.find('\n', pos);
-    const std::size_t end = eol == std::string::npos ? text.size() : eol;
-    line = std::string_view(text).substr(pos, end - pos);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    pos = eol == std::string::npos ? text.size() : eol + 1;
-    ++line_no;
-    return true;
-  };
+  Lines lines(text, name);
+  auto next_line = [&lines](std::string_view& line) { return lines.next_raw(line); };
   std::string_view line;
   if (!next_line(line) || line != "ply") {
     throw ParseError(name, 1, "expected 'ply' as the first line (not a PLY file)");
@@ -135,8 +126,8 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   std::vector<Element> elements;
   for (;;) {
     if (!next_line(line))
-      throw ParseError(name, line_no, "file ends inside the header (no end_header)");
-    TokenReader t(line, name, line_no);
+      throw ParseError(name, lines.line(), "file ends inside the header (no end_header)");
+    TokenReader t(line, name, lines.line());
     const std::string_view keyword = t.next();
     if (keyword == "end_header") break;
     if (keyword == "comment" || keyword == "obj_info" || keyword.empty()) continue;
@@ -154,7 +145,7 @@ Map read_ply_map(std::istream& in, const std::string& name) {
       have_format = true;
     } else if (keyword == "element") {
       Element e;
-      e.line = line_no;
+      e.line = lines.line();
       e.name = std::string(t.next());
       if (e.name.empty()) t.fail("expected 'element NAME COUNT'");
       const long long count = t.integer("element count", 0, std::numeric_limits<long long>::max());
@@ -190,7 +181,7 @@ Map read_ply_map(std::istream& in, const std::string& name) {
     }
     if (!t.at_end()) t.fail("unexpected field in the header line");
   }
-  if (!have_format) throw ParseError(name, line_no, "the header has no 'format' line");
+  if (!have_format) throw ParseError(name, lines.line(), "the header has no 'format' line");
   std::size_t vertex_index = elements.size();
   for (std::size_t i = 0; i < elements.size(); ++i) {
     if (elements[i].name == "vertex") {
@@ -199,7 +190,7 @@ Map read_ply_map(std::istream& in, const std::string& name) {
     }
   }
   if (vertex_index == elements.size()) {
-    throw ParseError(name, line_no, "the header declares no 'vertex' element");
+    throw ParseError(name, lines.line(), "the header declares no 'vertex' element");
   }
   const Element& vertex = elements[vertex_index];
   VertexLayout layout;
@@ -207,7 +198,8 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   for (std::size_t i = 0; i < vertex.properties.size(); ++i) {
     const Property& p = vertex.properties[i];
     if (p.is_list) {
-      throw ParseError(name, line_no, "vertex property '" + p.name + "' is a list (not supported)");
+      throw ParseError(name, lines.line(),
+                       "vertex property '" + p.name + "' is a list (not supported)");
     }
     for (int k = 0; k < 3; ++k) {
       if (p.name == std::string(1, "xyz"[k])) layout.xyz[k] = static_cast<int>(i);
@@ -222,12 +214,12 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   }
   for (int k = 0; k < 3; ++k) {
     if (layout.xyz[k] < 0) {
-      throw ParseError(name, line_no,
+      throw ParseError(name, lines.line(),
                        std::string("the vertex element has no '") + "xyz"[k] + "' property");
     }
   }
   if (num_cov != 0 && num_cov != 6) {
-    throw ParseError(name, line_no,
+    throw ParseError(name, lines.line(),
                      "the vertex element has " + std::to_string(num_cov) +
                          " of the 6 covariance properties cov_xx cov_xy cov_xz cov_yy cov_yz "
                          "cov_zz (all or none)");
@@ -235,9 +227,10 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   layout.has_covariance = num_cov == 6;
 
   // ---- body
+  const std::size_t pos = lines.offset();
   const std::string_view body = std::string_view(text).substr(pos);
   Bytes bytes(body, name, pos);
-  TokenReader tokens(body, name, line_no + 1);
+  TokenReader tokens(body, name, lines.line() + 1);
   const auto body_offset = pos;
   Map map;
   std::vector<double> values;

@@ -127,6 +127,41 @@ class TokenReader {
   std::size_t token_line_ = 1;
 };
 
+/// The lines of a whole text, numbered from 1, without their '\n' and one trailing '\r'.
+class Lines {
+ public:
+  Lines(std::string_view text, std::string name) : text_(text), name_(std::move(name)) {}
+  /// The next raw line (without '\n' and one '\r'), false at the end.
+  bool next_raw(std::string_view& line) {
+    if (pos_ >= text_.size()) return false;
+    const std::size_t eol = text_.find('\n', pos_);
+    const std::size_t end = eol == std::string::npos ? text_.size() : eol;
+    line = text_.substr(pos_, end - pos_);
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    pos_ = eol == std::string::npos ? text_.size() : eol + 1;
+    ++line_;
+    return true;
+  }
+  /// The next line that is not blank or a comment.
+  bool next_record(std::string_view& line) {
+    while (next_raw(line)) {
+      const std::size_t start = line.find_first_not_of(" \t");
+      if (start != std::string_view::npos && line[start] != '#') return true;
+    }
+    return false;
+  }
+  std::size_t line() const { return line_; }
+  /// Offset of the first byte not yet returned.
+  std::size_t offset() const { return pos_; }
+  const std::string& name() const { return name_; }
+
+ private:
+  std::string_view text_;
+  std::string name_;
+  std::size_t pos_ = 0;
+  std::size_t line_ = 0;
+};
+
 /// Little-endian binary fields of a whole file, with byte offsets in the errors:
 /// ParseError(name, 0, "byte N: ...").
 class Bytes {
