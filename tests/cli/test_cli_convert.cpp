@@ -1,16 +1,20 @@
 // `lmalign convert` and the dispatching reader of align / split on real Bundler data
 // (../shared/data/bundler_balbianello): Bundler -> ours and -> COLMAP text, then align and split
 // reading the COLMAP folder by content.
+#include <algorithm>
 #include <filesystem>
+#include <fstream>
 #include <string>
 
 #include <gtest/gtest.h>
 
+#include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/colmap.hpp"
 #include "lmalign/map/formats/ply.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "support/data_path.hpp"
 #include "support/run_cli.hpp"
+#include "support/stella_map_writer.hpp"
 
 namespace lmalign {
 namespace {
@@ -76,6 +80,25 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
   ASSERT_EQ(split.exit_code, 0) << split.err;
   const Map split_map = read_map(path("split.txt"), keep_all);
   EXPECT_GT(split_map.landmarks.size(), map.landmarks.size() / 2);
+}
+
+// experiment reads its maps through the same dispatch: a stella_vslam source, an lmalign target.
+TEST_F(CliConvert, ExperimentReadsAStellaVslamSource) {
+  const std::string desk = test::data_file("tum_fr1_desk/map_fr1_desk.txt");
+  LMALIGN_REQUIRE_FILE(desk);
+  const Map map = read_map(desk);
+  std::ofstream(path("desk.msg"), std::ios::binary)
+      << test::stella_map_bytes(map, PinholeIntrinsics::tum_fr1());
+  write_transform(path("gt.txt"), Isometry3::Identity());
+  std::ofstream(path("cfg.yaml")) << "source: desk.msg\ntarget: " << desk
+                                  << "\nground_truth: gt.txt\nstrategies: [base]\n"
+                                     "experiments:\n  - {name: yaws, type: yaw, yaw_deg: [0]}\n";
+  const test::CliRun r = run("experiment " + shell_quote(path("cfg.yaml")) + " -o " +
+                             shell_quote(path("out")) + " --no-plots");
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  const std::string csv = test::read_text(path("out/results.csv"));
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 2) << csv;  // header + one run
+  EXPECT_NE(csv.find(",true,"), std::string::npos) << csv;        // it succeeded
 }
 
 }  // namespace
