@@ -5,7 +5,10 @@
 #
 #   fuzz/run_fuzzers.sh [SECONDS_PER_TARGET]      (default 60; FUZZ_BUILD_DIR, default build-fuzz)
 #
-# The two targets run in parallel, one per core. Inputs:
+# map_reader and experiment_config run in parallel, one per core, for SECONDS each; then the
+# readers of other formats (bundler_reader, colmap_reader, ply_reader, stella_vslam_reader) in
+# parallel for SECONDS/4 each (at least 5 s): 1.25 x SECONDS of wall time, 3 x SECONDS of core
+# time in all. Inputs:
 #   $FUZZ_BUILD_DIR/fuzz-corpus/<target>/  the working corpus: new inputs go here (kept between runs)
 #   fuzz/corpus/<target>/                  the seed corpus of the repository (read only)
 #   fuzz/regressions/<target>/             every input that once failed (read only)
@@ -18,7 +21,7 @@ build="${FUZZ_BUILD_DIR:-build-fuzz}"
 data="${LMALIGN_DATA:-../shared/data}"
 
 run_target() {
-  local target="$1" max_len="$2"
+  local target="$1" max_len="$2" seconds="${3:-$seconds}"
   local binary="$build/fuzz/fuzz_$target"
   local work="$build/fuzz-corpus/$target"
   local artifacts="$build/fuzz-artifacts/$target"
@@ -57,7 +60,8 @@ summary() {
   fi
 }
 
-for target in map_reader experiment_config; do
+for target in map_reader experiment_config bundler_reader colmap_reader ply_reader \
+    stella_vslam_reader; do
   if [ ! -x "$build/fuzz/fuzz_$target" ]; then
     echo "fuzz: $build/fuzz/fuzz_$target is not built (make fuzz builds it)" >&2
     exit 1
@@ -71,4 +75,20 @@ status_map=0; wait "$pid_map" || status_map=$?
 status_config=0; wait "$pid_config" || status_config=$?
 summary map_reader "$status_map"
 summary experiment_config "$status_config"
-[ "$status_map" -eq 0 ] && [ "$status_config" -eq 0 ]
+
+short=$(( seconds / 4 )); [ "$short" -ge 5 ] || short=5
+echo "== fuzzing the readers of other formats for $short s each (in parallel)"
+run_target bundler_reader 8192 "$short" & pid_bundler=$!
+run_target colmap_reader 8192 "$short" & pid_colmap=$!
+run_target ply_reader 8192 "$short" & pid_ply=$!
+run_target stella_vslam_reader 8192 "$short" & pid_stella=$!
+status_bundler=0; wait "$pid_bundler" || status_bundler=$?
+status_colmap=0; wait "$pid_colmap" || status_colmap=$?
+status_ply=0; wait "$pid_ply" || status_ply=$?
+status_stella=0; wait "$pid_stella" || status_stella=$?
+summary bundler_reader "$status_bundler"
+summary colmap_reader "$status_colmap"
+summary ply_reader "$status_ply"
+summary stella_vslam_reader "$status_stella"
+[ "$status_map" -eq 0 ] && [ "$status_config" -eq 0 ] && [ "$status_bundler" -eq 0 ] &&
+  [ "$status_colmap" -eq 0 ] && [ "$status_ply" -eq 0 ] && [ "$status_stella" -eq 0 ]

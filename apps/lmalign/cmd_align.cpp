@@ -19,6 +19,7 @@
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/io/ply.hpp"
 #include "lmalign/io/transform_io.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/robust.hpp"
@@ -46,6 +47,7 @@ struct AlignArgs {
   double success_translation_m = 0.10;
   std::string json_path;
   std::string ply_path;
+  std::string format = "auto";  // --format: the reader of SOURCE and TARGET
   bool history = false;
   std::string initial_guess;  // 4x4 file; empty: none
   std::string prior_sigma;    // ROT_DEG,TRANS_M; empty: none
@@ -70,6 +72,10 @@ struct StrategyRun {
 
 std::string ply_path_for(const std::string& base, const std::string& strategy, bool several) {
   if (!several) return base;
+  if (writes_colmap_text(base)) {  // a COLMAP folder: one folder per strategy
+    const std::string stem = base.back() == '/' ? base.substr(0, base.size() - 1) : base;
+    return stem + "_" + strategy + "/";
+  }
   std::filesystem::path p(base);
   const std::string ext = p.has_extension() ? p.extension().string() : ".ply";
   p.replace_extension();
@@ -181,8 +187,8 @@ int run_align(const AlignArgs& a) {
 
   MapReadOptions ropt;
   ropt.min_observations = a.min_observations;
-  const Map source = read_map(a.source, ropt);
-  const Map target = read_map(a.target, ropt);
+  const Map source = read_any_map(a.source, {ropt, parse_map_format(a.format)});
+  const Map target = read_any_map(a.target, {ropt, parse_map_format(a.format)});
   if (source.landmarks.empty())
     throw InvalidArgument("source map '" + a.source +
                           "' has no landmarks (after the --min-observations filter)");
@@ -309,7 +315,8 @@ int run_align(const AlignArgs& a) {
   if (!a.ply_path.empty()) {
     for (const StrategyRun& r : runs) {
       const std::string path = ply_path_for(a.ply_path, to_string(r.strategy), runs.size() > 1);
-      write_ply(path, transform_points(r.result.T_target_source, source_points));
+      // The writer by extension: .ply (with covariances), a folder (COLMAP text), else ours.
+      write_any_map(path, transform_map(source, r.result.T_target_source * T_displace));
       std::printf("aligned source (%s) written to %s\n", to_string(r.strategy).c_str(),
                   path.c_str());
     }
@@ -482,8 +489,12 @@ CommandRunner add_align_command(CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--json", args->json_path, "also write the results as JSON to this file");
   cmd->add_option("--aligned-out", args->ply_path,
-                  "write the aligned source landmarks (target frame) as PLY; with several "
-                  "strategies, one file each: NAME_<strategy>.ply");
+                  "write the aligned source map (target frame): FILE.ply as PLY with "
+                  "covariances, a folder as COLMAP text, any other name as an lmalign map; with "
+                  "several strategies, one each: NAME_<strategy>.ply");
+  cmd->add_option("--format", args->format,
+                  "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
+                  "colmap-bin, ply, stella-vslam (docs/map-format.md)");
   cmd->add_option("--initial-guess", args->initial_guess,
                   "a first estimate of T_target_source (of the displaced source, if --displace): "
                   "a 4x4 matrix file (p_target = T * p_source, metres). Every strategy starts "

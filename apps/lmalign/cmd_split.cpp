@@ -8,6 +8,7 @@
 #include "cli_util.hpp"
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 
@@ -24,6 +25,7 @@ struct SplitArgs {
   std::string intrinsics = "517.3,516.5,318.6,255.3";
   double pixel_sigma_px = 1.0;
   long long min_observations = 2;
+  std::string format = "auto";  // --format: the reader of MAP
 };
 
 std::string to_text(double value) {
@@ -97,7 +99,7 @@ int run_split(const SplitArgs& args, const CLI::App& cmd) {
   // Every landmark, every observation: the window count decides, not the full map's.
   MapReadOptions read_options;
   read_options.min_observations = 0;
-  const Map map = read_map(args.input, read_options);
+  const Map map = read_any_map(args.input, {read_options, parse_map_format(args.format)});
 
   SplitStats stats;
   const Map out = split_map(map, options, &stats);
@@ -141,6 +143,9 @@ CommandRunner add_split_command(CLI::App& root) {
       "1 degree median 6 cm, 95th percentile 40 cm; 2-5 degrees 1 cm, 4.2 cm), hence\n"
       "--min-parallax. See docs/split.md.");
   cmd->add_option("MAP", args->input, "Input map file (method.md section 1 format)")->required();
+  cmd->add_option("--format", args->format,
+                  "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin, "
+                  "ply, stella-vslam (docs/map-format.md)");
   cmd->add_option("--frames", args->frames,
                   "Frame-id window A-B, inclusive, non-negative integers with A <= B (e.g. 0-119)")
       ->required()
@@ -158,7 +163,8 @@ CommandRunner add_split_command(CLI::App& root) {
       ->type_name("DEG");
   cmd->add_option("--intrinsics", args->intrinsics,
                   "With --retriangulate: pinhole intrinsics fx,fy,cx,cy in pixels, no distortion "
-                  "(default TUM fr1)")
+                  "(default TUM fr1), for frames without their own (frames read from COLMAP, "
+                  "Bundler or stella_vslam carry theirs)")
       ->capture_default_str()
       ->type_name("FX,FY,CX,CY");
   cmd->add_option("--pixel-sigma", args->pixel_sigma_px,

@@ -14,6 +14,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/io/transform_io.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/registration/robust.hpp"
@@ -47,7 +48,7 @@ Map load_map(const MapSpec& spec, const std::string& role) {
   if (spec.split) {
     MapReadOptions ro;
     ro.min_observations = 0;  // count observations within the window, not in the whole map
-    const Map full = read_map(spec.path, ro);
+    const Map full = read_any_map(spec.path, {ro});
     SplitOptions so;
     so.first_frame_id = spec.first_frame_id;
     so.last_frame_id = spec.last_frame_id;
@@ -58,7 +59,7 @@ Map load_map(const MapSpec& spec, const std::string& role) {
   } else {
     MapReadOptions ro;
     ro.min_observations = spec.min_observations;
-    map = read_map(spec.path, ro);
+    map = read_any_map(spec.path, {ro});
   }
   if (map.landmarks.empty()) {
     throw InvalidArgument(role + " map '" + spec.path + "' has no landmarks" +

@@ -474,6 +474,11 @@ void write_map(const std::string& path, const Map& map) {
     }
   }
   for (const Landmark& landmark : map.landmarks) {
+    if (landmark.covariance_unknown) {
+      throw InvalidArgument("LANDMARK " + std::to_string(landmark.id) +
+                            ": covariance unknown (Landmark::covariance_unknown); the map text "
+                            "format needs one, so drop such landmarks before writing");
+    }
     if (std::string problem =
             covariance_problem(landmark.cov_world_m2, defaults.covariance_symmetry_tolerance,
                                defaults.covariance_psd_tolerance);

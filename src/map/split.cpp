@@ -113,7 +113,11 @@ Map split_map(const Map& map, const SplitOptions& options, SplitStats* stats) {
     } else {
       views.clear();
       for (const Observation& obs : kept.observations) {
-        views.push_back({window_poses.at(obs.frame_id), obs.u_px, obs.v_px});
+        // Frames read from COLMAP or Bundler carry their own (distorted) intrinsics.
+        const std::optional<PixelView> view =
+            make_pixel_view(window_poses.at(obs.frame_id),
+                            map.frames[all_frames.at(obs.frame_id)].camera, obs.u_px, obs.v_px);
+        if (view) views.push_back(*view);
       }
       const std::optional<TriangulatedPoint> point = triangulate(views, options.triangulation);
       if (!point) {

@@ -41,10 +41,11 @@ struct Linearisation {
 
 // Residuals and normal equations at p_world; in_front is false if any camera sees z <= 0.
 Linearisation linearise(const std::vector<WorldToCamera>& cameras,
-                        const std::vector<PixelView>& views, const PinholeIntrinsics& k,
+                        const std::vector<PixelView>& views, const PinholeIntrinsics& k_all,
                         const Vec3& p_world) {
   Linearisation lin;
   for (std::size_t i = 0; i < cameras.size(); ++i) {
+    const PinholeIntrinsics& k = views[i].intrinsics ? *views[i].intrinsics : k_all;
     const Vec3 pc = cameras[i].R * p_world + cameras[i].t;
     if (!(pc.z() > 0.0)) {
       lin.in_front = false;
@@ -94,7 +95,8 @@ std::optional<Vec3> dlt(const std::vector<WorldToCamera>& cameras,
     Eigen::Matrix<double, 3, 4> P;
     P.leftCols<3>() = cameras[i].R * scale;
     P.col(3) = cameras[i].R * centroid + cameras[i].t;
-    const Vec3 ray = k.unproject(views[i].u_px, views[i].v_px);
+    const PinholeIntrinsics& k_view = views[i].intrinsics ? *views[i].intrinsics : k;
+    const Vec3 ray = k_view.unproject(views[i].u_px, views[i].v_px);
     A.row(2 * i) = ray.x() * P.row(2) - P.row(0);
     A.row(2 * i + 1) = ray.y() * P.row(2) - P.row(1);
   }
@@ -124,6 +126,20 @@ double max_parallax_deg(const std::vector<WorldToCamera>& cameras, const Vec3& p
 
 }  // namespace
 
+std::optional<PixelView> make_pixel_view(const Isometry3& T_world_camera,
+                                         const std::optional<CameraIntrinsics>& camera, double u_px,
+                                         double v_px) {
+  PixelView view{T_world_camera, u_px, v_px, std::nullopt};
+  if (!camera) return view;
+  if (!camera->is_valid()) return std::nullopt;
+  const std::optional<Eigen::Vector2d> undistorted = camera->undistort_px(u_px, v_px);
+  if (!undistorted) return std::nullopt;
+  view.u_px = undistorted->x();
+  view.v_px = undistorted->y();
+  view.intrinsics = camera->pinhole();
+  return view;
+}
+
 std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views,
                                              const TriangulationOptions& options) {
   if (views.size() < 2) return std::nullopt;
@@ -136,7 +152,7 @@ std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views
   cameras.reserve(views.size());
   for (const PixelView& view : views) {
     if (!view.T_world_camera.matrix().allFinite() || !std::isfinite(view.u_px) ||
-        !std::isfinite(view.v_px)) {
+        !std::isfinite(view.v_px) || (view.intrinsics && !view.intrinsics->is_valid())) {
       return std::nullopt;
     }
     const Isometry3 T_camera_world = view.T_world_camera.inverse();

@@ -15,6 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "../../fuzz/experiment_config_check.hpp"
+#include "../../fuzz/foreign_map_check.hpp"
 #include "../../fuzz/map_reader_check.hpp"
 
 namespace lmalign {
@@ -42,7 +43,8 @@ std::string bytes_of(const fs::path& path) {
   return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
 }
 
-void replay(const std::string& target, void (*check)(const std::uint8_t*, std::size_t)) {
+void replay(const std::string& target, void (*check)(const std::uint8_t*, std::size_t),
+            std::size_t min_inputs = 10) {
   std::size_t count = 0;
   for (const char* kind : {"regressions", "corpus"}) {
     for (const fs::path& file : inputs(kind, target)) {
@@ -54,7 +56,7 @@ void replay(const std::string& target, void (*check)(const std::uint8_t*, std::s
     }
   }
   // The seed corpus is part of the repository: finding nothing means the path is wrong.
-  EXPECT_GE(count, 10u) << "no fuzz inputs under " << fuzz_dir();
+  EXPECT_GE(count, min_inputs) << "no fuzz inputs under " << fuzz_dir();
 }
 
 TEST(DegenerateFuzzRegressions, MapReaderInputsSatisfyTheOracle) {
@@ -63,6 +65,22 @@ TEST(DegenerateFuzzRegressions, MapReaderInputsSatisfyTheOracle) {
 
 TEST(DegenerateFuzzRegressions, ExperimentConfigInputsSatisfyTheOracle) {
   replay("experiment_config", &fuzz::check_experiment_config_bytes);
+}
+
+TEST(DegenerateFuzzRegressions, BundlerReaderInputsSatisfyTheOracle) {
+  replay("bundler_reader", &fuzz::check_bundler_bytes, 5);
+}
+
+TEST(DegenerateFuzzRegressions, ColmapReaderInputsSatisfyTheOracle) {
+  replay("colmap_reader", &fuzz::check_colmap_bytes, 5);
+}
+
+TEST(DegenerateFuzzRegressions, PlyReaderInputsSatisfyTheOracle) {
+  replay("ply_reader", &fuzz::check_ply_bytes, 5);
+}
+
+TEST(DegenerateFuzzRegressions, StellaVslamReaderInputsSatisfyTheOracle) {
+  replay("stella_vslam_reader", &fuzz::check_stella_vslam_bytes, 5);
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "lmalign/core/types.hpp"
+#include "lmalign/map/camera_model.hpp"
 
 namespace lmalign {
 
@@ -22,6 +23,9 @@ struct Frame {
   Quat q_world_camera = Quat::Identity();
   /// Camera centre in the world frame, metres.
   Vec3 p_world_camera = Vec3::Zero();
+  /// Intrinsics of this image, when the file stores them (COLMAP, Bundler); our own text format
+  /// does not (nullopt). Observations of this frame are raw pixels of this camera.
+  std::optional<CameraIntrinsics> camera;
 
   /// The rigid pose camera-to-world, with the quaternion normalised.
   Isometry3 T_world_camera() const;
@@ -41,6 +45,10 @@ struct Landmark {
   Vec3 p_world = Vec3::Zero();
   /// 3x3 position covariance in the world frame, m^2; symmetric positive semi-definite.
   Mat3 cov_world_m2 = Mat3::Zero();
+  /// True when no covariance could be estimated (one view, too little parallax, failed
+  /// triangulation: docs/map-format.md). cov_world_m2 is then zero and means nothing; it is never
+  /// a made-up number. Always false for maps read from our own text format.
+  bool covariance_unknown = false;
   /// Observations, in file order.
   std::vector<Observation> observations;
 

@@ -52,7 +52,9 @@ Map read_map(std::istream& in, const std::string& name, const MapReadOptions& op
 /// in the shortest form that reads back to the same double, so write -> read is exact.
 /// Throws IoError (nothing is left at `path` on failure) or InvalidArgument if map.validate() fails
 /// or the map holds something read_map (default options) would reject: a quaternion whose norm is
-/// off by more than 1e-3, or a covariance that is not symmetric or not positive semi-definite.
+/// off by more than 1e-3, a covariance that is not symmetric or not positive semi-definite, or a
+/// landmark flagged covariance_unknown (the format has no way to say so). Frame intrinsics
+/// (Frame::camera) are not written: the format has none.
 void write_map(const std::string& path, const Map& map);
 
 /// Writes the map text to a stream (no validation, no atomicity).

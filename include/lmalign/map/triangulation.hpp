@@ -8,6 +8,7 @@
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/map/camera.hpp"
+#include "lmalign/map/camera_model.hpp"
 
 namespace lmalign {
 
@@ -16,7 +17,19 @@ struct PixelView {
   Isometry3 T_world_camera;
   double u_px = 0.0;
   double v_px = 0.0;
+  /// This view's pinhole intrinsics (undistorted pixels); nullopt uses
+  /// TriangulationOptions::intrinsics (maps whose images share one camera).
+  std::optional<PinholeIntrinsics> intrinsics;
 };
+
+/// The view of a raw pixel seen by a camera with pose T_world_camera and, if given, its own
+/// intrinsics: the pixel is undistorted (CameraIntrinsics::undistort_px) and the view carries the
+/// camera's pinhole part. Without intrinsics the view is the raw pixel with no intrinsics of its
+/// own (TriangulationOptions::intrinsics apply). nullopt if the intrinsics are invalid or the
+/// undistortion does not converge.
+std::optional<PixelView> make_pixel_view(const Isometry3& T_world_camera,
+                                         const std::optional<CameraIntrinsics>& camera, double u_px,
+                                         double v_px);
 
 struct TriangulationOptions {
   PinholeIntrinsics intrinsics = PinholeIntrinsics::tum_fr1();
@@ -41,7 +54,8 @@ struct TriangulatedPoint {
 /// condition number.
 /// Returns nullopt if fewer than 2 views, if the point is behind a camera (z <= 0 in its frame),
 /// if J^T J is singular or ill-conditioned (lambda_min / lambda_max <= 1e-12, e.g. zero
-/// parallax), if the intrinsics or sigma are invalid, or if any input or result is not finite.
+/// parallax), if the intrinsics (shared or per view) or sigma are invalid, or if any input or
+/// result is not finite.
 std::optional<TriangulatedPoint> triangulate(const std::vector<PixelView>& views,
                                              const TriangulationOptions& options = {});
 

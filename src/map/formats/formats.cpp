@@ -1,0 +1,289 @@
+// Format detection, the dispatching reader and writer, and derived confidences
+// (include/lmalign/map/formats/formats.hpp, docs/map-format.md "Other formats").
+#include "lmalign/map/formats/formats.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string_view>
+#include <unordered_map>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/map/formats/bundler.hpp"
+#include "lmalign/map/formats/colmap.hpp"
+#include "lmalign/map/formats/ply.hpp"
+#include "lmalign/map/formats/stella_vslam.hpp"
+#include "lmalign/map/triangulation.hpp"
+
+namespace lmalign {
+
+namespace {
+
+struct FormatName {
+  MapFormat format;
+  const char* name;
+};
+constexpr FormatName kNames[] = {
+    {MapFormat::kAuto, "auto"},
+    {MapFormat::kLmalign, "lmalign"},
+    {MapFormat::kBundler, "bundler"},
+    {MapFormat::kColmapText, "colmap-text"},
+    {MapFormat::kColmapBinary, "colmap-bin"},
+    {MapFormat::kPly, "ply"},
+    {MapFormat::kStellaVslam, "stella-vslam"},
+};
+
+std::string accepted_names() {
+  std::string out;
+  for (const FormatName& n : kNames) out += (out.empty() ? "" : ", ") + std::string(n.name);
+  return out;
+}
+
+bool has_files(const std::filesystem::path& dir, const char* ext) {
+  for (const char* stem : {"cameras", "images", "points3D"}) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(dir / (std::string(stem) + ext), ec)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+std::string map_format_name(MapFormat format) {
+  for (const FormatName& n : kNames) {
+    if (n.format == format) return n.name;
+  }
+  return "auto";
+}
+
+MapFormat parse_map_format(const std::string& name) {
+  for (const FormatName& n : kNames) {
+    if (name == n.name) return n.format;
+  }
+  throw InvalidArgument("map format '" + name + "' is not one of: " + accepted_names());
+}
+
+MapFormat detect_map_format(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec)) {
+    if (has_files(path, ".bin")) return MapFormat::kColmapBinary;
+    if (has_files(path, ".txt")) return MapFormat::kColmapText;
+    throw InvalidArgument("'" + path +
+                          "' is a folder but not a COLMAP model (expected cameras, images and "
+                          "points3D as .bin or .txt)");
+  }
+  errno = 0;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {  // the same message as read_map's
+    throw IoError("cannot open map file '" + path +
+                  "': " + std::strerror(errno != 0 ? errno : ENOENT));
+  }
+  {
+    // stella_vslam: a MessagePack map (fixmap, map 16 or map 32) whose first key, in
+    // nlohmann's sorted order, is the 7-byte string "cameras" (fixstr 0xa7).
+    char head[16] = {};
+    in.read(head, sizeof(head));
+    const std::string_view bytes(head, static_cast<std::size_t>(in.gcount()));
+    const auto first = bytes.empty() ? 0 : static_cast<unsigned char>(bytes[0]);
+    const std::size_t key_at = (first >= 0x80 && first <= 0x8f) ? 1
+                               : first == 0xde                  ? 3
+                               : first == 0xdf                  ? 5
+                                                                : 0;
+    if (key_at > 0 && bytes.substr(key_at, 8) == std::string_view("\xa7"
+                                                                  "cameras",
+                                                                  8)) {
+      return MapFormat::kStellaVslam;
+    }
+    in.clear();
+    in.seekg(0);
+  }
+  // The first non-blank, non-comment line decides (at most 4 KiB of each line is looked at).
+  std::string line;
+  bool first = true;
+  while (true) {
+    line.clear();
+    char c = 0;
+    while (in.get(c) && c != '\n') {
+      if (line.size() < 4096) line.push_back(c);
+    }
+    if (in.bad()) throw IoError("cannot read map file '" + path + "'");
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (first && line == "# Bundle file v0.3") return MapFormat::kBundler;
+    if (first && line == "ply") return MapFormat::kPly;
+    first = false;
+    const std::size_t start = line.find_first_not_of(" \t");
+    if (start != std::string::npos && line[start] != '#') {
+      const std::string_view record = std::string_view(line).substr(start);
+      for (const char* type : {"FRAME", "LANDMARK"}) {
+        const std::size_t len = std::char_traits<char>::length(type);
+        if (record.substr(0, len) == type &&
+            (record.size() == len || record[len] == ' ' || record[len] == '\t')) {
+          return MapFormat::kLmalign;
+        }
+      }
+      throw InvalidArgument("cannot tell the format of '" + path +
+                            "': not a COLMAP model folder, not Bundler v0.3 (first line '# "
+                            "Bundle file v0.3'), not PLY (first line 'ply'), not an lmalign map "
+                            "(FRAME / LANDMARK records); "
+                            "use --format to choose a reader");
+    }
+    if (!in) return MapFormat::kLmalign;  // only blank and comment lines: an empty map
+  }
+}
+
+bool ConfidenceOptions::is_valid(std::string* why) const {
+  auto fail = [why](const std::string& message) {
+    if (why != nullptr) *why = message;
+    return false;
+  };
+  if (!std::isfinite(pixel_sigma_px) || pixel_sigma_px < 0.0) {
+    return fail("pixel_sigma_px (" + std::to_string(pixel_sigma_px) +
+                ") must be finite and >= 0 (0: the default)");
+  }
+  if (!(min_parallax_deg >= 0.0 && min_parallax_deg <= 180.0)) {
+    return fail("min_parallax_deg (" + std::to_string(min_parallax_deg) + ") must be in [0, 180]");
+  }
+  if (max_iterations < 0) return fail("max_iterations must be >= 0");
+  return true;
+}
+
+std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
+                                 const std::vector<double>* sigma_px_per_landmark,
+                                 const PinholeIntrinsics& fallback) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("confidence options: " + why);
+  if (sigma_px_per_landmark != nullptr && sigma_px_per_landmark->size() != map.landmarks.size()) {
+    throw InvalidArgument("estimate_covariances: sigma_px_per_landmark has " +
+                          std::to_string(sigma_px_per_landmark->size()) + " entries for " +
+                          std::to_string(map.landmarks.size()) + " landmarks");
+  }
+  std::unordered_map<Id, std::size_t> frame_at;
+  for (std::size_t i = 0; i < map.frames.size(); ++i) frame_at.emplace(map.frames[i].id, i);
+  std::vector<Isometry3> poses;
+  poses.reserve(map.frames.size());
+  for (const Frame& frame : map.frames) poses.push_back(frame.T_world_camera());
+
+  std::size_t flagged = 0;
+  std::vector<PixelView> views;
+  for (std::size_t l = 0; l < map.landmarks.size(); ++l) {
+    Landmark& landmark = map.landmarks[l];
+    views.clear();
+    for (const Observation& obs : landmark.observations) {
+      const auto it = frame_at.find(obs.frame_id);
+      if (it == frame_at.end()) {
+        throw InvalidArgument("landmark " + std::to_string(landmark.id) +
+                              " observes unknown frame " + std::to_string(obs.frame_id));
+      }
+      const std::optional<PixelView> view =
+          make_pixel_view(poses[it->second], map.frames[it->second].camera, obs.u_px, obs.v_px);
+      if (view) views.push_back(*view);  // else not a usable view
+    }
+    TriangulationOptions topt;
+    topt.intrinsics = fallback;
+    topt.max_iterations = options.max_iterations;
+    topt.pixel_sigma_px = options.pixel_sigma_px > 0.0 ? options.pixel_sigma_px : 1.0;
+    if (options.pixel_sigma_px == 0.0 && sigma_px_per_landmark != nullptr &&
+        (*sigma_px_per_landmark)[l] > 0.0 && std::isfinite((*sigma_px_per_landmark)[l])) {
+      topt.pixel_sigma_px = (*sigma_px_per_landmark)[l];
+    }
+    const std::optional<TriangulatedPoint> point = triangulate(views, topt);
+    if (point && point->max_parallax_deg >= options.min_parallax_deg) {
+      landmark.cov_world_m2 = point->cov_world_m2;
+      landmark.covariance_unknown = false;
+    } else {
+      landmark.cov_world_m2 = Mat3::Zero();
+      landmark.covariance_unknown = true;
+      ++flagged;
+    }
+  }
+  return flagged;
+}
+
+Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
+  const MapFormat format =
+      options.format == MapFormat::kAuto ? detect_map_format(path) : options.format;
+  if (format == MapFormat::kLmalign) return read_map(path, options.map);
+  std::string why;
+  if (!options.map.is_valid(&why)) throw InvalidArgument("map read options: " + why);
+  if (!options.confidence.is_valid(&why)) throw InvalidArgument("confidence options: " + why);
+
+  Map map;
+  std::vector<double> sigma_px;
+  if (format == MapFormat::kPly) {
+    map = read_ply_map(path);
+    const bool any_known = std::any_of(map.landmarks.begin(), map.landmarks.end(),
+                                       [](const Landmark& l) { return !l.covariance_unknown; });
+    if (!map.landmarks.empty() && !any_known && !options.keep_unknown_covariance) {
+      throw InvalidArgument("'" + path +
+                            "' is a PLY without per-vertex covariances (cov_xx cov_xy cov_xz "
+                            "cov_yy cov_yz cov_zz) and without observations to derive them from; "
+                            "set keep_unknown_covariance to read it flagged");
+    }
+    if (!options.keep_unknown_covariance) {
+      map.landmarks.erase(std::remove_if(map.landmarks.begin(), map.landmarks.end(),
+                                         [](const Landmark& l) { return l.covariance_unknown; }),
+                          map.landmarks.end());
+    }
+    return map;
+  }
+  if (format == MapFormat::kStellaVslam) {
+    map = read_stella_vslam(path);
+  } else if (format == MapFormat::kBundler) {
+    if (!options.image_size_px) {
+      throw InvalidArgument("'" + path +
+                            "' is a Bundler file: its pixels are relative to the image centre, "
+                            "so the image size is needed (image_size_px, --image-size W,H)");
+    }
+    BundlerReadOptions bo;
+    bo.width_px = (*options.image_size_px)[0];
+    bo.height_px = (*options.image_size_px)[1];
+    map = read_bundler(path, bo);
+  } else {
+    ColmapReadOptions co;
+    co.quaternion_norm_tolerance = options.map.quaternion_norm_tolerance;
+    map = read_colmap(path, format == MapFormat::kColmapBinary, co, &sigma_px);
+  }
+  estimate_covariances(map, options.confidence, sigma_px.empty() ? nullptr : &sigma_px);
+  const std::size_t min_obs = options.map.min_observations;
+  const bool keep_unknown = options.keep_unknown_covariance;
+  map.landmarks.erase(std::remove_if(map.landmarks.begin(), map.landmarks.end(),
+                                     [&](const Landmark& l) {
+                                       return l.observations.size() < min_obs ||
+                                              (l.covariance_unknown && !keep_unknown);
+                                     }),
+                      map.landmarks.end());
+  map.validate();
+  return map;
+}
+
+bool writes_colmap_text(const std::string& path) {
+  std::error_code ec;
+  return (!path.empty() && path.back() == '/') || std::filesystem::is_directory(path, ec);
+}
+
+MapFormat written_map_format(const std::string& path) {
+  if (writes_colmap_text(path)) return MapFormat::kColmapText;
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext == ".ply" ? MapFormat::kPly : MapFormat::kLmalign;
+}
+
+void write_any_map(const std::string& path, const Map& map) {
+  switch (written_map_format(path)) {
+    case MapFormat::kColmapText:
+      write_colmap_text(path, map);
+      break;
+    case MapFormat::kPly:
+      write_ply_map(path, map);
+      break;
+    default:
+      write_map(path, map);
+  }
+}
+
+}  // namespace lmalign
