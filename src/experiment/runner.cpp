@@ -17,6 +17,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 
@@ -211,11 +212,12 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     const PaperStrategy s = c.strategies[t.slot];
     const bool history = options.history_case && *options.history_case == c.index;
     RegistrationResult r;
+    const Points3 displaced = transform_points(c.D, source_points);
     if (is_paper_strategy(s)) {
       RegistrationOptions ro = run_options(config, s, c.k);
       ro.record_history = history;
       ro.history_scores = history;
-      r = align(transform_points(c.D, source_points), target, ro);
+      r = align(displaced, target, ro);
     } else {
       // lmalign's own strategies (issue 7): their preset schedule replaces the config's
       // max_distance_m; the iteration budget is the preset's (over all levels).
@@ -225,7 +227,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
           ro.cost == EstimationCost::kPointToDistribution
               ? transform_covariances(c.D, *options.source_covariances_m2)
               : std::vector<Mat3>{};
-      r = align_robust(transform_points(c.D, source_points), target, ro, Isometry3::Identity(),
+      r = align_robust(displaced, target, ro, Isometry3::Identity(),
                        moved_cov.empty() ? nullptr : &moved_cov);
     }
     RunRecord rec;
@@ -241,6 +243,9 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     // The recovered map-to-map transform T * D against the truth: independent of D.
     if (ground_truth) rec.error = transform_error(r.T_target_source * c.D, *ground_truth);
     rec.decision = decide_success(config.success, rec.error, rec.final_score_m2);
+    // Outside the timed alignment; a non-finite estimate is never trustworthy.
+    rec.trustworthy = is_finite(r.T_target_source) &&
+                      judge_alignment(displaced, target.tree(), r.T_target_source).trustworthy;
     rec.history = r.history;
     return rec;
   };
