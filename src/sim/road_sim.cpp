@@ -26,7 +26,8 @@ constexpr double kDashPeriodM = 9.0;     // lane-centre dash every 9 m ...
 constexpr double kDashLengthM = 3.0;     // ... 3 m long
 constexpr double kEdgeLineX = 3.5;       // edge lines at x = -/+ 3.5 m
 constexpr double kTextureStepM = 1.5;    // regular ground texture
-constexpr double kJitterM = 0.05;
+constexpr double kTextureJitterM = 0.15;  // per texture node, per axis
+constexpr double kWindowJitterM = 0.10;   // per window corner, per axis
 
 std::uint64_t mix(std::uint64_t x) {  // splitmix64 finaliser
   x += 0x9e3779b97f4a7c15ULL;
@@ -88,9 +89,9 @@ bool draw_point(const RoadSimOptions& o, double z0, double length, std::mt19937_
       const auto iz = static_cast<std::int64_t>(std::round(z / kTextureStepM));
       const std::int64_t cell = iz * 8 + ix;
       const double gx = -3.0 + kTextureStepM * static_cast<double>(ix) +
-                        kJitterM * (2.0 * world_hash01(o.seed, 3, cell, 1) - 1.0);
+                        kTextureJitterM * (2.0 * world_hash01(o.seed, 3, cell, 1) - 1.0);
       const double gz = kTextureStepM * static_cast<double>(iz) +
-                        kJitterM * (2.0 * world_hash01(o.seed, 3, cell, 2) - 1.0);
+                        kTextureJitterM * (2.0 * world_hash01(o.seed, 3, cell, 2) - 1.0);
       if (gz < z0 || gz > z0 + length) return false;
       *P = Vec3(gx, ground_y, gz);
     }
@@ -110,9 +111,9 @@ bool draw_point(const RoadSimOptions& o, double z0, double length, std::mt19937_
   if (world_hash01(o.seed, 4, cell, 0) > 0.7) return false;
   const int corner = static_cast<int>(4.0 * uniform01(rng));
   const double cz = kGridM * static_cast<double>(column) + ((corner & 1) != 0 ? 1.2 : 0.0) +
-                    kJitterM * (2.0 * world_hash01(o.seed, 4, cell, 1 + corner) - 1.0);
+                    kWindowJitterM * (2.0 * world_hash01(o.seed, 4, cell, 1 + corner) - 1.0);
   const double h = 1.0 + kGridM * level + ((corner & 2) != 0 ? 1.5 : 0.0) +
-                   kJitterM * (2.0 * world_hash01(o.seed, 4, cell, 5 + corner) - 1.0);
+                   kWindowJitterM * (2.0 * world_hash01(o.seed, 4, cell, 5 + corner) - 1.0);
   if (cz < z0 || cz > z0 + length) return false;
   *P = Vec3(facade_x(o, side, cz), ground_y - h, cz);
   return true;

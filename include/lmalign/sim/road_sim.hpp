@@ -8,10 +8,10 @@
 //   - buildings in 12 m blocks on both sides, each block's facade set back facade_offset_m
 //     +- 1.5 m from the road centre, up to facade_height_m above the ground: half of their
 //     landmarks on the corners of windows on a regular 3 m x 3 m grid (70% of the cells have a
-//     window; corners jittered by up to 5 cm, per corner), half anywhere on the wall (drawn per
+//     window; corners jittered by up to 10 cm, per corner), half anywhere on the wall (drawn per
 //     session);
 //   - a repetitive ground: lane-centre dashes (3 m long every 9 m), two continuous edge lines, and
-//     a regular texture (a 1.5 m grid of points on the road, jittered by up to 5 cm per node).
+//     a regular texture (a 1.5 m grid of points on the road, jittered by up to 15 cm per node).
 // A session drives a stretch of road of length stretch_length_m, with a keyframe every
 // frame_step_m, and maps the landmarks its keyframes see (so, as in real stereo VO, a map reaches
 // max_range_m ahead of the road it was driven on: consecutive maps overlap in space even when
