@@ -14,7 +14,7 @@ runs' results.csv it reports, per dataset and strategy: right-basin success (pro
 the median rotation and translation errors of the successes, the trust verdict's precision and
 recall (trustworthy against right basin), and the time per alignment (median, max) with the
 landmark counts. Output in --output (default build/bench-accuracy): accuracy.csv, accuracy.json,
-plots/<dataset>.png (success against start offset, random starts, one line per strategy), and per
+accuracy.md (the tables as Markdown), plots/<dataset>.png (success against start offset, random starts, one line per strategy), and per
 dataset its maps, configs and experiment folders. A full run (no --quick, every dataset and every
 configured strategy) also writes bench/results/accuracy.json.
 """
@@ -420,6 +420,54 @@ def write_csv(path, rows):
     os.replace(tmp, path)
 
 
+def _pct(v):
+    return "–" if v is None else "%.0f%%" % (100.0 * v)
+
+
+def _num(v, fmt):
+    return "–" if v is None else fmt % v
+
+
+def markdown_tables(report):
+    """The report as Markdown: a success-rate matrix (strategy x dataset), then per dataset its
+    table (success all / protocol / random, medians of the successes, trust precision and recall,
+    time per alignment) with the landmark counts and the reference row."""
+    names = list(report["datasets"])
+    strategies = report["strategies"]
+    lines = ["Right-basin success over all starts (protocol + random), per dataset:", "",
+             "| strategy | " + " | ".join(names) + " |",
+             "|---|" + "---|" * len(names)]
+    for s in strategies:
+        cells = [_pct(report["datasets"][n]["strategies"][s]["success_rate"]) for n in names]
+        lines.append("| %s | %s |" % (s, " | ".join(cells)))
+    for n in names:
+        rep = report["datasets"][n]
+        lm = rep["landmarks"] or {"source": "?", "target": "?"}
+        th = rep["thresholds"]
+        ref = rep["reference"]
+        lines += ["", "**%s** (%s; %s source / %s target landmarks; right basin %g° and %g m; "
+                  "random offsets up to %g m)" % (n, rep["kind"], lm["source"], lm["target"],
+                                                  th["rotation_deg"], th["translation_m"],
+                                                  th["random_translation_m"]), ""]
+        if ref:
+            lines += ["Reference (%s started at the truth, gate %g m): %.3f°, %.4f m." % (
+                ref["strategy"], ref["max_distance_m"], ref["rotation_error_deg"],
+                ref["translation_error_m"]), ""]
+        lines += ["| strategy | success | protocol | random | median rot. (°) | median trans. (m) "
+                  "| trust precision | trust recall | time median / max (s) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for s in strategies:
+            m = rep["strategies"][s]
+            byx = m["success_rate_by_experiment"]
+            lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s / %s |" % (
+                s, _pct(m["success_rate"]), _pct(byx.get("protocol")), _pct(byx.get("random")),
+                _num(m["median_rotation_error_deg"], "%.2f"),
+                _num(m["median_translation_error_m"], "%.3f"),
+                _num(m["trust_precision"], "%.2f"), _num(m["trust_recall"], "%.2f"),
+                _num(m["median_time_s"], "%.3f"), _num(m["max_time_s"], "%.2f")))
+    return "\n".join(lines) + "\n"
+
+
 def write_json(path, data):
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
@@ -540,9 +588,10 @@ def main(argv=None):
     report["wall_time_s"] = time.time() - started
     write_csv(os.path.join(out, "accuracy.csv"), csv_rows(report))
     write_json(os.path.join(out, "accuracy.json"), report)
+    write_text(os.path.join(out, "accuracy.md"), markdown_tables(report))
     if full:
         write_json(RESULTS_JSON, report)
-    print("accuracy benchmark: %s/accuracy.csv, accuracy.json, plots/ (%.0f s)%s"
+    print("accuracy benchmark: %s/accuracy.csv, accuracy.json, accuracy.md, plots/ (%.0f s)%s"
           % (out, report["wall_time_s"], "; bench/results/accuracy.json" if full else ""))
     return 0
 
@@ -564,6 +613,13 @@ def truth_pose(path):
     return {"x_m": rows[0][3], "y_m": rows[1][3], "z_m": rows[2][3],
             "roll_deg": math.degrees(roll), "pitch_deg": math.degrees(pitch),
             "yaw_deg": math.degrees(yaw)}
+
+
+def write_text(path, text):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
 
 
 def write_if_changed(path, data):

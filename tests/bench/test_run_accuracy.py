@@ -214,6 +214,14 @@ class Driver(unittest.TestCase):
         self.assertEqual(rows[0]["source_landmarks"], "1200")
         for name in ["files", "windows", "road"]:
             self.assertTrue(os.path.isfile(os.path.join(self.out, "plots", name + ".png")))
+        # The Markdown tables: the matrix row of each strategy, and each dataset's table.
+        with open(os.path.join(self.out, "accuracy.md")) as f:
+            md = f.read()
+        self.assertIn("| strategy | files | windows | road |", md)
+        self.assertIn("| good | 100% | 100% | 100% |", md)
+        self.assertIn("| bad | 0% | 0% | 0% |", md)
+        self.assertIn("**road** (outdoor; 1200 source / 1300 target landmarks", md)
+        self.assertIn("| good | 100% | 100% | 100% | 1.00 | 0.020 | 1.00 | 1.00 |", md)
         # A full run also writes the results JSON.
         self.assertTrue(os.path.isfile(run_accuracy.RESULTS_JSON))
 
