@@ -481,22 +481,28 @@ def plot_dataset(path, name, rep):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    colours = plt.get_cmap("tab20")
+    markers = "osD^v<>phX*"
     for i, (s, m) in enumerate(rep["strategies"].items()):
         bins = [b for b in m["success_by_offset"] if b["runs"] > 0]
         if not bins:
             continue
         x = [(b["offset_lo_m"] + b["offset_hi_m"]) / 2 for b in bins]
         y = [100.0 * b["successes"] / b["runs"] for b in bins]
-        ax.plot(x, y, marker="o", linestyle="-" if i < 10 else "--", label=s)
+        # Lines that coincide stay visible: a small vertical shift per strategy, distinct
+        # colours and markers.
+        y = [v + 0.6 * (i - len(rep["strategies"]) / 2) for v in y]
+        ax.plot(x, y, marker=markers[i % len(markers)], color=colours(i % 20),
+                linestyle="-" if i % 2 == 0 else "--", label=s, alpha=0.9)
     ax.set_xlabel("start offset across the vertical (m), random starts, yaw in [-180, 180] deg")
-    ax.set_ylabel("right-basin success (%)")
+    ax.set_ylabel("right-basin success (%; lines shifted apart by 0.6)")
     th = rep["thresholds"]
     ax.set_title("%s (%s): right basin = %g deg and %g m" % (name, rep["kind"], th["rotation_deg"],
                                                             th["translation_m"]))
-    ax.set_ylim(-3, 103)
+    ax.set_ylim(-8, 108)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="best")
+    ax.legend(fontsize=7, ncol=1, loc="center left", bbox_to_anchor=(1.01, 0.5))
     fig.tight_layout()
     tmp = path + ".tmp.png"
     fig.savefig(tmp, dpi=110)
