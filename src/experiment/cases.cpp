@@ -49,6 +49,13 @@ Case make_drawn_case(const ExperimentSpec& e, std::size_t experiment_index, std:
   return c;
 }
 
+/// Mean of the points (zero if none).
+Vec3 centroid_of(const Points3& points) {
+  Vec3 c = Vec3::Zero();
+  for (const Vec3& p : points) c += p;
+  return points.empty() ? c : Vec3(c / static_cast<double>(points.size()));
+}
+
 /// The generator of one level of one axis: seeded from (seed, axis, level) through
 /// std::seed_seq (whose output the standard specifies), so that a level's draws do not depend
 /// on which other levels the config lists.
@@ -64,9 +71,7 @@ std::mt19937_64 level_rng(std::uint64_t seed, std::uint32_t axis, double level) 
 void expand_basin(const ExperimentSpec& e, std::size_t ei, const Points3& source_points,
                   std::vector<Case>& out) {
   const BasinSpec& b = e.basin;
-  Vec3 centroid = Vec3::Zero();
-  for (const Vec3& p : source_points) centroid += p;
-  if (!source_points.empty()) centroid /= static_cast<double>(source_points.size());
+  const Vec3 centroid = centroid_of(source_points);
 
   // A level of 0 is the identity whatever is drawn: one case stands for all its draws.
   const auto draws = [&](double level) { return level == 0.0 ? 1 : b.samples; };
@@ -123,9 +128,7 @@ void expand_basin(const ExperimentSpec& e, std::size_t ei, const Points3& source
 void expand_random(const ExperimentSpec& e, std::size_t ei, const Points3& source_points,
                    std::vector<Case>& out) {
   const RandomStartSpec& r = e.random;
-  Vec3 centroid = Vec3::Zero();
-  for (const Vec3& p : source_points) centroid += p;
-  if (!source_points.empty()) centroid /= static_cast<double>(source_points.size());
+  const Vec3 centroid = centroid_of(source_points);
   // A: from a frame whose z is up to the maps' frame (Rx(90 deg) takes z to -y, Ry(90 deg) to x;
   // the sign of the up axis does not matter, every angle is drawn symmetrically).
   Mat3 A = Mat3::Identity();

@@ -206,6 +206,14 @@ class Parser {
     return v;
   }
 
+  YawPivot pivot(const YAML::Node& n, const std::string& where) const {
+    const std::string s = scalar(n, where, "landmark, centroid or origin");
+    if (s == "landmark") return YawPivot::kLandmark;
+    if (s == "centroid") return YawPivot::kCentroid;
+    if (s != "origin") fail(n, where, "expected landmark, centroid or origin, got '" + s + "'");
+    return YawPivot::kOrigin;
+  }
+
   std::uint64_t seed(const YAML::Node& n, const std::string& where) const {
     const std::string s = scalar(n, where, "a non-negative integer seed");
     std::uint64_t v = 0;
@@ -612,20 +620,7 @@ class Parser {
                    std::to_string(kMaxCasesPerList));
         }
         if (m.has("seed")) b.seed = seed(m.get("seed"), m.path("seed"));
-        if (m.has("yaw_pivot")) {
-          const std::string s =
-              scalar(m.get("yaw_pivot"), m.path("yaw_pivot"), "landmark, centroid or origin");
-          if (s == "landmark") {
-            b.yaw_pivot = YawPivot::kLandmark;
-          } else if (s == "centroid") {
-            b.yaw_pivot = YawPivot::kCentroid;
-          } else if (s == "origin") {
-            b.yaw_pivot = YawPivot::kOrigin;
-          } else {
-            fail(m.get("yaw_pivot"), m.path("yaw_pivot"),
-                 "expected landmark, centroid or origin, got '" + s + "'");
-          }
-        }
+        if (m.has("yaw_pivot")) b.yaw_pivot = pivot(m.get("yaw_pivot"), m.path("yaw_pivot"));
         if (m.has("translation_directions")) {
           const std::string s = scalar(m.get("translation_directions"),
                                        m.path("translation_directions"), "xy or xyz");
@@ -659,19 +654,7 @@ class Parser {
           r.translation_m = bounded("translation_m", 0.0, 1e6, "metres");
         if (m.has("roll_pitch_deg"))
           r.roll_pitch_deg = bounded("roll_pitch_deg", 0.0, 90.0, "degrees");
-        if (m.has("pivot")) {
-          const std::string s = scalar(m.get("pivot"), m.path("pivot"), "landmark, centroid or origin");
-          if (s == "landmark") {
-            r.pivot = YawPivot::kLandmark;
-          } else if (s == "centroid") {
-            r.pivot = YawPivot::kCentroid;
-          } else if (s == "origin") {
-            r.pivot = YawPivot::kOrigin;
-          } else {
-            fail(m.get("pivot"), m.path("pivot"),
-                 "expected landmark, centroid or origin, got '" + s + "'");
-          }
-        }
+        if (m.has("pivot")) r.pivot = pivot(m.get("pivot"), m.path("pivot"));
         if (m.has("up_axis")) {
           const std::string s = scalar(m.get("up_axis"), m.path("up_axis"), "x, y or z");
           if (s != "x" && s != "y" && s != "z")
