@@ -17,7 +17,7 @@ export LMALIGN_DATA
 # Debian bookworm packages the project needs (build, tests, plots).
 DEB_PACKAGES := cmake make g++ pkg-config libeigen3-dev libcli11-dev \
                 libyaml-cpp-dev nlohmann-json3-dev libfmt-dev libgtest-dev libgmock-dev \
-                python3 python3-matplotlib python3-numpy \
+                python3 python3-matplotlib python3-numpy python3-yaml \
                 libopencv-dev libceres-dev
 
 # Performance (docs/performance.md, docs/fidelity.md): PCL and Open3D, the optional peers of the
@@ -101,6 +101,19 @@ bench: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign bench: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
 	$(PYTHON) bench/run_bench.py --build-dir $(BUILD_DIR) $(BENCH_ARGS)
+
+# `make bench-accuracy`: the multi-dataset accuracy benchmark (bench/accuracy.yaml; issue 18):
+# every strategy on the desk pair, re-triangulated desk windows, the KITTI stereo pairs and
+# simulated roads, from the 39 protocol displacements and 100 seeded random starts each. Writes
+# $(BUILD_DIR)/bench-accuracy/ (accuracy.csv, accuracy.json, plots/) and bench/results/accuracy.json.
+# ACCURACY_ARGS=--quick runs a fraction; --strategies a,b and --datasets x,y select
+# (docs/accuracy.md, "Multi-dataset benchmark").
+ACCURACY_ARGS ?=
+.PHONY: bench-accuracy
+bench-accuracy: build
+	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
+	  echo "lmalign bench-accuracy: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
+	$(PYTHON) bench/run_accuracy.py --build-dir $(BUILD_DIR) $(ACCURACY_ARGS)
 
 demo: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \

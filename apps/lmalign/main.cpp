@@ -63,6 +63,7 @@ int main(int argc, char** argv) {
                                    &lmalign::cli::add_experiment_command,
                                    &lmalign::cli::add_eval_trajectory_command,
                                    &lmalign::cli::add_convert_command,
+                                   &lmalign::cli::add_simulate_command,
 #ifdef LMALIGN_BUILD_MAP_HELPER
                                    &add_build_map_stub,
 #endif

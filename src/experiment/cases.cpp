@@ -49,6 +49,13 @@ Case make_drawn_case(const ExperimentSpec& e, std::size_t experiment_index, std:
   return c;
 }
 
+/// Mean of the points (zero if none).
+Vec3 centroid_of(const Points3& points) {
+  Vec3 c = Vec3::Zero();
+  for (const Vec3& p : points) c += p;
+  return points.empty() ? c : Vec3(c / static_cast<double>(points.size()));
+}
+
 /// The generator of one level of one axis: seeded from (seed, axis, level) through
 /// std::seed_seq (whose output the standard specifies), so that a level's draws do not depend
 /// on which other levels the config lists.
@@ -64,9 +71,7 @@ std::mt19937_64 level_rng(std::uint64_t seed, std::uint32_t axis, double level) 
 void expand_basin(const ExperimentSpec& e, std::size_t ei, const Points3& source_points,
                   std::vector<Case>& out) {
   const BasinSpec& b = e.basin;
-  Vec3 centroid = Vec3::Zero();
-  for (const Vec3& p : source_points) centroid += p;
-  if (!source_points.empty()) centroid /= static_cast<double>(source_points.size());
+  const Vec3 centroid = centroid_of(source_points);
 
   // A level of 0 is the identity whatever is drawn: one case stands for all its draws.
   const auto draws = [&](double level) { return level == 0.0 ? 1 : b.samples; };
@@ -117,6 +122,48 @@ void expand_basin(const ExperimentSpec& e, std::size_t ei, const Points3& source
   }
 }
 
+/// Random starts (RandomStartSpec): draw i from its own generator seeded from (seed, i); six
+/// uniforms per draw in a fixed order whatever the pivot: yaw, roll, pitch, offset direction,
+/// offset length, pivot landmark.
+void expand_random(const ExperimentSpec& e, std::size_t ei, const Points3& source_points,
+                   std::vector<Case>& out) {
+  const RandomStartSpec& r = e.random;
+  const Vec3 centroid = centroid_of(source_points);
+  // A: from a frame whose z is up to the maps' frame (Rx(90 deg) takes z to -y, Ry(90 deg) to x;
+  // the sign of the up axis does not matter, every angle is drawn symmetrically).
+  Mat3 A = Mat3::Identity();
+  if (r.up_axis == UpAxis::kY) A = Eigen::AngleAxisd(M_PI / 2.0, Vec3::UnitX()).toRotationMatrix();
+  if (r.up_axis == UpAxis::kX) A = Eigen::AngleAxisd(M_PI / 2.0, Vec3::UnitY()).toRotationMatrix();
+  for (int s = 0; s < r.samples; ++s) {
+    std::seed_seq seq{static_cast<std::uint32_t>(r.seed), static_cast<std::uint32_t>(r.seed >> 32),
+                      2u, static_cast<std::uint32_t>(s)};
+    std::mt19937_64 rng(seq);
+    const double yaw = r.yaw_deg * (2.0 * uniform01(rng) - 1.0);
+    const double roll = r.roll_pitch_deg * (2.0 * uniform01(rng) - 1.0);
+    const double pitch = r.roll_pitch_deg * (2.0 * uniform01(rng) - 1.0);
+    const double phi = 2.0 * M_PI * uniform01(rng);
+    const double length = r.translation_m * uniform01(rng);
+    const double u = uniform01(rng);
+    Vec3 pivot = Vec3::Zero();
+    if (r.pivot == YawPivot::kCentroid) {
+      pivot = centroid;
+    } else if (r.pivot == YawPivot::kLandmark) {
+      const std::size_t i =
+          std::min(source_points.size() - 1,
+                   static_cast<std::size_t>(u * static_cast<double>(source_points.size())));
+      pivot = source_points[i];
+    }
+    const Mat3 R_up = pose_from_xyz_rpy_deg(0, 0, 0, roll, pitch, yaw).linear();
+    const Mat3 R = A * R_up * A.transpose();
+    const Vec3 offset = A * Vec3(length * std::cos(phi), length * std::sin(phi), 0.0);
+    Isometry3 D = Isometry3::Identity();
+    D.linear() = R;
+    D.translation() = pivot - R * pivot + offset;
+    out.push_back(make_drawn_case(e, ei, "start #" + std::to_string(s), "random", "offset_m",
+                                  length, D));
+  }
+}
+
 }  // namespace
 
 bool cases_need_source_points(const ExperimentConfig& config) {
@@ -125,6 +172,7 @@ bool cases_need_source_points(const ExperimentConfig& config) {
         e.basin.yaw_pivot != YawPivot::kOrigin) {
       return true;
     }
+    if (e.type == ExperimentType::kRandom && e.random.pivot != YawPivot::kOrigin) return true;
   }
   return false;
 }
@@ -132,8 +180,8 @@ bool cases_need_source_points(const ExperimentConfig& config) {
 std::vector<Case> expand_cases(const ExperimentConfig& config, const Points3& source_points) {
   if (cases_need_source_points(config) && source_points.empty()) {
     throw InvalidArgument(
-        "expand_cases: a basin experiment turns about source landmarks, but no source points "
-        "were given");
+        "expand_cases: a basin or random experiment turns about source landmarks, but no "
+        "source points were given");
   }
   std::vector<Case> out;
   int escalation_groups = 0;
@@ -203,6 +251,9 @@ std::vector<Case> expand_cases(const ExperimentConfig& config, const Points3& so
         break;
       case ExperimentType::kBasin:
         expand_basin(e, ei, source_points, out);
+        break;
+      case ExperimentType::kRandom:
+        expand_random(e, ei, source_points, out);
         break;
     }
   }

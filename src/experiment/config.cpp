@@ -58,6 +58,8 @@ std::string to_string(ExperimentType type) {
       return "poses";
     case ExperimentType::kBasin:
       return "basin";
+    case ExperimentType::kRandom:
+      return "random";
   }
   return "?";
 }
@@ -202,6 +204,14 @@ class Parser {
     }
     if (v < lo || v > hi) fail(n, where, "expected " + range + ", got " + s);
     return v;
+  }
+
+  YawPivot pivot(const YAML::Node& n, const std::string& where) const {
+    const std::string s = scalar(n, where, "landmark, centroid or origin");
+    if (s == "landmark") return YawPivot::kLandmark;
+    if (s == "centroid") return YawPivot::kCentroid;
+    if (s != "origin") fail(n, where, "expected landmark, centroid or origin, got '" + s + "'");
+    return YawPivot::kOrigin;
   }
 
   std::uint64_t seed(const YAML::Node& n, const std::string& where) const {
@@ -412,7 +422,8 @@ class Parser {
         has_type = true;
       }
     }
-    if (!has_type) fail(n, where, "missing key 'type' (one of: k, yaw, xy, xy_yaw, poses, basin)");
+    if (!has_type)
+      fail(n, where, "missing key 'type' (one of: k, yaw, xy, xy_yaw, poses, basin, random)");
     const std::string type = scalar(tnode, where + ".type", "an experiment type");
     std::vector<std::string> keys{"name", "type", "strategies"};
     if (type == "k") {
@@ -434,9 +445,14 @@ class Parser {
       e.type = ExperimentType::kBasin;
       keys.insert(keys.end(),
                   {"k", "levels", "samples", "seed", "yaw_pivot", "translation_directions"});
+    } else if (type == "random") {
+      e.type = ExperimentType::kRandom;
+      keys.insert(keys.end(), {"k", "samples", "seed", "yaw_deg", "translation_m",
+                               "roll_pitch_deg", "pivot", "up_axis"});
     } else {
       fail(tnode, where + ".type",
-           "unknown experiment type '" + type + "' (expected k, yaw, xy, xy_yaw, poses or basin)");
+           "unknown experiment type '" + type +
+               "' (expected k, yaw, xy, xy_yaw, poses, basin or random)");
     }
     const MapView m(*this, n, where, keys, " for an experiment of type " + type);
 
@@ -604,20 +620,7 @@ class Parser {
                    std::to_string(kMaxCasesPerList));
         }
         if (m.has("seed")) b.seed = seed(m.get("seed"), m.path("seed"));
-        if (m.has("yaw_pivot")) {
-          const std::string s =
-              scalar(m.get("yaw_pivot"), m.path("yaw_pivot"), "landmark, centroid or origin");
-          if (s == "landmark") {
-            b.yaw_pivot = YawPivot::kLandmark;
-          } else if (s == "centroid") {
-            b.yaw_pivot = YawPivot::kCentroid;
-          } else if (s == "origin") {
-            b.yaw_pivot = YawPivot::kOrigin;
-          } else {
-            fail(m.get("yaw_pivot"), m.path("yaw_pivot"),
-                 "expected landmark, centroid or origin, got '" + s + "'");
-          }
-        }
+        if (m.has("yaw_pivot")) b.yaw_pivot = pivot(m.get("yaw_pivot"), m.path("yaw_pivot"));
         if (m.has("translation_directions")) {
           const std::string s = scalar(m.get("translation_directions"),
                                        m.path("translation_directions"), "xy or xyz");
@@ -629,6 +632,34 @@ class Parser {
             fail(m.get("translation_directions"), m.path("translation_directions"),
                  "expected xy or xyz, got '" + s + "'");
           }
+        }
+        break;
+      }
+      case ExperimentType::kRandom: {
+        RandomStartSpec& r = e.random;
+        r.seed = config.seed;
+        if (m.has("samples"))
+          r.samples = static_cast<int>(integer(m.get("samples"), m.path("samples"), 1,
+                                               static_cast<long long>(kMaxCasesPerList)));
+        if (m.has("seed")) r.seed = seed(m.get("seed"), m.path("seed"));
+        auto bounded = [&](const char* key, double lo, double hi, const std::string& unit) {
+          const double v = number(m.get(key), m.path(key));
+          if (!(v >= lo && v <= hi))
+            fail(m.get(key), m.path(key),
+                 "expected a number in [" + shortest(lo) + ", " + (std::isinf(hi) ? std::string("inf") : shortest(hi)) + "] " + unit + ", got " + shortest(v));
+          return v;
+        };
+        if (m.has("yaw_deg")) r.yaw_deg = bounded("yaw_deg", 0.0, 180.0, "degrees");
+        if (m.has("translation_m"))
+          r.translation_m = bounded("translation_m", 0.0, 1e6, "metres");
+        if (m.has("roll_pitch_deg"))
+          r.roll_pitch_deg = bounded("roll_pitch_deg", 0.0, 90.0, "degrees");
+        if (m.has("pivot")) r.pivot = pivot(m.get("pivot"), m.path("pivot"));
+        if (m.has("up_axis")) {
+          const std::string s = scalar(m.get("up_axis"), m.path("up_axis"), "x, y or z");
+          if (s != "x" && s != "y" && s != "z")
+            fail(m.get("up_axis"), m.path("up_axis"), "expected x, y or z, got '" + s + "'");
+          r.up_axis = parse_up_axis(s);
         }
         break;
       }
@@ -944,6 +975,18 @@ std::string resolved_config_yaml(const ExperimentConfig& c) {
         e << YAML::Key << "yaw_pivot" << YAML::Value << to_string(x.basin.yaw_pivot);
         e << YAML::Key << "translation_directions" << YAML::Value
           << to_string(x.basin.translation_directions);
+        break;
+      case ExperimentType::kRandom:
+        e << YAML::Key << "samples" << YAML::Value << x.random.samples;
+        e << YAML::Key << "seed" << YAML::Value << std::to_string(x.random.seed);
+        e << YAML::Key << "yaw_deg" << YAML::Value;
+        emit_number(e, x.random.yaw_deg);
+        e << YAML::Key << "translation_m" << YAML::Value;
+        emit_number(e, x.random.translation_m);
+        e << YAML::Key << "roll_pitch_deg" << YAML::Value;
+        emit_number(e, x.random.roll_pitch_deg);
+        e << YAML::Key << "pivot" << YAML::Value << to_string(x.random.pivot);
+        e << YAML::Key << "up_axis" << YAML::Value << to_string(x.random.up_axis);
         break;
     }
     e << YAML::EndMap;

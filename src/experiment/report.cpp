@@ -47,7 +47,8 @@ const std::vector<std::string> kColumns{"experiment",
                                         "rotation_error_deg",
                                         "translation_error_m",
                                         "success",
-                                        "decided_by"};
+                                        "decided_by",
+                                        "trustworthy"};
 
 std::string fixed(double v, int decimals) {
   if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
@@ -219,7 +220,7 @@ void write_results_csv(std::ostream& out, const std::vector<Case>& cases,
         << (r.error ? shortest(r.error->rotation_deg) : "") << ','
         << (r.error ? shortest(r.error->translation_m) : "") << ','
         << (r.decision.success ? "true" : "false") << ',' << to_string(r.decision.decided_by)
-        << '\n';
+        << ',' << (r.trustworthy ? "true" : "false") << '\n';
   }
 }
 
@@ -359,6 +360,9 @@ std::vector<RunRecord> read_results_csv(std::istream& in, const std::string& fil
     } else {
       throw ParseError(file, line, "unknown decided_by '" + f[22] + "'");
     }
+    if (f[23] != "true" && f[23] != "false")
+      throw ParseError(file, line, "trustworthy: expected true or false, got '" + f[23] + "'");
+    r.trustworthy = f[23] == "true";
     ++seen;
     records.push_back(std::move(r));
   }

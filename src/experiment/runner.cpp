@@ -19,6 +19,7 @@
 #include "lmalign/map/split.hpp"
 #include "lmalign/registration/robust.hpp"
 #include "lmalign/registration/strategy.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 
@@ -221,17 +222,19 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     const PaperStrategy s = c.strategies[t.slot];
     const bool history = options.history_case && *options.history_case == c.index;
     RegistrationResult r;
+    std::optional<bool> trusted;  // the verdict run_strategy() gave, if it ran the strategy
+    const Points3 displaced = transform_points(c.D, source_points);
     if (is_paper_strategy(s)) {
       RegistrationOptions ro = run_options(config, s, c.k);
       ro.record_history = history;
       ro.history_scores = history;
-      r = align(transform_points(c.D, source_points), target, ro);
+      r = align(displaced, target, ro);
     } else {
       // lmalign's own strategies (run_strategy(), as `lmalign align`): the presets' distance
       // schedules and budgets replace the config's max_distance_m and max_iterations. The
       // covariances and the up axis move with the points: C' = R_D C R_D^T.
       StrategySource moved;
-      moved.positions = transform_points(c.D, source_points);
+      moved.positions = displaced;
       if (options.source_covariances_m2 != nullptr) {
         moved.covariances_m2 = transform_covariances(c.D, *options.source_covariances_m2);
       }
@@ -239,7 +242,9 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       StrategyRequest req;
       req.strategy = s;
       req.k = c.k;
-      r = run_strategy(moved, target, req).result;
+      const StrategyOutcome o = run_strategy(moved, target, req);
+      r = o.result;
+      trusted = o.trustworthy;
     }
     RunRecord rec;
     rec.case_index = c.index;
@@ -254,6 +259,12 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     // The recovered map-to-map transform T * D against the truth: independent of D.
     if (ground_truth) rec.error = transform_error(r.T_target_source * c.D, *ground_truth);
     rec.decision = decide_success(config.success, rec.error, rec.final_score_m2);
+    // Outside the timed alignment; a non-finite estimate is never trustworthy. lmalign's own
+    // strategies carry their verdict (adaptive: its own; the others: judge_alignment()).
+    rec.trustworthy =
+        is_finite(r.T_target_source) &&
+        (trusted ? *trusted
+                 : judge_alignment(displaced, target.tree(), r.T_target_source).trustworthy);
     rec.history = r.history;
     return rec;
   };

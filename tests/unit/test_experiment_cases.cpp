@@ -1,5 +1,6 @@
 // Config -> cases: configs/paper.yaml is exactly the protocol of method.md §5 (45 cases), basin
 // draws are seeded and reproducible, escalations are laid out per quadrant.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <map>
@@ -201,6 +202,81 @@ TEST(ExperimentCases, BasinPivotsAndDirections) {
   }
   EXPECT_TRUE(cases_need_source_points(basin_config(7)));
   EXPECT_THROW(expand_cases(basin_config(7)), InvalidArgument);
+}
+
+ExperimentConfig random_config(std::uint64_t seed, int samples, const std::string& extra = "",
+                               double roll_pitch_deg = 3.0) {
+  return parse_experiment_config(
+      "source: a.txt\ntarget: b.txt\nexperiments:\n  - {name: r, type: random, samples: " +
+          std::to_string(samples) + ", seed: " + std::to_string(seed) +
+          ", yaw_deg: 180, translation_m: 10, roll_pitch_deg: " + std::to_string(roll_pitch_deg) +
+          extra + "}\n",
+      "r.yaml", "/");
+}
+
+// Random starts (issue 18's benchmark): seeded, each draw independent of the sample count, the
+// offset length recorded as the case's value, yaw covering [-180, 180], roll and pitch small,
+// the rotation about the pivot and the offset across the up axis.
+TEST(ExperimentCases, RandomStartsAreSeededBoundedAndAboutThePivot) {
+  const Points3 source = test::room_points(300, 5);
+  Vec3 centroid = Vec3::Zero();
+  for (const Vec3& p : source) centroid += p;
+  centroid /= static_cast<double>(source.size());
+  const std::vector<Case> a = expand_cases(random_config(3, 200), source);
+  const std::vector<Case> b = expand_cases(random_config(3, 200), source);
+  const std::vector<Case> few = expand_cases(random_config(3, 10), source);
+  const std::vector<Case> other = expand_cases(random_config(4, 200), source);
+  ASSERT_EQ(a.size(), 200u);
+  ASSERT_EQ(few.size(), 10u);
+  double min_yaw = 0, max_yaw = 0, max_offset = 0;
+  std::size_t differ = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    SCOPED_TRACE(a[i].id());
+    EXPECT_EQ(a[i].label, "start #" + std::to_string(i));
+    EXPECT_EQ(a[i].group, "random");
+    EXPECT_EQ(a[i].variable, "offset_m");
+    EXPECT_TRUE(a[i].D.isApprox(b[i].D, 0.0));
+    if (i < few.size()) EXPECT_TRUE(a[i].D.isApprox(few[i].D, 0.0));
+    if (!a[i].D.isApprox(other[i].D, 1e-9)) ++differ;
+    const Isometry3& D = a[i].D;
+    // z up: the offset is horizontal, and the centroid moves by exactly that offset.
+    const Vec3 moved = D * centroid - centroid;
+    EXPECT_NEAR(moved.z(), 0.0, 1e-9);
+    EXPECT_NEAR(moved.norm(), a[i].value, 1e-9);
+    EXPECT_LE(a[i].value, 10.0);
+    max_offset = std::max(max_offset, a[i].value);
+    // Roll and pitch within 3 deg: the up axis tilts by at most ~4.3 deg.
+    const double tilt_deg =
+        std::acos(std::clamp((D.linear() * Vec3::UnitZ()).z(), -1.0, 1.0)) * 180.0 / M_PI;
+    EXPECT_LE(tilt_deg, 3.0 * std::sqrt(2.0) + 1e-9);
+    const Pose6& p = a[i].displacement;
+    EXPECT_TRUE(pose_from_xyz_rpy_deg(p.x_m, p.y_m, p.z_m, p.roll_deg, p.pitch_deg, p.yaw_deg)
+                    .isApprox(D, 1e-9));
+    min_yaw = std::min(min_yaw, p.yaw_deg);
+    max_yaw = std::max(max_yaw, p.yaw_deg);
+  }
+  EXPECT_EQ(differ, a.size());
+  EXPECT_LT(min_yaw, -150.0);  // 200 uniform draws cover both ends
+  EXPECT_GT(max_yaw, 150.0);
+  EXPECT_GT(max_offset, 9.0);
+  EXPECT_TRUE(cases_need_source_points(random_config(3, 5)));
+  EXPECT_THROW(expand_cases(random_config(3, 5)), InvalidArgument);
+  EXPECT_FALSE(cases_need_source_points(random_config(3, 5, ", pivot: origin")));
+}
+
+// up axis y (camera frames, KITTI): the yaw turns about y and the offsets lie in the x-z plane.
+TEST(ExperimentCases, RandomStartsWithUpAxisYTurnAboutY) {
+  const std::vector<Case> cases =
+      expand_cases(random_config(5, 50, ", pivot: origin, up_axis: y", 0.0));
+  ASSERT_EQ(cases.size(), 50u);
+  double max_angle = 0.0;
+  for (const Case& c : cases) {
+    EXPECT_NEAR((c.D.linear() * Vec3::UnitY() - Vec3::UnitY()).norm(), 0.0, 1e-12) << c.id();
+    EXPECT_NEAR(c.D.translation().y(), 0.0, 1e-12) << c.id();
+    EXPECT_NEAR(c.D.translation().norm(), c.value, 1e-9) << c.id();
+    max_angle = std::max(max_angle, rotation_angle_deg(c.D.linear()));
+  }
+  EXPECT_GT(max_angle, 150.0);
 }
 
 TEST(ExperimentCases, EscalationListsEveryLevelPerQuadrantInOrder) {

@@ -132,6 +132,20 @@ TEST(ExperimentConfig, ErrorsNameFileLineKeyAndWhatWasExpected) {
        "cfg.yaml:4: experiments[0].pose.yaw_deg: this experiment varies yaw_deg"},
       {head + "  - {name: e, type: basin, levels: {yaw_deg: [0, 200]}}\n",
        "cfg.yaml:4: experiments[0].levels.yaw_deg: levels must be in [0, 180] degrees, got 200"},
+      {head + "  - {name: e, type: random, yaw_deg: 190}\n",
+       "cfg.yaml:4: experiments[0].yaw_deg: expected a number in [0, 180] degrees, got 190"},
+      {head + "  - {name: e, type: random, translation_m: -1}\n",
+       "cfg.yaml:4: experiments[0].translation_m: expected a number in [0, 1e+06] metres, got -1"},
+      {head + "  - {name: e, type: random, roll_pitch_deg: 91}\n",
+       "cfg.yaml:4: experiments[0].roll_pitch_deg: expected a number in [0, 90] degrees"},
+      {head + "  - {name: e, type: random, up_axis: w}\n",
+       "cfg.yaml:4: experiments[0].up_axis: expected x, y or z, got 'w'"},
+      {head + "  - {name: e, type: random, pivot: corner}\n",
+       "cfg.yaml:4: experiments[0].pivot: expected landmark, centroid or origin, got 'corner'"},
+      {head + "  - {name: e, type: random, samples: 0}\n",
+       "cfg.yaml:4: experiments[0].samples"},
+      {head + "  - {name: e, type: random, levels: {yaw_deg: [1]}}\n",
+       "cfg.yaml:4: experiments[0]: unknown key 'levels' for an experiment of type random"},
       {"source: {map: m.txt, frames: [120, 5]}\ntarget: b.txt\nexperiments: []\n",
        "cfg.yaml:1: source.frames: first frame id 120 > last frame id 5"},
       {"source: {map: m.txt, retriangulate: true}\ntarget: b.txt\nexperiments: []\n",
@@ -193,6 +207,7 @@ experiments:
   - {name: t4, type: xy_yaw, offset_m: 0.4, yaw_deg: [10, -10], quadrants: [+X+Y, -X-Y]}
   - {name: p, type: poses, poses: [{x_m: 1}, {roll_deg: 5, pitch_deg: -5}]}
   - {name: b, type: basin, levels: {yaw_deg: [0, 45]}, samples: 3, yaw_pivot: origin, translation_directions: xyz}
+  - {name: r, type: random, samples: 4, seed: 5, yaw_deg: 90, translation_m: 10, roll_pitch_deg: 2, pivot: origin, up_axis: y}
 )");
   const std::string yaml = resolved_config_yaml(c);
   const ExperimentConfig r = parse_experiment_config(yaml, "resolved.yaml", "/elsewhere");
@@ -212,6 +227,15 @@ experiments:
   EXPECT_EQ(r.seed, 99u);
   EXPECT_EQ(r.plot_case, "t1/k=3");
   EXPECT_TRUE(r.experiments[3].escalation.stop_when_all_fail);
+  const RandomStartSpec& rs = r.experiments[7].random;
+  EXPECT_EQ(r.experiments[7].type, ExperimentType::kRandom);
+  EXPECT_EQ(rs.samples, 4);
+  EXPECT_EQ(rs.seed, 5u);
+  EXPECT_EQ(rs.yaw_deg, 90.0);
+  EXPECT_EQ(rs.translation_m, 10.0);
+  EXPECT_EQ(rs.roll_pitch_deg, 2.0);
+  EXPECT_EQ(rs.pivot, YawPivot::kOrigin);
+  EXPECT_EQ(rs.up_axis, UpAxis::kY);
   const std::vector<Case> a = expand_cases(c), b = expand_cases(r);
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.size(); ++i) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include "lmalign/core/error.hpp"
 #include "lmalign/experiment/cases.hpp"
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/experiment/report.hpp"
@@ -83,7 +84,7 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
   const std::string header =
       "experiment,case,label,group,variable,value,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg,"
       "strategy,k,initial_score_m2,final_score_m2,iterations,termination,time_s,"
-      "rotation_error_deg,translation_error_m,success,decided_by";
+      "rotation_error_deg,translation_error_m,success,decided_by,trustworthy";
   std::string joined;
   for (const std::string& c : results_csv_columns()) joined += (joined.empty() ? "" : ",") + c;
   EXPECT_EQ(joined, header);
@@ -100,12 +101,12 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
   std::vector<std::vector<std::string>> rows;
   while (std::getline(in, line)) rows.push_back(split(line));
   ASSERT_EQ(rows.size(), 12u);
-  for (const auto& r : rows) ASSERT_EQ(r.size(), 23u);
+  for (const auto& r : rows) ASSERT_EQ(r.size(), 24u);
   EXPECT_EQ(rows[4], (std::vector<std::string>{
                          "ks",         "1",    "k=5",  "",          "k",           "5",
                          "0",          "1",    "0",    "0",         "0",           "0",
                          "covariance", "5",    "0.25", "0.0140339", "40",          "absolute_mse",
-                         "0.123457",   "15.3", "0.31", "false",     "ground_truth"}));
+                         "0.123457",   "15.3", "0.31", "false",     "ground_truth", "false"}));
   EXPECT_EQ(rows[9][2], "yaw=30 #1");
   EXPECT_EQ(rows[9][3], "yaw");
   EXPECT_EQ(rows[9][4], "yaw_deg");
@@ -118,10 +119,41 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
   std::getline(in2, line);
   std::getline(in2, line);
   const auto r = split(line);
-  ASSERT_EQ(r.size(), 23u);
+  ASSERT_EQ(r.size(), 24u);
   EXPECT_EQ(r[19], "");
   EXPECT_EQ(r[20], "");
   EXPECT_EQ(r[22], "score");
+}
+
+// The trust verdict column (issue 18's benchmark reads it): written per run, read back by
+// read_results_csv() (for --resume), and a bad value is refused with its line.
+TEST(ExperimentReport, TrustworthyColumnRoundTrips) {
+  const ExperimentConfig c = config(true);
+  const std::vector<Case> cases = expand_cases(c);
+  RunnerOutcome o = outcome(true);
+  for (RunRecord& r : o.records) r.k = cases[r.case_index].k;
+  o.records[1].trustworthy = true;
+  o.records[5].trustworthy = true;
+  std::ostringstream os;
+  write_results_csv(os, cases, o.records);
+  std::istringstream in(os.str());
+  const std::vector<RunRecord> back = read_results_csv(in, "results.csv", cases);
+  ASSERT_EQ(back.size(), o.records.size());
+  for (std::size_t i = 0; i < back.size(); ++i)
+    EXPECT_EQ(back[i].trustworthy, i == 1 || i == 5) << "record " << i;
+
+  std::string text = os.str();
+  const std::size_t first_row_end = text.find('\n', text.find('\n') + 1);
+  ASSERT_EQ(text.substr(first_row_end - 6, 6), ",false");
+  text.replace(first_row_end - 5, 5, "maybe");
+  std::istringstream bad(text);
+  try {
+    read_results_csv(bad, "results.csv", cases);
+    FAIL() << "accepted trustworthy = maybe";
+  } catch (const ParseError& e) {
+    EXPECT_NE(std::string(e.what()).find("results.csv:2"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("trustworthy"), std::string::npos) << e.what();
+  }
 }
 
 TEST(ExperimentReport, SummaryGivesSuccessRatesAndMediansOfTheSuccessfulRuns) {

@@ -45,8 +45,8 @@ struct Case {
   std::string id() const { return experiment + "/" + label; }
 };
 
-/// True if some experiment draws from the source landmarks (a basin with pivot landmark or
-/// centroid), so expand_cases() needs them.
+/// True if some experiment draws from the source landmarks (a basin or random experiment with
+/// pivot landmark or centroid), so expand_cases() needs them.
 bool cases_need_source_points(const ExperimentConfig& config);
 
 /// The cases of `config`, in config order; within an experiment:
@@ -56,7 +56,8 @@ bool cases_need_source_points(const ExperimentConfig& config);
 ///           to max; the runner stops a quadrant early);
 ///   xy_yaw: quadrant by quadrant, each with every yaw;
 ///   poses:  one per pose;
-///   basin:  the yaw axis then the translation axis, level by level, `samples` draws each.
+///   basin:  the yaw axis then the translation axis, level by level, `samples` draws each;
+///   random: `samples` starts, "start #i", variable "offset_m" = the drawn offset length.
 /// `source_points` (the undisplaced source landmarks) are needed only if
 /// cases_need_source_points(); throws InvalidArgument if they are then empty.
 std::vector<Case> expand_cases(const ExperimentConfig& config, const Points3& source_points = {});

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "lmalign/core/types.hpp"
+#include "lmalign/registration/estimation_4dof.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/weights/weights.hpp"
 
@@ -88,8 +89,10 @@ enum class ExperimentType {
   kXyYaw,          ///< "xy_yaw": one offset per quadrant with several yaws (Table 4)
   kPoses,          ///< "poses": an explicit list of displacements
   kBasin,          ///< "basin": seeded random displacements per level (convergence basins)
+  kRandom,         ///< "random": seeded random starts, yaw, offset, roll and pitch all drawn
 };
-std::string to_string(ExperimentType type);  ///< "k", "yaw", "xy", "xy_yaw", "poses", "basin"
+/// "k", "yaw", "xy", "xy_yaw", "poses", "basin", "random"
+std::string to_string(ExperimentType type);
 
 /// Table 3's escalation: offsets start_m, start_m + step_m, ... <= max_m per quadrant; a
 /// quadrant stops after the first offset at which at least one strategy fails (`stop: any`), or
@@ -131,6 +134,27 @@ struct BasinSpec {
   TranslationDirections translation_directions = TranslationDirections::kXy;
 };
 
+/// Random starts (issue 18's accuracy benchmark): `samples` displacements, each drawn
+/// independently: yaw uniform in [-yaw_deg, yaw_deg] about the up axis through the pivot, roll and
+/// pitch each uniform in [-roll_pitch_deg, roll_pitch_deg] (R = Rz(yaw) Ry(pitch) Rx(roll) in a
+/// frame whose z is up), then an offset across the up axis of length uniform in
+/// [0, translation_m] in a uniform direction: D p = R (p - pivot) + pivot + offset.
+struct RandomStartSpec {
+  int samples = 100;  ///< >= 1
+  /// Seed of the draws: draw i comes from its own std::mt19937_64 seeded from (seed, i), so a
+  /// draw does not change when samples changes.
+  std::uint64_t seed = 1;
+  double yaw_deg = 180.0;          ///< in [0, 180]
+  double translation_m = 3.0;      ///< >= 0, finite
+  double roll_pitch_deg = 3.0;     ///< in [0, 90]
+  /// landmark: a source landmark drawn per start; centroid (default): the source centroid;
+  /// origin: the frame's origin.
+  YawPivot pivot = YawPivot::kCentroid;
+  /// The maps' vertical axis (its sign does not matter: yaw, roll and pitch are drawn
+  /// symmetrically): z in TUM's motion-capture frame, y in camera frames (KITTI, road_sim.hpp).
+  UpAxis up_axis = UpAxis::kZ;
+};
+
 /// One experiment of the config (one entry of `experiments:`).
 struct ExperimentSpec {
   std::string name;
@@ -160,6 +184,8 @@ struct ExperimentSpec {
   std::vector<Pose6> poses;
   /// kBasin.
   BasinSpec basin;
+  /// kRandom.
+  RandomStartSpec random;
 };
 
 /// A whole experiment config.

@@ -55,6 +55,9 @@ struct RunRecord {
   /// Error of the recovered map-to-map transform T * D against the ground truth, if known.
   std::optional<TransformError> error;
   SuccessDecision decision;
+  /// The trust verdict on the estimate: judge_alignment() (registration/uncertainty.hpp) with
+  /// its default TrustOptions, on the displaced source and the target.
+  bool trustworthy = false;
   /// Per-iteration record, for the history case only (with scores).
   std::vector<IterationRecord> history;
 };

@@ -1,0 +1,293 @@
+#!/usr/bin/env python3
+"""Tests of bench/run_accuracy.py's bookkeeping (no timing, no real alignment): the protocol's 39
+displacements, the config's checks, the metrics (success, medians of the successes, trust
+precision and recall, binned success), and a whole run with a stand-in `lmalign` that writes
+results.csv as the real one does. Run by ctest (tests/CMakeLists.txt)."""
+import csv
+import json
+import os
+import shutil
+import stat
+import sys
+import tempfile
+import unittest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+import run_accuracy  # noqa: E402
+
+# A stand-in for the `lmalign` subcommands the driver calls. experiment: one row per case and
+# strategy, the case's offset in `value`; strategy "good" succeeds (error 1 deg, 2 cm, trusted),
+# "far" succeeds below an offset of 1 m only and is trusted always, "bad" never succeeds and is
+# never trusted. Every call is appended to CALLS.
+FAKE_LMALIGN = r'''#!/usr/bin/python3
+import json, os, sys, yaml
+with open(os.environ["FAKE_CALLS"], "a") as f:
+    f.write(json.dumps(sys.argv[1:]) + "\n")
+cmd = sys.argv[1]
+if cmd == "split":
+    out = sys.argv[sys.argv.index("-o") + 1]
+    open(out, "w").write("LANDMARK\n")
+elif cmd == "simulate":
+    out = sys.argv[sys.argv.index("-o") + 1]
+    os.makedirs(out, exist_ok=True)
+    for n in ["source.txt", "target.txt"]:
+        open(os.path.join(out, n), "w").write("LANDMARK\n")
+    open(os.path.join(out, "T_target_source.txt"), "w").write(
+        "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
+elif cmd == "experiment":
+    cfg_path = sys.argv[2]
+    out = sys.argv[sys.argv.index("-o") + 1] if "-o" in sys.argv else sys.argv[sys.argv.index("--resume") + 1]
+    cfg = yaml.safe_load(open(cfg_path))
+    for p in [cfg["source"], cfg["target"]]:
+        if not os.path.isfile(p):
+            sys.stderr.write("lmalign: error: cannot open " + p + "\n"); sys.exit(2)
+    os.makedirs(out, exist_ok=True)
+    cols = ("experiment,case,label,group,variable,value,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg,"
+            "strategy,k,initial_score_m2,final_score_m2,iterations,termination,time_s,"
+            "rotation_error_deg,translation_error_m,success,decided_by,trustworthy")
+    lines = [cols]
+    case = 0
+    for e in cfg["experiments"]:
+        n = len(e["poses"]) if e["type"] == "poses" else e["samples"]
+        for i in range(n):
+            value = 0.0 if e["type"] == "poses" else e["translation_m"] * (i + 0.5) / n
+            for s in cfg["strategies"]:
+                ok = s == "good" or s == "base" or (s == "far" and value < 1.0)
+                trusted = s in ("good", "far")
+                rot, tr = (1.0, 0.02) if ok else (40.0, 3.0)
+                lines.append("%s,%d,c%d,,x,%g,0,0,0,0,0,0,%s,5,1,1,10,transform,%g,%g,%g,%s,ground_truth,%s"
+                             % (e["name"], case, i, value, s, 0.01 * (1 + i % 3), rot, tr,
+                                "true" if ok else "false", "true" if trusted else "false"))
+            case += 1
+    open(os.path.join(out, "results.csv"), "w").write("\n".join(lines) + "\n")
+    open(os.path.join(out, "config.yaml"), "w").write(open(cfg_path).read())
+    open(os.path.join(out, "summary.json"), "w").write("{}")
+    print("experiment %s" % cfg_path)
+    print("  source %s (1200 landmarks), target %s (1300 landmarks)" % (cfg["source"], cfg["target"]))
+else:
+    sys.exit(2)
+'''
+
+CONFIG = """
+strategies: [good, far, bad]
+k: 5
+random: {samples: 20, seed: 3, roll_pitch_deg: 2}
+reference: {strategy: base, max_iterations: 150}
+kinds:
+  indoor:  {rotation_deg: 5, translation_m: 0.10, random_translation_m: 3, reference_max_distance_m: 0.1}
+  outdoor: {rotation_deg: 5, translation_m: 1.0, random_translation_m: 10, reference_max_distance_m: 0.25}
+datasets:
+  - {name: files, kind: indoor, up_axis: z, source: "${LMALIGN_DATA}/a.txt", target: "${LMALIGN_DATA}/b.txt", truth: identity}
+  - {name: windows, kind: indoor, split: {map: "${LMALIGN_DATA}/full.txt", source_frames: 0-9, target_frames: 5-19}}
+  - {name: road, kind: outdoor, up_axis: y, simulate: {scene: road, seed: 4, overlap: 0.25, landmarks: 100}}
+"""
+
+
+def load_yaml(path):
+    import yaml
+    with open(path) as f:
+        return yaml.safe_load(f)
+
+
+def row(strategy, success, trusted, rot=1.0, tr=0.01, t=0.1, experiment="random", value=0.0):
+    return {"strategy": strategy, "success": "true" if success else "false",
+            "trustworthy": "true" if trusted else "false", "rotation_error_deg": str(rot),
+            "translation_error_m": str(tr), "time_s": str(t), "experiment": experiment,
+            "value": str(value)}
+
+
+class Protocol(unittest.TestCase):
+    def test_39_distinct_displacements_of_method_section_5(self):
+        poses = run_accuracy.protocol_poses()
+        self.assertEqual(len(poses), 39)
+        keys = {tuple(sorted(p.items())) for _, p in poses}
+        self.assertEqual(len(keys), 39)
+        self.assertEqual(poses[0][1], dict(x_m=0.0, y_m=1.0, z_m=0.4, roll_deg=10.0,
+                                           pitch_deg=0.0, yaw_deg=22.5))
+        self.assertIn(dict(x_m=3.0, y_m=-3.0, z_m=0.0, roll_deg=0.0, pitch_deg=0.0, yaw_deg=0.0),
+                      [p for _, p in poses])
+        self.assertIn(dict(x_m=-0.5, y_m=-0.5, z_m=0.0, roll_deg=0.0, pitch_deg=0.0,
+                           yaw_deg=-30.0), [p for _, p in poses])
+
+
+class Metrics(unittest.TestCase):
+    def test_success_medians_of_successes_precision_recall_time(self):
+        rows = [row("s", True, True, rot=1, tr=0.01, t=0.1),
+                row("s", True, False, rot=3, tr=0.03, t=0.3),
+                row("s", True, True, rot=2, tr=0.02, t=0.2),
+                row("s", False, True, rot=90, tr=5, t=0.9, experiment="protocol"),
+                row("s", False, False, rot=45, tr=2, t=0.4, experiment="protocol")]
+        m = run_accuracy.strategy_metrics(rows)
+        self.assertEqual(m["runs"], 5)
+        self.assertAlmostEqual(m["success_rate"], 0.6)
+        self.assertEqual(m["success_rate_by_experiment"], {"protocol": 0.0, "random": 1.0})
+        self.assertAlmostEqual(m["median_rotation_error_deg"], 2.0)  # of the successes only
+        self.assertAlmostEqual(m["median_translation_error_m"], 0.02)
+        self.assertAlmostEqual(m["trust_precision"], 2 / 3)  # 3 trusted, 2 in the right basin
+        self.assertAlmostEqual(m["trust_recall"], 2 / 3)  # 3 successes, 2 trusted
+        self.assertAlmostEqual(m["median_time_s"], 0.3)
+        self.assertAlmostEqual(m["max_time_s"], 0.9)
+
+    def test_nothing_trusted_or_nothing_found_gives_none_not_zero_division(self):
+        m = run_accuracy.strategy_metrics([row("s", False, False)])
+        self.assertIsNone(m["trust_precision"])
+        self.assertIsNone(m["trust_recall"])
+        self.assertIsNone(m["median_rotation_error_deg"])
+        self.assertEqual(m["success_rate"], 0.0)
+
+    def test_binned_success_uses_random_starts_only(self):
+        edges = run_accuracy.offset_bins(10.0, 5)
+        self.assertEqual(edges, [0.0, 2.0, 4.0, 6.0, 8.0, 10.0])
+        rows = [row("s", True, True, value=0.5), row("s", False, True, value=1.9),
+                row("s", True, True, value=9.99), row("s", True, True, value=10.0),
+                row("s", False, True, value=0.1, experiment="protocol")]
+        self.assertEqual(run_accuracy.binned_success(rows, edges),
+                         [[2, 1], [0, 0], [0, 0], [0, 0], [2, 2]])
+
+
+class Driver(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="lmalign_acc_")
+        self.data = os.path.join(self.tmp, "data")
+        os.makedirs(self.data)
+        for n in ["a.txt", "b.txt", "full.txt"]:
+            with open(os.path.join(self.data, n), "w") as f:
+                f.write("LANDMARK\n")
+        self.fake = os.path.join(self.tmp, "lmalign")
+        with open(self.fake, "w") as f:
+            f.write(FAKE_LMALIGN)
+        os.chmod(self.fake, os.stat(self.fake).st_mode | stat.S_IXUSR)
+        self.config = os.path.join(self.tmp, "accuracy.yaml")
+        with open(self.config, "w") as f:
+            f.write(CONFIG)
+        self.calls = os.path.join(self.tmp, "calls.txt")
+        os.environ["FAKE_CALLS"] = self.calls
+        os.environ["LMALIGN_DATA"] = self.data
+        self.out = os.path.join(self.tmp, "out")
+        # A full run writes bench/results/accuracy.json: point it into the temporary folder.
+        self.saved_results = run_accuracy.RESULTS_JSON
+        run_accuracy.RESULTS_JSON = os.path.join(self.tmp, "results.json")
+
+    def tearDown(self):
+        run_accuracy.RESULTS_JSON = self.saved_results
+        shutil.rmtree(self.tmp)
+
+    def run_driver(self, *extra):
+        return run_accuracy.main(["--config", self.config, "--lmalign", self.fake, "--output",
+                                  self.out, "--threads", "1"] + list(extra))
+
+    def calls_of(self, command):
+        with open(self.calls) as f:
+            return [c for c in map(json.loads, f) if c[0] == command]
+
+    def test_whole_run_writes_csv_json_plots_and_the_configs(self):
+        self.assertEqual(self.run_driver(), 0)
+        with open(os.path.join(self.out, "accuracy.json")) as f:
+            rep = json.load(f)
+        self.assertEqual(list(rep["datasets"]), ["files", "windows", "road"])
+        files = rep["datasets"]["files"]
+        self.assertEqual(files["landmarks"], {"source": 1200, "target": 1300})
+        self.assertEqual(files["thresholds"]["translation_m"], 0.10)
+        good, far, bad = (files["strategies"][s] for s in ["good", "far", "bad"])
+        self.assertEqual(good["runs"], 39 + 20)
+        self.assertEqual(good["success_rate"], 1.0)
+        self.assertEqual(good["trust_precision"], 1.0)
+        self.assertEqual(bad["success_rate"], 0.0)
+        self.assertIsNone(bad["trust_precision"])
+        # far: every protocol case (offset 0 here) and the random starts below 1 m of 3 m.
+        n_far = sum(1 for i in range(20) if 3.0 * (i + 0.5) / 20 < 1.0)
+        self.assertEqual(far["successes"], 39 + n_far)
+        self.assertAlmostEqual(far["trust_precision"], (39 + n_far) / 59)
+        self.assertEqual(far["trust_recall"], 1.0)
+        self.assertEqual(sum(b["runs"] for b in far["success_by_offset"]), 20)
+        self.assertEqual(far["success_by_offset"][0]["successes"], 4)  # [0, 0.6): 4 of 4
+        self.assertEqual(rep["datasets"]["road"]["thresholds"]["translation_m"], 1.0)
+        self.assertEqual(files["reference"]["max_distance_m"], 0.1)
+        self.assertEqual(rep["overall"]["good"]["runs"], 3 * 59)
+        self.assertEqual(rep["overall"]["bad"]["worst_dataset"], "files")
+        # accuracy.csv: one row per dataset and strategy.
+        with open(os.path.join(self.out, "accuracy.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), 9)
+        self.assertEqual(rows[0]["dataset"], "files")
+        self.assertEqual(rows[0]["source_landmarks"], "1200")
+        for name in ["files", "windows", "road"]:
+            self.assertTrue(os.path.isfile(os.path.join(self.out, "plots", name + ".png")))
+        # The Markdown tables: the matrix row of each strategy, and each dataset's table.
+        with open(os.path.join(self.out, "accuracy.md")) as f:
+            md = f.read()
+        self.assertIn("| strategy | files | windows | road |", md)
+        self.assertIn("| good | 100% | 100% | 100% |", md)
+        self.assertIn("| bad | 0% | 0% | 0% |", md)
+        self.assertIn("**road** (outdoor; 1200 source / 1300 target landmarks", md)
+        self.assertIn("| good | 100% | 100% | 100% | 1.00 | 0.020 | 1.00 | 1.00 |", md)
+        # A full run also writes the results JSON.
+        self.assertTrue(os.path.isfile(run_accuracy.RESULTS_JSON))
+
+        # The experiment configs: radius, up axis and thresholds from the dataset's kind.
+        road = load_yaml(os.path.join(self.out, "road", "experiment_full.yaml"))
+        rand = road["experiments"][1]
+        self.assertEqual(rand["type"], "random")
+        self.assertEqual(rand["translation_m"], 10.0)
+        self.assertEqual(rand["up_axis"], "y")
+        self.assertEqual(rand["samples"], 20)
+        self.assertEqual(rand["roll_pitch_deg"], 2.0)
+        self.assertEqual(rand["yaw_deg"], 180)
+        self.assertEqual(road["success"], {"rotation_deg": 5.0, "translation_m": 1.0})
+        self.assertEqual(len(road["experiments"][0]["poses"]), 39)
+        self.assertTrue(road["ground_truth"].endswith("T_target_source.txt"))
+        # The reference starts at the truth: D = the simulator's transform (x = 0.5 m).
+        ref = load_yaml(os.path.join(self.out, "road", "reference.yaml"))
+        self.assertEqual(ref["max_distance_m"], 0.25)
+        self.assertEqual(ref["strategies"], ["base"])
+        self.assertAlmostEqual(ref["experiments"][0]["poses"][0]["x_m"], 0.5)
+        # The windows were split with re-triangulation, from the data folder.
+        splits = self.calls_of("split")
+        self.assertEqual(len(splits), 2)
+        self.assertIn("--retriangulate", splits[0])
+        self.assertEqual(splits[0][1], os.path.join(self.data, "full.txt"))
+        self.assertEqual(splits[0][splits[0].index("--frames") + 1], "0-9")
+
+        # A second run reuses every finished experiment and made map.
+        n = len(self.calls_of("experiment"))
+        self.assertEqual(self.run_driver("--no-plots"), 0)
+        self.assertEqual(len(self.calls_of("experiment")), n)
+        self.assertEqual(len(self.calls_of("split")), 2)
+
+    def test_quick_and_selection(self):
+        self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
+                                         "--datasets", "files"), 0)
+        with open(os.path.join(self.out, "accuracy.json")) as f:
+            rep = json.load(f)
+        self.assertEqual(list(rep["datasets"]), ["files"])
+        self.assertEqual(list(rep["datasets"]["files"]["strategies"]), ["good"])
+        self.assertEqual(rep["datasets"]["files"]["strategies"]["good"]["runs"], 8 + 10)
+        self.assertFalse(os.path.isfile(run_accuracy.RESULTS_JSON))
+        with self.assertRaises(run_accuracy.BenchError) as e:
+            self.run_driver("--strategies", "nope")
+        self.assertIn("nope", str(e.exception))
+
+    def test_missing_dataset_file_is_one_error_naming_it(self):
+        os.remove(os.path.join(self.data, "b.txt"))
+        with self.assertRaises(run_accuracy.BenchError) as e:
+            self.run_driver("--datasets", "files", "--no-plots")
+        self.assertIn("dataset files: target", str(e.exception))
+        self.assertIn(os.path.join(self.data, "b.txt"), str(e.exception))
+
+    def test_config_errors_name_the_field(self):
+        bad = CONFIG.replace("kind: outdoor, up_axis: y", "kind: underwater, up_axis: y")
+        with open(self.config, "w") as f:
+            f.write(bad)
+        with self.assertRaises(run_accuracy.BenchError) as e:
+            run_accuracy.load_config(self.config, self.data)
+        self.assertIn("datasets[2].kind", str(e.exception))
+        with open(self.config, "w") as f:
+            f.write(CONFIG.replace("name: windows", "name: files"))
+        with self.assertRaises(run_accuracy.BenchError) as e:
+            run_accuracy.load_config(self.config, self.data)
+        self.assertIn("used twice", str(e.exception))
+
+
+if __name__ == "__main__":
+    unittest.main()
