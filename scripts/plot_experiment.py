@@ -218,6 +218,10 @@ def pick_case(rows, wanted, what):
 
 def plot_history(plt, np, path, wanted, plots_dir):
     rows = read_csv(path)
+    if not rows:
+        # Only the paper's strategies record a per-iteration history (lmalign's own, e.g. the
+        # adaptive default, have none): nothing to plot.
+        return []
     case = pick_case(rows, wanted, "history.csv")
     if case is None:
         return []

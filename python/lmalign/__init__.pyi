@@ -82,7 +82,12 @@ class AlignmentResult:
     @property
     def covariance(self) -> Optional[F64]: ...  # (6, 6): (tx, ty, tz [m], rx, ry, rz [rad])
 
-def read_map(path: PathLike, min_observations: int = 2) -> Map: ...
+def read_map(
+    path: PathLike,
+    min_observations: int = 2,
+    format: str = "auto",  # auto, lmalign, bundler, colmap-text, colmap-bin, ply, stella-vslam
+    image_size: Optional[Tuple[int, int]] = None,  # (width, height) px, Bundler only
+) -> Map: ...
 def write_map(path: PathLike, map: Map) -> None: ...
 def strategies() -> List[str]: ...
 def align(

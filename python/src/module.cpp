@@ -8,6 +8,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -25,6 +26,7 @@
 #include "lmalign/experiment/report.hpp"
 #include "lmalign/experiment/runner.hpp"
 #include "lmalign/io/atomic_file.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/registration/registration.hpp"
@@ -157,11 +159,14 @@ py::array_t<double> matrix_out(const Eigen::Matrix<double, R, C>& m) {
 // ---------------------------------------------------------------- map I/O
 
 /// The one place that reads a map file (a dispatching reader for more formats goes here).
-Map read_map_file(const std::filesystem::path& path, std::size_t min_observations) {
+Map read_map_file(const std::filesystem::path& path, std::size_t min_observations,
+                  const std::string& format, const std::optional<std::array<long long, 2>>& image_size) {
   MapReadOptions o;
   o.min_observations = min_observations;
+  AnyMapReadOptions any(o, parse_map_format(format));
+  any.image_size_px = image_size;
   py::gil_scoped_release release;
-  return read_map(path.string(), o);
+  return read_any_map(path.string(), any);
 }
 
 /// Builds the map's lazy frame-id index while the GIL is held: a Map may be shared by Python
@@ -329,9 +334,14 @@ PYBIND11_MODULE(_lmalign, m) {
       });
 
   m.def("read_map", &read_map_file, py::arg("path"), py::arg("min_observations") = 2,
-        "Reads a map file (docs/map-format.md). Landmarks with fewer than min_observations "
-        "observations are dropped (2: the paper's loader, and `lmalign align`'s default).\n"
-        "Raises ParseError (file, line), IoError, InvalidArgument.");
+        py::arg("format") = "auto", py::arg("image_size") = py::none(),
+        "Reads a map in any format lmalign reads (docs/map-format.md): format 'auto' (by content), "
+        "'lmalign', 'bundler', 'colmap-text', 'colmap-bin' (a COLMAP model folder), 'ply', "
+        "'stella-vslam'. image_size (width, height) px is needed for Bundler. Landmarks with "
+        "fewer than min_observations observations are dropped (2: the paper's loader, and "
+        "`lmalign align`'s default); formats without covariances get them re-estimated from the "
+        "observations, landmarks whose covariance cannot be estimated are dropped.\n"
+        "Raises ParseError (file, line or byte offset), IoError, InvalidArgument.");
   m.def(
       "write_map",
       [](const std::filesystem::path& path, const Map& map) {

@@ -180,3 +180,16 @@ def test_tum_trajectory_file_round_trip_and_errors(tmp_path):
     assert info.value.line == 2
     with pytest.raises(lmalign.IoError):
         lmalign.evaluate_trajectory(tmp_path / "missing.txt", (stamps, poses))
+
+
+def test_read_map_reads_other_formats_by_content(desk_pair, tmp_path):
+    """The real Balbianello Bundler file reads by content (format 'auto') with its image size,
+    with covariances re-estimated from its views; an unknown format name is refused."""
+    from conftest import data_dir, require_file
+    out = require_file(data_dir() / "bundler_balbianello" / "Balbianello.out")
+    m = lmalign.read_map(out, min_observations=2, image_size=(640, 427))
+    assert m.positions.shape[1] == 3 and 100 < m.positions.shape[0] <= 544
+    assert len(m.frame_ids) == 5
+    assert np.all(np.isfinite(m.covariances))
+    with pytest.raises(lmalign.InvalidArgument):
+        lmalign.read_map(out, format="no-such-format")
