@@ -167,7 +167,7 @@ PointToDistributionResult estimate_point_to_distribution(
       const double w = weights != nullptr ? (*weights)[i] * norm : 1.0;
       Mat3 M = target_covariances_m2[cr.target_index] +
                R * source_covariances_m2[cr.source_index] * R.transpose();
-      M = 0.5 * (M + M.transpose());
+      M = (0.5 * (M + M.transpose())).eval();
       M.diagonal().array() += floor2;
       omega[i] = information_per_m2(M, floor2);
       if (w == 0.0) continue;
@@ -199,7 +199,7 @@ PointToDistributionResult estimate_point_to_distribution(
       if (w == 0.0) continue;
       Mat3 M = target_covariances_m2[cr.target_index] +
                R * source_covariances_m2[cr.source_index] * R.transpose();
-      M = 0.5 * (M + M.transpose());
+      M = (0.5 * (M + M.transpose())).eval();
       M.diagonal().array() += floor2;
       const Vec3 r = target_points[cr.target_index] - Tc * source_points[cr.source_index];
       e += w * r.dot(information_per_m2(M, floor2) * r);
@@ -257,7 +257,7 @@ PointToDistributionResult estimate_point_to_distribution(
   Mat6 A = Mat6::Identity();
   A.topRightCorner<3, 3>() = skew(c);
   out.covariance = A * cov_c * A.transpose();
-  out.covariance = 0.5 * (out.covariance + out.covariance.transpose());
+  out.covariance = (0.5 * (out.covariance + out.covariance.transpose())).eval();
   if (!out.covariance.allFinite()) {
     out.degenerate = true;
     out.covariance = Mat6::Zero();

@@ -101,7 +101,7 @@ struct AdaptiveOptions {
 
   // --- trust ---
   /// Untrusted when a distinct pose scores at least this fraction of the best; (0, 1].
-  double max_ambiguity = 0.9;
+  double max_ambiguity = 0.85;
   /// Two refined hypotheses are distinct poses when they move a landmark at the source's
   /// median distance from its centre apart by more than this many vote cells (the search's
   /// resolution); > 0.

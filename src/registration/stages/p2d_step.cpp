@@ -87,7 +87,7 @@ PoseCovariance p2d_covariance(const P2DStep& step, std::size_t num_pairs, const 
   Mat6 A = Mat6::Identity();
   A.block<3, 3>(0, 3) = skew(pivot_m);
   pc.covariance = s2 * A * lu.inverse() * A.transpose();
-  pc.covariance = 0.5 * (pc.covariance + pc.covariance.transpose());
+  pc.covariance = (0.5 * (pc.covariance + pc.covariance.transpose())).eval();
   pc.sigma_m = std::sqrt(s2);
   pc.valid = pc.covariance.allFinite();
   return pc;

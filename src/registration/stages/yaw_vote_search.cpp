@@ -214,14 +214,20 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
        !window->T_target_source_guess.matrix().allFinite())) {
     throw InvalidArgument("yaw-vote search: the prior's sigmas must be > 0 and finite");
   }
+  for (std::size_t i = 0; i < source_points.size(); ++i) {
+    if (!source_points[i].allFinite()) {
+      throw InvalidArgument("yaw-vote search: source landmark " + std::to_string(i) +
+                            " is not finite");
+    }
+  }
+  for (std::size_t i = 0; i < target_points.size(); ++i) {
+    if (!target_points[i].allFinite()) {
+      throw InvalidArgument("yaw-vote search: target landmark " + std::to_string(i) +
+                            " is not finite");
+    }
+  }
   const Points3 src = strided(source_points, options.source_samples);
   const Points3 tgt = strided(target_points, options.target_samples);
-  for (const Vec3& p : src) {
-    if (!p.allFinite()) throw InvalidArgument("yaw-vote search: a source landmark is not finite");
-  }
-  for (const Vec3& p : tgt) {
-    if (!p.allFinite()) throw InvalidArgument("yaw-vote search: a target landmark is not finite");
-  }
   Vec3 centroid = Vec3::Zero();
   for (const Vec3& p : src) centroid += p;
   centroid /= static_cast<double>(src.size());
@@ -245,7 +251,8 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
       n_yaw = static_cast<int>(std::ceil(2.0 * kPi / step - 1e-9));
     } else {
       circular = false;
-      const int per_side = static_cast<int>(std::ceil(half / step));
+      // Within 3 sigma (the tolerance absorbs the rounding of an exact multiple of the step).
+      const int per_side = static_cast<int>(std::floor(half / step + 1e-9));
       n_yaw = 2 * per_side + 1;
       yaw_from = -per_side * step;
     }
