@@ -70,4 +70,24 @@ nlohmann::json json_matrix(const Isometry3& T) {
   return rows;
 }
 
+std::array<long long, 2> parse_image_size(const std::string& text) {
+  const auto comma = text.find(',');
+  try {
+    if (comma == std::string::npos) throw std::invalid_argument(text);
+    std::size_t used_w = 0;
+    std::size_t used_h = 0;
+    const std::string w_text = text.substr(0, comma);
+    const std::string h_text = text.substr(comma + 1);
+    const long long w = std::stoll(w_text, &used_w);
+    const long long h = std::stoll(h_text, &used_h);
+    if (used_w != w_text.size() || used_h != h_text.size() || w <= 0 || h <= 0) {
+      throw std::invalid_argument(text);
+    }
+    return {w, h};
+  } catch (const std::logic_error&) {
+    throw InvalidArgument("--image-size '" + text +
+                          "': expected W,H, two positive integers in pixels (e.g. 640,427)");
+  }
+}
+
 }  // namespace lmalign::cli

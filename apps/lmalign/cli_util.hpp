@@ -1,6 +1,7 @@
 // Small helpers shared by the CLI subcommands (parsing, output-path checks, JSON values).
 #pragma once
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,10 @@ namespace lmalign::cli {
 /// Throws InvalidArgument("<option> \"<text>\": expected ...").
 std::vector<double> parse_number_list(const std::string& option, const std::string& text,
                                       std::size_t count, const std::string& expected);
+
+/// Parses --image-size "W,H" (two positive integers, pixels; Bundler's pixels are centred on the
+/// image, so its reader needs the size). Throws InvalidArgument naming the option and the text.
+std::array<long long, 2> parse_image_size(const std::string& text);
 
 /// True if the two paths name the same file (existing or not).
 bool same_file(const std::string& a, const std::string& b);

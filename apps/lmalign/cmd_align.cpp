@@ -51,6 +51,7 @@ struct AlignArgs {
   bool history = false;
   std::string initial_guess;  // 4x4 file; empty: none
   std::string prior_sigma;    // ROT_DEG,TRANS_M; empty: none
+  std::string image_size;     // W,H px (Bundler); empty: none
   // Given explicitly on the command line: then they also limit lmalign's own strategies.
   bool max_iterations_given = false;
   bool max_distance_given = false;
@@ -187,8 +188,10 @@ int run_align(const AlignArgs& a) {
 
   MapReadOptions ropt;
   ropt.min_observations = a.min_observations;
-  const Map source = read_any_map(a.source, {ropt, parse_map_format(a.format)});
-  const Map target = read_any_map(a.target, {ropt, parse_map_format(a.format)});
+  AnyMapReadOptions any(ropt, parse_map_format(a.format));
+  if (!a.image_size.empty()) any.image_size_px = parse_image_size(a.image_size);
+  const Map source = read_any_map(a.source, any);
+  const Map target = read_any_map(a.target, any);
   if (source.landmarks.empty())
     throw InvalidArgument("source map '" + a.source +
                           "' has no landmarks (after the --min-observations filter)");
@@ -495,6 +498,8 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--format", args->format,
                   "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
                   "colmap-bin, ply, stella-vslam (docs/map-format.md)");
+  cmd->add_option("--image-size", args->image_size,
+                  "Bundler maps: the image size W,H in pixels (Bundler pixels are centred)");
   cmd->add_option("--initial-guess", args->initial_guess,
                   "a first estimate of T_target_source (of the displaced source, if --displace): "
                   "a 4x4 matrix file (p_target = T * p_source, metres). Every strategy starts "

@@ -26,6 +26,7 @@ struct SplitArgs {
   double pixel_sigma_px = 1.0;
   long long min_observations = 2;
   std::string format = "auto";  // --format: the reader of MAP
+  std::string image_size;       // --image-size W,H px (Bundler); empty: none
 };
 
 std::string to_text(double value) {
@@ -99,7 +100,9 @@ int run_split(const SplitArgs& args, const CLI::App& cmd) {
   // Every landmark, every observation: the window count decides, not the full map's.
   MapReadOptions read_options;
   read_options.min_observations = 0;
-  const Map map = read_any_map(args.input, {read_options, parse_map_format(args.format)});
+  AnyMapReadOptions any(read_options, parse_map_format(args.format));
+  if (!args.image_size.empty()) any.image_size_px = parse_image_size(args.image_size);
+  const Map map = read_any_map(args.input, any);
 
   SplitStats stats;
   const Map out = split_map(map, options, &stats);
@@ -143,6 +146,8 @@ CommandRunner add_split_command(CLI::App& root) {
       "1 degree median 6 cm, 95th percentile 40 cm; 2-5 degrees 1 cm, 4.2 cm), hence\n"
       "--min-parallax. See docs/split.md.");
   cmd->add_option("MAP", args->input, "Input map file (method.md section 1 format)")->required();
+  cmd->add_option("--image-size", args->image_size,
+                  "Bundler maps: the image size W,H in pixels (Bundler pixels are centred)");
   cmd->add_option("--format", args->format,
                   "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin, "
                   "ply, stella-vslam (docs/map-format.md)");
