@@ -34,7 +34,8 @@ enum class PaperStrategy {
   kShrinkCauchy,   ///< "shrink_cauchy": shrink + Cauchy IRLS
   kTrimmed,        ///< "trimmed": shrink + trimming to an estimated overlap (trimmed ICP)
   kMutual,         ///< "mutual": shrink + mutual nearest neighbours
-  kRobustObs,      ///< "robust_obs": shrink_cauchy + w_obs in the estimation (recommended)
+  kRobustObs,      ///< "robust_obs": shrink_cauchy + w_obs in the estimation (the default
+                   ///< before adaptive)
   kRobustObsKnn,   ///< "robust_obs_knn": robust_obs with the paper's weighted-kNN (w_obs) selection
   kRobustObs4Dof,  ///< "robust_obs_4dof": robust_obs estimating x, y, z, yaw only (z up)
   kGlobal,         ///< "global": global initialisation (any yaw, metres off; global_init.hpp), then
