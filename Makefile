@@ -1,6 +1,7 @@
 # lmalign: the two set-up commands.
-#   make demo   installs what is missing, builds in Release, aligns the real ground-truth pair and
-#               runs the paper's protocol (configs/paper.yaml) into $(BUILD_DIR)/demo/paper.
+#   make demo   installs what is missing, builds in Release, aligns the real ground-truth desk pair
+#               and the KITTI stereo pair (adaptive and the paper's four), and runs the paper's
+#               protocol (configs/paper.yaml) into $(BUILD_DIR)/demo/paper.
 #   make test   same set-up, then builds and runs every test, then builds and runs the whole suite
 #               again under ASan + UBSan in $(ASAN_BUILD_DIR) (make test-sanitize).
 #   make install  installs the library, headers, CMake/pkg-config package, CLI and Python package
@@ -127,7 +128,7 @@ demo: build
 	  --json $(BUILD_DIR)/demo/align.json
 	@if [ -f "$(KITTI)/kitti_vo_a.txt" ]; then \
 	  echo "== lmalign demo: outdoor stereo (KITTI): kitti_vo_a onto kitti_vo_b, disjoint windows (true transform: identity)"; \
-	  echo "== source turned by 30 deg about the vertical (-y here) and moved 3.6 m along the road; right basin: 5 deg, 1 m"; \
+	  echo "== source turned by 30 deg about the vertical (-y here) and moved 3.6 m (3 m along the road); right basin: 5 deg, 1 m"; \
 	  $(LMALIGN) align $(KITTI)/kitti_vo_a.txt $(KITTI)/kitti_vo_b.txt \
 	    --strategy adaptive,paper --displace 2,0,3,0,-30,0 --ground-truth identity \
 	    --success-translation-m 1 --json $(BUILD_DIR)/demo/align_kitti.json; \
