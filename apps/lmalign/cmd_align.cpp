@@ -161,7 +161,8 @@ int run_align(const AlignArgs& a) {
         parse_number_list("--prior-sigma", a.prior_sigma, 2, "ROT_DEG,TRANS_M");
     prior = PriorSigma{v[0], v[1]};
     std::string why;
-    if (!prior->is_valid(&why)) throw InvalidArgument("--prior-sigma " + a.prior_sigma + ": " + why);
+    if (!prior->is_valid(&why))
+      throw InvalidArgument("--prior-sigma " + a.prior_sigma + ": " + why);
     for (PaperStrategy s : strategies) {
       if (s != PaperStrategy::kAdaptive) {
         throw InvalidArgument("--prior-sigma: only the adaptive strategy uses a prior (got '" +

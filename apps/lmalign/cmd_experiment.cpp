@@ -29,8 +29,8 @@
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/experiment/report.hpp"
 #include "lmalign/experiment/runner.hpp"
-#include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/io/atomic_file.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
 
 namespace lmalign::cli {
 

@@ -65,8 +65,7 @@ int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
     std::string why;
     if (!o.is_valid(&why)) {
       if (!(o.overlap > 0.0 && o.overlap <= 1.0))
-        throw InvalidArgument("--overlap " + to_text(a.overlap) +
-                              ": must be in (0, 1] (corridor)");
+        throw InvalidArgument("--overlap " + to_text(a.overlap) + ": must be in (0, 1] (corridor)");
       throw InvalidArgument("--transform " + a.transform + ": " + why);
     }
     pair = sim::simulate_map_pair(o);
@@ -104,8 +103,7 @@ CommandRunner add_simulate_command(CLI::App& root) {
       "slam_sim.hpp, --overlap in (0, 1] (default 0.8). Same seed, same files.");
   cmd->add_option("--scene", args->scene, "road or corridor")->capture_default_str();
   cmd->add_option("--seed", args->seed, "seed of every draw")->capture_default_str();
-  cmd->add_option("--overlap", args->overlap,
-                  "fraction of the source stretch the target also maps")
+  cmd->add_option("--overlap", args->overlap, "fraction of the source stretch the target also maps")
       ->type_name("F");
   cmd->add_option("--landmarks", args->landmarks, "landmarks per map (>= 10)")
       ->capture_default_str();

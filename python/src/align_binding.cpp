@@ -4,8 +4,8 @@
 
 #include <chrono>
 
-#include "lmalign/core/error.hpp"
 #include <limits>
+#include "lmalign/core/error.hpp"
 
 #include "lmalign/registration/robust.hpp"
 

@@ -160,7 +160,8 @@ py::array_t<double> matrix_out(const Eigen::Matrix<double, R, C>& m) {
 
 /// The one place that reads a map file (a dispatching reader for more formats goes here).
 Map read_map_file(const std::filesystem::path& path, std::size_t min_observations,
-                  const std::string& format, const std::optional<std::array<long long, 2>>& image_size) {
+                  const std::string& format,
+                  const std::optional<std::array<long long, 2>>& image_size) {
   MapReadOptions o;
   o.min_observations = min_observations;
   AnyMapReadOptions any(o, parse_map_format(format));
@@ -197,9 +198,8 @@ Trajectory trajectory_from(const py::handle& obj, const char* name) {
   }
   const py::tuple t = obj.cast<py::tuple>();
   const Array stamps = as_array(t[0], name, {-1}, "(N,) timestamps in seconds");
-  const Array poses =
-      as_array(t[1], name, {-1, 4, 4}, "(N, 4, 4) T_world_camera with N timestamps",
-               stamps.shape(0));
+  const Array poses = as_array(t[1], name, {-1, 4, 4}, "(N, 4, 4) T_world_camera with N timestamps",
+                               stamps.shape(0));
   Trajectory out(static_cast<std::size_t>(stamps.shape(0)));
   for (std::size_t i = 0; i < out.size(); ++i) {
     out[i].timestamp_s = stamps.data()[i];
@@ -239,9 +239,7 @@ PyObject* new_exception(py::module_& m, const char* name, PyObject* bases, const
   return type;
 }
 
-void raise(PyObject* type, const std::string& message) {
-  PyErr_SetString(type, message.c_str());
-}
+void raise(PyObject* type, const std::string& message) { PyErr_SetString(type, message.c_str()); }
 
 }  // namespace
 
@@ -251,7 +249,8 @@ PYBIND11_MODULE(_lmalign, m) {
   g_error = new_exception(m, "Error", PyExc_Exception,
                           "Base class of every error lmalign raises on purpose.");
   g_invalid_argument = new_exception(
-      m, "InvalidArgument", py::make_tuple(py::handle(g_error), py::handle(PyExc_ValueError)).release().ptr(),
+      m, "InvalidArgument",
+      py::make_tuple(py::handle(g_error), py::handle(PyExc_ValueError)).release().ptr(),
       "A bad argument or option value (also a ValueError); the message names it.");
   g_io_error = new_exception(
       m, "IoError", py::make_tuple(py::handle(g_error), py::handle(PyExc_OSError)).release().ptr(),
@@ -306,7 +305,8 @@ PYBIND11_MODULE(_lmalign, m) {
           "frame_ids",
           [](const Map& map) {
             py::array_t<std::int64_t> a(static_cast<py::ssize_t>(map.frames.size()));
-            for (std::size_t i = 0; i < map.frames.size(); ++i) a.mutable_data()[i] = map.frames[i].id;
+            for (std::size_t i = 0; i < map.frames.size(); ++i)
+              a.mutable_data()[i] = map.frames[i].id;
             return a;
           },
           "(F,) int64: frame (keyframe) ids, in file order.")
@@ -318,8 +318,8 @@ PYBIND11_MODULE(_lmalign, m) {
           },
           "(F, 4, 4) float64: T_world_camera of each frame (p_world = T @ p_camera), metres.")
       .def_property_readonly("num_frames", [](const Map& map) { return map.frames.size(); })
-      .def("__len__", [](const Map& map) { return map.landmarks.size(); },
-           "Number of landmarks.")
+      .def(
+          "__len__", [](const Map& map) { return map.landmarks.size(); }, "Number of landmarks.")
       .def(
           "transformed",
           [](const Map& map, const py::handle& T) {
@@ -378,33 +378,41 @@ PYBIND11_MODULE(_lmalign, m) {
         return covariances_out(
             transform_covariances(transform_from(T, "T"), covariances_from(a, "covariances", -1)));
       },
-      py::arg("T"), py::arg("covariances"),
-      "(N, 3, 3) covariances (m^2) rotated by T: R C R^T.");
+      py::arg("T"), py::arg("covariances"), "(N, 3, 3) covariances (m^2) rotated by T: R C R^T.");
 
   // ------------------------------------------------------------ align
   py::class_<python::AlignOutcome>(m, "AlignmentResult",
                                    "What lmalign.align() returns (see its docstring).")
       .def_property_readonly(
           "T_target_source",
-          [](const python::AlignOutcome& o) { return matrix_out<4, 4>(o.outcome.result.T_target_source.matrix()); },
+          [](const python::AlignOutcome& o) {
+            return matrix_out<4, 4>(o.outcome.result.T_target_source.matrix());
+          },
           "(4, 4) float64: the estimate, p_target = T_target_source @ p_source (metres).")
       .def_property_readonly("strategy", [](const python::AlignOutcome& o) { return o.strategy; })
-      .def_property_readonly("converged", [](const python::AlignOutcome& o) { return o.outcome.result.converged; },
-                             "True when a convergence criterion stopped the run (not the budget).")
       .def_property_readonly(
-          "termination", [](const python::AlignOutcome& o) { return to_string(o.outcome.result.termination); },
+          "converged", [](const python::AlignOutcome& o) { return o.outcome.result.converged; },
+          "True when a convergence criterion stopped the run (not the budget).")
+      .def_property_readonly(
+          "termination",
+          [](const python::AlignOutcome& o) { return to_string(o.outcome.result.termination); },
           "Why the run stopped: 'transform', 'max_iterations', 'no_correspondences', ...")
-      .def_property_readonly("iterations", [](const python::AlignOutcome& o) { return o.outcome.result.iterations; })
-      .def_property_readonly("num_correspondences",
-                             [](const python::AlignOutcome& o) { return o.outcome.result.num_correspondences; })
       .def_property_readonly(
-          "initial_score_m2", [](const python::AlignOutcome& o) { return o.outcome.result.initial_score_m2; },
+          "iterations", [](const python::AlignOutcome& o) { return o.outcome.result.iterations; })
+      .def_property_readonly(
+          "num_correspondences",
+          [](const python::AlignOutcome& o) { return o.outcome.result.num_correspondences; })
+      .def_property_readonly(
+          "initial_score_m2",
+          [](const python::AlignOutcome& o) { return o.outcome.result.initial_score_m2; },
           "PCL fitness score at the initial guess: mean squared nearest-neighbour distance, m^2.")
-      .def_property_readonly("final_score_m2",
-                             [](const python::AlignOutcome& o) { return o.outcome.result.final_score_m2; },
-                             "PCL fitness score at the estimate, m^2.")
-      .def_property_readonly("wall_time_s", [](const python::AlignOutcome& o) { return o.outcome.result.wall_time_s; },
-                             "Wall time of the alignment (not of target preparation), seconds.")
+      .def_property_readonly(
+          "final_score_m2",
+          [](const python::AlignOutcome& o) { return o.outcome.result.final_score_m2; },
+          "PCL fitness score at the estimate, m^2.")
+      .def_property_readonly(
+          "wall_time_s", [](const python::AlignOutcome& o) { return o.outcome.result.wall_time_s; },
+          "Wall time of the alignment (not of target preparation), seconds.")
       .def_property_readonly(
           "started_s", [](const python::AlignOutcome& o) { return o.started_s; },
           "When the alignment began (after the target preparation), seconds on the clock of "
@@ -413,10 +421,12 @@ PYBIND11_MODULE(_lmalign, m) {
           "finished_s", [](const python::AlignOutcome& o) { return o.finished_s; },
           "When the alignment and its trust verdict ended, seconds on the clock of "
           "time.monotonic().")
-      .def_property_readonly("trustworthy", [](const python::AlignOutcome& o) { return o.outcome.trustworthy; },
-                             "The verdict without ground truth (docs/accuracy.md).")
-      .def_property_readonly("trust_reason", [](const python::AlignOutcome& o) { return o.outcome.trust_reason; },
-                             "'ok', or why the estimate is not trusted.")
+      .def_property_readonly(
+          "trustworthy", [](const python::AlignOutcome& o) { return o.outcome.trustworthy; },
+          "The verdict without ground truth (docs/accuracy.md).")
+      .def_property_readonly(
+          "trust_reason", [](const python::AlignOutcome& o) { return o.outcome.trust_reason; },
+          "'ok', or why the estimate is not trusted.")
       .def_property_readonly(
           "inlier_fraction",
           [](const python::AlignOutcome& o) -> py::object {
@@ -447,10 +457,14 @@ PYBIND11_MODULE(_lmalign, m) {
             return py::float_(o.outcome.adaptive->ambiguity);
           },
           "'adaptive' only (else None): the best distinct pose's score over the best's.")
-      .def_property_readonly("translation_sd_m", [](const python::AlignOutcome& o) { return o.outcome.covariance.translation_sd_m(); },
-                             "Standard deviation of the translation along its worst axis, metres.")
-      .def_property_readonly("rotation_sd_deg", [](const python::AlignOutcome& o) { return o.outcome.covariance.rotation_sd_deg(); },
-                             "Standard deviation of the rotation about its worst axis, degrees.")
+      .def_property_readonly(
+          "translation_sd_m",
+          [](const python::AlignOutcome& o) { return o.outcome.covariance.translation_sd_m(); },
+          "Standard deviation of the translation along its worst axis, metres.")
+      .def_property_readonly(
+          "rotation_sd_deg",
+          [](const python::AlignOutcome& o) { return o.outcome.covariance.rotation_sd_deg(); },
+          "Standard deviation of the rotation about its worst axis, degrees.")
       .def_property_readonly(
           "covariance",
           [](const python::AlignOutcome& o) -> py::object {
@@ -470,17 +484,17 @@ PYBIND11_MODULE(_lmalign, m) {
       "_align",
       [](const py::handle& source, const py::handle& target, const std::string& strategy,
          const py::handle& initial_guess, const py::handle& prior_sigma, int threads,
-         const py::handle& source_covariances,
-         const py::handle& target_covariances, const py::handle& target_weights, int k,
-         std::optional<int> max_iterations, std::optional<double> max_distance_m,
-         const std::string& covariance_norm) {
+         const py::handle& source_covariances, const py::handle& target_covariances,
+         const py::handle& target_weights, int k, std::optional<int> max_iterations,
+         std::optional<double> max_distance_m, const std::string& covariance_norm) {
         python::AlignRequest req;
         req.strategy = strategy;
         req.k = k;
         req.max_iterations = max_iterations;
         req.max_distance_m = max_distance_m;
         req.threads = threads;
-        if (!initial_guess.is_none()) req.initial_guess = transform_from(initial_guess, "initial_guess");
+        if (!initial_guess.is_none())
+          req.initial_guess = transform_from(initial_guess, "initial_guess");
         if (!prior_sigma.is_none()) {
           const std::vector<double> ps = vector_from(prior_sigma, "prior_sigma", 2);
           req.prior = PriorSigma{ps[0], ps[1]};
@@ -494,7 +508,8 @@ PYBIND11_MODULE(_lmalign, m) {
         std::vector<Mat3> source_cov;
         if (py::isinstance<Map>(source)) {
           if (!source_covariances.is_none())
-            throw InvalidArgument("source_covariances: give them only with an array source (a Map has its own)");
+            throw InvalidArgument(
+                "source_covariances: give them only with an array source (a Map has its own)");
           const Map& s = source.cast<const Map&>();
           source_points = s.positions();
           source_cov = s.covariances_m2();
@@ -509,7 +524,8 @@ PYBIND11_MODULE(_lmalign, m) {
         std::optional<PreparedTarget> prepared;
         if (py::isinstance<Map>(target)) {
           if (!target_covariances.is_none() || !target_weights.is_none())
-            throw InvalidArgument("target_covariances / target_weights: give them only with an array target");
+            throw InvalidArgument(
+                "target_covariances / target_weights: give them only with an array target");
           const Map& t = with_frame_index(target.cast<const Map&>());
           py::gil_scoped_release release;
           prepared.emplace(t, wopt);
@@ -517,14 +533,16 @@ PYBIND11_MODULE(_lmalign, m) {
           Points3 tp = points_from(target, "target");
           const auto n = static_cast<py::ssize_t>(tp.size());
           std::vector<Mat3> tc;
-          if (!target_covariances.is_none()) tc = covariances_from(target_covariances, "target_covariances", n);
+          if (!target_covariances.is_none())
+            tc = covariances_from(target_covariances, "target_covariances", n);
           std::vector<double> tw;
           if (!target_weights.is_none()) tw = vector_from(target_weights, "target_weights", n);
           py::gil_scoped_release release;
           prepared.emplace(std::move(tp));
           if (!tc.empty()) prepared->set_covariances(std::move(tc));
           if (!tw.empty()) {
-            for (WeightKind kind : {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance})
+            for (WeightKind kind :
+                 {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance})
               prepared->set_weights(kind, tw);
           }
         }
@@ -532,16 +550,19 @@ PYBIND11_MODULE(_lmalign, m) {
         return python::run_alignment(source_points, source_cov, *prepared, req);
       },
       py::arg("source"), py::arg("target"), py::arg("strategy"), py::arg("initial_guess"),
-      py::arg("prior_sigma"), py::arg("threads"), py::arg("source_covariances"), py::arg("target_covariances"),
-      py::arg("target_weights"), py::arg("k"), py::arg("max_iterations"),
-      py::arg("max_distance_m"), py::arg("covariance_norm"));
+      py::arg("prior_sigma"), py::arg("threads"), py::arg("source_covariances"),
+      py::arg("target_covariances"), py::arg("target_weights"), py::arg("k"),
+      py::arg("max_iterations"), py::arg("max_distance_m"), py::arg("covariance_norm"));
 
-  m.def("strategies", []() {
-    std::vector<std::string> names;
-    for (PaperStrategy s : all_paper_strategies()) names.push_back(to_string(s));
-    for (PaperStrategy s : beyond_paper_strategies()) names.push_back(to_string(s));
-    return names;
-  }, "Every strategy name align() accepts: the paper's four, then lmalign's own.");
+  m.def(
+      "strategies",
+      []() {
+        std::vector<std::string> names;
+        for (PaperStrategy s : all_paper_strategies()) names.push_back(to_string(s));
+        for (PaperStrategy s : beyond_paper_strategies()) names.push_back(to_string(s));
+        return names;
+      },
+      "Every strategy name align() accepts: the paper's four, then lmalign's own.");
   m.attr("RECOMMENDED_STRATEGY") = to_string(kRecommendedStrategy);
 
   // ------------------------------------------------------------ split
@@ -652,7 +673,9 @@ PYBIND11_MODULE(_lmalign, m) {
         const fs::path& out = output_dir;
         std::error_code ec;
         fs::create_directories(out, ec);
-        if (ec) throw IoError("cannot create the output folder '" + output_dir.string() + "': " + ec.message());
+        if (ec)
+          throw IoError("cannot create the output folder '" + output_dir.string() +
+                        "': " + ec.message());
         write_file_atomically((out / "config.yaml").string(),
                               [&](std::ostream& o) { o << resolved_config_yaml(config); });
         const std::vector<Mat3> source_covariances = in.source.covariances_m2();
@@ -666,8 +689,9 @@ PYBIND11_MODULE(_lmalign, m) {
           const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
           outcome = run_cases(config, cases, source_points, target, in.ground_truth, ro);
         }
-        write_file_atomically((out / "results.csv").string(),
-                              [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
+        write_file_atomically((out / "results.csv").string(), [&](std::ostream& o) {
+          write_results_csv(o, cases, outcome.records);
+        });
         const Summary summary = summarize(config, cases, outcome);
         write_file_atomically((out / "summary.json").string(),
                               [&](std::ostream& o) { write_summary_json(o, config, summary); });

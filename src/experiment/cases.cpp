@@ -159,8 +159,8 @@ void expand_random(const ExperimentSpec& e, std::size_t ei, const Points3& sourc
     Isometry3 D = Isometry3::Identity();
     D.linear() = R;
     D.translation() = pivot - R * pivot + offset;
-    out.push_back(make_drawn_case(e, ei, "start #" + std::to_string(s), "random", "offset_m",
-                                  length, D));
+    out.push_back(
+        make_drawn_case(e, ei, "start #" + std::to_string(s), "random", "offset_m", length, D));
   }
 }
 

@@ -447,8 +447,8 @@ class Parser {
                   {"k", "levels", "samples", "seed", "yaw_pivot", "translation_directions"});
     } else if (type == "random") {
       e.type = ExperimentType::kRandom;
-      keys.insert(keys.end(), {"k", "samples", "seed", "yaw_deg", "translation_m",
-                               "roll_pitch_deg", "pivot", "up_axis"});
+      keys.insert(keys.end(), {"k", "samples", "seed", "yaw_deg", "translation_m", "roll_pitch_deg",
+                               "pivot", "up_axis"});
     } else {
       fail(tnode, where + ".type",
            "unknown experiment type '" + type +
@@ -646,12 +646,13 @@ class Parser {
           const double v = number(m.get(key), m.path(key));
           if (!(v >= lo && v <= hi))
             fail(m.get(key), m.path(key),
-                 "expected a number in [" + shortest(lo) + ", " + (std::isinf(hi) ? std::string("inf") : shortest(hi)) + "] " + unit + ", got " + shortest(v));
+                 "expected a number in [" + shortest(lo) + ", " +
+                     (std::isinf(hi) ? std::string("inf") : shortest(hi)) + "] " + unit + ", got " +
+                     shortest(v));
           return v;
         };
         if (m.has("yaw_deg")) r.yaw_deg = bounded("yaw_deg", 0.0, 180.0, "degrees");
-        if (m.has("translation_m"))
-          r.translation_m = bounded("translation_m", 0.0, 1e6, "metres");
+        if (m.has("translation_m")) r.translation_m = bounded("translation_m", 0.0, 1e6, "metres");
         if (m.has("roll_pitch_deg"))
           r.roll_pitch_deg = bounded("roll_pitch_deg", 0.0, 90.0, "degrees");
         if (m.has("pivot")) r.pivot = pivot(m.get("pivot"), m.path("pivot"));

@@ -219,8 +219,8 @@ void write_results_csv(std::ostream& out, const std::vector<Case>& cases,
         << ',' << to_string(r.termination) << ',' << fixed(r.time_s, 6) << ','
         << (r.error ? shortest(r.error->rotation_deg) : "") << ','
         << (r.error ? shortest(r.error->translation_m) : "") << ','
-        << (r.decision.success ? "true" : "false") << ',' << to_string(r.decision.decided_by)
-        << ',' << (r.trustworthy ? "true" : "false") << '\n';
+        << (r.decision.success ? "true" : "false") << ',' << to_string(r.decision.decided_by) << ','
+        << (r.trustworthy ? "true" : "false") << '\n';
   }
 }
 

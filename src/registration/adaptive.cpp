@@ -73,8 +73,8 @@ Refinement refine(const Context& c, const Isometry3& T0, PoseSigma sigma0,
       out.termination = TerminationReason::kNoCorrespondences;
       return out;
     }
-    const P2DStep step = solve_p2d_step(pairs, c.target->points(), sigma.pivot_m,
-                                        o.gate.chi2_threshold, up4);
+    const P2DStep step =
+        solve_p2d_step(pairs, c.target->points(), sigma.pivot_m, o.gate.chi2_threshold, up4);
     out.last_step = step;
     out.pivot = sigma.pivot_m;
     if (!step.ok) {
@@ -215,8 +215,7 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
                             " is not finite");
     }
   }
-  if (!source.covariances_m2.empty() &&
-      source.covariances_m2.size() != source.positions.size()) {
+  if (!source.covariances_m2.empty() && source.covariances_m2.size() != source.positions.size()) {
     throw InvalidArgument("adaptive alignment: " + std::to_string(source.covariances_m2.size()) +
                           " source covariances for " + std::to_string(source.positions.size()) +
                           " landmarks");
@@ -247,10 +246,9 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
   result.up_source = source.up.value_or(options.default_up).normalized();
   result.up_target = target.up_axis().value_or(options.default_up).normalized();
   const double step_rad = options.search.yaw_step_deg * kPi / 180.0;
-  result.vote_cell_m =
-      options.vote_cell_factor *
-      std::max(result.target_scales.spacing_m,
-               2.0 * std::sin(0.5 * step_rad) * result.source_scales.radius_m);
+  result.vote_cell_m = options.vote_cell_factor *
+                       std::max(result.target_scales.spacing_m,
+                                2.0 * std::sin(0.5 * step_rad) * result.source_scales.radius_m);
 
   Context c;
   c.source = &source;
@@ -270,17 +268,16 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     window.rotation_sd_rad = prior->rotation_deg * kPi / 180.0;
     window.translation_sd_m = prior->translation_m;
   }
-  const bool search_needed =
-      prior == nullptr || window.rotation_sd_rad > 0.5 * step_rad ||
-      window.translation_sd_m > result.vote_cell_m;
+  const bool search_needed = prior == nullptr || window.rotation_sd_rad > 0.5 * step_rad ||
+                             window.translation_sd_m > result.vote_cell_m;
   std::vector<AdaptiveHypothesis> hyps;
   PoseSigma sigma_search;
   sigma_search.translation_m = options.start_sigma_factor * 2.0 * result.vote_cell_m;
   sigma_search.rotation_rad = options.start_sigma_factor * step_rad;
   if (search_needed) {
     const std::vector<YawHypothesis> yh = yaw_vote_hypotheses(
-        source.positions, target.points(), result.up_source, result.up_target,
-        result.vote_cell_m, options.search, prior != nullptr ? &window : nullptr);
+        source.positions, target.points(), result.up_source, result.up_target, result.vote_cell_m,
+        options.search, prior != nullptr ? &window : nullptr);
     for (const YawHypothesis& h : yh) {
       AdaptiveHypothesis a;
       a.T_start = h.T_target_source;
@@ -353,9 +350,9 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     std::vector<GatedPair> pairs;
     gate_correspondences(c.side, target, fin.T, c.floor_m, wide, options.gate, nullptr, &pairs);
     result.num_overlap = pairs.size();
-    result.inlier_ratio = pairs.empty() ? 0.0
-                                        : static_cast<double>(result.num_inliers) /
-                                              static_cast<double>(pairs.size());
+    result.inlier_ratio =
+        pairs.empty() ? 0.0
+                      : static_cast<double>(result.num_inliers) / static_cast<double>(pairs.size());
   }
   if (fin.last_step.ok) result.covariance = p2d_covariance(fin.last_step, fin.num_pairs, fin.pivot);
 

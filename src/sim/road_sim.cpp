@@ -19,13 +19,13 @@ namespace {
 
 constexpr double kImageWidthPx = 1242.0;
 constexpr double kImageHeightPx = 375.0;
-constexpr double kPixelSigmaPx = 0.5;    // pixel noise of observations and across the ray
-constexpr double kLaneX = 1.75;          // camera path: right lane
-constexpr double kGridM = 3.0;           // window grid on the facades
-constexpr double kDashPeriodM = 9.0;     // lane-centre dash every 9 m ...
-constexpr double kDashLengthM = 3.0;     // ... 3 m long
-constexpr double kEdgeLineX = 3.5;       // edge lines at x = -/+ 3.5 m
-constexpr double kTextureStepM = 1.5;    // regular ground texture
+constexpr double kPixelSigmaPx = 0.5;     // pixel noise of observations and across the ray
+constexpr double kLaneX = 1.75;           // camera path: right lane
+constexpr double kGridM = 3.0;            // window grid on the facades
+constexpr double kDashPeriodM = 9.0;      // lane-centre dash every 9 m ...
+constexpr double kDashLengthM = 3.0;      // ... 3 m long
+constexpr double kEdgeLineX = 3.5;        // edge lines at x = -/+ 3.5 m
+constexpr double kTextureStepM = 1.5;     // regular ground texture
 constexpr double kTextureJitterM = 0.15;  // per texture node, per axis
 constexpr double kWindowJitterM = 0.10;   // per window corner, per axis
 
@@ -38,7 +38,7 @@ std::uint64_t mix(std::uint64_t x) {  // splitmix64 finaliser
 
 double uniform01(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
 
-double gauss(std::mt19937_64& rng) {  // Box-Muller, one value per call
+double gauss(std::mt19937_64& rng) {       // Box-Muller, one value per call
   const double u1 = 1.0 - uniform01(rng);  // (0, 1]
   const double u2 = uniform01(rng);
   return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
@@ -65,7 +65,8 @@ double world_hash01(std::uint64_t seed, std::uint64_t kind, std::int64_t cell, s
 constexpr double kBlockM = 12.0;
 double facade_x(const RoadSimOptions& o, double side, double z) {
   const auto block = static_cast<std::int64_t>(std::floor(z / kBlockM));
-  return side * (o.facade_offset_m + 3.0 * (world_hash01(o.seed, side > 0 ? 1 : 2, block, 0) - 0.5));
+  return side *
+         (o.facade_offset_m + 3.0 * (world_hash01(o.seed, side > 0 ? 1 : 2, block, 0) - 0.5));
 }
 
 // A true landmark position with z in [z0, z0 + length]; false if the draw fell outside the
@@ -184,8 +185,8 @@ Map simulate_session(const RoadSimOptions& o, double z0, std::uint64_t session_s
     const std::size_t want =
         2 + static_cast<std::size_t>(uniform01(rng) * static_cast<double>(o.max_observations - 1));
     const std::size_t nobs = std::min(want, visible.size());
-    const std::size_t start = static_cast<std::size_t>(
-        uniform01(rng) * static_cast<double>(visible.size() - nobs + 1));
+    const std::size_t start =
+        static_cast<std::size_t>(uniform01(rng) * static_cast<double>(visible.size() - nobs + 1));
     Landmark lm;
     for (std::size_t i = start; i < start + nobs; ++i) {
       const Eigen::Vector2d px =
@@ -204,11 +205,11 @@ Map simulate_session(const RoadSimOptions& o, double z0, std::uint64_t session_s
     R.col(1) = ray.cross(R.col(0));
     const Vec3 e(sigma_across * gauss(rng), sigma_across * gauss(rng), sigma_along * gauss(rng));
     lm.p_world = P + R * e;
-    lm.cov_world_m2 = R *
-                      Vec3(sigma_across * sigma_across, sigma_across * sigma_across,
-                           sigma_along * sigma_along)
-                          .asDiagonal() *
-                      R.transpose();
+    lm.cov_world_m2 =
+        R *
+        Vec3(sigma_across * sigma_across, sigma_across * sigma_across, sigma_along * sigma_along)
+            .asDiagonal() *
+        R.transpose();
     made.emplace_back(visible[start + nobs - 1], std::move(lm));
   }
   // Creation order, as a SLAM system numbers them: by the frame that made them.

@@ -21,8 +21,9 @@ using CliSimulate = CliTest;
 
 TEST_F(CliSimulate, RoadPairIsWrittenReadableAndReproducible) {
   const std::string a = path("a"), b = path("b");
-  const std::string args = "simulate --scene road --seed 5 --overlap 0.25 --landmarks 400 "
-                           "--transform 1,2,3,0,0,30 -o ";
+  const std::string args =
+      "simulate --scene road --seed 5 --overlap 0.25 --landmarks 400 "
+      "--transform 1,2,3,0,0,30 -o ";
   const test::CliRun r = run(args + shell_quote(a));
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("400 landmarks"), std::string::npos) << r.out;

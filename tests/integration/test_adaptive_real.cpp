@@ -45,7 +45,8 @@ class PairTest : public ::testing::Test {
     if (!std::filesystem::exists(Files::source()) || !std::filesystem::exists(Files::target())) {
       return;
     }
-    source_ = std::make_unique<SourceLandmarks>(SourceLandmarks::from_map(read_map(Files::source())));
+    source_ =
+        std::make_unique<SourceLandmarks>(SourceLandmarks::from_map(read_map(Files::source())));
     target_ = std::make_unique<PreparedTarget>(read_map(Files::target()));
   }
   static void TearDownTestSuite() {

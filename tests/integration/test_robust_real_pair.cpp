@@ -22,7 +22,8 @@ class RobustRealPair : public test::RealPairTest {
 
 TEST_F(RobustRealPair, RobustObsReachesTheTruthWhereThePaperIsBiased) {
   // Table 1's displacement: the paper's base ends 4.6 deg / 4.7 cm from the truth.
-  const TransformError e = run(PaperStrategy::kRobustObs, pose_from_xyz_rpy_deg(0, 1, 0.4, 10, 0, 22.5));
+  const TransformError e =
+      run(PaperStrategy::kRobustObs, pose_from_xyz_rpy_deg(0, 1, 0.4, 10, 0, 22.5));
   EXPECT_LT(e.rotation_deg, 1.0);
   EXPECT_LT(e.translation_m, 0.015);
 }

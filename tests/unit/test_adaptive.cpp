@@ -95,7 +95,8 @@ TEST(DataScales, FloorIsTheMedianSmallestAxisSdOfTheCovariances) {
   for (std::size_t i = 0; i < pts.size(); ++i) sd_min[i] = 1e-3 * static_cast<double>(1 + i);
   std::shuffle(sd_min.begin(), sd_min.end(), rng);
   std::vector<Mat3> cov;
-  for (double sd : sd_min) cov.push_back(covariance(random_rotation(rng), 10.0 * sd, sd, 40.0 * sd));
+  for (double sd : sd_min)
+    cov.push_back(covariance(random_rotation(rng), 10.0 * sd, sd, 40.0 * sd));
   const DataScales s = estimate_data_scales(pts, &cov);
   EXPECT_TRUE(s.has_covariances);
   EXPECT_NEAR(s.floor_m, 0.365, 1e-9);
@@ -292,8 +293,8 @@ TEST(MahalanobisGate, AnisotropicCovarianceKeepsAnOffsetAlongItsLongAxisOnly) {
   const std::vector<Mat3> src_cov(2, covariance(Mat3::Identity(), 0.5, 0.01, 0.01));
   side.points = &src2;
   side.covariances_m2 = &src_cov;
-  gate_correspondences(side, point_target, T, floor, PoseSigma{}, MahalanobisGateOptions{},
-                       nullptr, &pairs);
+  gate_correspondences(side, point_target, T, floor, PoseSigma{}, MahalanobisGateOptions{}, nullptr,
+                       &pairs);
   ASSERT_EQ(pairs.size(), 1u);
   EXPECT_EQ(pairs[0].source_index, 1u);  // the offset along target y
   EXPECT_NEAR(pairs[0].d2, 0.16 / (0.25 + floor * floor), 1e-9);
@@ -780,8 +781,8 @@ TEST(YawVote, RotationBetweenMapsFromOntoTo) {
   };
   for (int i = 0; i < 20; ++i) check(Vec3(n(rng), n(rng), n(rng)), Vec3(n(rng), n(rng), n(rng)));
   // Opposite vectors (a half turn), including along the axes the fallback is built from.
-  for (const Vec3& v : {Vec3(Vec3::UnitZ()), Vec3(Vec3::UnitX()), Vec3(Vec3::UnitY()),
-                        Vec3(0.3, -0.4, 2.0)}) {
+  for (const Vec3& v :
+       {Vec3(Vec3::UnitZ()), Vec3(Vec3::UnitX()), Vec3(Vec3::UnitY()), Vec3(0.3, -0.4, 2.0)}) {
     check(v, -v);
   }
   check(Vec3::UnitZ(), Vec3::UnitZ());
@@ -1040,8 +1041,12 @@ TEST(Adaptive, RefusesBadInput) {
   const Room room = make_room(far_truth(), 48);
   const PreparedTarget target = room.target();
   PriorSigma p;
-  for (const auto& rt : {std::pair<double, double>{-1.0, 0.1}, {1.0, -0.1}, {kNaN, 0.1},
-                         {1.0, kNaN}, {0.0, 0.1}, {1.0, std::numeric_limits<double>::infinity()}}) {
+  for (const auto& rt : {std::pair<double, double>{-1.0, 0.1},
+                         {1.0, -0.1},
+                         {kNaN, 0.1},
+                         {1.0, kNaN},
+                         {0.0, 0.1},
+                         {1.0, std::numeric_limits<double>::infinity()}}) {
     p.rotation_deg = rt.first;
     p.translation_m = rt.second;
     std::string why;

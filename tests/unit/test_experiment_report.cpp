@@ -102,11 +102,30 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
   while (std::getline(in, line)) rows.push_back(split(line));
   ASSERT_EQ(rows.size(), 12u);
   for (const auto& r : rows) ASSERT_EQ(r.size(), 24u);
-  EXPECT_EQ(rows[4], (std::vector<std::string>{
-                         "ks",         "1",    "k=5",  "",          "k",           "5",
-                         "0",          "1",    "0",    "0",         "0",           "0",
-                         "covariance", "5",    "0.25", "0.0140339", "40",          "absolute_mse",
-                         "0.123457",   "15.3", "0.31", "false",     "ground_truth", "false"}));
+  EXPECT_EQ(rows[4], (std::vector<std::string>{"ks",
+                                               "1",
+                                               "k=5",
+                                               "",
+                                               "k",
+                                               "5",
+                                               "0",
+                                               "1",
+                                               "0",
+                                               "0",
+                                               "0",
+                                               "0",
+                                               "covariance",
+                                               "5",
+                                               "0.25",
+                                               "0.0140339",
+                                               "40",
+                                               "absolute_mse",
+                                               "0.123457",
+                                               "15.3",
+                                               "0.31",
+                                               "false",
+                                               "ground_truth",
+                                               "false"}));
   EXPECT_EQ(rows[9][2], "yaw=30 #1");
   EXPECT_EQ(rows[9][3], "yaw");
   EXPECT_EQ(rows[9][4], "yaw_deg");

@@ -190,7 +190,7 @@ TEST_F(RobustScene, PaperBaseIsBiasedAndEveryNamedStrategyIsAccurate) {
   for (PaperStrategy s : beyond_paper_strategies()) {
     if (s == PaperStrategy::kRobustObs4Dof) continue;    // the truth has roll and pitch
     if (s == PaperStrategy::kGlobalRobustObs) continue;  // GlobalSearch below
-    if (s == PaperStrategy::kAdaptive) continue;  // test_adaptive.cpp
+    if (s == PaperStrategy::kAdaptive) continue;         // test_adaptive.cpp
     // The point-to-distribution strategies also get the source noise's covariance (3 mm);
     // the target's are map_from_points' (not the noise's: a misspecified model).
     const std::vector<Mat3> source_cov(scene_->source.size(), 9e-6 * Mat3::Identity());

@@ -144,9 +144,9 @@ struct RandomStartSpec {
   /// Seed of the draws: draw i comes from its own std::mt19937_64 seeded from (seed, i), so a
   /// draw does not change when samples changes.
   std::uint64_t seed = 1;
-  double yaw_deg = 180.0;          ///< in [0, 180]
-  double translation_m = 3.0;      ///< >= 0, finite
-  double roll_pitch_deg = 3.0;     ///< in [0, 90]
+  double yaw_deg = 180.0;       ///< in [0, 180]
+  double translation_m = 3.0;   ///< >= 0, finite
+  double roll_pitch_deg = 3.0;  ///< in [0, 90]
   /// landmark: a source landmark drawn per start; centroid (default): the source centroid;
   /// origin: the frame's origin.
   YawPivot pivot = YawPivot::kCentroid;

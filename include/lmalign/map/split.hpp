@@ -50,8 +50,9 @@ struct SplitStats {
 ///     count and mean observation distance, being derived from the observations, are the window's.
 ///   retriangulate = true: position and covariance come from triangulate() on the window's
 ///     observations and the window frames' poses (and each frame's own intrinsics, undistorted,
-///     when it has them: maps read from COLMAP or Bundler; else options.triangulation's); landmarks whose triangulation fails or whose
-///     max parallax is below min_parallax_deg are dropped (and counted in `stats`).
+///     when it has them: maps read from COLMAP or Bundler; else options.triangulation's); landmarks
+///     whose triangulation fails or whose max parallax is below min_parallax_deg are dropped (and
+///     counted in `stats`).
 /// Throws InvalidArgument ("split options: <why>") on invalid options, or if an in-window
 /// observation names a frame missing from `map`, or a frame id is duplicated.
 Map split_map(const Map& map, const SplitOptions& options, SplitStats* stats = nullptr);

@@ -87,7 +87,7 @@ struct AdaptiveOptions {
   bool four_dof = false;
 
   // --- convergence ---
-  int max_iterations = 120;        ///< per refinement, >= 1
+  int max_iterations = 120;           ///< per refinement, >= 1
   int max_iterations_per_level = 15;  ///< before the pose uncertainty shrinks anyway, >= 1
   /// Each time the estimate settles, the gate's pose uncertainty is multiplied by this; (0, 1).
   /// Below the floor it becomes zero.

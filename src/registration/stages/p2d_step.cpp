@@ -65,8 +65,8 @@ Isometry3 apply_step(const Isometry3& T_target_source, const Vec6& xi, const Vec
   const Vec3 rho = xi.head<3>();
   const Vec3 phi = xi.tail<3>();
   const double angle = phi.norm();
-  const Mat3 dR = angle > 0.0 ? Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix()
-                              : Mat3::Identity();
+  const Mat3 dR =
+      angle > 0.0 ? Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix() : Mat3::Identity();
   Isometry3 T = Isometry3::Identity();
   T.linear() = dR * T_target_source.linear();
   T.translation() = dR * (T_target_source.translation() - pivot_m) + pivot_m + rho;

@@ -192,9 +192,9 @@ Mat3 rotation_between(const Vec3& from, const Vec3& to) {
 }
 
 std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
-                                               const Points3& target_points,
-                                               const Vec3& up_source, const Vec3& up_target,
-                                               double cell_m, const YawVoteOptions& options,
+                                               const Points3& target_points, const Vec3& up_source,
+                                               const Vec3& up_target, double cell_m,
+                                               const YawVoteOptions& options,
                                                const PoseWindow* window) {
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("yaw-vote search: " + why);
@@ -288,7 +288,8 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     if (v == 0) continue;
     const bool has_prev = circular || i > 0;
     const bool has_next = circular || i + 1 < n_yaw;
-    const std::size_t prev = has_prev ? all[static_cast<std::size_t>((i + n_yaw - 1) % n_yaw)].votes : 0;
+    const std::size_t prev =
+        has_prev ? all[static_cast<std::size_t>((i + n_yaw - 1) % n_yaw)].votes : 0;
     const std::size_t next = has_next ? all[static_cast<std::size_t>((i + 1) % n_yaw)].votes : 0;
     if (v >= prev && v >= next) out.push_back(all[static_cast<std::size_t>(i)]);
   }

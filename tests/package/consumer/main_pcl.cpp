@@ -4,9 +4,9 @@
 #include <cstdio>
 #include <memory>
 
-#include <lmalign/pcl.hpp>
 #include <pcl/point_cloud.h>
 #include <pcl/point_types.h>
+#include <lmalign/pcl.hpp>
 
 int main() {
   auto target = std::make_shared<pcl::PointCloud<pcl::PointXYZ>>();

@@ -40,8 +40,8 @@ struct MahalanobisGateOptions {
 
 /// The isotropic pose-uncertainty term of the gate (see the file comment).
 struct PoseSigma {
-  double translation_m = 0.0;  ///< >= 0
-  double rotation_rad = 0.0;   ///< >= 0
+  double translation_m = 0.0;   ///< >= 0
+  double rotation_rad = 0.0;    ///< >= 0
   Vec3 pivot_m = Vec3::Zero();  ///< target frame
 };
 
@@ -49,7 +49,7 @@ struct PoseSigma {
 struct GatedPair {
   std::uint32_t source_index = 0;
   std::uint32_t target_index = 0;
-  double d2 = 0.0;                 ///< Mahalanobis distance squared at the current estimate
+  double d2 = 0.0;                     ///< Mahalanobis distance squared at the current estimate
   Vec3 moved_source_m = Vec3::Zero();  ///< T p_s, target frame
   Mat3 information = Mat3::Zero();     ///< S^-1, 1/m^2
 };

@@ -20,8 +20,8 @@ namespace lmalign {
 
 /// One solved step.
 struct P2DStep {
-  bool ok = false;  ///< false: fewer pairs than unknowns, or singular normal equations
-  Vec6 xi = Vec6::Zero();  ///< (rho [m], phi [rad]) about the pivot
+  bool ok = false;              ///< false: fewer pairs than unknowns, or singular normal equations
+  Vec6 xi = Vec6::Zero();       ///< (rho [m], phi [rad]) about the pivot
   Mat6 hessian = Mat6::Zero();  ///< sum w J^T Omega J about the pivot (the 4-DoF rows/cols of
                                 ///< the unused rotations are zero)
   double chi2 = 0.0;            ///< sum w r^T Omega r before the step
@@ -41,7 +41,8 @@ Isometry3 apply_step(const Isometry3& T_target_source, const Vec6& xi, const Vec
 /// The 6x6 covariance of the estimate in lmalign's convention (uncertainty.hpp: left
 /// perturbation about the target frame's origin) from a step's Hessian about `pivot`:
 /// Cov = s^2 A H^-1 A^T with A = [[I, [pivot]x], [0, I]] and s^2 = chi2 / (3 n - 6) (the
-/// variance factor, invariant to the scale of the kernel weights; 1 when n <= 2). `valid` is false when H is singular.
+/// variance factor, invariant to the scale of the kernel weights; 1 when n <= 2). `valid` is false
+/// when H is singular.
 PoseCovariance p2d_covariance(const P2DStep& step, std::size_t num_pairs, const Vec3& pivot_m);
 
 }  // namespace lmalign

@@ -39,14 +39,14 @@ struct YawVoteOptions {
 /// A prior on T_target_source: the guess and its standard deviations.
 struct PoseWindow {
   Isometry3 T_target_source_guess = Isometry3::Identity();
-  double rotation_sd_rad = 0.0;    ///< > 0
-  double translation_sd_m = 0.0;   ///< > 0
+  double rotation_sd_rad = 0.0;   ///< > 0
+  double translation_sd_m = 0.0;  ///< > 0
 };
 
 struct YawHypothesis {
   Isometry3 T_target_source = Isometry3::Identity();
-  double yaw_rad = 0.0;     ///< about the target's up axis, relative to the base rotation
-  std::size_t votes = 0;    ///< peak votes (3x3x3 cells)
+  double yaw_rad = 0.0;   ///< about the target's up axis, relative to the base rotation
+  std::size_t votes = 0;  ///< peak votes (3x3x3 cells)
 };
 
 /// The hypotheses for aligning `source_points` to `target_points` (metres; see the file
@@ -56,9 +56,9 @@ struct YawHypothesis {
 /// Throws InvalidArgument on invalid options, fewer than 3 points on a side, a non-finite point,
 /// a zero up axis, a non-positive cell, or an invalid window.
 std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
-                                               const Points3& target_points,
-                                               const Vec3& up_source, const Vec3& up_target,
-                                               double cell_m, const YawVoteOptions& options,
+                                               const Points3& target_points, const Vec3& up_source,
+                                               const Vec3& up_target, double cell_m,
+                                               const YawVoteOptions& options,
                                                const PoseWindow* window = nullptr);
 
 /// The rotation taking unit vector `from` onto unit vector `to` by the smallest angle (about
