@@ -8,6 +8,7 @@
 //    coordinates, with step halving if a step increases the cost or puts the point behind a camera.
 // 3. Covariance (J^T J)^-1 sigma^2 from the Jacobian at the final point.
 #include "lmalign/map/triangulation.hpp"
+#include "lmalign/core/geometry.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -20,7 +21,6 @@ namespace lmalign {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 /// Normal matrices with lambda_min / lambda_max below this are treated as singular.
 constexpr double kMinReciprocalCondition = 1e-12;
 /// Gauss-Newton stops when the step is below this fraction of (1 + |p|), metres.

@@ -15,8 +15,6 @@ namespace lmalign {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-
 std::string num(double v) {
   char b[64];
   std::snprintf(b, sizeof b, "%g", v);
@@ -239,7 +237,7 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
   // --- scales ---
   result.source_scales = estimate_data_scales(source.positions, &source.covariances_m2);
   const std::vector<Mat3>* tgt_cov = target.has_covariances() ? &target.covariances_m2() : nullptr;
-  result.target_scales = estimate_data_scales(target.points(), tgt_cov);
+  result.target_scales = estimate_data_scales(target.points(), tgt_cov, 4096, &target.tree());
   result.floor_m = options.floor_m > 0.0
                        ? options.floor_m
                        : std::max(result.source_scales.floor_m, result.target_scales.floor_m);

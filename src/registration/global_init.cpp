@@ -9,13 +9,12 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/score.hpp"
 
 namespace lmalign {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 std::string num(double v) {
   char b[64];

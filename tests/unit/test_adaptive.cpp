@@ -29,7 +29,6 @@
 namespace lmalign {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 double deg(double rad) { return rad * 180.0 / kPi; }
@@ -140,6 +139,22 @@ TEST(DataScales, RefusesTooFewPointsNonFinitePointsAndMismatchedCovariances) {
   const Points3 ok = grid_points(1.0, Vec3::Zero());
   const std::vector<Mat3> cov(ok.size() - 1, Mat3::Identity());
   EXPECT_THROW(estimate_data_scales(ok, &cov), InvalidArgument);
+}
+
+TEST(DataScales, AGivenTreeGivesTheSameScalesAndMustHoldTheSamePoints) {
+  // An irregular cloud (not a grid: distinct nearest-neighbour distances).
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  Points3 pts(700);
+  for (Vec3& p : pts) p = Vec3(u(rng), u(rng), 0.3 * u(rng));
+  const KdTree tree(pts);
+  const DataScales own = estimate_data_scales(pts, nullptr);
+  const DataScales given = estimate_data_scales(pts, nullptr, 4096, &tree);
+  EXPECT_EQ(own.spacing_m, given.spacing_m);
+  EXPECT_EQ(own.floor_m, given.floor_m);
+  EXPECT_EQ(own.radius_m, given.radius_m);
+  const KdTree smaller(Points3(pts.begin(), pts.end() - 1));
+  EXPECT_THROW(estimate_data_scales(pts, nullptr, 4096, &smaller), InvalidArgument);
 }
 
 // ------------------------------------------------------------------------------------------

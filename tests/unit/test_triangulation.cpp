@@ -8,12 +8,11 @@
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
 
+#include "lmalign/core/geometry.hpp"
 #include "lmalign/map/triangulation.hpp"
 
 namespace lmalign {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Camera at `centre` whose optical axis (+z) points at `target`, rolled by `roll` rad.
 Isometry3 look_at(const Vec3& centre, const Vec3& target, double roll) {

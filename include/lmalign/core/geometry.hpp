@@ -8,6 +8,10 @@
 
 namespace lmalign {
 
+/// pi, and degrees to radians (multiply by it).
+inline constexpr double kPi = 3.14159265358979323846;
+inline constexpr double kRadPerDeg = kPi / 180.0;
+
 /// The paper's displacement (method.md §5): p' = R p + t with R = Rz(yaw) Ry(pitch) Rx(roll)
 /// (MRPT CPose3D(x, y, z, yaw, pitch, roll)); translations in metres, angles in degrees.
 /// It acts about the world origin, not about a map centroid.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include <Eigen/Eigenvalues>
@@ -23,7 +24,7 @@ double median_of(std::vector<double> v) {
 }  // namespace
 
 DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* covariances_m2,
-                                std::size_t max_samples) {
+                                std::size_t max_samples, const KdTree* tree) {
   if (points.size() < 2) {
     throw InvalidArgument("estimate_data_scales: need at least 2 landmarks, got " +
                           std::to_string(points.size()));
@@ -35,6 +36,10 @@ DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* 
     }
   }
   const bool with_cov = covariances_m2 != nullptr && !covariances_m2->empty();
+  if (tree != nullptr && tree->size() != points.size()) {
+    throw InvalidArgument("estimate_data_scales: the tree holds " + std::to_string(tree->size()) +
+                          " points, not the " + std::to_string(points.size()) + " landmarks");
+  }
   if (with_cov && covariances_m2->size() != points.size()) {
     throw InvalidArgument("estimate_data_scales: " + std::to_string(covariances_m2->size()) +
                           " covariances for " + std::to_string(points.size()) + " landmarks");
@@ -54,7 +59,8 @@ DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* 
   s.radius_m = std::max(median_of(dist), 1e-6);
 
   // Spacing: nearest other landmark of every strided sample.
-  const KdTree tree(points);
+  std::optional<KdTree> own;
+  if (tree == nullptr) tree = &own.emplace(points);
   std::vector<double> nn;
   nn.reserve(m);
   double smallest_positive = 0.0;
@@ -62,7 +68,7 @@ DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* 
     const std::size_t i = j * n / m;
     PointIndex idx[2];
     double d2[2];
-    if (tree.knn(points[i], 2, idx, d2) == 2) {
+    if (tree->knn(points[i], 2, idx, d2) == 2) {
       const double d = std::sqrt(d2[1]);
       nn.push_back(d);
       if (d > 0.0 && (smallest_positive == 0.0 || d < smallest_positive)) smallest_positive = d;

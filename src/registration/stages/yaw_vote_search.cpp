@@ -6,12 +6,12 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
 
 namespace lmalign {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr std::int64_t kCellLimit = std::int64_t{1} << 20;  // 21 bits per axis in a key
 constexpr std::uint64_t kEmpty = ~std::uint64_t{0};
 
@@ -83,22 +83,26 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
   grid.reset(rotated.size() * target.size());
   const double inv = 1.0 / cell;
   const double r2 = radius * radius;
-  auto accepted = [&](const Vec3& t) {
-    return !std::isfinite(radius) || (t - centre).squaredNorm() <= r2;
-  };
-  for (const Vec3& x : rotated) {
-    for (const Vec3& q : target) {
-      const Vec3 t = q - x;
-      if (!accepted(t)) continue;
-      const double a = std::floor(t.dot(e1) * inv);
-      const double b = std::floor(t.dot(e2) * inv);
-      if (std::abs(a) >= static_cast<double>(kCellLimit - 2) ||
-          std::abs(b) >= static_cast<double>(kCellLimit - 2)) {
-        continue;
+  // Every vote t = q - x within the window, with its horizontal cell (a, b); both passes below
+  // (the vote, then the peak's heights) see the same votes.
+  auto for_each_vote = [&](auto&& visit) {
+    for (const Vec3& x : rotated) {
+      for (const Vec3& q : target) {
+        const Vec3 t = q - x;
+        if (std::isfinite(radius) && (t - centre).squaredNorm() > r2) continue;
+        const double a = std::floor(t.dot(e1) * inv);
+        const double b = std::floor(t.dot(e2) * inv);
+        if (std::abs(a) >= static_cast<double>(kCellLimit - 2) ||
+            std::abs(b) >= static_cast<double>(kCellLimit - 2)) {
+          continue;
+        }
+        visit(t, a, b);
       }
-      grid.add(pack(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b), 0));
     }
-  }
+  };
+  for_each_vote([&](const Vec3&, double a, double b) {
+    grid.add(pack(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b), 0));
+  });
   // The 32 fullest cells, then their 3x3 sums.
   std::vector<std::pair<std::uint32_t, std::uint64_t>> top;
   const auto& keys = grid.keys();
@@ -139,18 +143,12 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
   if (best.votes == 0) return best;
   // The vertical part: median over the votes in the peak's 3x3 cells.
   heights.clear();
-  for (const Vec3& x : rotated) {
-    for (const Vec3& q : target) {
-      const Vec3 t = q - x;
-      if (!accepted(t)) continue;
-      const double a = std::floor(t.dot(e1) * inv);
-      const double b = std::floor(t.dot(e2) * inv);
-      if (std::abs(a - static_cast<double>(best_x)) <= 1.0 &&
-          std::abs(b - static_cast<double>(best_y)) <= 1.0) {
-        heights.push_back(t.dot(up));
-      }
+  for_each_vote([&](const Vec3& t, double a, double b) {
+    if (std::abs(a - static_cast<double>(best_x)) <= 1.0 &&
+        std::abs(b - static_cast<double>(best_y)) <= 1.0) {
+      heights.push_back(t.dot(up));
     }
-  }
+  });
   const std::size_t mid = heights.size() / 2;
   std::nth_element(heights.begin(), heights.begin() + static_cast<std::ptrdiff_t>(mid),
                    heights.end());

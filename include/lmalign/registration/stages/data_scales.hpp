@@ -11,6 +11,7 @@
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/map/map.hpp"
+#include "lmalign/search/kdtree.hpp"
 
 namespace lmalign {
 
@@ -33,12 +34,14 @@ struct DataScales {
 
 /// Measures the scales of a landmark set: `points` (N x 3, metres) and, optionally, one 3x3
 /// covariance per point (m^2, same frame; nullptr or empty = none). At most `max_samples`
-/// landmarks (evenly strided) enter the spacing and floor medians. Deterministic.
+/// landmarks (evenly strided) enter the spacing and floor medians. `tree`, optional: a kd-tree
+/// already built over exactly `points` (e.g. PreparedTarget::tree()), used instead of building
+/// one; the result is the same. Deterministic.
 /// Throws InvalidArgument for fewer than 2 points, a non-finite point, or covariances whose
 /// count differs from the points'. Coincident landmarks (zero spacing) give the smallest
 /// positive spacing among the samples, or 1e-6 m if all coincide.
 DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* covariances_m2,
-                                std::size_t max_samples = 4096);
+                                std::size_t max_samples = 4096, const KdTree* tree = nullptr);
 
 /// The up (anti-gravity) direction of a SLAM or SfM map in its own frame, from its frames
 /// (keyframe poses T_world_camera; cameras with x right, y down, z forward, as in the map file):
