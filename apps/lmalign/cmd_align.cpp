@@ -373,6 +373,8 @@ int run_align(const AlignArgs& a) {
         e["gated_score"] = ad.score;
         e["gated_inlier_ratio"] = ad.inlier_ratio;
         e["ambiguity"] = ad.ambiguity;
+        e["mean_nis"] = ad.mean_nis;
+        e["expected_nis"] = ad.expected_nis;
         e["covariance_floor_m"] = ad.floor_m;
         e["vote_cell_m"] = ad.vote_cell_m;
         e["hypotheses"] = ad.hypotheses.size();

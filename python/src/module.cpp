@@ -458,6 +458,14 @@ PYBIND11_MODULE(_lmalign, m) {
           },
           "'adaptive' only (else None): the best distinct pose's score over the best's.")
       .def_property_readonly(
+          "mean_nis",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.outcome.adaptive) return py::none();
+            return py::float_(o.outcome.adaptive->mean_nis);
+          },
+          "'adaptive' only (else None): mean Mahalanobis d^2 of the gated inliers at the "
+          "estimate (dimensionless; 2.89 expected when the landmark covariances hold).")
+      .def_property_readonly(
           "translation_sd_m",
           [](const python::AlignOutcome& o) { return o.outcome.covariance.translation_sd_m(); },
           "Standard deviation of the translation along its worst axis, metres.")

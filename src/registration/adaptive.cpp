@@ -178,6 +178,12 @@ bool AdaptiveOptions::is_valid(std::string* why) const {
   if (!(min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0)) {
     return fail("min_inlier_ratio must be in [0, 1], got " + num(min_inlier_ratio));
   }
+  if (!(second_up_min_angle_deg >= 0.0 && second_up_min_angle_deg <= 180.0)) {
+    return fail("second_up_min_angle_deg must be in [0, 180], got " + num(second_up_min_angle_deg));
+  }
+  if (!(max_nis_ratio >= 1.0) || !std::isfinite(max_nis_ratio)) {
+    return fail("max_nis_ratio must be >= 1 and finite, got " + num(max_nis_ratio));
+  }
   if (!(distinct_cells > 0.0) || !std::isfinite(distinct_cells)) {
     return fail("distinct_cells must be > 0 and finite, got " + num(distinct_cells));
   }
@@ -273,9 +279,35 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
   sigma_search.translation_m = options.start_sigma_factor * 2.0 * result.vote_cell_m;
   sigma_search.rotation_rad = options.start_sigma_factor * step_rad;
   if (search_needed) {
-    const std::vector<YawHypothesis> yh = yaw_vote_hypotheses(
-        source.positions, target.points(), result.up_source, result.up_target, result.vote_cell_m,
-        options.search, prior != nullptr ? &window : nullptr);
+    // Up-axis candidates of each map: its frames' (or the default), and its landmark plane's
+    // normal when that disagrees by more than second_up_min_angle_deg. Without a prior the
+    // search votes once per pair of candidates and keeps the best hypotheses of all of them.
+    // With a prior the guess's rotation is the base and the up axes do not enter.
+    const double min_cos = std::cos(options.second_up_min_angle_deg * kPi / 180.0);
+    auto candidates = [&](const Vec3& up, const Points3& points) {
+      std::vector<Vec3> ups{up};
+      if (prior == nullptr) {
+        const std::optional<Vec3> plane = landmark_plane_normal(points, up);
+        if (plane && plane->dot(up) < min_cos) ups.push_back(*plane);
+      }
+      return ups;
+    };
+    result.ups_source = candidates(result.up_source, source.positions);
+    result.ups_target = candidates(result.up_target, target.points());
+    std::vector<YawHypothesis> yh;
+    for (const Vec3& us : result.ups_source) {
+      for (const Vec3& ut : result.ups_target) {
+        const std::vector<YawHypothesis> part =
+            yaw_vote_hypotheses(source.positions, target.points(), us, ut, result.vote_cell_m,
+                                options.search, prior != nullptr ? &window : nullptr);
+        yh.insert(yh.end(), part.begin(), part.end());
+      }
+    }
+    // Best first over all pairs of up axes (stable: ties keep the frames' axes first).
+    std::stable_sort(yh.begin(), yh.end(), [](const YawHypothesis& a, const YawHypothesis& b) {
+      return a.votes > b.votes;
+    });
+    if (yh.size() > options.search.hypotheses) yh.resize(options.search.hypotheses);
     for (const YawHypothesis& h : yh) {
       AdaptiveHypothesis a;
       a.T_start = h.T_target_source;
@@ -339,8 +371,17 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
   reg.num_correspondences = fin.num_pairs;
   reg.initial_score_m2 = fitness_score(source.positions, target.tree(), guess).mean_sq_m2;
   reg.final_score_m2 = fitness_score(source.positions, target.tree(), fin.T).mean_sq_m2;
-  result.score = gated_inlier_score(c.side, target, fin.T, c.floor_m, options.gate, nullptr,
-                                    &result.num_inliers);
+  {
+    std::vector<GatedPair> inliers;
+    gate_correspondences(c.side, target, fin.T, c.floor_m, PoseSigma{}, options.gate, nullptr,
+                         &inliers);
+    result.score = gated_inlier_score(inliers, options.gate);
+    result.num_inliers = inliers.size();
+    double sum_d2 = 0.0;
+    for (const GatedPair& g : inliers) sum_d2 += g.d2;
+    result.mean_nis = inliers.empty() ? 0.0 : sum_d2 / static_cast<double>(inliers.size());
+    result.expected_nis = expected_gated_d2(options.gate.chi2_threshold);
+  }
   {
     PoseSigma wide;
     wide.translation_m = result.vote_cell_m;
@@ -367,6 +408,10 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     result.trust_reason = "few landmarks agree within their covariances (" +
                           std::to_string(result.num_inliers) + " of " +
                           std::to_string(result.num_overlap) + " near a target landmark)";
+  } else if (result.mean_nis > options.max_nis_ratio * result.expected_nis) {
+    result.trust_reason = "the inliers' residuals exceed their covariances (mean NIS " +
+                          num(result.mean_nis) + ", " + num(result.expected_nis) +
+                          " expected): repeated structure may have aliased the pose";
   } else if (result.ambiguity >= options.max_ambiguity) {
     result.trust_reason = "ambiguous: a distinct pose scores " +
                           std::to_string(static_cast<int>(std::lround(100.0 * result.ambiguity))) +

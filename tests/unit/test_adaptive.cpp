@@ -215,6 +215,44 @@ TEST(UpAxis, FewerThanTwoFramesGiveNone) {
   EXPECT_LT((*estimate_up_axis(map) - Vec3::UnitZ()).norm(), 1e-6);
 }
 
+TEST(UpAxis, LandmarkPlaneNormalOfATiltedPlaneOrientedByTheHint) {
+  // 900 points on a plane with normal n (a 3 x 2 m patch), 100 up to 0.3 m above it: the
+  // smallest-variance direction is n; the hint picks its sign.
+  const Vec3 n = Vec3(0.2, -0.4, 0.9).normalized();
+  const Vec3 a = n.unitOrthogonal();
+  const Vec3 b = n.cross(a);
+  std::mt19937_64 rng(51);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Points3 pts;
+  for (int i = 0; i < 1000; ++i) {
+    const double h = i < 900 ? 0.0 : 0.3 * u(rng);
+    pts.push_back(Vec3(1, 2, 3) + 3.0 * u(rng) * a + 2.0 * u(rng) * b + h * n);
+  }
+  const std::optional<Vec3> up = landmark_plane_normal(pts, Vec3(0, 0, 1));
+  ASSERT_TRUE(up.has_value());
+  EXPECT_GT(up->dot(n), std::cos(rad(2.0)));  // within 2 degrees (the boxes lean it a little)
+  const std::optional<Vec3> down = landmark_plane_normal(pts, Vec3(0, 0, -1));
+  ASSERT_TRUE(down.has_value());
+  EXPECT_LT((*down + *up).norm(), 1e-12);
+}
+
+TEST(UpAxis, LandmarkPlaneNormalNeedsAFlatEnoughCloud) {
+  // A cube's scatter has three equal eigenvalues: no plane. So do fewer than 3 points and a
+  // non-finite one.
+  EXPECT_FALSE(landmark_plane_normal(grid_points(0.1, Vec3::Zero()), Vec3::UnitZ()).has_value());
+  EXPECT_FALSE(landmark_plane_normal({Vec3::Zero(), Vec3::UnitX()}, Vec3::UnitZ()).has_value());
+  Points3 flat;
+  for (int i = 0; i < 20; ++i) flat.emplace_back(i % 5, i / 5, 0.0);
+  ASSERT_TRUE(landmark_plane_normal(flat, Vec3::UnitZ()).has_value());
+  flat[7].z() = kNaN;
+  EXPECT_FALSE(landmark_plane_normal(flat, Vec3::UnitZ()).has_value());
+  // A slab as thick as it is wide fails a strict flatness bound and passes a loose one.
+  Points3 slab;
+  for (int i = 0; i < 27; ++i) slab.emplace_back(i % 3, (i / 3) % 3, 0.6 * (i / 9));
+  EXPECT_FALSE(landmark_plane_normal(slab, Vec3::UnitZ(), 0.25).has_value());
+  EXPECT_TRUE(landmark_plane_normal(slab, Vec3::UnitZ(), 0.5).has_value());
+}
+
 // ------------------------------------------------------------------------------------------
 // gate_correspondences, gated_inlier_score
 // ------------------------------------------------------------------------------------------
@@ -416,6 +454,29 @@ TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
       EXPECT_LT(one[i - 1].source_index, one[i].source_index);  // increasing order
     }
   }
+}
+
+TEST(MahalanobisGate, ExpectedGatedD2IsTheTruncatedChiSquareMean) {
+  // Against a seeded sample: d^2 = |z|^2, z ~ N(0, I3), kept below the gate.
+  std::mt19937_64 rng(52);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (double c : {2.0, kChi2Dof3P99, 30.0}) {
+    double sum = 0.0;
+    std::size_t kept = 0;
+    for (int i = 0; i < 400000; ++i) {
+      const double d2 = Vec3(n(rng), n(rng), n(rng)).squaredNorm();
+      if (d2 < c) {
+        sum += d2;
+        ++kept;
+      }
+    }
+    // Standard error of the mean: below 0.004 for every c here.
+    EXPECT_NEAR(expected_gated_d2(c), sum / static_cast<double>(kept), 0.015) << "c " << c;
+  }
+  EXPECT_NEAR(expected_gated_d2(kChi2Dof3P99), 2.894, 0.001);
+  EXPECT_NEAR(expected_gated_d2(200.0), 3.0, 1e-9);  // no truncation left
+  EXPECT_THROW(expected_gated_d2(0.0), InvalidArgument);
+  EXPECT_THROW(expected_gated_d2(kNaN), InvalidArgument);
 }
 
 TEST(MahalanobisGate, RefusesBadOptionsSigmasFloorsAndCovarianceCounts) {
@@ -1052,6 +1113,36 @@ TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
   }
 }
 
+TEST(Adaptive, ResidualsBeyondTheCovariancesFailTheNisTest) {
+  // The room's landmarks are drawn from their covariances: the inliers' mean NIS is at most its
+  // expectation (below it, as the floor adds to every pair's covariance). The same maps with
+  // every covariance understated four-fold (sd halved): the same pose, but residuals twice the
+  // stated sd, so the NIS test rejects it and says why.
+  const Room room = make_room(far_truth(), 53);
+  const PreparedTarget target = room.target();
+  const AdaptiveResult right = align_adaptive(room.source, target);
+  ASSERT_LT(transform_error(right.registration.T_target_source, room.T_true).rotation_deg, 0.5);
+  EXPECT_TRUE(right.trustworthy) << right.trust_reason;
+  EXPECT_NEAR(right.expected_nis, expected_gated_d2(kChi2Dof3P99), 1e-12);
+  EXPECT_GT(right.mean_nis, 0.5 * right.expected_nis);
+  EXPECT_LE(right.mean_nis, right.expected_nis);
+
+  Room understated = room;
+  for (Mat3& c : understated.source.covariances_m2) c *= 0.25;
+  for (Mat3& c : understated.target_cov) c *= 0.25;
+  const PreparedTarget target4 = understated.target();
+  AdaptiveOptions o;
+  o.floor_m = 1e-4;  // keep the floor from hiding the understatement
+  const AdaptiveResult r = align_adaptive(understated.source, target4, o);
+  EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).rotation_deg, 0.5);
+  EXPECT_GT(r.mean_nis, o.max_nis_ratio * r.expected_nis);
+  EXPECT_FALSE(r.trustworthy);
+  EXPECT_NE(r.trust_reason.find("NIS"), std::string::npos) << r.trust_reason;
+  // The threshold is an option: a looser one trusts the same result.
+  o.max_nis_ratio = r.mean_nis / r.expected_nis + 0.01;
+  EXPECT_TRUE(align_adaptive(understated.source, target4, o).trustworthy);
+}
+
 TEST(Adaptive, RefusesBadInput) {
   const Room room = make_room(far_truth(), 48);
   const PreparedTarget target = room.target();
@@ -1116,6 +1207,14 @@ TEST(Adaptive, RefusesBadInput) {
   o.floor_m = -1.0;
   EXPECT_FALSE(o.is_valid(&why));
   EXPECT_NE(why.find("floor_m"), std::string::npos);
+  o = AdaptiveOptions{};
+  o.max_nis_ratio = 0.9;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("max_nis_ratio"), std::string::npos);
+  o = AdaptiveOptions{};
+  o.second_up_min_angle_deg = -1.0;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("second_up_min_angle_deg"), std::string::npos);
   o = AdaptiveOptions{};
   o.default_up = Vec3::Zero();
   EXPECT_FALSE(o.is_valid(&why));

@@ -76,6 +76,12 @@ struct AdaptiveOptions {
   std::size_t hypothesis_samples = 1024;
   /// Up axis used for a map whose frames do not give one (unit after normalisation).
   Vec3 default_up = Vec3::UnitZ();
+  /// Without a prior, a map's landmark plane normal (landmark_plane_normal()) becomes a second
+  /// up-axis candidate when it is more than this many degrees from the frames' up axis, and the
+  /// search votes for every pair of the two maps' candidates; [0, 180] (180 = never). The frames
+  /// fail on short windows of a hand-held camera, the plane on maps without a dominant
+  /// horizontal surface: the search keeps the best hypotheses of both.
+  double second_up_min_angle_deg = 10.0;
 
   // --- selection and gating ---
   MahalanobisGateOptions gate;
@@ -114,6 +120,15 @@ struct AdaptiveOptions {
   /// only near some landmark. [0, 1]. Measured: 0.29 (KITTI disjoint pair) and 0.84 (desk) at
   /// the right pose, 0.14-0.17 at the wrong poses found on KITTI (docs/accuracy.md).
   double min_inlier_ratio = 0.2;
+  /// Untrusted when the mean normalised innovation squared (NIS: the Mahalanobis d^2 of the
+  /// gated inliers at the estimate) exceeds this multiple of its expectation under the landmarks'
+  /// covariances (a chi-square of 3 dof truncated at the gate: 2.89 at the default gate), the
+  /// NIS consistency test of SLAM data association. Right poses match the same landmarks, whose
+  /// residuals follow the covariances; a pose aliased by repeated structure (a periodic facade,
+  /// a road under a half turn) matches different landmarks whose offsets do not. One-sided:
+  /// overstated covariances pass. >= 1. Measured (docs/accuracy.md): 0.2-1.1 of the expectation
+  /// at the right poses of the real datasets, 1.25-1.45 at the aliased road poses.
+  double max_nis_ratio = 1.1;
 
   bool is_valid(std::string* why = nullptr) const;
 };
@@ -136,6 +151,10 @@ struct AdaptiveResult {
   /// Gated inlier score and inliers of the estimate on every source landmark.
   double score = 0.0;
   std::size_t num_inliers = 0;
+  /// Mean Mahalanobis d^2 of those inliers (dimensionless), and its expectation when the
+  /// covariances hold (max_nis_ratio).
+  double mean_nis = 0.0;
+  double expected_nis = 0.0;
   /// Source landmarks that pass the gate widened by one vote cell of pose uncertainty (those in
   /// the overlap, roughly), and num_inliers over it.
   std::size_t num_overlap = 0;
@@ -150,8 +169,13 @@ struct AdaptiveResult {
   DataScales target_scales;
   double floor_m = 0.0;
   double vote_cell_m = 0.0;
+  /// The maps' up axes (their frames', or default_up), and the up-axis candidates the search
+  /// voted with (these first, then a landmark plane normal that disagrees; empty when no search
+  /// ran).
   Vec3 up_source = Vec3::UnitZ();
   Vec3 up_target = Vec3::UnitZ();
+  std::vector<Vec3> ups_source;
+  std::vector<Vec3> ups_target;
   std::vector<AdaptiveHypothesis> hypotheses;  ///< by decreasing score
 };
 

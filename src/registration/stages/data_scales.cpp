@@ -125,4 +125,29 @@ std::optional<Vec3> estimate_up_axis(const Map& map) {
   return up;
 }
 
+std::optional<Vec3> landmark_plane_normal(const Points3& points, const Vec3& up_hint,
+                                          double max_flatness, std::size_t max_samples) {
+  if (points.size() < 3 || max_samples < 3) return std::nullopt;
+  const std::size_t n = std::min(points.size(), max_samples);
+  Vec3 mean = Vec3::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = points[i * points.size() / n];
+    if (!p.allFinite()) return std::nullopt;
+    mean += p;
+  }
+  mean /= static_cast<double>(n);
+  Mat3 scatter = Mat3::Zero();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 d = points[i * points.size() / n] - mean;
+    scatter += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(scatter / static_cast<double>(n));
+  const Eigen::Vector3d ev = es.eigenvalues();
+  if (!(ev[1] > 0.0) || !(ev[0] <= max_flatness * ev[1])) return std::nullopt;
+  Vec3 normal = es.eigenvectors().col(0).normalized();
+  if (normal.dot(up_hint) < 0.0) normal = -normal;
+  if (!normal.allFinite()) return std::nullopt;
+  return normal;
+}
+
 }  // namespace lmalign

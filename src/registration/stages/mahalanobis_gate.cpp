@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
 
 namespace lmalign {
 
@@ -136,10 +137,25 @@ double gated_inlier_score(const GateSide& source, const PreparedTarget& target,
   std::vector<GatedPair> pairs;
   gate_correspondences(source, target, T_target_source, floor_m, PoseSigma{}, options, subset,
                        &pairs);
+  if (num_inliers != nullptr) *num_inliers = pairs.size();
+  return gated_inlier_score(pairs, options);
+}
+
+double gated_inlier_score(const std::vector<GatedPair>& pairs,
+                          const MahalanobisGateOptions& options) {
   double score = 0.0;
   for (const GatedPair& g : pairs) score += 1.0 - g.d2 / options.chi2_threshold;
-  if (num_inliers != nullptr) *num_inliers = pairs.size();
   return score;
+}
+
+double expected_gated_d2(double chi2_threshold) {
+  if (!(chi2_threshold > 0.0) || !std::isfinite(chi2_threshold)) {
+    throw InvalidArgument("expected_gated_d2: chi2_threshold must be > 0 and finite");
+  }
+  const double c = chi2_threshold;
+  const double cdf3 = std::erf(std::sqrt(0.5 * c)) - std::sqrt(2.0 * c / kPi) * std::exp(-0.5 * c);
+  const double cdf5 = cdf3 - std::pow(0.5 * c, 1.5) * std::exp(-0.5 * c) / std::tgamma(2.5);
+  return 3.0 * cdf5 / cdf3;
 }
 
 }  // namespace lmalign

@@ -75,6 +75,17 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
 /// better its best target landmark agrees with it under both covariances. Also returns the
 /// number of gated pairs in *num_inliers if not null. Same arguments and errors as
 /// gate_correspondences.
+/// The same score of pairs already gated at the estimate (zero pose sigma).
+double gated_inlier_score(const std::vector<GatedPair>& pairs,
+                          const MahalanobisGateOptions& options);
+
+/// E[d^2 | d^2 < chi2_threshold] for d^2 ~ chi-square with 3 dof: the mean NIS of a gate's
+/// inliers when the covariances hold (2.894 at kChi2Dof3P99). Uses
+/// P(chi2_5 <= c) = P(chi2_3 <= c) - (c/2)^(3/2) e^(-c/2) / Gamma(5/2), so
+/// E = 3 P(chi2_5 <= c) / P(chi2_3 <= c). Throws InvalidArgument unless chi2_threshold > 0 and
+/// finite.
+double expected_gated_d2(double chi2_threshold);
+
 double gated_inlier_score(const GateSide& source, const PreparedTarget& target,
                           const Isometry3& T_target_source, double floor_m,
                           const MahalanobisGateOptions& options,
