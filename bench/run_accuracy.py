@@ -12,8 +12,9 @@ starts) and runs it with `lmalign experiment` (parallel; an interrupted run is r
 reference: the paper's base ICP started at the truth with a tight correspondence gate. From the
 runs' results.csv it reports, per dataset and strategy: right-basin success (protocol, random, all),
 the median rotation and translation errors of the successes, the trust verdict's precision and
-recall (trustworthy against right basin), and the time per alignment (median, max) with the
-landmark counts. Output in --output (default build/bench-accuracy): accuracy.csv, accuracy.json,
+recall (trustworthy against right basin), the mean and median NEES of the right-basin results
+(their reported 6x6 covariance against the truth; 6 when calibrated), and the time per alignment
+(median, max) with the landmark counts. Output in --output (default build/bench-accuracy): accuracy.csv, accuracy.json,
 accuracy.md (the tables as Markdown), plots/<dataset>.png (success against start offset, random starts, one line per strategy), and per
 dataset its maps, configs and experiment folders. A full run (no --quick, every dataset and every
 configured strategy) also writes bench/results/accuracy.json.
@@ -290,6 +291,9 @@ def strategy_metrics(rows):
     trusted = [r for r in rows if r.get("trustworthy") == "true"]
     true_pos = [r for r in trusted if r["success"] == "true"]
     times = [float(r["time_s"]) for r in rows]
+    # NEES of the right-basin results (6 when the reported covariance is calibrated); rows
+    # without a covariance (or written before the column existed) have none.
+    nees = [float(r["nees"]) for r in ok if r.get("nees")]
     by_exp = {}
     for r in rows:
         e = by_exp.setdefault(r["experiment"], [0, 0])
@@ -309,6 +313,9 @@ def strategy_metrics(rows):
         "trust_recall": len(true_pos) / len(ok) if ok else None,
         "median_time_s": _median(times),
         "max_time_s": max(times) if times else None,
+        "nees_runs": len(nees),
+        "mean_nees": statistics.fmean(nees) if nees else None,
+        "median_nees": _median(nees),
     }
 
 
@@ -385,7 +392,7 @@ CSV_COLUMNS = ["dataset", "kind", "source_landmarks", "target_landmarks", "strat
                "success_rate", "protocol_success_rate", "random_success_rate",
                "median_rotation_error_deg", "median_translation_error_m", "trust_precision",
                "trust_recall", "median_time_s", "max_time_s", "reference_rotation_error_deg",
-               "reference_translation_error_m"]
+               "reference_translation_error_m", "mean_nees", "median_nees"]
 
 
 def csv_rows(report):
@@ -405,7 +412,8 @@ def csv_rows(report):
                         "trust_precision": m["trust_precision"], "trust_recall": m["trust_recall"],
                         "median_time_s": m["median_time_s"], "max_time_s": m["max_time_s"],
                         "reference_rotation_error_deg": ref.get("rotation_error_deg"),
-                        "reference_translation_error_m": ref.get("translation_error_m")})
+                        "reference_translation_error_m": ref.get("translation_error_m"),
+                        "mean_nees": m["mean_nees"], "median_nees": m["median_nees"]})
     return out
 
 
@@ -454,17 +462,19 @@ def markdown_tables(report):
                 ref["strategy"], ref["max_distance_m"], ref["rotation_error_deg"],
                 ref["translation_error_m"]), ""]
         lines += ["| strategy | success | protocol | random | median rot. (°) | median trans. (m) "
-                  "| trust precision | trust recall | time median / max (s) |",
-                  "|---|---|---|---|---|---|---|---|---|"]
+                  "| trust precision | trust recall | time median / max (s) "
+                  "| NEES mean / median |",
+                  "|---|---|---|---|---|---|---|---|---|---|"]
         for s in strategies:
             m = rep["strategies"][s]
             byx = m["success_rate_by_experiment"]
-            lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s / %s |" % (
+            lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s / %s | %s / %s |" % (
                 s, _pct(m["success_rate"]), _pct(byx.get("protocol")), _pct(byx.get("random")),
                 _num(m["median_rotation_error_deg"], "%.2f"),
                 _num(m["median_translation_error_m"], "%.3f"),
                 _num(m["trust_precision"], "%.2f"), _num(m["trust_recall"], "%.2f"),
-                _num(m["median_time_s"], "%.3f"), _num(m["max_time_s"], "%.2f")))
+                _num(m["median_time_s"], "%.3f"), _num(m["max_time_s"], "%.2f"),
+                _num(m["mean_nees"], "%.3g"), _num(m["median_nees"], "%.3g")))
     return "\n".join(lines) + "\n"
 
 

@@ -48,7 +48,10 @@ const std::vector<std::string> kColumns{"experiment",
                                         "translation_error_m",
                                         "success",
                                         "decided_by",
-                                        "trustworthy"};
+                                        "trustworthy",
+                                        "nees",
+                                        "covariance_translation_sd_m",
+                                        "covariance_rotation_sd_deg"};
 
 std::string fixed(double v, int decimals) {
   if (!std::isfinite(v)) return std::isnan(v) ? "nan" : (v > 0 ? "inf" : "-inf");
@@ -198,6 +201,8 @@ std::string strategy_header(PaperStrategy s) {
   return "?";
 }
 
+std::string optional_number(const std::optional<double>& v) { return v ? shortest(*v) : ""; }
+
 }  // namespace
 
 const std::vector<std::string>& results_csv_columns() { return kColumns; }
@@ -220,7 +225,9 @@ void write_results_csv(std::ostream& out, const std::vector<Case>& cases,
         << (r.error ? shortest(r.error->rotation_deg) : "") << ','
         << (r.error ? shortest(r.error->translation_m) : "") << ','
         << (r.decision.success ? "true" : "false") << ',' << to_string(r.decision.decided_by) << ','
-        << (r.trustworthy ? "true" : "false") << '\n';
+        << (r.trustworthy ? "true" : "false") << ',' << optional_number(r.nees) << ','
+        << optional_number(r.covariance_translation_sd_m) << ','
+        << optional_number(r.covariance_rotation_sd_deg) << '\n';
   }
 }
 
@@ -363,6 +370,14 @@ std::vector<RunRecord> read_results_csv(std::istream& in, const std::string& fil
     if (f[23] != "true" && f[23] != "false")
       throw ParseError(file, line, "trustworthy: expected true or false, got '" + f[23] + "'");
     r.trustworthy = f[23] == "true";
+    if (!f[24].empty()) r.nees = parse_number(f[24], "nees", file, line);
+    if (f[25].empty() != f[26].empty())
+      throw ParseError(file, line, "covariance standard deviations must both be given or empty");
+    if (!f[25].empty()) {
+      r.covariance_translation_sd_m =
+          parse_number(f[25], "covariance_translation_sd_m", file, line);
+      r.covariance_rotation_sd_deg = parse_number(f[26], "covariance_rotation_sd_deg", file, line);
+    }
     ++seen;
     records.push_back(std::move(r));
   }

@@ -223,6 +223,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     const bool history = options.history_case && *options.history_case == c.index;
     RegistrationResult r;
     std::optional<bool> trusted;  // the verdict run_strategy() gave, if it ran the strategy
+    PoseCovariance covariance;    // the covariance it reported
     const Points3 displaced = transform_points(c.D, source_points);
     if (is_paper_strategy(s)) {
       RegistrationOptions ro = run_options(config, s, c.k);
@@ -245,6 +246,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       const StrategyOutcome o = run_strategy(moved, target, req);
       r = o.result;
       trusted = o.trustworthy;
+      covariance = o.covariance;
     }
     RunRecord rec;
     rec.case_index = c.index;
@@ -261,10 +263,20 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     rec.decision = decide_success(config.success, rec.error, rec.final_score_m2);
     // Outside the timed alignment; a non-finite estimate is never trustworthy. lmalign's own
     // strategies carry their verdict (adaptive: its own; the others: judge_alignment()).
-    rec.trustworthy =
-        is_finite(r.T_target_source) &&
-        (trusted ? *trusted
-                 : judge_alignment(displaced, target.tree(), r.T_target_source).trustworthy);
+    if (is_finite(r.T_target_source)) {
+      rec.trustworthy =
+          trusted ? *trusted
+                  : judge_alignment(displaced, target.tree(), r.T_target_source, {}, &covariance)
+                        .trustworthy;
+    }
+    if (covariance.valid) {
+      rec.covariance_translation_sd_m = covariance.translation_sd_m();
+      rec.covariance_rotation_sd_deg = covariance.rotation_sd_deg();
+      // Cov is that of T (left perturbation); T * D = Exp(xi) T_true has the same xi.
+      if (ground_truth && is_finite(r.T_target_source)) {
+        rec.nees = nees(pose_error_twist(r.T_target_source * c.D, *ground_truth), covariance);
+      }
+    }
     rec.history = r.history;
     return rec;
   };

@@ -39,6 +39,8 @@ struct Refinement {
   std::size_t num_pairs = 0;
   P2DStep last_step;
   Vec3 pivot = Vec3::Zero();
+  /// The pairs of the last iteration (those last_step was solved on).
+  std::vector<GatedPair> last_pairs;
 };
 
 struct Context {
@@ -61,7 +63,7 @@ Refinement refine(const Context& c, const Isometry3& T0, PoseSigma sigma0,
   const double settle_t = o.settle_ratio * c.floor_m;
   const double settle_r = settle_t / c.source_radius_m;
   const Vec3* up4 = o.four_dof ? &c.up_target : nullptr;
-  std::vector<GatedPair> pairs;
+  std::vector<GatedPair>& pairs = out.last_pairs;
   int level_iterations = 0;
   while (out.iterations < o.max_iterations) {
     sigma.pivot_m = out.T * c.source_centre;
@@ -186,6 +188,10 @@ bool AdaptiveOptions::is_valid(std::string* why) const {
   }
   if (!(distinct_cells > 0.0) || !std::isfinite(distinct_cells)) {
     return fail("distinct_cells must be > 0 and finite, got " + num(distinct_cells));
+  }
+  if (!(covariance_block_factor > 0.0) || !std::isfinite(covariance_block_factor)) {
+    return fail("covariance_block_factor must be > 0 and finite, got " +
+                num(covariance_block_factor));
   }
   return true;
 }
@@ -340,6 +346,7 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     Refinement r = refine(c, h.T_start, h.from_guess ? sigma_guess : sigma_search, &samples);
     h.T_refined = r.T;
     h.score = gated_inlier_score(c.side, target, r.T, c.floor_m, options.gate, &samples);
+    r.last_pairs = {};  // only the final refinement's are needed
     refined[static_cast<std::size_t>(i)] = r;
   }
   for (const Refinement& r : refined) total_iterations += r.iterations;
@@ -393,7 +400,18 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
         pairs.empty() ? 0.0
                       : static_cast<double>(result.num_inliers) / static_cast<double>(pairs.size());
   }
-  if (fin.last_step.ok) result.covariance = p2d_covariance(fin.last_step, fin.num_pairs, fin.pivot);
+  if (fin.last_step.ok) {
+    // Validity (and with it the trust verdict) as the normal equations of the last step say;
+    // the values from the cluster-robust covariance of its pairs (6 DoF; blocks of a fixed
+    // fraction of the source's radius).
+    result.covariance = p2d_covariance(fin.last_step, fin.num_pairs, fin.pivot);
+    if (result.covariance.valid && !options.four_dof) {
+      const PoseCovariance robust = p2d_cluster_covariance(
+          fin.last_pairs, target.points(), fin.pivot, options.gate.chi2_threshold,
+          options.covariance_block_factor * c.source_radius_m);
+      if (robust.valid) result.covariance = robust;
+    }
+  }
 
   // --- trust ---
   if (fin.termination == TerminationReason::kNoCorrespondences) {

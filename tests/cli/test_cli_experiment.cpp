@@ -34,7 +34,8 @@ namespace fs = std::filesystem;
 const std::string kHeader =
     "experiment,case,label,group,variable,value,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg,"
     "strategy,k,initial_score_m2,final_score_m2,iterations,termination,time_s,"
-    "rotation_error_deg,translation_error_m,success,decided_by,trustworthy";
+    "rotation_error_deg,translation_error_m,success,decided_by,trustworthy,nees,"
+    "covariance_translation_sd_m,covariance_rotation_sd_deg";
 
 std::vector<std::string> lines_of(const std::string& text) {
   std::vector<std::string> lines;
@@ -65,7 +66,7 @@ std::vector<std::vector<std::string>> read_results(const std::string& path) {
   std::vector<std::vector<std::string>> rows;
   for (std::size_t i = 1; i < lines.size(); ++i) {
     rows.push_back(fields_of(lines[i]));
-    EXPECT_EQ(rows.back().size(), 24u) << lines[i];
+    EXPECT_EQ(rows.back().size(), 27u) << lines[i];
   }
   return rows;
 }

@@ -84,7 +84,8 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
   const std::string header =
       "experiment,case,label,group,variable,value,x_m,y_m,z_m,roll_deg,pitch_deg,yaw_deg,"
       "strategy,k,initial_score_m2,final_score_m2,iterations,termination,time_s,"
-      "rotation_error_deg,translation_error_m,success,decided_by,trustworthy";
+      "rotation_error_deg,translation_error_m,success,decided_by,trustworthy,nees,"
+      "covariance_translation_sd_m,covariance_rotation_sd_deg";
   std::string joined;
   for (const std::string& c : results_csv_columns()) joined += (joined.empty() ? "" : ",") + c;
   EXPECT_EQ(joined, header);
@@ -101,7 +102,7 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
   std::vector<std::vector<std::string>> rows;
   while (std::getline(in, line)) rows.push_back(split(line));
   ASSERT_EQ(rows.size(), 12u);
-  for (const auto& r : rows) ASSERT_EQ(r.size(), 24u);
+  for (const auto& r : rows) ASSERT_EQ(r.size(), 27u);
   EXPECT_EQ(rows[4], (std::vector<std::string>{"ks",
                                                "1",
                                                "k=5",
@@ -125,7 +126,10 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
                                                "0.31",
                                                "false",
                                                "ground_truth",
-                                               "false"}));
+                                               "false",
+                                               "",
+                                               "",
+                                               ""}));
   EXPECT_EQ(rows[9][2], "yaw=30 #1");
   EXPECT_EQ(rows[9][3], "yaw");
   EXPECT_EQ(rows[9][4], "yaw_deg");
@@ -138,7 +142,7 @@ TEST(ExperimentReport, ResultsCsvHasTheDocumentedColumns) {
   std::getline(in2, line);
   std::getline(in2, line);
   const auto r = split(line);
-  ASSERT_EQ(r.size(), 24u);
+  ASSERT_EQ(r.size(), 27u);
   EXPECT_EQ(r[19], "");
   EXPECT_EQ(r[20], "");
   EXPECT_EQ(r[22], "score");
@@ -153,18 +157,27 @@ TEST(ExperimentReport, TrustworthyColumnRoundTrips) {
   for (RunRecord& r : o.records) r.k = cases[r.case_index].k;
   o.records[1].trustworthy = true;
   o.records[5].trustworthy = true;
+  o.records[2].nees = 7.25;
+  o.records[2].covariance_translation_sd_m = 0.0125;
+  o.records[2].covariance_rotation_sd_deg = 0.5;
   std::ostringstream os;
   write_results_csv(os, cases, o.records);
   std::istringstream in(os.str());
   const std::vector<RunRecord> back = read_results_csv(in, "results.csv", cases);
   ASSERT_EQ(back.size(), o.records.size());
-  for (std::size_t i = 0; i < back.size(); ++i)
+  for (std::size_t i = 0; i < back.size(); ++i) {
     EXPECT_EQ(back[i].trustworthy, i == 1 || i == 5) << "record " << i;
+    // The covariance columns round-trip too (empty = none).
+    EXPECT_EQ(back[i].nees, o.records[i].nees) << "record " << i;
+    EXPECT_EQ(back[i].covariance_translation_sd_m, o.records[i].covariance_translation_sd_m);
+    EXPECT_EQ(back[i].covariance_rotation_sd_deg, o.records[i].covariance_rotation_sd_deg);
+  }
+  EXPECT_EQ(back[2].nees, std::optional<double>(7.25));
 
   std::string text = os.str();
   const std::size_t first_row_end = text.find('\n', text.find('\n') + 1);
-  ASSERT_EQ(text.substr(first_row_end - 6, 6), ",false");
-  text.replace(first_row_end - 5, 5, "maybe");
+  ASSERT_EQ(text.substr(first_row_end - 9, 9), ",false,,,");
+  text.replace(first_row_end - 8, 5, "maybe");
   std::istringstream bad(text);
   try {
     read_results_csv(bad, "results.csv", cases);

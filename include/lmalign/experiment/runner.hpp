@@ -58,6 +58,16 @@ struct RunRecord {
   /// The trust verdict on the estimate: judge_alignment() (registration/uncertainty.hpp) with
   /// its default TrustOptions, on the displaced source and the target.
   bool trustworthy = false;
+  /// The estimate's 6x6 covariance as the strategy reports it (registration/uncertainty.hpp's
+  /// convention: left perturbation, target frame): the adaptive pipeline's own, lmalign's other
+  /// strategies' judge_alignment() one on their inliers, and for the paper's four the same
+  /// judge_alignment() covariance. Its worst-axis standard deviations (metres, degrees), and the
+  /// NEES of the recovered map-to-map transform T * D against the ground truth (6 dof: mean 6
+  /// when the covariance is calibrated). Empty without a valid covariance (the NEES also without
+  /// ground truth).
+  std::optional<double> covariance_translation_sd_m;
+  std::optional<double> covariance_rotation_sd_deg;
+  std::optional<double> nees;
   /// Per-iteration record, for the history case only (with scores).
   std::vector<IterationRecord> history;
 };

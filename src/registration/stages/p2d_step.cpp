@@ -1,8 +1,13 @@
 #include "lmalign/registration/stages/p2d_step.hpp"
 
+#include <array>
 #include <cmath>
+#include <map>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/error.hpp"
 
 namespace lmalign {
 
@@ -12,6 +17,26 @@ Mat3 skew(const Vec3& v) {
   Mat3 m;
   m << 0.0, -v[2], v[1], v[2], 0.0, -v[0], -v[1], v[0], 0.0;
   return m;
+}
+
+// Pair i's Jacobian about the pivot: r(xi) = r - rho + [x - pivot]x phi.
+Eigen::Matrix<double, 3, 6> pair_jacobian(const GatedPair& p, const Vec3& pivot_m) {
+  Eigen::Matrix<double, 3, 6> J;
+  J.leftCols<3>() = -Mat3::Identity();
+  J.rightCols<3>() = skew(p.moved_source_m - pivot_m);
+  return J;
+}
+
+double cauchy_weight(const GatedPair& p, double chi2_threshold) {
+  return 1.0 / (1.0 + p.d2 / chi2_threshold);
+}
+
+// Moves a covariance about the pivot to one about the target frame's origin (p2d_covariance).
+Mat6 about_origin(const Mat6& cov_about_pivot, const Vec3& pivot_m) {
+  Mat6 A = Mat6::Identity();
+  A.block<3, 3>(0, 3) = skew(pivot_m);
+  const Mat6 c = A * cov_about_pivot * A.transpose();
+  return 0.5 * (c + c.transpose());
 }
 
 }  // namespace
@@ -24,11 +49,8 @@ P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& targe
   // Serial sums in pair order: deterministic.
   for (const GatedPair& p : pairs) {
     const Vec3 r = target_points[p.target_index] - p.moved_source_m;
-    const double w = 1.0 / (1.0 + p.d2 / chi2_threshold);
-    // r(xi) = r - rho + [x - pivot]x phi  ->  J = [-I, [x - pivot]x]
-    Eigen::Matrix<double, 3, 6> J;
-    J.leftCols<3>() = -Mat3::Identity();
-    J.rightCols<3>() = skew(p.moved_source_m - pivot_m);
+    const double w = cauchy_weight(p, chi2_threshold);
+    const Eigen::Matrix<double, 3, 6> J = pair_jacobian(p, pivot_m);
     const Eigen::Matrix<double, 6, 3> JtO = J.transpose() * p.information;
     H.noalias() += w * JtO * J;
     g.noalias() += w * JtO * r;
@@ -84,12 +106,77 @@ PoseCovariance p2d_covariance(const P2DStep& step, std::size_t num_pairs, const 
   const double dof = 3.0 * static_cast<double>(num_pairs) - 6.0;
   // With the weights normalised to mean 1 both chi2 and H scale by n / sum w, which cancels.
   const double s2 = dof > 0.0 ? step.chi2 / dof : 1.0;
-  Mat6 A = Mat6::Identity();
-  A.block<3, 3>(0, 3) = skew(pivot_m);
-  pc.covariance = s2 * A * lu.inverse() * A.transpose();
-  pc.covariance = (0.5 * (pc.covariance + pc.covariance.transpose())).eval();
+  pc.covariance = about_origin(s2 * lu.inverse(), pivot_m);
   pc.sigma_m = std::sqrt(s2);
   pc.valid = pc.covariance.allFinite();
+  return pc;
+}
+
+PoseCovariance p2d_cluster_covariance(const std::vector<GatedPair>& pairs,
+                                      const Points3& target_points, const Vec3& pivot_m,
+                                      double chi2_threshold, double block_m) {
+  if (!(block_m > 0.0) || !std::isfinite(block_m)) {
+    throw InvalidArgument("p2d_cluster_covariance: block_m must be > 0 and finite");
+  }
+  PoseCovariance pc;
+  const std::size_t n = pairs.size();
+  pc.num_correspondences = n;
+  if (n < 3) return pc;
+  // H, chi2 and the score of each block, serially in pair order (deterministic); blocks in an
+  // ordered map.
+  Mat6 H = Mat6::Zero();
+  double chi2 = 0.0;
+  std::map<std::array<long long, 3>, Vec6> blocks;
+  for (const GatedPair& p : pairs) {
+    const Vec3 r = target_points[p.target_index] - p.moved_source_m;
+    const double w = cauchy_weight(p, chi2_threshold);
+    const Eigen::Matrix<double, 3, 6> J = pair_jacobian(p, pivot_m);
+    const Eigen::Matrix<double, 6, 3> JtO = J.transpose() * p.information;
+    H.noalias() += w * JtO * J;
+    chi2 += w * r.dot(p.information * r);
+    const Vec3 cell = (p.moved_source_m / block_m).array().floor();
+    if (!cell.allFinite()) return pc;
+    const std::array<long long, 3> key{static_cast<long long>(cell.x()),
+                                       static_cast<long long>(cell.y()),
+                                       static_cast<long long>(cell.z())};
+    const Vec6 g = w * JtO * r;
+    auto it = blocks.find(key);
+    if (it == blocks.end()) {
+      blocks.emplace(key, g);
+    } else {
+      it->second += g;
+    }
+  }
+  const Eigen::FullPivLU<Mat6> lu(H);
+  if (!lu.isInvertible()) return pc;
+  const Mat6 H_inv = lu.inverse();
+  const Mat6 model = 0.5 * (H_inv + H_inv.transpose());
+  Mat6 cov = model;
+  if (blocks.size() >= 2) {
+    Mat6 B = Mat6::Zero();
+    for (const auto& kv : blocks) B.noalias() += kv.second * kv.second.transpose();
+    const double G = static_cast<double>(blocks.size());
+    B *= G / (G - 1.0);
+    const Mat6 S = H_inv * B * H_inv.transpose();
+    // max(model, S) in the Loewner order: whiten by the model, raise eigenvalues below 1.
+    const Eigen::LLT<Mat6> llt(model);
+    if (llt.info() == Eigen::Success) {
+      const Mat6 L = llt.matrixL();
+      const Mat6 L_inv = L.inverse();
+      Mat6 K = L_inv * S * L_inv.transpose();
+      K = (0.5 * (K + K.transpose())).eval();
+      const Eigen::SelfAdjointEigenSolver<Mat6> eig(K);
+      const Vec6 d = eig.eigenvalues().cwiseMax(1.0);
+      const Mat6 raised =
+          L * eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose() * L.transpose();
+      if (raised.allFinite()) cov = raised;
+    }
+  }
+  pc.covariance = about_origin(cov, pivot_m);
+  const double dof = 3.0 * static_cast<double>(n) - 6.0;
+  pc.sigma_m = std::sqrt(chi2 / dof);
+  pc.valid = pc.covariance.allFinite();
+  if (!pc.valid) pc.covariance.setZero();
   return pc;
 }
 

@@ -45,4 +45,27 @@ Isometry3 apply_step(const Isometry3& T_target_source, const Vec6& xi, const Vec
 /// when H is singular.
 PoseCovariance p2d_covariance(const P2DStep& step, std::size_t num_pairs, const Vec3& pivot_m);
 
+/// The covariance of a 6-DoF point-to-distribution estimate that holds when the landmark errors
+/// are correlated (docs/accuracy.md, "Uncertainty of the adaptive default"): a cluster-robust
+/// sandwich (Liang and Zeger 1986; the estimate is an M-estimate whose score is
+/// g = sum_i w_i J_i^T Omega_i r_i, with w_i, J_i, r_i, Omega_i as in solve_p2d_step) over spatial
+/// blocks, never below the model covariance:
+///   H = sum_i w_i J_i^T Omega_i J_i,  g_c = sum of g_i over the pairs whose moved source landmark
+///   lies in block c (cubes of edge block_m, target frame),
+///   B = G / (G - 1) sum_c g_c g_c^T  (G blocks),  S = H^-1 B H^-1,
+///   Cov = max(H^-1, S)  (per direction: H^-1 = L L^T, eigen-decompose L^-1 S L^-T and raise its
+///   eigenvalues to at least 1),
+/// then moved to the target frame's origin as p2d_covariance does. The sandwich sees what the
+/// residuals show: landmarks of one block sharing an error (their frames, their trajectory), the
+/// robust kernel, landmark covariances that are too small. The model term keeps landmark
+/// covariances that are larger than the residuals (conservative maps) as they are. A common error
+/// of a whole map (its frame, relative to the other's) leaves no trace in the residuals and is
+/// not in it. sigma_m = sqrt(chi2 / (3n - 6)) as in p2d_covariance.
+/// `pairs` as solve_p2d_step (their moved_source_m at the estimate), `chi2_threshold` > 0,
+/// `block_m` > 0 and finite. valid = false when H is singular or n < 3. Never throws for
+/// degenerate geometry; throws InvalidArgument for block_m <= 0 or non-finite.
+PoseCovariance p2d_cluster_covariance(const std::vector<GatedPair>& pairs,
+                                      const Points3& target_points, const Vec3& pivot_m,
+                                      double chi2_threshold, double block_m);
+
 }  // namespace lmalign
