@@ -358,6 +358,15 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     for (std::size_t e = 0; e < edges.size(); ++e) {
       if (active[e]) links.emplace_back(edges[e].source, edges[e].target);
     }
+    // Maps with priors share the world frame: one component, whatever the edges.
+    std::optional<std::size_t> first_prior;
+    for (std::size_t i = 0; i < num_maps; ++i) {
+      if (!priors[i]) continue;
+      if (first_prior)
+        links.emplace_back(*first_prior, i);
+      else
+        first_prior = i;
+    }
     std::size_t ncomp = 0;
     const std::vector<std::size_t> comp = components(num_maps, links, &ncomp);
     std::vector<std::optional<std::size_t>> root(ncomp);  // first map with a prior, else first
@@ -404,7 +413,7 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     }
     ceres::AutoDiffManifold<LeftPlus, 7, 6> manifold;
     // One solve from the current poses, with a Cauchy loss of scale `loss_scale` (0: none).
-    auto solve = [&](double loss_scale) {
+    auto solve = [&](double loss_scale, bool use_priors) {
       ceres::Problem::Options po;
       po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
       auto problem = std::make_unique<ceres::Problem>(po);
@@ -412,7 +421,7 @@ MergeResult solve_pose_graph(std::size_t num_maps,
         problem->AddParameterBlock(pose[i].data(), 7, &manifold);
       }
       for (std::size_t i = 0; i < num_maps; ++i) {
-        if (!priors[i]) continue;
+        if (!priors[i] || !use_priors) continue;
         auto* cost = new ceres::AutoDiffCostFunction<PriorCost, 6, 7>(
             new PriorCost{to_block(priors[i]->T_world_map), *prior_w[i]});
         problem->AddResidualBlock(cost, nullptr, pose[i].data());
@@ -426,7 +435,8 @@ MergeResult solve_pose_graph(std::size_t num_maps,
                                   pose[edges[e].target].data());
       }
       for (std::size_t c = 0; c < ncomp; ++c) {
-        if (!comp_has_prior[c]) problem->SetParameterBlockConstant(pose[*root[c]].data());
+        if (!comp_has_prior[c] || !use_priors)
+          problem->SetParameterBlockConstant(pose[*root[c]].data());
       }
       ceres::Solver::Options so;
       so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -442,14 +452,16 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     // The robust round is graduated: least squares from the spanning tree (a false edge on the
     // tree cannot trap the start), then a wide Cauchy, then the Cauchy of the options.
     std::unique_ptr<ceres::Problem> last_problem;
+    // The edge covariance scale is estimated from the edges alone (priors left out, gauge at
+    // each component's root): a prior's own error must not inflate it.
+    const bool estimate_scale = robust && options.edge_covariance_scale == 0.0;
     if (robust) {
-      solve(0.0);
-      solve(4.0 * options.cauchy_scale);
-      last_problem = solve(options.cauchy_scale);
+      solve(0.0, !estimate_scale);
+      solve(4.0 * options.cauchy_scale, !estimate_scale);
+      last_problem = solve(options.cauchy_scale, !estimate_scale);
     } else {
-      last_problem = solve(0.0);
+      last_problem = solve(0.0, true);
     }
-    ceres::Problem& problem = *last_problem;
 
     // Chi^2 of each active edge at the solution.
     std::vector<double> chi2(edges.size(), 0.0);
@@ -478,6 +490,20 @@ MergeResult solve_pose_graph(std::size_t num_maps,
         }
       }
     }
+    if (estimate_scale &&
+        std::any_of(priors.begin(), priors.end(), [](const auto& p) { return p.has_value(); })) {
+      // Back to the priors' gauge with the scaled edges; the chi^2 at that solution decide.
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (active[e]) W[e] = *whitening(edge_cov[e] * scale);
+      }
+      last_problem = solve(options.cauchy_scale, true);
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (!active[e]) continue;
+        chi2[e] =
+            chi2_of(W[e], edge_twist(pose[edges[e].source], pose[edges[e].target], edge_meas[e]));
+      }
+    }
+    ceres::Problem& problem = *last_problem;
     bool rejected_any = false;
     for (std::size_t e = 0; e < edges.size(); ++e) {
       if (active[e] && chi2[e] > threshold) {
