@@ -1,7 +1,10 @@
 // Small helpers shared by the CLI subcommands (parsing, output-path checks, JSON values).
 #pragma once
 
+#include <signal.h>
+
 #include <array>
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -32,5 +35,27 @@ nlohmann::json json_number(double v);
 
 /// A 4x4 matrix as a JSON array of 4 rows.
 nlohmann::json json_matrix(const Isometry3& T);
+
+}  // namespace lmalign::cli
+
+namespace lmalign::cli {
+
+/// The flag set by the first SIGINT/SIGTERM while a StopSignals is alive.
+std::atomic<bool>& stop_flag();
+
+/// While alive: the first SIGINT/SIGTERM sets stop_flag() (a long command then stops after the
+/// work in flight; every file on disk is complete, being written atomically); a second one ends
+/// the process at once. The previous handlers come back on destruction.
+class StopSignals {
+ public:
+  StopSignals();
+  ~StopSignals();
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  struct sigaction old_int_ {};
+  struct sigaction old_term_ {};
+};
 
 }  // namespace lmalign::cli

@@ -38,41 +38,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// --- signals: the first SIGINT/SIGTERM asks the runner to stop after the runs in flight; a
-// second one ends the process at once (every file on disk is complete: they are written
-// atomically).
-std::atomic<bool> g_cancel{false};
-static_assert(std::atomic<bool>::is_always_lock_free, "the signal handler needs a lock-free flag");
-
-extern "C" void on_stop_signal(int sig) {
-  if (g_cancel.exchange(true)) {
-    ::signal(sig, SIG_DFL);
-    ::raise(sig);
-  }
-}
-
-class StopSignals {
- public:
-  StopSignals() {
-    struct sigaction sa {};
-    sa.sa_handler = on_stop_signal;
-    sigemptyset(&sa.sa_mask);
-    sa.sa_flags = SA_RESTART;
-    ::sigaction(SIGINT, &sa, &old_int_);
-    ::sigaction(SIGTERM, &sa, &old_term_);
-  }
-  ~StopSignals() {
-    ::sigaction(SIGINT, &old_int_, nullptr);
-    ::sigaction(SIGTERM, &old_term_, nullptr);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  struct sigaction old_int_ {};
-  struct sigaction old_term_ {};
-};
-
 struct ExperimentArgs {
   std::string config;
   std::string output;
@@ -414,7 +379,7 @@ int run_experiment(ExperimentArgs a) {
   RunnerOptions ro;
   ro.threads = threads;
   ro.history_case = plot_case;
-  ro.cancel = &g_cancel;
+  ro.cancel = &stop_flag();
   ro.on_progress = [&](const RunnerProgress& p) { bar.update(p); };
   ro.on_case_finished = [&](const Case& c, const std::vector<RunRecord>& records) {
     finished[c.index] = records;
@@ -436,7 +401,7 @@ int run_experiment(ExperimentArgs a) {
   ro.source_covariances_m2 = &source_covariances;
   ro.source_up = estimate_up_axis(in.source);
 
-  g_cancel.store(false);
+  stop_flag().store(false);
   RunnerOutcome outcome;
   {
     const StopSignals signals;

@@ -18,6 +18,9 @@ CommandRunner add_experiment_command(CLI::App& root);
 CommandRunner add_eval_trajectory_command(CLI::App& root);
 CommandRunner add_convert_command(CLI::App& root);
 CommandRunner add_simulate_command(CLI::App& root);
+#ifdef LMALIGN_HAVE_MERGE
+CommandRunner add_merge_command(CLI::App& root);
+#endif
 #ifdef LMALIGN_HAVE_VO
 CommandRunner add_build_map_command(CLI::App& root);
 #endif

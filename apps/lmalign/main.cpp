@@ -64,6 +64,9 @@ int main(int argc, char** argv) {
                                    &lmalign::cli::add_eval_trajectory_command,
                                    &lmalign::cli::add_convert_command,
                                    &lmalign::cli::add_simulate_command,
+#ifdef LMALIGN_HAVE_MERGE
+                                   &lmalign::cli::add_merge_command,
+#endif
 #ifdef LMALIGN_BUILD_MAP_HELPER
                                    &add_build_map_stub,
 #endif

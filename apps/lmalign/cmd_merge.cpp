@@ -1,0 +1,163 @@
+// `lmalign merge`: merge many mini-maps into one frame (docs/merge.md).
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+
+#include "cli_util.hpp"
+#include "commands.hpp"
+#include "lmalign/core/error.hpp"
+#include "lmalign/merge/evaluation.hpp"
+#include "lmalign/merge/merge.hpp"
+#include "lmalign/merge/output.hpp"
+
+namespace lmalign::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct MergeArgs {
+  std::string manifest;
+  std::string out_dir;
+  std::string ground_truth;
+  long long max_pairs = 0;
+  bool resume = false;
+  int threads = 0;
+  std::string thresholds = "5,0.1";
+  bool no_fuse = false;
+};
+
+int run_merge_command(const MergeArgs& a) {
+  if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
+  if (a.threads < 0) throw InvalidArgument("--threads must be >= 0 (0 = all)");
+  const std::vector<double> thr =
+      parse_number_list("--thresholds", a.thresholds, 2, "ROT_DEG,TRANS_M, e.g. 5,0.1");
+  const Manifest manifest = read_manifest(a.manifest);
+  std::vector<std::string> names, sessions;
+  std::vector<std::optional<MapPrior>> priors;
+  std::vector<std::string> inputs{a.manifest};
+  for (const ManifestEntry& e : manifest.maps) {
+    names.push_back(e.name);
+    sessions.push_back(e.session);
+    priors.push_back(e.prior);
+    inputs.push_back(e.path);
+  }
+  std::error_code ec;
+  if (fs::exists(a.out_dir, ec) && !fs::is_directory(a.out_dir, ec)) {
+    throw InvalidArgument("-o " + a.out_dir + ": exists and is not a folder");
+  }
+  if (!a.resume && fs::exists(fs::path(a.out_dir) / "edges", ec) &&
+      !fs::is_empty(fs::path(a.out_dir) / "edges", ec)) {
+    throw InvalidArgument("-o " + a.out_dir +
+                          ": holds edges/ of an earlier run; pass --resume to reuse them, or "
+                          "choose another folder");
+  }
+  for (const std::string& in : inputs) refuse_output_over_input("-o", a.out_dir, {in});
+  std::vector<Isometry3> truth;
+  std::fprintf(stderr, "lmalign merge: reading %zu maps\n", manifest.maps.size());
+  const std::vector<Map> maps = load_manifest_maps(manifest);
+  if (!a.ground_truth.empty()) {
+    if (a.ground_truth == "identity") {
+      truth.assign(maps.size(), Isometry3::Identity());
+    } else {
+      truth = read_ground_truth(a.ground_truth, names);
+    }
+  }
+  MergeOptions options;
+  options.candidates.max_pairs = static_cast<std::size_t>(a.max_pairs);
+  options.threads = a.threads;
+  options.edge_cache_dir = (fs::path(a.out_dir) / "edges").string();
+  const StopSignals signals;
+  stop_flag().store(false);
+  auto progress = [](const std::string& stage, std::size_t done, std::size_t total) {
+    std::fprintf(stderr, "\rlmalign merge: %s %zu/%zu", stage.c_str(), done, total);
+    if (done == total) std::fprintf(stderr, "\n");
+  };
+  const MergeRun run = run_merge(maps, names, priors, options, progress, &stop_flag());
+  if (run.cancelled) {
+    std::fprintf(stderr,
+                 "\nlmalign merge: interrupted; %zu of %zu edges are kept in %s; rerun with "
+                 "--resume to continue\n",
+                 run.edges.size(), run.candidates.size(), options.edge_cache_dir.c_str());
+    return 130;
+  }
+  MergeOutputOptions oo;
+  oo.fuse_landmarks = !a.no_fuse;
+  write_merge_outputs(a.out_dir, names, sessions, maps, run.edges, run.result, oo);
+  std::size_t used = 0, rejected = 0, trusted = 0;
+  for (std::size_t e = 0; e < run.edges.size(); ++e) {
+    trusted += run.edges[e].trusted ? 1 : 0;
+    used += run.result.edges[e].used ? 1 : 0;
+    rejected += run.result.edges[e].rejected ? 1 : 0;
+  }
+  std::printf(
+      "merged %zu maps: %zu candidate pairs (%zu reused), %zu trusted, %zu in the graph, %zu "
+      "rejected by it; %zu component(s); final chi2 %.3f (edge covariance scale %.3g)\n",
+      maps.size(), run.candidates.size(), run.edges_reused, trusted, used, rejected,
+      run.result.num_components, run.result.final_chi2, run.result.edge_covariance_scale);
+  std::printf("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
+  for (std::size_t e = 0; e < run.edges.size(); ++e) {
+    if (run.result.edges[e].rejected) {
+      std::printf("rejected edge: %s -> %s (chi2 %.1f)\n", names[run.edges[e].source].c_str(),
+                  names[run.edges[e].target].c_str(), run.result.edges[e].chi2);
+    }
+  }
+  if (!truth.empty()) {
+    GroundTruthThresholds t;
+    t.rotation_deg = thr[0];
+    t.translation_m = thr[1];
+    const MergeEvaluation ev = evaluate_merge(run.result, run.edges, truth, t);
+    std::printf("ground truth (within %g deg / %g m):\n", t.rotation_deg, t.translation_m);
+    for (std::size_t i = 0; i < maps.size(); ++i) {
+      std::printf("  %-20s component %zu  rotation %.3f deg  translation %.4f m%s\n",
+                  names[i].c_str(), run.result.maps[i].component, ev.maps[i].rotation_deg,
+                  ev.maps[i].translation_m, ev.maps[i].within ? "" : "  (outside)");
+    }
+    std::printf("  within: %.1f%%  edges kept %zu, false kept %zu, precision %.3f, recall %.3f\n",
+                100.0 * ev.fraction_within, ev.kept_edges, ev.false_kept_edges, ev.edge_precision,
+                ev.edge_recall);
+  }
+  std::printf("wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map%s, edges/)\n",
+              a.out_dir.c_str(), run.result.num_components > 1 ? "s per component" : "");
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner add_merge_command(CLI::App& root) {
+  auto args = std::make_shared<MergeArgs>();
+  CLI::App* cmd = root.add_subcommand(
+      "merge",
+      "Merge many mini-maps into one frame (docs/merge.md): candidate pairs (priors, else all\n"
+      "pairs or a pre-filter), one adaptive alignment per pair (kept when trusted, with its 6x6\n"
+      "covariance), a robust SE(3) pose graph (Ceres) that rejects edges inconsistent with the\n"
+      "rest, and the outputs in OUTDIR: poses.yaml/json (T_world_map, p_world = T * p_map, "
+      "metres;\n"
+      "6x6 covariance of xi = (rho m, phi rad), left perturbation in the world frame), edges.csv,\n"
+      "summary.json, merged_map.txt. A graph in several parts is reported part by part, each in\n"
+      "its own frame (its first map's, or its priors'). Finished edges are kept in OUTDIR/edges/\n"
+      "as they finish; Ctrl-C stops after the alignments in flight, and --resume reuses them.");
+  cmd->add_option("MANIFEST", args->manifest,
+                  "YAML manifest: maps with name, path, optional format, session, T_world_map "
+                  "prior (4x4) with prior_sigma [rot_deg, trans_m] or prior_covariance (6x6)")
+      ->required();
+  cmd->add_option("-o,--output", args->out_dir, "Output folder (created)")->required();
+  cmd->add_option("--ground-truth", args->ground_truth,
+                  "YAML 'maps: {name: 4x4 T_world_map (m)}', or 'identity' (all maps share the "
+                  "true frame): per-map errors, edge precision and recall");
+  cmd->add_option("--thresholds", args->thresholds,
+                  "Ground truth: ROT_DEG,TRANS_M within which a map or edge counts as right "
+                  "(5,0.1 indoors; 5,1 outdoors)")
+      ->capture_default_str();
+  cmd->add_option("--max-pairs", args->max_pairs, "At most this many candidate pairs (0 = all)")
+      ->capture_default_str();
+  cmd->add_flag("--resume", args->resume, "Reuse the finished edges in OUTDIR/edges/");
+  cmd->add_option("--threads", args->threads,
+                  "OpenMP threads over the pairs (0 = all); the result does not depend on it")
+      ->capture_default_str();
+  cmd->add_flag("--no-fuse", args->no_fuse,
+                "Do not fuse landmarks with the same id in maps of the same session");
+  return [args]() { return run_merge_command(*args); };
+}
+
+}  // namespace lmalign::cli

@@ -1,0 +1,81 @@
+// Candidate pairs of a merge (docs/merge.md, "Candidates"): which mini-maps to try to align.
+//   - Both maps with a prior: the pair is a candidate when the maps' bounding spheres, placed by
+//     their priors, overlap within 3 sigma of the relative prior's translation (plus the
+//     rotation sigma times the radius).
+//   - Otherwise, N <= all_pairs_max_maps: every pair.
+//   - Otherwise a cheap, rotation-invariant pre-filter ranks the pairs: each map gets a
+//     descriptor (a histogram of its landmarks' heights along its up axis, relative to its
+//     median camera height, and a histogram of distances between seeded random landmark
+//     pairs); each map keeps its keep_per_map most similar maps (L1 distance of the
+//     normalised histograms); the union of those is the candidate set.
+//   - At most max_pairs pairs (the best ranked first).
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/merge/manifest.hpp"
+#include "lmalign/registration/adaptive.hpp"
+
+namespace lmalign {
+
+/// A pair to align: `source` and `target` are map indices (source < target); the edge
+/// estimates T_target_source.
+struct CandidatePair {
+  std::size_t source = 0;
+  std::size_t target = 0;
+  /// Rank key, smaller = more promising (descriptor distance, or prior centre distance over
+  /// the spheres' reach); 0 for "every pair".
+  double rank = 0.0;
+  /// With priors on both maps: the relative prior T_target_source = T_world_target^-1 *
+  /// T_world_source and its sigmas (the two priors' covariances, assumed independent, moved
+  /// into the target frame by the adjoint; worst axes).
+  std::optional<Isometry3> initial_guess;
+  std::optional<PriorSigma> prior;
+};
+
+struct CandidateOptions {
+  /// Every pair is a candidate up to this many maps without priors, >= 2.
+  std::size_t all_pairs_max_maps = 12;
+  /// The pre-filter keeps this many most similar maps per map, >= 1.
+  std::size_t keep_per_map = 4;
+  /// At most this many pairs in all (0 = no limit).
+  std::size_t max_pairs = 0;
+  /// Spheres overlap test: this many sigmas of the relative prior, > 0.
+  double prior_sigmas = 3.0;
+  /// Bounding radius: this quantile of the landmarks' distances from their centroid, (0, 1].
+  double radius_quantile = 0.95;
+  /// Histogram bins, and the largest height / distance binned (as multiples of the median
+  /// landmark distance from the centroid).
+  std::size_t bins = 16;
+  /// Random landmark pairs per map for the distance histogram (seeded by the map index).
+  std::size_t distance_samples = 4000;
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+/// What the planner needs to know of a map (cheap to keep for thousands of maps).
+struct MapSummary {
+  Vec3 centroid = Vec3::Zero();  ///< map frame, metres
+  double radius_m = 0.0;
+  std::vector<double> descriptor;  ///< normalised histograms (see the file comment)
+  std::size_t num_landmarks = 0;
+};
+
+/// The summary of one map (deterministic; `seed` seeds the distance sampling).
+MapSummary summarise_map(const Map& map, const CandidateOptions& options, std::uint64_t seed);
+
+/// Relative prior of two maps' priors (see CandidatePair::prior): T_target_source and its 6x6
+/// covariance in the target frame (uncertainty.hpp's convention).
+Isometry3 relative_prior(const MapPrior& source, const MapPrior& target, Mat6* covariance);
+
+/// Plans the candidate pairs of `summaries` (one per map, in manifest order) with their priors
+/// (`priors[i]` empty when map i has none). Deterministic. Throws InvalidArgument on invalid
+/// options or sizes that do not match.
+std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summaries,
+                                           const std::vector<std::optional<MapPrior>>& priors,
+                                           const CandidateOptions& options = {});
+
+}  // namespace lmalign

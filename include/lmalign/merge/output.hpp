@@ -1,0 +1,57 @@
+// Outputs of a merge (docs/merge.md, "Outputs"), every file written atomically
+// (io/atomic_file.hpp):
+//   poses.yaml, poses.json   per map: name, component, gauge flag, T_world_map (4x4 rows),
+//                            6x6 covariance (uncertainty.hpp's convention, world frame)
+//   edges.csv                one row per candidate edge
+//   summary.json             counts, final chi^2, the edge covariance scale, rejected edges
+//   merged_map.txt           (one component) or merged_map_component<k>.txt (one per
+//                            component, each in its own frame): every map's frames and
+//                            landmarks moved into the world frame (covariances rotated), frames
+//                            and landmarks renumbered in map order; with fusion, landmarks of
+//                            maps of the same session sharing an id are one landmark
+//                            (information-weighted mean, summed information; observations
+//                            concatenated)
+//   edges/<source>__<target>.json   one per aligned edge (the resume cache), written as each
+//                            edge finishes (write_edge_file)
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lmalign/map/map.hpp"
+#include "lmalign/merge/edges.hpp"
+#include "lmalign/merge/pose_graph.hpp"
+
+namespace lmalign {
+
+struct MergeOutputOptions {
+  /// Fuse landmarks of one session with the same id (maps without a session never fuse).
+  bool fuse_landmarks = true;
+};
+
+/// The merged map of component `component`: maps of that component moved by their T_world_map
+/// (transform_map), renumbered (frame ids 0.., landmark ids 0.. in map order; fused landmarks
+/// keep the first occurrence's place). `sessions[i]` is map i's session ("" = none).
+/// Throws InvalidArgument if sizes do not match.
+Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& sessions,
+               const MergeResult& result, std::size_t component,
+               const MergeOutputOptions& options = {});
+
+/// Writes poses.yaml, poses.json, edges.csv, summary.json and the merged map(s) into `out_dir`
+/// (created if missing). `names[i]` names map i. Throws IoError / InvalidArgument.
+void write_merge_outputs(const std::string& out_dir, const std::vector<std::string>& names,
+                         const std::vector<std::string>& sessions, const std::vector<Map>& maps,
+                         const std::vector<Edge>& edges, const MergeResult& result,
+                         const MergeOutputOptions& options = {});
+
+/// The cache file of an edge: <dir>/<name_source>__<name_target>.json.
+std::string edge_file_path(const std::string& dir, const std::string& source_name,
+                           const std::string& target_name);
+/// Writes one edge atomically (JSON; doubles round-trip exactly).
+void write_edge_file(const std::string& path, const Edge& edge);
+/// Reads an edge file. Returns nullopt if it does not exist; throws ParseError naming the file
+/// if it is malformed.
+std::optional<Edge> read_edge_file(const std::string& path);
+
+}  // namespace lmalign

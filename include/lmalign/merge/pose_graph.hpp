@@ -1,0 +1,94 @@
+// The pose graph of a merge (docs/merge.md, "Pose graph"), solved with Ceres.
+//
+// Unknowns: T_world_map of every map (SE(3): translation + unit quaternion, with a manifold whose
+// tangent is uncertainty.hpp's left perturbation in the world frame, T = Exp(xi) T_hat with
+// Exp(xi) = [Exp(phi), rho]). Factors:
+//   edge  (i -> j, measured T_j_i, covariance C in frame j):
+//         xi = Log-ish(T_wj^-1 T_wi * T_ji_meas^-1) = (translation, rotation vector), r = L^-1 xi
+//         with C * s = L L^T (s: the edge covariance scale, below);
+//   prior (map i, T_prior, C_prior): xi of T_wi * T_prior^-1, r = L^-1 xi.
+// Robust: the first solve uses a Cauchy loss on the squared whitened residual (scale
+// `cauchy_scale`), so one false edge cannot bend the graph; edges whose chi^2 = |r|^2 then
+// exceeds the chi^2(6) quantile `reject_quantile` are rejected, and the graph is solved again
+// without them and without the loss (repeated until nothing more is rejected, at most
+// max_rounds). The final chi^2 and the marginal covariances (ceres::Covariance) come from that
+// last, plain least-squares solve.
+// Gauge: each connected component (of the kept edges) with at least one prior is held by its
+// priors; one without is fixed at its first map (lowest index) = identity, covariance zero.
+// Components are never forced together: each is reported in its own frame.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/merge/edges.hpp"
+#include "lmalign/merge/manifest.hpp"
+
+namespace lmalign {
+
+struct PoseGraphOptions {
+  /// Cauchy loss scale on the whitened residual norm (rho(s) = a^2 log(1 + s / a^2) with
+  /// s = |r|^2, a = cauchy_scale), > 0.
+  double cauchy_scale = 3.0;
+  /// An edge is rejected when its chi^2 exceeds the chi^2(6) quantile of this probability,
+  /// in (0.5, 1) (0.999: 22.46).
+  double reject_quantile = 0.999;
+  /// Edge covariance scale s (> 0), or 0: estimated from the graph's redundancy when there is
+  /// some (docs/merge.md): s = max(1, median edge chi^2 / (5.348 * redundancy)), redundancy =
+  /// (edges - maps + components) / edges, over the edges of the robust solve. Untrusted (not
+  /// calibrated) covariances are then not over-confident, and a false edge does not count.
+  double edge_covariance_scale = 0.0;
+  /// Covariance floor (documented guard): each edge covariance's eigenvalues are raised to at
+  /// least floor_translation_m^2 (translation block) and floor_rotation_deg^2 (rotation block,
+  /// in rad^2) before whitening. > 0.
+  double floor_translation_m = 1e-3;
+  double floor_rotation_deg = 0.01;
+  int max_rounds = 4;        ///< >= 1
+  int max_iterations = 100;  ///< Ceres iterations per solve, >= 1
+  bool compute_covariances = true;
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+/// One map's result.
+struct MapPose {
+  Isometry3 T_world_map = Isometry3::Identity();
+  /// Marginal covariance (uncertainty.hpp's convention, world frame); zero for a gauge map.
+  Mat6 covariance = Mat6::Zero();
+  bool covariance_valid = false;
+  std::size_t component = 0;  ///< 0-based, components ordered by their lowest map index
+  bool is_gauge = false;      ///< fixed at identity (a component without priors)
+};
+
+/// One edge's fate in the graph (same order as the edges given).
+struct EdgeReport {
+  bool used = false;        ///< trusted and with a usable covariance: entered the graph
+  bool rejected = false;    ///< used, then rejected after optimisation
+  double chi2 = 0.0;        ///< whitened chi^2 at the final poses (with the scale), 0 if unused
+  std::string skip_reason;  ///< why not used ("untrusted: ...", "invalid covariance")
+};
+
+struct MergeResult {
+  std::vector<MapPose> maps;
+  std::vector<EdgeReport> edges;
+  std::size_t num_components = 0;
+  double final_chi2 = 0.0;  ///< sum over the kept edges and the priors
+  double edge_covariance_scale = 1.0;
+  int rounds = 0;
+  bool converged = false;
+};
+
+/// Solves the graph of `num_maps` maps with `priors` (size num_maps, empty = none) and `edges`.
+/// Throws InvalidArgument on invalid options, sizes that do not match, or an edge naming a map
+/// out of range.
+MergeResult solve_pose_graph(std::size_t num_maps,
+                             const std::vector<std::optional<MapPrior>>& priors,
+                             const std::vector<Edge>& edges, const PoseGraphOptions& options = {});
+
+/// Quantile of the chi^2 distribution with `dof` degrees of freedom (Wilson-Hilferty
+/// approximation, within 1% for dof >= 3 and p in [0.9, 0.9999]).
+double chi2_quantile(double p, int dof);
+
+}  // namespace lmalign

@@ -1,0 +1,199 @@
+// Candidate pairs of a merge (include/lmalign/merge/candidates.hpp).
+#include "lmalign/merge/candidates.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <set>
+
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
+
+namespace lmalign {
+
+namespace {
+
+// q-quantiles (q = 1/(n+1) .. n/(n+1)) of values (sorted in place).
+std::vector<double> quantiles(std::vector<double>& values, std::size_t n) {
+  std::vector<double> out(n, 0.0);
+  if (values.empty()) return out;
+  std::sort(values.begin(), values.end());
+  for (std::size_t k = 0; k < n; ++k) {
+    const double q = static_cast<double>(k + 1) / static_cast<double>(n + 1);
+    out[k] = values[static_cast<std::size_t>(q * static_cast<double>(values.size() - 1))];
+  }
+  return out;
+}
+
+Mat6 adjoint(const Isometry3& T) {
+  // (rho, phi) ordering: Ad = [[R, [t]x R], [0, R]].
+  Mat6 A = Mat6::Zero();
+  const Mat3 R = T.linear();
+  const Vec3 t = T.translation();
+  Mat3 tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  A.block<3, 3>(0, 0) = R;
+  A.block<3, 3>(0, 3) = tx * R;
+  A.block<3, 3>(3, 3) = R;
+  return A;
+}
+
+double worst_sd(const Mat3& C) {
+  Eigen::SelfAdjointEigenSolver<Mat3> eig(C);
+  return std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
+}
+
+}  // namespace
+
+bool CandidateOptions::is_valid(std::string* why) const {
+  auto bad = [&](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (all_pairs_max_maps < 2) return bad("all_pairs_max_maps must be >= 2");
+  if (keep_per_map < 1) return bad("keep_per_map must be >= 1");
+  if (!(prior_sigmas > 0.0) || !std::isfinite(prior_sigmas)) return bad("prior_sigmas must be > 0");
+  if (!(radius_quantile > 0.0 && radius_quantile <= 1.0)) {
+    return bad("radius_quantile must be in (0, 1]");
+  }
+  if (bins < 2 || bins > 1024) return bad("bins must be in [2, 1024]");
+  if (distance_samples < 16) return bad("distance_samples must be >= 16");
+  return true;
+}
+
+MapSummary summarise_map(const Map& map, const CandidateOptions& options, std::uint64_t seed) {
+  MapSummary s;
+  const Points3 p = map.positions();
+  s.num_landmarks = p.size();
+  if (p.empty()) return s;
+  for (const Vec3& x : p) s.centroid += x;
+  s.centroid /= static_cast<double>(p.size());
+  std::vector<double> dist;
+  dist.reserve(p.size());
+  for (const Vec3& x : p) dist.push_back((x - s.centroid).norm());
+  std::sort(dist.begin(), dist.end());
+  s.radius_m = dist[static_cast<std::size_t>(options.radius_quantile *
+                                             static_cast<double>(dist.size() - 1))];
+  // Heights along the up axis, relative to the median camera height (median landmark height
+  // without frames).
+  const Vec3 up = estimate_up_axis(map).value_or(Vec3::UnitZ());
+  std::vector<double> ref;
+  for (const Frame& f : map.frames) ref.push_back(f.p_world_camera.dot(up));
+  if (ref.empty()) {
+    for (const Vec3& x : p) ref.push_back(x.dot(up));
+  }
+  std::nth_element(ref.begin(), ref.begin() + static_cast<std::ptrdiff_t>(ref.size() / 2),
+                   ref.end());
+  const double h0 = ref[ref.size() / 2];
+  std::vector<double> heights;
+  heights.reserve(p.size());
+  for (const Vec3& x : p) heights.push_back(x.dot(up) - h0);
+  // Distances between seeded random landmark pairs.
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<std::size_t> pick(0, p.size() - 1);
+  std::vector<double> pair_dist;
+  pair_dist.reserve(options.distance_samples);
+  for (std::size_t k = 0; k < options.distance_samples; ++k) {
+    pair_dist.push_back((p[pick(rng)] - p[pick(rng)]).norm());
+  }
+  s.descriptor = quantiles(heights, options.bins);
+  const std::vector<double> dq = quantiles(pair_dist, options.bins);
+  s.descriptor.insert(s.descriptor.end(), dq.begin(), dq.end());
+  return s;
+}
+
+Isometry3 relative_prior(const MapPrior& source, const MapPrior& target, Mat6* covariance) {
+  const Isometry3 T_target_world = target.T_world_map.inverse();
+  if (covariance != nullptr) {
+    // T_wj^-1 Exp(-xi_j) Exp(xi_i) T_wi ~= Exp(Ad(T_jw) (xi_i - xi_j)) T_ji.
+    const Mat6 A = adjoint(T_target_world);
+    *covariance = A * (source.covariance + target.covariance) * A.transpose();
+  }
+  return T_target_world * source.T_world_map;
+}
+
+std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summaries,
+                                           const std::vector<std::optional<MapPrior>>& priors,
+                                           const CandidateOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("candidate options: " + why);
+  const std::size_t n = summaries.size();
+  if (priors.size() != n) {
+    throw InvalidArgument("plan_candidates: " + std::to_string(priors.size()) + " priors for " +
+                          std::to_string(n) + " maps");
+  }
+  std::vector<CandidatePair> with_prior;
+  std::vector<std::pair<std::size_t, std::size_t>> without;
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = i + 1; j < n; ++j) {
+      if (priors[i] && priors[j]) {
+        CandidatePair c;
+        c.source = i;
+        c.target = j;
+        Mat6 C;
+        const Isometry3 T_ji = relative_prior(*priors[i], *priors[j], &C);
+        const double sd_t = worst_sd(C.block<3, 3>(0, 0));
+        const double sd_r = worst_sd(C.block<3, 3>(3, 3));  // rad
+        const Vec3 ci = T_ji * summaries[i].centroid;       // in j's frame
+        const double gap = (ci - summaries[j].centroid).norm();
+        const double reach = summaries[i].radius_m + summaries[j].radius_m +
+                             options.prior_sigmas * (sd_t + sd_r * summaries[i].radius_m);
+        if (gap > reach) continue;
+        c.rank = gap / std::max(reach, 1e-12);
+        c.initial_guess = T_ji;
+        PriorSigma ps;
+        ps.rotation_deg = std::max(sd_r / kRadPerDeg, 1e-3);
+        ps.translation_m = std::max(sd_t, 1e-4);
+        c.prior = ps;
+        with_prior.push_back(c);
+      } else {
+        without.emplace_back(i, j);
+      }
+    }
+  }
+  std::vector<CandidatePair> out = with_prior;
+  if (n <= options.all_pairs_max_maps) {
+    for (const auto& [i, j] : without) out.push_back(CandidatePair{i, j, 0.0, {}, {}});
+  } else if (!without.empty()) {
+    auto distance = [&](std::size_t i, std::size_t j) {
+      const auto& a = summaries[i].descriptor;
+      const auto& b = summaries[j].descriptor;
+      if (a.size() != b.size() || a.empty()) return std::numeric_limits<double>::infinity();
+      double d = 0.0;
+      for (std::size_t k = 0; k < a.size(); ++k) d += std::abs(a[k] - b[k]);
+      return d / static_cast<double>(a.size());
+    };
+    // Per map: its keep_per_map nearest partners among the pairs without priors.
+    std::vector<std::vector<std::pair<double, std::size_t>>> near(n);
+    std::vector<double> pair_distance(without.size());
+    for (std::size_t k = 0; k < without.size(); ++k) {
+      const auto [i, j] = without[k];
+      pair_distance[k] = distance(i, j);
+      near[i].emplace_back(pair_distance[k], j);
+      near[j].emplace_back(pair_distance[k], i);
+    }
+    std::set<std::pair<std::size_t, std::size_t>> keep;
+    for (std::size_t i = 0; i < n; ++i) {
+      auto& v = near[i];
+      const std::size_t m = std::min(options.keep_per_map, v.size());
+      std::partial_sort(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(m), v.end());
+      for (std::size_t k = 0; k < m; ++k)
+        keep.emplace(std::min(i, v[k].second), std::max(i, v[k].second));
+    }
+    for (std::size_t k = 0; k < without.size(); ++k) {
+      if (keep.count(without[k]) != 0) {
+        out.push_back(CandidatePair{without[k].first, without[k].second, pair_distance[k], {}, {}});
+      }
+    }
+  }
+  // Best ranked first (stable: ties keep the (source, target) order), then the budget.
+  std::stable_sort(out.begin(), out.end(),
+                   [](const CandidatePair& a, const CandidatePair& b) { return a.rank < b.rank; });
+  if (options.max_pairs > 0 && out.size() > options.max_pairs) out.resize(options.max_pairs);
+  return out;
+}
+
+}  // namespace lmalign

@@ -1,0 +1,123 @@
+// Ground-truth evaluation of a merge (include/lmalign/merge/evaluation.hpp).
+#include "lmalign/merge/evaluation.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <Eigen/SVD>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/adaptive.hpp"
+
+namespace lmalign {
+
+std::vector<Isometry3> read_ground_truth(const std::string& path,
+                                         const std::vector<std::string>& names) {
+  YAML::Node root;
+  try {
+    root = YAML::LoadFile(path);
+  } catch (const YAML::BadFile&) {
+    throw IoError("cannot read ground truth '" + path + "'");
+  } catch (const YAML::ParserException& e) {
+    throw ParseError(path, static_cast<std::size_t>(e.mark.line + 1), "YAML: " + e.msg);
+  }
+  const YAML::Node maps = root["maps"];
+  if (!maps || !maps.IsMap()) {
+    throw ParseError(path, 0, "expected 'maps: {name: [[4x4 rows of T_world_map]], ...}'");
+  }
+  std::vector<Isometry3> out;
+  for (const std::string& name : names) {
+    const YAML::Node m = maps[name];
+    if (!m) throw ParseError(path, 0, "maps: no pose for map '" + name + "'");
+    const std::size_t line = static_cast<std::size_t>(m.Mark().line + 1);
+    const std::string expected = "maps." + name + ": expected 4 rows of 4 numbers (T_world_map)";
+    if (!m.IsSequence() || m.size() != 4) throw ParseError(path, line, expected);
+    Isometry3 T = Isometry3::Identity();
+    for (int r = 0; r < 4; ++r) {
+      if (!m[r].IsSequence() || m[r].size() != 4) throw ParseError(path, line, expected);
+      for (int c = 0; c < 4; ++c) {
+        try {
+          T.matrix()(r, c) = m[r][c].as<double>();
+        } catch (const YAML::Exception&) {
+          throw ParseError(path, line, expected);
+        }
+      }
+    }
+    if (!is_rigid_transform(T) || T.matrix().row(3) != Eigen::RowVector4d(0, 0, 0, 1)) {
+      throw ParseError(path, line, "maps." + name + ": not a rigid transform");
+    }
+    out.push_back(T);
+  }
+  return out;
+}
+
+MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge>& edges,
+                               const std::vector<Isometry3>& truth,
+                               const GroundTruthThresholds& thresholds) {
+  const std::size_t n = result.maps.size();
+  if (truth.size() != n || result.edges.size() != edges.size()) {
+    throw InvalidArgument("evaluate_merge: " + std::to_string(truth.size()) + " true poses for " +
+                          std::to_string(n) + " maps");
+  }
+  MergeEvaluation ev;
+  ev.maps.resize(n);
+  // Per component: G = argmin sum |G T_est - T_true| (chordal rotation mean, then translation).
+  for (std::size_t c = 0; c < result.num_components; ++c) {
+    Mat3 M = Mat3::Zero();
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (result.maps[i].component != c) continue;
+      M += truth[i].linear() * result.maps[i].T_world_map.linear().transpose();
+      ++count;
+    }
+    if (count == 0) continue;
+    Eigen::JacobiSVD<Mat3> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    Mat3 D = Mat3::Identity();
+    D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
+    Isometry3 G = Isometry3::Identity();
+    G.linear() = svd.matrixU() * D * svd.matrixV().transpose();
+    Vec3 t = Vec3::Zero();
+    for (std::size_t i = 0; i < n; ++i) {
+      if (result.maps[i].component != c) continue;
+      t += truth[i].translation() - G.linear() * result.maps[i].T_world_map.translation();
+    }
+    G.translation() = t / static_cast<double>(count);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (result.maps[i].component != c) continue;
+      const TransformError err = transform_error(G * result.maps[i].T_world_map, truth[i]);
+      ev.maps[i] = {err.rotation_deg, err.translation_m,
+                    err.rotation_deg <= thresholds.rotation_deg &&
+                        err.translation_m <= thresholds.translation_m};
+    }
+  }
+  std::size_t within = 0;
+  for (const MapError& e : ev.maps) {
+    within += e.within ? 1 : 0;
+    ev.max_rotation_deg = std::max(ev.max_rotation_deg, e.rotation_deg);
+    ev.max_translation_m = std::max(ev.max_translation_m, e.translation_m);
+  }
+  ev.fraction_within = n ? static_cast<double>(within) / static_cast<double>(n) : 1.0;
+  std::size_t kept_true = 0, all_true = 0;
+  ev.edge_true.resize(edges.size());
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    const Edge& ed = edges[e];
+    const Isometry3 T_true = truth[ed.target].inverse() * truth[ed.source];
+    const TransformError err = transform_error(ed.T_target_source, T_true);
+    const bool ok = err.rotation_deg <= thresholds.rotation_deg &&
+                    err.translation_m <= thresholds.translation_m;
+    ev.edge_true[e] = ok;
+    all_true += ok ? 1 : 0;
+    const bool kept = result.edges[e].used && !result.edges[e].rejected;
+    if (kept) {
+      ++ev.kept_edges;
+      kept_true += ok ? 1 : 0;
+      ev.false_kept_edges += ok ? 0 : 1;
+    }
+  }
+  ev.edge_precision =
+      ev.kept_edges ? static_cast<double>(kept_true) / static_cast<double>(ev.kept_edges) : 1.0;
+  ev.edge_recall = all_true ? static_cast<double>(kept_true) / static_cast<double>(all_true) : 1.0;
+  return ev;
+}
+
+}  // namespace lmalign

@@ -1,0 +1,252 @@
+// Outputs of a merge (include/lmalign/merge/output.hpp).
+#include "lmalign/merge/output.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/map/map_io.hpp"
+
+namespace lmalign {
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+json matrix_json(const Eigen::MatrixXd& m) {
+  json rows = json::array();
+  for (int r = 0; r < m.rows(); ++r) {
+    json row = json::array();
+    for (int c = 0; c < m.cols(); ++c) row.push_back(m(r, c));
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+Eigen::MatrixXd json_matrix(const json& j, int rows, int cols, const std::string& field) {
+  if (!j.is_array() || static_cast<int>(j.size()) != rows) {
+    throw InvalidArgument(field + ": expected " + std::to_string(rows) + " rows");
+  }
+  Eigen::MatrixXd m(rows, cols);
+  for (int r = 0; r < rows; ++r) {
+    if (!j[r].is_array() || static_cast<int>(j[r].size()) != cols) {
+      throw InvalidArgument(field + ": expected " + std::to_string(cols) + " columns");
+    }
+    for (int c = 0; c < cols; ++c) m(r, c) = j[r][c].get<double>();
+  }
+  return m;
+}
+
+std::string yaml_row(const Eigen::MatrixXd& m, int r) {
+  std::ostringstream os;
+  os << std::setprecision(17) << "[";
+  for (int c = 0; c < m.cols(); ++c) os << (c ? ", " : "") << m(r, c);
+  os << "]";
+  return os.str();
+}
+
+}  // namespace
+
+Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& sessions,
+               const MergeResult& result, std::size_t component,
+               const MergeOutputOptions& options) {
+  if (sessions.size() != maps.size() || result.maps.size() != maps.size()) {
+    throw InvalidArgument("merge_maps: maps, sessions and poses differ in number");
+  }
+  Map out;
+  Id next_frame = 0;
+  // (session, landmark id) -> index in out.landmarks, and the fused information sums.
+  std::map<std::pair<std::string, Id>, std::size_t> fused;
+  std::vector<Mat3> info_sum;
+  std::vector<Vec3> info_mean_sum;
+  for (std::size_t m = 0; m < maps.size(); ++m) {
+    if (result.maps[m].component != component) continue;
+    const Map moved = transform_map(maps[m], result.maps[m].T_world_map);
+    std::map<Id, Id> frame_id;
+    for (const Frame& f : moved.frames) {
+      Frame g = f;
+      g.id = next_frame++;
+      frame_id[f.id] = g.id;
+      out.frames.push_back(g);
+    }
+    for (const Landmark& l : moved.landmarks) {
+      Landmark k = l;
+      for (Observation& o : k.observations) o.frame_id = frame_id.at(o.frame_id);
+      const bool fusable = options.fuse_landmarks && !sessions[m].empty();
+      const auto key = std::make_pair(sessions[m], l.id);
+      auto it = fusable ? fused.find(key) : fused.end();
+      Eigen::LDLT<Mat3> ldlt(k.cov_world_m2);
+      const bool invertible = ldlt.info() == Eigen::Success && k.cov_world_m2.determinant() > 0.0;
+      if (it != fused.end() && invertible) {
+        const std::size_t idx = it->second;
+        const Mat3 info = k.cov_world_m2.inverse();
+        info_sum[idx] += info;
+        info_mean_sum[idx] += info * k.p_world;
+        Landmark& f = out.landmarks[idx];
+        f.cov_world_m2 = info_sum[idx].inverse();
+        f.cov_world_m2 = 0.5 * (f.cov_world_m2 + f.cov_world_m2.transpose()).eval();
+        f.p_world = f.cov_world_m2 * info_mean_sum[idx];
+        f.observations.insert(f.observations.end(), k.observations.begin(), k.observations.end());
+        continue;
+      }
+      k.id = static_cast<Id>(out.landmarks.size());
+      if (fusable && invertible && it == fused.end()) fused[key] = out.landmarks.size();
+      info_sum.push_back(invertible ? Mat3(k.cov_world_m2.inverse()) : Mat3::Zero());
+      info_mean_sum.push_back(invertible ? Vec3(k.cov_world_m2.inverse() * k.p_world)
+                                         : Vec3::Zero());
+      out.landmarks.push_back(std::move(k));
+    }
+  }
+  return out;
+}
+
+void write_merge_outputs(const std::string& out_dir, const std::vector<std::string>& names,
+                         const std::vector<std::string>& sessions, const std::vector<Map>& maps,
+                         const std::vector<Edge>& edges, const MergeResult& result,
+                         const MergeOutputOptions& options) {
+  if (names.size() != maps.size() || result.maps.size() != maps.size() ||
+      result.edges.size() != edges.size()) {
+    throw InvalidArgument("write_merge_outputs: names, maps, poses and edges differ in number");
+  }
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw IoError("cannot create '" + out_dir + "': " + ec.message());
+  const fs::path dir(out_dir);
+  json poses = json::array();
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    const MapPose& p = result.maps[i];
+    poses.push_back({{"name", names[i]},
+                     {"component", p.component},
+                     {"gauge", p.is_gauge},
+                     {"T_world_map", matrix_json(p.T_world_map.matrix())},
+                     {"covariance", matrix_json(p.covariance)},
+                     {"covariance_valid", p.covariance_valid}});
+  }
+  json doc = {{"convention",
+               "T_world_map: p_world = T * p_map (m); covariance: 6x6 of xi = (rho m, phi rad), "
+               "T = Exp(xi) T_hat, world frame; each component has its own world frame"},
+              {"num_components", result.num_components},
+              {"maps", poses}};
+  write_file_atomically((dir / "poses.json").string(),
+                        [&](std::ostream& os) { os << doc.dump(2) << "\n"; });
+  write_file_atomically((dir / "poses.yaml").string(), [&](std::ostream& os) {
+    os << "# lmalign merge: " << doc["convention"].get<std::string>() << "\n";
+    os << "num_components: " << result.num_components << "\nmaps:\n";
+    for (std::size_t i = 0; i < maps.size(); ++i) {
+      const MapPose& p = result.maps[i];
+      os << "  - name: \"" << names[i] << "\"\n    component: " << p.component
+         << "\n    gauge: " << (p.is_gauge ? "true" : "false") << "\n    T_world_map:\n";
+      for (int r = 0; r < 4; ++r) os << "      - " << yaml_row(p.T_world_map.matrix(), r) << "\n";
+      os << "    covariance_valid: " << (p.covariance_valid ? "true" : "false")
+         << "\n    covariance:\n";
+      for (int r = 0; r < 6; ++r) os << "      - " << yaml_row(p.covariance, r) << "\n";
+    }
+  });
+  write_file_atomically((dir / "edges.csv").string(), [&](std::ostream& os) {
+    os << "source,target,trusted,used,rejected,chi2,inliers,inlier_ratio,initialisation,"
+          "reason\n";
+    os << std::setprecision(10);
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      const Edge& ed = edges[e];
+      const EdgeReport& r = result.edges[e];
+      std::string reason =
+          r.skip_reason.empty() ? (r.rejected ? "rejected by the graph" : "ok") : r.skip_reason;
+      for (char& c : reason) {
+        if (c == ',' || c == '\n' || c == '"') c = ';';
+      }
+      os << names[ed.source] << "," << names[ed.target] << "," << ed.trusted << "," << r.used << ","
+         << r.rejected << "," << r.chi2 << "," << ed.num_inliers << "," << ed.inlier_ratio << ","
+         << ed.initialisation << "," << reason << "\n";
+    }
+  });
+  json rejected = json::array();
+  std::size_t used = 0;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    used += result.edges[e].used ? 1 : 0;
+    if (result.edges[e].rejected) {
+      rejected.push_back({names[edges[e].source], names[edges[e].target]});
+    }
+  }
+  const json summary = {{"num_maps", maps.size()},
+                        {"num_candidates", edges.size()},
+                        {"num_edges_used", used},
+                        {"rejected_edges", rejected},
+                        {"num_components", result.num_components},
+                        {"final_chi2", result.final_chi2},
+                        {"edge_covariance_scale", result.edge_covariance_scale},
+                        {"rounds", result.rounds},
+                        {"converged", result.converged}};
+  write_file_atomically((dir / "summary.json").string(),
+                        [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
+  for (std::size_t c = 0; c < result.num_components; ++c) {
+    const Map merged = merge_maps(maps, sessions, result, c, options);
+    const std::string file = result.num_components == 1
+                                 ? "merged_map.txt"
+                                 : "merged_map_component" + std::to_string(c) + ".txt";
+    write_map((dir / file).string(), merged);
+  }
+}
+
+std::string edge_file_path(const std::string& dir, const std::string& source_name,
+                           const std::string& target_name) {
+  auto safe = [](std::string s) {
+    for (char& c : s) {
+      if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' || c == '.'))
+        c = '_';
+    }
+    return s;
+  };
+  return (fs::path(dir) / (safe(source_name) + "__" + safe(target_name) + ".json")).string();
+}
+
+void write_edge_file(const std::string& path, const Edge& e) {
+  const json j = {{"key", e.key},
+                  {"source", e.source},
+                  {"target", e.target},
+                  {"T_target_source", matrix_json(e.T_target_source.matrix())},
+                  {"covariance", matrix_json(e.covariance)},
+                  {"covariance_valid", e.covariance_valid},
+                  {"trusted", e.trusted},
+                  {"trust_reason", e.trust_reason},
+                  {"num_inliers", e.num_inliers},
+                  {"inlier_ratio", e.inlier_ratio},
+                  {"initialisation", e.initialisation}};
+  write_file_atomically(path, [&](std::ostream& os) { os << j.dump() << "\n"; });
+}
+
+std::optional<Edge> read_edge_file(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return std::nullopt;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw IoError("cannot read '" + path + "'");
+  try {
+    const json j = json::parse(in);
+    Edge e;
+    e.key = j.at("key").get<std::string>();
+    e.source = j.at("source").get<std::size_t>();
+    e.target = j.at("target").get<std::size_t>();
+    e.T_target_source.matrix() = json_matrix(j.at("T_target_source"), 4, 4, "T_target_source");
+    e.covariance = json_matrix(j.at("covariance"), 6, 6, "covariance");
+    e.covariance_valid = j.at("covariance_valid").get<bool>();
+    e.trusted = j.at("trusted").get<bool>();
+    e.trust_reason = j.at("trust_reason").get<std::string>();
+    e.num_inliers = j.at("num_inliers").get<std::size_t>();
+    e.inlier_ratio = j.at("inlier_ratio").get<double>();
+    e.initialisation = j.at("initialisation").get<std::string>();
+    return e;
+  } catch (const json::exception& ex) {
+    throw ParseError(path, 0, std::string("edge file: ") + ex.what());
+  } catch (const InvalidArgument& ex) {
+    throw ParseError(path, 0, std::string("edge file: ") + ex.what());
+  }
+}
+
+}  // namespace lmalign

@@ -1,0 +1,575 @@
+// The pose graph of a merge (include/lmalign/merge/pose_graph.hpp), solved with Ceres.
+#include "lmalign/merge/pose_graph.hpp"
+
+#include <ceres/ceres.h>
+#include <ceres/rotation.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <numeric>
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+
+namespace lmalign {
+
+namespace {
+
+// A pose block: [tx ty tz qw qx qy qz] (T_world_map; Ceres' quaternion order).
+using PoseBlock = std::array<double, 7>;
+
+PoseBlock to_block(const Isometry3& T) {
+  const Eigen::Quaterniond q(T.linear());
+  const Vec3 t = T.translation();
+  return {t.x(), t.y(), t.z(), q.w(), q.x(), q.y(), q.z()};
+}
+
+Isometry3 from_block(const PoseBlock& b) {
+  Isometry3 T = Isometry3::Identity();
+  T.linear() = Eigen::Quaterniond(b[3], b[4], b[5], b[6]).normalized().toRotationMatrix();
+  T.translation() = Vec3(b[0], b[1], b[2]);
+  return T;
+}
+
+// Plus(x, (rho, phi)) = [Exp(phi), rho] * x: the left perturbation in the world frame
+// (uncertainty.hpp's convention), so Ceres' tangent covariances are in that convention.
+struct LeftPlus {
+  template <typename T>
+  bool Plus(const T* x, const T* delta, T* out) const {
+    T qd[4];
+    ceres::AngleAxisToQuaternion(delta + 3, qd);
+    ceres::QuaternionProduct(qd, x + 3, out + 3);
+    T t[3];
+    ceres::UnitQuaternionRotatePoint(qd, x, t);
+    for (int k = 0; k < 3; ++k) out[k] = t[k] + delta[k];
+    return true;
+  }
+  template <typename T>
+  bool Minus(const T* y, const T* x, T* delta) const {
+    const T xc[4] = {x[3], -x[4], -x[5], -x[6]};
+    T qd[4];
+    ceres::QuaternionProduct(y + 3, xc, qd);
+    ceres::QuaternionToAngleAxis(qd, delta + 3);
+    T t[3];
+    ceres::UnitQuaternionRotatePoint(qd, x, t);
+    for (int k = 0; k < 3; ++k) delta[k] = y[k] - t[k];
+    return true;
+  }
+};
+
+// xi = (translation, rotation vector) of A * B^-1, A = (ta, qa), B = (tb, qb).
+template <typename T>
+void twist_of_ratio(const T* ta, const T* qa, const double* tb, const double* qb, T* xi) {
+  const T qbc[4] = {T(qb[0]), T(-qb[1]), T(-qb[2]), T(-qb[3])};
+  T qe[4];
+  ceres::QuaternionProduct(qa, qbc, qe);
+  const T tbt[3] = {T(tb[0]), T(tb[1]), T(tb[2])};
+  T r[3];
+  ceres::QuaternionRotatePoint(qe, tbt, r);
+  for (int k = 0; k < 3; ++k) xi[k] = ta[k] - r[k];
+  ceres::QuaternionToAngleAxis(qe, xi + 3);
+}
+
+// Edge: predicted T_j_i = T_wj^-1 T_wi against the measured one.
+struct EdgeCost {
+  PoseBlock meas;
+  Mat6 W;  // L^-1 (whitening)
+  template <typename T>
+  bool operator()(const T* wi, const T* wj, T* residual) const {
+    const T qjc[4] = {wj[3], -wj[4], -wj[5], -wj[6]};
+    T q[4];
+    ceres::QuaternionProduct(qjc, wi + 3, q);
+    const T d[3] = {wi[0] - wj[0], wi[1] - wj[1], wi[2] - wj[2]};
+    T t[3];
+    ceres::QuaternionRotatePoint(qjc, d, t);
+    T xi[6];
+    twist_of_ratio(t, q, meas.data(), meas.data() + 3, xi);
+    for (int r = 0; r < 6; ++r) {
+      residual[r] = T(0);
+      for (int c = 0; c < 6; ++c) residual[r] += W(r, c) * xi[c];
+    }
+    return true;
+  }
+};
+
+struct PriorCost {
+  PoseBlock prior;
+  Mat6 W;
+  template <typename T>
+  bool operator()(const T* wi, T* residual) const {
+    T q[4];
+    for (int k = 0; k < 4; ++k) q[k] = wi[3 + k];
+    T xi[6];
+    twist_of_ratio(wi, q, prior.data(), prior.data() + 3, xi);
+    for (int r = 0; r < 6; ++r) {
+      residual[r] = T(0);
+      for (int c = 0; c < 6; ++c) residual[r] += W(r, c) * xi[c];
+    }
+    return true;
+  }
+};
+
+// Whitening L^-1 of C = L L^T; nullopt if C is not SPD.
+std::optional<Mat6> whitening(const Mat6& C) {
+  const Eigen::LLT<Mat6> llt(C);
+  if (llt.info() != Eigen::Success) return std::nullopt;
+  return Mat6(llt.matrixL().solve(Mat6::Identity()));
+}
+
+// Symmetrised covariance with each 3x3 block's eigenvalues floored; nullopt if not finite.
+std::optional<Mat6> floored(const Mat6& C_in, double floor_t_m2, double floor_r_rad2) {
+  if (!C_in.allFinite()) return std::nullopt;
+  Mat6 C = 0.5 * (C_in + C_in.transpose());
+  Eigen::SelfAdjointEigenSolver<Mat6> eig(C);
+  Eigen::Matrix<double, 6, 1> ev = eig.eigenvalues();
+  // Floor in the eigenbasis: each eigenvector's floor is its mix of the two blocks' floors.
+  const Mat6& V = eig.eigenvectors();
+  for (int k = 0; k < 6; ++k) {
+    const double wt = V.col(k).head<3>().squaredNorm();
+    const double f = wt * floor_t_m2 + (1.0 - wt) * floor_r_rad2;
+    ev(k) = std::max(ev(k), f);
+  }
+  return Mat6(V * ev.asDiagonal() * V.transpose());
+}
+
+double chi2_of(const Mat6& W, const Vec6& xi) { return (W * xi).squaredNorm(); }
+
+Vec6 edge_twist(const PoseBlock& wi, const PoseBlock& wj, const PoseBlock& meas) {
+  EdgeCost cost{meas, Mat6::Identity()};
+  Vec6 r;
+  cost(wi.data(), wj.data(), r.data());
+  return r;
+}
+
+Vec6 prior_twist(const PoseBlock& wi, const PoseBlock& prior) {
+  PriorCost cost{prior, Mat6::Identity()};
+  Vec6 r;
+  cost(wi.data(), r.data());
+  return r;
+}
+
+// Union-find components; ordered by their lowest map index.
+std::vector<std::size_t> components(std::size_t n,
+                                    const std::vector<std::pair<std::size_t, std::size_t>>& links,
+                                    std::size_t* count) {
+  std::vector<std::size_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](std::size_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  for (const auto& [a, b] : links) {
+    const std::size_t ra = find(a), rb = find(b);
+    if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  }
+  std::vector<std::size_t> id(n), root_id(n, n);
+  std::size_t next = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t r = find(i);
+    if (root_id[r] == n) root_id[r] = next++;
+    id[i] = root_id[r];
+  }
+  *count = next;
+  return id;
+}
+
+}  // namespace
+
+double chi2_quantile(double p, int dof) {
+  // Wilson-Hilferty: chi2_p = k (1 - 2/(9k) + z sqrt(2/(9k)))^3, z the normal p-quantile
+  // (Acklam's rational approximation, relative error < 1.2e-9).
+  const double q = p - 0.5;
+  double z;
+  if (std::abs(q) <= 0.425) {
+    const double r = 0.180625 - q * q;
+    z = q *
+        (((((((2509.0809287301226727 * r + 33430.575583588128105) * r + 67265.770927008700853) * r +
+             45921.953931549871457) *
+                r +
+            13731.693765509461125) *
+               r +
+           1971.5909503065514427) *
+              r +
+          133.14166789178437745) *
+             r +
+         3.387132872796366608) /
+        (((((((5226.495278852545925 * r + 28729.085735721942674) * r + 39307.89580009271061) * r +
+             21213.794301586595867) *
+                r +
+            5394.1960214247511077) *
+               r +
+           687.1870074920579083) *
+              r +
+          42.313330701600911252) *
+             r +
+         1.0);
+  } else {
+    double r = q < 0 ? p : 1.0 - p;
+    r = std::sqrt(-std::log(r));
+    double v;
+    if (r <= 5.0) {
+      r -= 1.6;
+      v = (((((((7.7454501427834140764e-4 * r + 0.0227238449892691845833) * r +
+                0.24178072517745061177) *
+                   r +
+               1.27045825245236838258) *
+                  r +
+              3.64784832476320460504) *
+                 r +
+             5.7694972214606914055) *
+                r +
+            4.6303378461565452959) *
+               r +
+           1.42343711074968357734) /
+          (((((((1.05075007164441684324e-9 * r + 5.475938084995344946e-4) * r +
+                0.0151986665636164571966) *
+                   r +
+               0.14810397642748007459) *
+                  r +
+              0.68976733498510000455) *
+                 r +
+             1.6763848301838038494) *
+                r +
+            2.05319162663775882187) *
+               r +
+           1.0);
+    } else {
+      r -= 5.0;
+      v = (((((((2.01033439929228813265e-7 * r + 2.71155556874348757815e-5) * r +
+                0.0012426609473880784386) *
+                   r +
+               0.026532189526576123093) *
+                  r +
+              0.29656057182850489123) *
+                 r +
+             1.7848265399172913358) *
+                r +
+            5.4637849111641143699) *
+               r +
+           6.6579046435011037772) /
+          (((((((2.04426310338993978564e-15 * r + 1.4215117583164458887e-7) * r +
+                1.8463183175100546818e-5) *
+                   r +
+               7.868691311456132591e-4) *
+                  r +
+              0.0148753612908506148525) *
+                 r +
+             0.13692988092273580531) *
+                r +
+            0.59983220655588793769) *
+               r +
+           1.0);
+    }
+    z = q < 0 ? -v : v;
+  }
+  const double k = static_cast<double>(dof);
+  const double a = 2.0 / (9.0 * k);
+  const double c = 1.0 - a + z * std::sqrt(a);
+  return k * c * c * c;
+}
+
+bool PoseGraphOptions::is_valid(std::string* why) const {
+  auto bad = [&](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (!(cauchy_scale > 0.0) || !std::isfinite(cauchy_scale)) return bad("cauchy_scale must be > 0");
+  if (!(reject_quantile > 0.5 && reject_quantile < 1.0)) {
+    return bad("reject_quantile must be in (0.5, 1)");
+  }
+  if (!(edge_covariance_scale >= 0.0) || !std::isfinite(edge_covariance_scale)) {
+    return bad("edge_covariance_scale must be >= 0 (0 = estimated)");
+  }
+  if (!(floor_translation_m > 0.0) || !(floor_rotation_deg > 0.0)) {
+    return bad("floor_translation_m and floor_rotation_deg must be > 0");
+  }
+  if (max_rounds < 1) return bad("max_rounds must be >= 1");
+  if (max_iterations < 1) return bad("max_iterations must be >= 1");
+  return true;
+}
+
+MergeResult solve_pose_graph(std::size_t num_maps,
+                             const std::vector<std::optional<MapPrior>>& priors,
+                             const std::vector<Edge>& edges, const PoseGraphOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("pose graph options: " + why);
+  if (priors.size() != num_maps) {
+    throw InvalidArgument("solve_pose_graph: " + std::to_string(priors.size()) + " priors for " +
+                          std::to_string(num_maps) + " maps");
+  }
+  MergeResult out;
+  out.maps.resize(num_maps);
+  out.edges.resize(edges.size());
+  const double floor_t2 = options.floor_translation_m * options.floor_translation_m;
+  const double floor_r = options.floor_rotation_deg * kRadPerDeg;
+  // Edge inputs: floored covariances, measured blocks.
+  std::vector<Mat6> edge_cov(edges.size());
+  std::vector<PoseBlock> edge_meas(edges.size());
+  std::vector<bool> usable(edges.size(), false);
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    const Edge& ed = edges[e];
+    if (ed.source >= num_maps || ed.target >= num_maps || ed.source == ed.target) {
+      throw InvalidArgument("solve_pose_graph: edge " + std::to_string(e) + " names maps " +
+                            std::to_string(ed.source) + " -> " + std::to_string(ed.target) +
+                            " (of " + std::to_string(num_maps) + ")");
+    }
+    EdgeReport& rep = out.edges[e];
+    if (!ed.trusted) {
+      rep.skip_reason = "untrusted: " + ed.trust_reason;
+      continue;
+    }
+    if (!is_rigid_transform(ed.T_target_source)) {
+      rep.skip_reason = "not a rigid transform";
+      continue;
+    }
+    const std::optional<Mat6> C =
+        ed.covariance_valid ? floored(ed.covariance, floor_t2, floor_r * floor_r) : std::nullopt;
+    if (!C || !whitening(*C)) {
+      rep.skip_reason = "invalid covariance";
+      continue;
+    }
+    edge_cov[e] = *C;
+    edge_meas[e] = to_block(ed.T_target_source);
+    usable[e] = true;
+  }
+  std::vector<std::optional<Mat6>> prior_w(num_maps);
+  for (std::size_t i = 0; i < num_maps; ++i) {
+    if (priors[i]) {
+      prior_w[i] = whitening(0.5 * (priors[i]->covariance + priors[i]->covariance.transpose()));
+      if (!prior_w[i]) {
+        throw InvalidArgument("solve_pose_graph: prior of map " + std::to_string(i) +
+                              ": covariance not positive definite");
+      }
+    }
+  }
+  const double threshold = chi2_quantile(options.reject_quantile, 6);
+  std::vector<bool> active = usable;
+  std::vector<PoseBlock> pose(num_maps);
+  double scale = options.edge_covariance_scale > 0.0 ? options.edge_covariance_scale : 1.0;
+  bool robust = true;
+  for (int round = 0; round < options.max_rounds; ++round) {
+    out.rounds = round + 1;
+    // Components of the active edges, their gauges, and a spanning-tree start.
+    std::vector<std::pair<std::size_t, std::size_t>> links;
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (active[e]) links.emplace_back(edges[e].source, edges[e].target);
+    }
+    // Maps with priors share the world frame: one component, whatever the edges.
+    std::optional<std::size_t> first_prior;
+    for (std::size_t i = 0; i < num_maps; ++i) {
+      if (!priors[i]) continue;
+      if (first_prior)
+        links.emplace_back(*first_prior, i);
+      else
+        first_prior = i;
+    }
+    std::size_t ncomp = 0;
+    const std::vector<std::size_t> comp = components(num_maps, links, &ncomp);
+    std::vector<std::optional<std::size_t>> root(ncomp);  // first map with a prior, else first
+    std::vector<bool> comp_has_prior(ncomp, false);
+    for (std::size_t i = 0; i < num_maps; ++i) {
+      if (priors[i] && !comp_has_prior[comp[i]]) {
+        comp_has_prior[comp[i]] = true;
+        root[comp[i]] = i;
+      }
+    }
+    for (std::size_t i = 0; i < num_maps; ++i) {
+      if (!root[comp[i]]) root[comp[i]] = i;
+    }
+    // Breadth-first start from each root along the active edges (edge order: deterministic).
+    std::vector<bool> placed(num_maps, false);
+    std::vector<Isometry3> start(num_maps, Isometry3::Identity());
+    for (std::size_t c = 0; c < ncomp; ++c) {
+      const std::size_t r = *root[c];
+      start[r] = priors[r] ? priors[r]->T_world_map : Isometry3::Identity();
+      placed[r] = true;
+      std::vector<std::size_t> queue{r};
+      for (std::size_t h = 0; h < queue.size(); ++h) {
+        const std::size_t a = queue[h];
+        for (std::size_t e = 0; e < edges.size(); ++e) {
+          if (!active[e]) continue;
+          const Edge& ed = edges[e];
+          if (ed.target == a && !placed[ed.source]) {
+            start[ed.source] = start[a] * ed.T_target_source;  // T_wi = T_wj T_ji
+            placed[ed.source] = true;
+            queue.push_back(ed.source);
+          } else if (ed.source == a && !placed[ed.target]) {
+            start[ed.target] = start[a] * ed.T_target_source.inverse();
+            placed[ed.target] = true;
+            queue.push_back(ed.target);
+          }
+        }
+      }
+    }
+    for (std::size_t i = 0; i < num_maps; ++i) pose[i] = to_block(start[i]);
+
+    std::vector<Mat6> W(edges.size(), Mat6::Zero());
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (active[e]) W[e] = *whitening(edge_cov[e] * scale);
+    }
+    ceres::AutoDiffManifold<LeftPlus, 7, 6> manifold;
+    // One solve from the current poses, with a Cauchy loss of scale `loss_scale` (0: none).
+    auto solve = [&](double loss_scale, bool use_priors) {
+      ceres::Problem::Options po;
+      po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+      auto problem = std::make_unique<ceres::Problem>(po);
+      for (std::size_t i = 0; i < num_maps; ++i) {
+        problem->AddParameterBlock(pose[i].data(), 7, &manifold);
+      }
+      for (std::size_t i = 0; i < num_maps; ++i) {
+        if (!priors[i] || !use_priors) continue;
+        auto* cost = new ceres::AutoDiffCostFunction<PriorCost, 6, 7>(
+            new PriorCost{to_block(priors[i]->T_world_map), *prior_w[i]});
+        problem->AddResidualBlock(cost, nullptr, pose[i].data());
+      }
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (!active[e]) continue;
+        auto* cost =
+            new ceres::AutoDiffCostFunction<EdgeCost, 6, 7, 7>(new EdgeCost{edge_meas[e], W[e]});
+        ceres::LossFunction* loss = loss_scale > 0.0 ? new ceres::CauchyLoss(loss_scale) : nullptr;
+        problem->AddResidualBlock(cost, loss, pose[edges[e].source].data(),
+                                  pose[edges[e].target].data());
+      }
+      for (std::size_t c = 0; c < ncomp; ++c) {
+        if (!comp_has_prior[c] || !use_priors)
+          problem->SetParameterBlockConstant(pose[*root[c]].data());
+      }
+      ceres::Solver::Options so;
+      so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+      so.max_num_iterations = options.max_iterations;
+      so.num_threads = 1;
+      so.logging_type = ceres::SILENT;
+      so.minimizer_progress_to_stdout = false;
+      ceres::Solver::Summary summary;
+      ceres::Solve(so, problem.get(), &summary);
+      out.converged = summary.termination_type == ceres::CONVERGENCE;
+      return problem;
+    };
+    // The robust round is graduated: least squares from the spanning tree (a false edge on the
+    // tree cannot trap the start), then a wide Cauchy, then the Cauchy of the options.
+    std::unique_ptr<ceres::Problem> last_problem;
+    // The edge covariance scale is estimated from the edges alone (priors left out, gauge at
+    // each component's root): a prior's own error must not inflate it.
+    const bool estimate_scale = robust && options.edge_covariance_scale == 0.0;
+    if (robust) {
+      solve(0.0, !estimate_scale);
+      solve(4.0 * options.cauchy_scale, !estimate_scale);
+      last_problem = solve(options.cauchy_scale, !estimate_scale);
+    } else {
+      last_problem = solve(0.0, true);
+    }
+
+    // Chi^2 of each active edge at the solution.
+    std::vector<double> chi2(edges.size(), 0.0);
+    std::vector<double> active_chi2;
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (!active[e]) continue;
+      chi2[e] =
+          chi2_of(W[e], edge_twist(pose[edges[e].source], pose[edges[e].target], edge_meas[e]));
+      active_chi2.push_back(chi2[e]);
+    }
+    // The edge covariance scale, from the robust solve's residuals (once).
+    if (robust && options.edge_covariance_scale == 0.0 && !active_chi2.empty()) {
+      const double redundancy =
+          static_cast<double>(active_chi2.size()) - static_cast<double>(num_maps - ncomp);
+      if (redundancy >= 3.0) {
+        std::vector<double> sorted = active_chi2;
+        std::nth_element(sorted.begin(),
+                         sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                         sorted.end());
+        const double med = sorted[sorted.size() / 2];
+        const double ratio = redundancy / static_cast<double>(active_chi2.size());
+        const double s = med / (chi2_quantile(0.5, 6) * ratio);
+        if (s > 1.0) {
+          for (double& v : chi2) v /= s;
+          scale *= s;
+        }
+      }
+    }
+    if (estimate_scale &&
+        std::any_of(priors.begin(), priors.end(), [](const auto& p) { return p.has_value(); })) {
+      // Back to the priors' gauge with the scaled edges; the chi^2 at that solution decide.
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (active[e]) W[e] = *whitening(edge_cov[e] * scale);
+      }
+      last_problem = solve(options.cauchy_scale, true);
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (!active[e]) continue;
+        chi2[e] =
+            chi2_of(W[e], edge_twist(pose[edges[e].source], pose[edges[e].target], edge_meas[e]));
+      }
+    }
+    ceres::Problem& problem = *last_problem;
+    bool rejected_any = false;
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (active[e] && chi2[e] > threshold) {
+        active[e] = false;
+        out.edges[e].rejected = true;
+        rejected_any = true;
+      }
+    }
+    out.num_components = ncomp;
+    for (std::size_t i = 0; i < num_maps; ++i) {
+      out.maps[i].component = comp[i];
+      out.maps[i].is_gauge = !comp_has_prior[comp[i]] && *root[comp[i]] == i;
+    }
+    const bool last = !robust && !rejected_any;
+    if (last || round + 1 == options.max_rounds) {
+      if (rejected_any) continue;  // the last round rejected: keep the poses, no re-solve left
+      // Final chi^2 and marginals of this plain solve.
+      double total = 0.0;
+      for (std::size_t e = 0; e < edges.size(); ++e) total += active[e] ? chi2[e] : 0.0;
+      for (std::size_t i = 0; i < num_maps; ++i) {
+        if (priors[i])
+          total += chi2_of(*prior_w[i], prior_twist(pose[i], to_block(priors[i]->T_world_map)));
+      }
+      out.final_chi2 = total;
+      if (options.compute_covariances) {
+        ceres::Covariance::Options co;
+        co.algorithm_type = ceres::DENSE_SVD;
+        co.null_space_rank = -1;
+        co.min_reciprocal_condition_number = 1e-14;
+        co.num_threads = 1;
+        if (num_maps > 60) co.algorithm_type = ceres::SPARSE_QR;
+        ceres::Covariance cov(co);
+        std::vector<std::pair<const double*, const double*>> blocks;
+        for (std::size_t i = 0; i < num_maps; ++i) {
+          if (!problem.IsParameterBlockConstant(pose[i].data())) {
+            blocks.emplace_back(pose[i].data(), pose[i].data());
+          }
+        }
+        if (cov.Compute(blocks, &problem)) {
+          for (std::size_t i = 0; i < num_maps; ++i) {
+            if (problem.IsParameterBlockConstant(pose[i].data())) {
+              out.maps[i].covariance_valid = true;  // the gauge: zero by definition
+              continue;
+            }
+            Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
+            if (cov.GetCovarianceMatrixInTangentSpace({pose[i].data()}, c.data())) {
+              out.maps[i].covariance = c;
+              out.maps[i].covariance_valid = c.allFinite();
+            }
+          }
+        }
+      }
+      break;
+    }
+    robust = false;
+  }
+  out.edge_covariance_scale = scale;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    out.edges[e].used = usable[e];
+    if (usable[e]) {
+      const Vec6 xi = edge_twist(pose[edges[e].source], pose[edges[e].target], edge_meas[e]);
+      out.edges[e].chi2 = chi2_of(*whitening(edge_cov[e] * scale), xi);
+    }
+  }
+  for (std::size_t i = 0; i < num_maps; ++i) out.maps[i].T_world_map = from_block(pose[i]);
+  return out;
+}
+
+}  // namespace lmalign

@@ -1,0 +1,373 @@
+// lmalign::merge on synthetic data: manifest errors, candidate planning, the pose graph (noisy
+// edges, a planted false edge, disconnected parts, gauge), outputs and the edge cache.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/map/map_io.hpp"
+#include "lmalign/merge/candidates.hpp"
+#include "lmalign/merge/evaluation.hpp"
+#include "lmalign/merge/manifest.hpp"
+#include "lmalign/merge/output.hpp"
+#include "lmalign/merge/pose_graph.hpp"
+#include "support/temp_dir.hpp"
+
+namespace lmalign {
+namespace {
+
+std::string error_of(const std::string& yaml) {
+  try {
+    parse_manifest(yaml, "m.yaml", "/base");
+  } catch (const Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(MergeManifest, ParsesPathsPriorsAndSigma) {
+  const Manifest m = parse_manifest(
+      "maps:\n"
+      "  - {name: a, path: a.txt}\n"
+      "  - name: b\n"
+      "    path: /abs/b.txt\n"
+      "    session: s1\n"
+      "    T_world_map: [[1,0,0,1],[0,1,0,2],[0,0,1,3],[0,0,0,1]]\n"
+      "    prior_sigma: [2.0, 0.5]\n",
+      "m.yaml", "/base");
+  ASSERT_EQ(m.maps.size(), 2u);
+  EXPECT_EQ(m.maps[0].path, "/base/a.txt");
+  EXPECT_FALSE(m.maps[0].prior);
+  EXPECT_EQ(m.maps[1].path, "/abs/b.txt");
+  EXPECT_EQ(m.maps[1].session, "s1");
+  ASSERT_TRUE(m.maps[1].prior);
+  EXPECT_DOUBLE_EQ(m.maps[1].prior->T_world_map.translation().y(), 2.0);
+  EXPECT_DOUBLE_EQ(m.maps[1].prior->covariance(0, 0), 0.25);
+  EXPECT_NEAR(m.maps[1].prior->covariance(5, 5), std::pow(2.0 * kRadPerDeg, 2), 1e-15);
+}
+
+TEST(MergeManifest, BadInputGivesOneLineErrorNamingTheField) {
+  const std::string rigid = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+  struct Case {
+    std::string yaml, expected;
+  } cases[] = {
+      {"", "empty manifest"},
+      {"maps: []\n", "empty manifest"},
+      {"maps:\n  - {name: a, path: a.txt}\n  - {name: a, path: b.txt}\n",
+       "m.yaml:3: maps[1].name: duplicate map name 'a'"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: [[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]],"
+       " prior_sigma: [1, 1]}\n",
+       "maps[0].T_world_map: not a rigid transform"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: " + rigid +
+           ", prior_covariance: [[1,0,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],"
+           "[0,0,0,0,1,0],[0,0,0,0,0,-1]]}\n",
+       "maps[0].prior_covariance: not positive definite"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: " + rigid +
+           ", prior_covariance: [[1,0.5,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],"
+           "[0,0,0,0,1,0],[0,0,0,0,0,1]]}\n",
+       "maps[0].prior_covariance: not symmetric"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: " + rigid + ", prior_sigma: [0, 1]}\n",
+       "prior_sigma: both sigmas must be > 0"},
+      {"maps:\n  - {name: a, path: a.txt, colour: red}\n", "unknown key 'colour'"},
+      {"maps:\n  - {name: a}\n", "maps[0].path: missing"},
+  };
+  for (const Case& c : cases) {
+    const std::string what = error_of(c.yaml);
+    EXPECT_NE(what.find(c.expected), std::string::npos) << c.yaml << " -> " << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+}
+
+TEST(MergeManifest, UnreadableMapNamesTheMapAndFile) {
+  test::ScratchDir dir("merge_manifest");
+  Manifest m = parse_manifest("maps:\n  - {name: lost, path: nowhere.txt}\n", "m.yaml", dir.path());
+  try {
+    load_manifest_maps(m);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("map 'lost'"), std::string::npos) << what;
+    EXPECT_NE(what.find("nowhere.txt"), std::string::npos) << what;
+  }
+}
+
+// A random 3-D scene; maps are discs of it around positions, in frames moved by known poses.
+Map scene_map(const Points3& world, const Vec3& centre, double radius,
+              const Isometry3& T_world_map) {
+  Map m;
+  const Isometry3 T_map_world = T_world_map.inverse();
+  for (const Vec3& p : world) {
+    if ((p - centre).head<2>().norm() > radius) continue;
+    Landmark l;
+    l.id = static_cast<Id>(m.landmarks.size());
+    l.p_world = T_map_world * p;
+    l.cov_world_m2 = Mat3::Identity() * 1e-4;
+    m.landmarks.push_back(l);
+  }
+  return m;
+}
+
+Isometry3 random_pose(std::mt19937_64& rng, double max_t, double max_yaw_deg) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  return pose_from_xyz_rpy_deg(max_t * u(rng), max_t * u(rng), 0.2 * u(rng), 0, 0,
+                               max_yaw_deg * u(rng));
+}
+
+Isometry3 perturb(const Isometry3& T, std::mt19937_64& rng, double sd_t, double sd_r_rad) {
+  std::normal_distribution<double> g(0.0, 1.0);
+  const Vec3 rho(sd_t * g(rng), sd_t * g(rng), sd_t * g(rng));
+  const Vec3 phi(sd_r_rad * g(rng), sd_r_rad * g(rng), sd_r_rad * g(rng));
+  Isometry3 D = Isometry3::Identity();
+  D.linear() =
+      Eigen::AngleAxisd(phi.norm(), phi.norm() > 0 ? Vec3(phi.normalized()) : Vec3::UnitZ())
+          .toRotationMatrix();
+  D.translation() = rho;
+  return D * T;
+}
+
+Edge make_edge(std::size_t i, std::size_t j, const std::vector<Isometry3>& truth,
+               std::mt19937_64& rng, double sd_t, double sd_r) {
+  Edge e;
+  e.source = i;
+  e.target = j;
+  e.T_target_source = perturb(truth[j].inverse() * truth[i], rng, sd_t, sd_r);
+  e.covariance.setZero();
+  e.covariance.diagonal() << sd_t * sd_t, sd_t * sd_t, sd_t * sd_t, sd_r * sd_r, sd_r * sd_r,
+      sd_r * sd_r;
+  e.covariance_valid = true;
+  e.trusted = true;
+  e.trust_reason = "ok";
+  return e;
+}
+
+struct Ring {
+  std::vector<Isometry3> truth;
+  std::vector<Edge> edges;
+};
+
+// n poses on a loop, edges between neighbours and second neighbours (redundant).
+Ring make_ring(std::size_t n, std::uint64_t seed, double sd_t = 0.01,
+               double sd_r = 0.2 * kRadPerDeg) {
+  std::mt19937_64 rng(seed);
+  Ring r;
+  for (std::size_t i = 0; i < n; ++i) r.truth.push_back(random_pose(rng, 5.0, 180.0));
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t d : {1u, 2u}) {
+      const std::size_t j = (i + d) % n;
+      r.edges.push_back(make_edge(std::min(i, j), std::max(i, j), r.truth, rng, sd_t, sd_r));
+    }
+  }
+  return r;
+}
+
+TEST(MergePoseGraph, RecoversTruthFromNoisyEdgesWithGaugeAtFirstMap) {
+  const Ring ring = make_ring(8, 11);
+  const std::vector<std::optional<MapPrior>> none(8);
+  const MergeResult r = solve_pose_graph(8, none, ring.edges);
+  EXPECT_EQ(r.num_components, 1u);
+  EXPECT_TRUE(r.maps[0].is_gauge);
+  EXPECT_TRUE(r.maps[0].T_world_map.isApprox(Isometry3::Identity(), 1e-12));
+  EXPECT_TRUE(r.maps[0].covariance.isZero());
+  for (std::size_t i = 0; i < 8; ++i) {
+    // The gauge: world = map 0's frame.
+    const Isometry3 T_true = ring.truth[0].inverse() * ring.truth[i];
+    const TransformError err = transform_error(r.maps[i].T_world_map, T_true);
+    EXPECT_LT(err.translation_m, 0.05) << i;
+    EXPECT_LT(err.rotation_deg, 0.5) << i;
+    if (i > 0) {
+      EXPECT_TRUE(r.maps[i].covariance_valid);
+      EXPECT_GT(r.maps[i].covariance(0, 0), 0.0);
+    }
+  }
+  for (const EdgeReport& e : r.edges) EXPECT_FALSE(e.rejected);
+  EXPECT_GT(r.final_chi2, 0.0);
+  // The evaluation agrees (whatever the gauge).
+  // (A 0.2 deg rotation noise about the target's origin moves a map 7 m away by 2.5 cm.)
+  const MergeEvaluation ev = evaluate_merge(r, ring.edges, ring.truth, {2.0, 0.2});
+  EXPECT_DOUBLE_EQ(ev.fraction_within, 1.0);
+  EXPECT_DOUBLE_EQ(ev.edge_precision, 1.0);
+}
+
+TEST(MergePoseGraph, PlantedFalseEdgeIsRejectedAndDoesNotBendTheGraph) {
+  Ring ring = make_ring(8, 12);
+  const std::vector<std::optional<MapPrior>> none(8);
+  const MergeResult clean = solve_pose_graph(8, none, ring.edges);
+  // A confident, wrong edge 0 -> 4: 2 m and 30 degrees off.
+  Edge bad = ring.edges[0];
+  bad.source = 0;
+  bad.target = 4;
+  bad.T_target_source =
+      pose_from_xyz_rpy_deg(2.0, 0, 0, 0, 0, 30) * ring.truth[4].inverse() * ring.truth[0];
+  ring.edges.push_back(bad);
+  const MergeResult r = solve_pose_graph(8, none, ring.edges);
+  EXPECT_TRUE(r.edges.back().rejected);
+  EXPECT_TRUE(r.edges.back().used);
+  for (std::size_t e = 0; e + 1 < r.edges.size(); ++e) EXPECT_FALSE(r.edges[e].rejected) << e;
+  for (std::size_t i = 0; i < 8; ++i) {
+    const TransformError d = transform_error(r.maps[i].T_world_map, clean.maps[i].T_world_map);
+    EXPECT_LT(d.translation_m, 1e-6) << i;
+  }
+  const MergeEvaluation ev = evaluate_merge(r, ring.edges, ring.truth, {2.0, 0.2});
+  EXPECT_EQ(ev.false_kept_edges, 0u);
+  EXPECT_FALSE(ev.edge_true.back());
+}
+
+TEST(MergePoseGraph, DisconnectedPartsAreReportedEachInItsOwnFrame) {
+  std::mt19937_64 rng(5);
+  std::vector<Isometry3> truth;
+  for (int i = 0; i < 6; ++i) truth.push_back(random_pose(rng, 5.0, 180.0));
+  // {0, 1, 2} and {3, 4, 5}; one untrusted edge between them does not join them.
+  std::vector<Edge> edges{
+      make_edge(0, 1, truth, rng, 0.01, 0.003), make_edge(1, 2, truth, rng, 0.01, 0.003),
+      make_edge(3, 4, truth, rng, 0.01, 0.003), make_edge(4, 5, truth, rng, 0.01, 0.003),
+      make_edge(2, 3, truth, rng, 0.01, 0.003)};
+  edges.back().trusted = false;
+  edges.back().trust_reason = "ambiguous";
+  const MergeResult r = solve_pose_graph(6, std::vector<std::optional<MapPrior>>(6), edges);
+  EXPECT_EQ(r.num_components, 2u);
+  for (int i = 0; i < 3; ++i) EXPECT_EQ(r.maps[i].component, 0u);
+  for (int i = 3; i < 6; ++i) EXPECT_EQ(r.maps[i].component, 1u);
+  EXPECT_TRUE(r.maps[0].is_gauge);
+  EXPECT_TRUE(r.maps[3].is_gauge);
+  EXPECT_TRUE(r.maps[3].T_world_map.isApprox(Isometry3::Identity(), 1e-12));
+  EXPECT_FALSE(r.edges.back().used);
+  EXPECT_NE(r.edges.back().skip_reason.find("ambiguous"), std::string::npos);
+  const TransformError e5 = transform_error(r.maps[5].T_world_map, truth[3].inverse() * truth[5]);
+  EXPECT_LT(e5.translation_m, 0.05);
+}
+
+TEST(MergePoseGraph, PriorsHoldTheGaugeAndInvalidCovarianceIsSkipped) {
+  Ring ring = make_ring(5, 13);
+  std::vector<std::optional<MapPrior>> priors(5);
+  for (std::size_t i = 0; i < 5; ++i) {
+    MapPrior p;
+    p.T_world_map = ring.truth[i];
+    p.covariance = Mat6::Identity() * 1e-2;
+    priors[i] = p;
+  }
+  ring.edges[0].covariance.setZero();
+  ring.edges[0].covariance_valid = false;
+  const MergeResult r = solve_pose_graph(5, priors, ring.edges);
+  EXPECT_FALSE(r.edges[0].used);
+  EXPECT_EQ(r.edges[0].skip_reason, "invalid covariance");
+  for (std::size_t i = 0; i < 5; ++i) {
+    EXPECT_FALSE(r.maps[i].is_gauge);
+    EXPECT_LT(transform_error(r.maps[i].T_world_map, ring.truth[i]).translation_m, 0.05) << i;
+  }
+}
+
+TEST(MergePoseGraph, Chi2QuantileMatchesTables) {
+  EXPECT_NEAR(chi2_quantile(0.999, 6), 22.458, 0.01 * 22.458);
+  EXPECT_NEAR(chi2_quantile(0.5, 6), 5.348, 0.05);
+  EXPECT_NEAR(chi2_quantile(0.99, 3), 11.345, 0.15);
+}
+
+TEST(MergeCandidates, PriorsKeepOverlappingPairsOnlyAndAllPairsWithout) {
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-20.0, 20.0);
+  Points3 world;
+  for (int k = 0; k < 4000; ++k) world.emplace_back(u(rng), u(rng), 0.1 * u(rng));
+  // Three maps: 0 and 1 overlap, 2 is far away.
+  const std::vector<Vec3> centres{{-10, 0, 0}, {-6, 0, 0}, {12, 10, 0}};
+  std::vector<MapSummary> s;
+  std::vector<std::optional<MapPrior>> priors;
+  for (std::size_t i = 0; i < 3; ++i) {
+    const Isometry3 T = random_pose(rng, 3.0, 180.0);
+    const Map m = scene_map(world, centres[i], 4.0, T);
+    s.push_back(summarise_map(m, {}, i + 1));
+    MapPrior p;
+    p.T_world_map = T;
+    p.covariance = Mat6::Identity() * 1e-3;
+    priors.push_back(p);
+  }
+  const auto with = plan_candidates(s, priors);
+  ASSERT_EQ(with.size(), 1u);
+  EXPECT_EQ(with[0].source, 0u);
+  EXPECT_EQ(with[0].target, 1u);
+  ASSERT_TRUE(with[0].initial_guess && with[0].prior);
+  EXPECT_TRUE(
+      with[0].initial_guess->isApprox(priors[1]->T_world_map.inverse() * priors[0]->T_world_map));
+  const auto without = plan_candidates(s, std::vector<std::optional<MapPrior>>(3));
+  EXPECT_EQ(without.size(), 3u);
+  CandidateOptions budget;
+  budget.max_pairs = 2;
+  EXPECT_EQ(plan_candidates(s, std::vector<std::optional<MapPrior>>(3), budget).size(), 2u);
+}
+
+TEST(MergeCandidates, PreFilterKeepsTheBestFewPerMap) {
+  std::vector<MapSummary> s(20);
+  for (std::size_t i = 0; i < 20; ++i) {
+    s[i].descriptor.assign(8, static_cast<double>(i));  // neighbours in index are most similar
+    s[i].radius_m = 1.0;
+  }
+  CandidateOptions o;
+  o.keep_per_map = 2;
+  const auto c = plan_candidates(s, std::vector<std::optional<MapPrior>>(20), o);
+  EXPECT_LT(c.size(), 20u * 19u / 2u);
+  for (const CandidatePair& p : c)
+    EXPECT_LE(p.target - p.source, 2u) << p.source << " " << p.target;
+  // every map keeps its nearest neighbour
+  for (std::size_t i = 0; i + 1 < 20; ++i) {
+    EXPECT_TRUE(std::any_of(c.begin(), c.end(), [&](const CandidatePair& p) {
+      return p.source == i && p.target == i + 1;
+    })) << i;
+  }
+}
+
+TEST(MergeOutput, WritesPosesEdgesAndFusedMergedMap) {
+  test::ScratchDir dir("merge_out");
+  std::mt19937_64 rng(9);
+  std::vector<Isometry3> truth{Isometry3::Identity(), random_pose(rng, 3.0, 90.0)};
+  Points3 world;
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  for (int k = 0; k < 50; ++k) world.emplace_back(u(rng), u(rng), u(rng));
+  std::vector<Map> maps{scene_map(world, Vec3::Zero(), 10.0, truth[0]),
+                        scene_map(world, Vec3::Zero(), 10.0, truth[1])};
+  std::vector<Edge> edges{make_edge(0, 1, truth, rng, 1e-4, 1e-5)};
+  const MergeResult r = solve_pose_graph(2, std::vector<std::optional<MapPrior>>(2), edges);
+  write_merge_outputs(dir.path(), {"a", "b"}, {"s", "s"}, maps, edges, r);
+  for (const char* f :
+       {"poses.yaml", "poses.json", "edges.csv", "summary.json", "merged_map.txt"}) {
+    EXPECT_TRUE(std::filesystem::exists(dir.file(f))) << f;
+  }
+  const Map merged = read_map(dir.file("merged_map.txt"), MapReadOptions{0});
+  ASSERT_EQ(merged.landmarks.size(), 50u);  // same session, same ids: fused
+  for (std::size_t k = 0; k < 50; ++k) {
+    EXPECT_LT((merged.landmarks[k].p_world - world[k]).norm(), 1e-3);
+    EXPECT_NEAR(merged.landmarks[k].cov_world_m2(0, 0), 0.5e-4, 1e-6);  // information summed
+  }
+  write_merge_outputs(dir.path(), {"a", "b"}, {"", ""}, maps, edges, r);
+  EXPECT_EQ(read_map(dir.file("merged_map.txt"), MapReadOptions{0}).landmarks.size(), 100u);
+  // No temporary file is left behind.
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos) << entry.path();
+  }
+}
+
+TEST(MergeOutput, EdgeFileRoundTripsExactly) {
+  test::ScratchDir dir("merge_edge");
+  std::mt19937_64 rng(10);
+  std::vector<Isometry3> truth{random_pose(rng, 3.0, 90.0), random_pose(rng, 3.0, 90.0)};
+  Edge e = make_edge(0, 1, truth, rng, 0.01, 0.01);
+  e.key = "abc";
+  e.num_inliers = 17;
+  e.inlier_ratio = 0.123456789012345;
+  const std::string path = edge_file_path(dir.path(), "a/b", "c");
+  EXPECT_EQ(std::filesystem::path(path).filename().string(), "a_b__c.json");
+  EXPECT_FALSE(read_edge_file(path));
+  write_edge_file(path, e);
+  const std::optional<Edge> back = read_edge_file(path);
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->T_target_source.matrix(), e.T_target_source.matrix());
+  EXPECT_EQ(back->covariance, e.covariance);
+  EXPECT_EQ(back->key, "abc");
+  EXPECT_EQ(back->inlier_ratio, e.inlier_ratio);
+  std::ofstream(path) << "{\"key\": 1";
+  EXPECT_THROW(read_edge_file(path), ParseError);
+}
+
+}  // namespace
+}  // namespace lmalign
