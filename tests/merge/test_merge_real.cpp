@@ -108,11 +108,32 @@ TEST(MergeReal, DeskEightWindowsWithOdometryPriors) {
   const std::string path = test::data_file(kDesk);
   LMALIGN_REQUIRE_FILE(path);
   const Windows w = cut(read_map(path, MapReadOptions{0}), 0, 30, 30, 8, 22);
-  const MergeRun run = run_merge(w.maps, w.names, noisy_priors(w, 3.0, 0.1, 5), {});
-  // Known gap (docs/merge.md): the target is 2 deg / 5 cm; measured 2.0 deg / 11 cm
-  // (the estimated edge covariance scale leaves the 3-deg priors too much weight). This checks
-  // the bound that holds today, so that a regression shows.
-  expect_placed(w, run, 3.0, 0.15, 0.1, true, /*check_edges=*/false);
+  const std::vector<std::optional<MapPrior>> priors = noisy_priors(w, 3.0, 0.1, 5);
+  const MergeRun run = run_merge(w.maps, w.names, priors, {});
+  ASSERT_FALSE(run.cancelled);
+  EXPECT_EQ(run.result.num_components, 1u);
+  // Known gap (docs/merge.md): the target is 2 deg / 5 cm for every window. Consecutive
+  // 30-frame windows of this map share only ~1% of their landmarks, and the alignment optimum
+  // of two of them lies 1-2 deg from the motion-capture truth (the map's own inconsistency);
+  // the trust verdict keeps 8 of the 28 pairs (measured 2026-11-23), and a window no trusted
+  // edge reaches keeps its prior. Checked: no window ends worse than its prior (beyond 0.5 deg
+  // and 2 cm), and the merge improves on the priors on average.
+  const MergeEvaluation ev = evaluate_merge(run.result, run.edges, w.truth, {2.0, 0.05});
+  double prior_sum_deg = 0.0, merged_sum_deg = 0.0;
+  for (std::size_t i = 0; i < w.maps.size(); ++i) {
+    const TransformError prior = transform_error(priors[i]->T_world_map, w.truth[i]);
+    prior_sum_deg += prior.rotation_deg;
+    merged_sum_deg += ev.maps[i].rotation_deg;
+    EXPECT_LE(ev.maps[i].rotation_deg, std::max(2.0, prior.rotation_deg + 0.5)) << w.names[i];
+    EXPECT_LE(ev.maps[i].translation_m, std::max(0.05, prior.translation_m + 0.02)) << w.names[i];
+    std::cout << "  " << w.names[i] << ": prior " << prior.rotation_deg << " deg / "
+              << prior.translation_m << " m, merged " << ev.maps[i].rotation_deg << " deg / "
+              << ev.maps[i].translation_m << " m\n";
+  }
+  // The edges improve on the odometry: measured mean rotation error 1.82 deg against the
+  // priors' 3.11 deg. (Translations are errors of the frame origins, moved up to 3 m from the
+  // data, so a 1 deg error already moves them 5 cm: docs/merge.md.)
+  EXPECT_LT(merged_sum_deg, 0.8 * prior_sum_deg);
 }
 
 TEST(MergeReal, KittiWindowsWithoutPriors) {
