@@ -29,18 +29,45 @@ std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
          static_cast<std::uint64_t>(z + kCellLimit);
 }
 
-// A sparse vote grid: open addressing, linear probing, sized for the number of votes.
+// The vote grid over horizontal cells (a, b). Dense over the box of cells the votes can reach
+// when that box is no larger than the hash table would be (the usual case: the translations
+// between two maps span a few hundred cells per axis), else sparse: open addressing, linear
+// probing, sized for the number of votes. Both modes list their cells with the same keys, so the
+// peak (ties broken by key) is the same whichever is used.
 class VoteGrid {
  public:
-  void reset(std::size_t max_votes) {
+  void reset(std::size_t max_votes, std::int64_t a_min, std::int64_t a_max, std::int64_t b_min,
+             std::int64_t b_max) {
     std::size_t size = 64;
     while (size < 2 * max_votes) size <<= 1;
-    keys_.assign(size, kEmpty);
-    counts_.assign(size, 0);
-    mask_ = size - 1;
+    const double na = static_cast<double>(a_max - a_min + 1);
+    const double nb = static_cast<double>(b_max - b_min + 1);
+    dense_ = na >= 1.0 && nb >= 1.0 && na * nb <= static_cast<double>(size);
+    if (dense_) {
+      a0_ = a_min;
+      b0_ = b_min;
+      na_ = static_cast<std::int64_t>(na);
+      nb_ = static_cast<std::int64_t>(nb);
+      dense_counts_.assign(static_cast<std::size_t>(na_ * nb_), 0);
+    } else {
+      keys_.assign(size, kEmpty);
+      counts_.assign(size, 0);
+      mask_ = size - 1;
+    }
   }
-  void add(std::uint64_t key) { ++counts_[slot(key)]; }
-  std::uint32_t count(std::uint64_t key) const {
+  void add(std::int64_t a, std::int64_t b) {
+    if (dense_) {
+      ++dense_counts_[static_cast<std::size_t>((a - a0_) * nb_ + (b - b0_))];
+    } else {
+      ++counts_[slot(pack(a, b, 0))];
+    }
+  }
+  std::uint32_t count(std::int64_t a, std::int64_t b) const {
+    if (dense_) {
+      if (a < a0_ || b < b0_ || a >= a0_ + na_ || b >= b0_ + nb_) return 0;
+      return dense_counts_[static_cast<std::size_t>((a - a0_) * nb_ + (b - b0_))];
+    }
+    const std::uint64_t key = pack(a, b, 0);
     std::size_t i = hash(key);
     while (keys_[i] != kEmpty) {
       if (keys_[i] == key) return counts_[i];
@@ -48,8 +75,22 @@ class VoteGrid {
     }
     return 0;
   }
-  const std::vector<std::uint64_t>& keys() const { return keys_; }
-  const std::vector<std::uint32_t>& counts() const { return counts_; }
+  /// visit(count, key) for every cell with votes.
+  template <typename Visit>
+  void for_each_cell(Visit&& visit) const {
+    if (dense_) {
+      for (std::int64_t i = 0; i < na_; ++i) {
+        for (std::int64_t j = 0; j < nb_; ++j) {
+          const std::uint32_t c = dense_counts_[static_cast<std::size_t>(i * nb_ + j)];
+          if (c != 0) visit(c, pack(a0_ + i, b0_ + j, 0));
+        }
+      }
+      return;
+    }
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
+      if (keys_[i] != kEmpty) visit(counts_[i], keys_[i]);
+    }
+  }
 
  private:
   std::size_t hash(std::uint64_t key) const {
@@ -61,6 +102,9 @@ class VoteGrid {
     keys_[i] = key;
     return i;
   }
+  bool dense_ = false;
+  std::int64_t a0_ = 0, b0_ = 0, na_ = 0, nb_ = 0;
+  std::vector<std::uint32_t> dense_counts_;
   std::vector<std::uint64_t> keys_;
   std::vector<std::uint32_t> counts_;
   std::size_t mask_ = 0;
@@ -80,8 +124,29 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
           const Vec3& centre, double radius, VoteGrid& grid, std::vector<double>& heights) {
   const Vec3 e1 = up.unitOrthogonal();
   const Vec3 e2 = up.cross(e1);
-  grid.reset(rotated.size() * target.size());
   const double inv = 1.0 / cell;
+  {
+    // The cells t = q - x can reach: from the extents of both sides along e1 and e2, one cell
+    // wider on each side for the rounding of t's components.
+    auto extent = [](const Points3& pts, const Vec3& e) {
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (const Vec3& p : pts) {
+        lo = std::min(lo, p.dot(e));
+        hi = std::max(hi, p.dot(e));
+      }
+      return std::pair<double, double>{lo, hi};
+    };
+    const auto [x1_lo, x1_hi] = extent(rotated, e1);
+    const auto [x2_lo, x2_hi] = extent(rotated, e2);
+    const auto [q1_lo, q1_hi] = extent(target, e1);
+    const auto [q2_lo, q2_hi] = extent(target, e2);
+    const double limit = static_cast<double>(kCellLimit);
+    auto cell_of = [&](double v) {
+      return static_cast<std::int64_t>(std::clamp(std::floor(v * inv), -limit, limit));
+    };
+    grid.reset(rotated.size() * target.size(), cell_of(q1_lo - x1_hi) - 1,
+               cell_of(q1_hi - x1_lo) + 1, cell_of(q2_lo - x2_hi) - 1, cell_of(q2_hi - x2_lo) + 1);
+  }
   const double r2 = radius * radius;
   // Every vote t = q - x within the window, with its horizontal cell (a, b); both passes below
   // (the vote, then the peak's heights) see the same votes.
@@ -101,15 +166,11 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
     }
   };
   for_each_vote([&](const Vec3&, double a, double b) {
-    grid.add(pack(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b), 0));
+    grid.add(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b));
   });
   // The 32 fullest cells, then their 3x3 sums.
   std::vector<std::pair<std::uint32_t, std::uint64_t>> top;
-  const auto& keys = grid.keys();
-  const auto& counts = grid.counts();
-  for (std::size_t i = 0; i < keys.size(); ++i) {
-    if (keys[i] != kEmpty) top.emplace_back(counts[i], keys[i]);
-  }
+  grid.for_each_cell([&](std::uint32_t c, std::uint64_t key) { top.emplace_back(c, key); });
   const std::size_t keep = std::min<std::size_t>(32, top.size());
   std::partial_sort(top.begin(), top.begin() + static_cast<std::ptrdiff_t>(keep), top.end(),
                     [](const auto& l, const auto& r) {
@@ -126,7 +187,7 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
     double wa = 0.0, wb = 0.0;
     for (int dx = -1; dx <= 1; ++dx) {
       for (int dy = -1; dy <= 1; ++dy) {
-        const std::uint32_t c = grid.count(pack(x + dx, y + dy, 0));
+        const std::uint32_t c = grid.count(x + dx, y + dy);
         sum += c;
         wa += c * (static_cast<double>(x + dx) + 0.5);
         wb += c * (static_cast<double>(y + dy) + 0.5);
