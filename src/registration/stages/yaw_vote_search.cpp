@@ -121,7 +121,8 @@ struct Peak {
 // (a hand-held camera gives it to a few degrees) tilts the source, which moves its landmarks
 // mostly vertically. The vertical part of t is then the median of the peak's votes.
 Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3& up,
-          const Vec3& centre, double radius, VoteGrid& grid, std::vector<double>& heights) {
+          const Vec3& centre, double radius, VoteGrid& grid, std::vector<double>& heights,
+          std::vector<std::pair<double, std::size_t>>& by_e1) {
   const Vec3 e1 = up.unitOrthogonal();
   const Vec3 e2 = up.cross(e1);
   const double inv = 1.0 / cell;
@@ -150,19 +151,20 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
   const double r2 = radius * radius;
   // Every vote t = q - x within the window, with its horizontal cell (a, b); both passes below
   // (the vote, then the peak's heights) see the same votes.
+  auto vote_of = [&](const Vec3& x, const Vec3& q, auto&& visit) {
+    const Vec3 t = q - x;
+    if (std::isfinite(radius) && (t - centre).squaredNorm() > r2) return;
+    const double a = std::floor(t.dot(e1) * inv);
+    const double b = std::floor(t.dot(e2) * inv);
+    if (std::abs(a) >= static_cast<double>(kCellLimit - 2) ||
+        std::abs(b) >= static_cast<double>(kCellLimit - 2)) {
+      return;
+    }
+    visit(t, a, b);
+  };
   auto for_each_vote = [&](auto&& visit) {
     for (const Vec3& x : rotated) {
-      for (const Vec3& q : target) {
-        const Vec3 t = q - x;
-        if (std::isfinite(radius) && (t - centre).squaredNorm() > r2) continue;
-        const double a = std::floor(t.dot(e1) * inv);
-        const double b = std::floor(t.dot(e2) * inv);
-        if (std::abs(a) >= static_cast<double>(kCellLimit - 2) ||
-            std::abs(b) >= static_cast<double>(kCellLimit - 2)) {
-          continue;
-        }
-        visit(t, a, b);
-      }
+      for (const Vec3& q : target) vote_of(x, q, visit);
     }
   };
   for_each_vote([&](const Vec3&, double a, double b) {
@@ -202,14 +204,30 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
     }
   }
   if (best.votes == 0) return best;
-  // The vertical part: median over the votes in the peak's 3x3 cells.
+  // The vertical part: median over the votes in the peak's 3x3 cells. Only the target
+  // landmarks whose projection on e1 puts them within a cell of those cells can vote there
+  // (found by bisection in the targets sorted by that projection); each is then tested exactly as
+  // in the vote, so the heights are the same as from every pair.
   heights.clear();
-  for_each_vote([&](const Vec3& t, double a, double b) {
+  by_e1.clear();
+  for (std::size_t j = 0; j < target.size(); ++j) by_e1.emplace_back(target[j].dot(e1), j);
+  std::sort(by_e1.begin(), by_e1.end());
+  const double band_lo = (static_cast<double>(best_x) - 2.0) * cell;
+  const double band_hi = (static_cast<double>(best_x) + 3.0) * cell;
+  auto in_peak = [&](const Vec3& t, double a, double b) {
     if (std::abs(a - static_cast<double>(best_x)) <= 1.0 &&
         std::abs(b - static_cast<double>(best_y)) <= 1.0) {
       heights.push_back(t.dot(up));
     }
-  });
+  };
+  for (const Vec3& x : rotated) {
+    const double x1 = x.dot(e1);
+    auto it = std::lower_bound(by_e1.begin(), by_e1.end(),
+                               std::pair<double, std::size_t>{x1 + band_lo, 0});
+    for (; it != by_e1.end() && it->first <= x1 + band_hi; ++it) {
+      vote_of(x, target[it->second], in_peak);
+    }
+  }
   const std::size_t mid = heights.size() / 2;
   std::nth_element(heights.begin(), heights.begin() + static_cast<std::ptrdiff_t>(mid),
                    heights.end());
@@ -325,13 +343,14 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
   {
     VoteGrid grid;
     std::vector<double> heights;
+    std::vector<std::pair<double, std::size_t>> by_e1;
     Points3 rotated(src.size());
 #pragma omp for schedule(dynamic, 1)
     for (int i = 0; i < n_yaw; ++i) {
       const double yaw = yaw_from + step * i;
       const Mat3 R = Eigen::AngleAxisd(yaw, up).toRotationMatrix() * base;
       for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * (src[j] - centroid);
-      const Peak peak = vote(rotated, tgt, cell_m, up, t_centre, t_radius, grid, heights);
+      const Peak peak = vote(rotated, tgt, cell_m, up, t_centre, t_radius, grid, heights, by_e1);
       YawHypothesis& h = all[static_cast<std::size_t>(i)];
       h.yaw_rad = yaw;
       h.votes = peak.votes;
