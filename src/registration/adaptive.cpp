@@ -64,10 +64,12 @@ Refinement refine(const Context& c, const Isometry3& T0, PoseSigma sigma0,
   const double settle_r = settle_t / c.source_radius_m;
   const Vec3* up4 = o.four_dof ? &c.up_target : nullptr;
   std::vector<GatedPair>& pairs = out.last_pairs;
+  GateNeighbourCache neighbours;  // seeds each iteration's searches with the last ones
   int level_iterations = 0;
   while (out.iterations < o.max_iterations) {
     sigma.pivot_m = out.T * c.source_centre;
-    gate_correspondences(c.side, *c.target, out.T, c.floor_m, sigma, o.gate, subset, &pairs);
+    gate_correspondences(c.side, *c.target, out.T, c.floor_m, sigma, o.gate, subset, &pairs,
+                         &neighbours);
     out.num_pairs = pairs.size();
     if (pairs.size() < (o.four_dof ? 2u : 3u)) {
       out.termination = TerminationReason::kNoCorrespondences;

@@ -456,6 +456,44 @@ TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
   }
 }
 
+TEST(MahalanobisGate, NeighbourCacheGivesTheSamePairsAsFreshSearches) {
+  // A sequence of poses, as in a refinement (small steps, then a jump), gated with and without
+  // the seeded-neighbour cache: the same pairs, bit for bit; a changed k resets the cache.
+  const Points3 room = test::room_points(1200, 55);
+  std::mt19937_64 rng(56);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Mat3> cov;
+  for (std::size_t i = 0; i < room.size(); ++i) {
+    cov.push_back(covariance(random_rotation(rng), 0.01, 0.02, 0.02 + 0.05 * u(rng)));
+  }
+  const PreparedTarget target = make_target(room, cov);
+  Points3 src(room.begin(), room.begin() + 700);
+  const std::vector<Mat3> src_cov(cov.begin(), cov.begin() + 700);
+  const GateSide side{&src, &src_cov};
+  GateNeighbourCache cache;
+  MahalanobisGateOptions o;
+  PoseSigma sigma;
+  sigma.translation_m = 0.05;
+  sigma.rotation_rad = 0.01;
+  for (int step = 0; step < 8; ++step) {
+    if (step == 5) o.k = 3;
+    const double s = step == 6 ? 20.0 : 1.0;  // one jump
+    const Isometry3 T = pose_from_xyz_rpy_deg(0.01 * s * step, -0.005 * s * step, 0.002 * step,
+                                              0.1 * step, -0.05 * step, 0.3 * s * step);
+    std::vector<GatedPair> fresh, cached;
+    gate_correspondences(side, target, T, 0.005, sigma, o, nullptr, &fresh);
+    gate_correspondences(side, target, T, 0.005, sigma, o, nullptr, &cached, &cache);
+    ASSERT_EQ(fresh.size(), cached.size()) << "step " << step;
+    ASSERT_GT(fresh.size(), 100u);
+    for (std::size_t i = 0; i < fresh.size(); ++i) {
+      EXPECT_EQ(fresh[i].source_index, cached[i].source_index);
+      EXPECT_EQ(fresh[i].target_index, cached[i].target_index);
+      EXPECT_EQ(fresh[i].d2, cached[i].d2);
+    }
+    EXPECT_EQ(cache.k, o.k);
+  }
+}
+
 TEST(MahalanobisGate, ExpectedGatedD2IsTheTruncatedChiSquareMean) {
   // Against a seeded sample: d^2 = |z|^2, z ~ N(0, I3), kept below the gate.
   std::mt19937_64 rng(52);

@@ -53,13 +53,42 @@ void check_inputs(const GateSide& source, const PreparedTarget& target, double f
 }
 
 // The best target landmark of one source landmark; false when none passes the gate.
+// `seeds`, `num_seeds` (may be null / 0): the landmark's neighbours at the previous call; the
+// found neighbours are written back there.
 bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
               const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
-              double chi2, GatedPair* out) {
+              double chi2, GatedPair* out, PointIndex* seeds, std::uint8_t* num_seeds) {
   const Vec3 x = T * p_s;
   PointIndex idx[kMaxK];
   double d2e[kMaxK];
-  const std::size_t found = target.tree().knn(x, static_cast<std::size_t>(k), idx, d2e);
+  std::size_t found = 0;
+  if (seeds != nullptr && *num_seeds > 0) {
+    // Re-evaluate the seeds at x and sort them in the tree's total order (distance, index).
+    const std::size_t n = *num_seeds;
+    for (std::size_t c = 0; c < n; ++c) {
+      idx[c] = seeds[c];
+      d2e[c] = squared_distance(x, target.points()[seeds[c]]);
+    }
+    for (std::size_t a = 1; a < n; ++a) {
+      const PointIndex ia = idx[a];
+      const double da = d2e[a];
+      std::size_t b = a;
+      while (b > 0 && (d2e[b - 1] > da || (d2e[b - 1] == da && idx[b - 1] > ia))) {
+        idx[b] = idx[b - 1];
+        d2e[b] = d2e[b - 1];
+        --b;
+      }
+      idx[b] = ia;
+      d2e[b] = da;
+    }
+    found = target.tree().knn_seeded(x, static_cast<std::size_t>(k), idx, d2e, n, idx, d2e);
+  } else {
+    found = target.tree().knn(x, static_cast<std::size_t>(k), idx, d2e);
+  }
+  if (seeds != nullptr) {
+    for (std::size_t c = 0; c < found; ++c) seeds[c] = idx[c];
+    *num_seeds = static_cast<std::uint8_t>(found);
+  }
   if (found == 0) return false;
   const double lever2 = (x - sigma.pivot_m).squaredNorm();
   const double iso = iso_base_m2 + sigma.rotation_rad * sigma.rotation_rad * lever2;
@@ -102,8 +131,15 @@ bool MahalanobisGateOptions::is_valid(std::string* why) const {
 void gate_correspondences(const GateSide& source, const PreparedTarget& target,
                           const Isometry3& T_target_source, double floor_m,
                           const PoseSigma& pose_sigma, const MahalanobisGateOptions& options,
-                          const std::vector<std::uint32_t>* subset, std::vector<GatedPair>* pairs) {
+                          const std::vector<std::uint32_t>* subset, std::vector<GatedPair>* pairs,
+                          GateNeighbourCache* cache) {
   check_inputs(source, target, floor_m, pose_sigma, options);
+  if (cache != nullptr &&
+      (cache->k != options.k || cache->counts.size() != source.points->size())) {
+    cache->k = options.k;
+    cache->counts.assign(source.points->size(), 0);
+    cache->indices.assign(source.points->size() * static_cast<std::size_t>(options.k), 0);
+  }
   const Points3& P = *source.points;
   const bool src_cov = source.covariances_m2 != nullptr && !source.covariances_m2->empty();
   const std::vector<Mat3>* tgt_cov =
@@ -118,8 +154,12 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
         subset != nullptr ? (*subset)[static_cast<std::size_t>(j)] : static_cast<std::size_t>(j);
     GatedPair g;
     g.source_index = static_cast<std::uint32_t>(i);
+    PointIndex* seeds =
+        cache != nullptr ? &cache->indices[i * static_cast<std::size_t>(options.k)] : nullptr;
+    std::uint8_t* num_seeds = cache != nullptr ? &cache->counts[i] : nullptr;
     if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
-                 tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, &g)) {
+                 tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, &g, seeds,
+                 num_seeds)) {
       slot[static_cast<std::size_t>(j)] = g;
       kept[static_cast<std::size_t>(j)] = 1;
     }

@@ -61,14 +61,26 @@ struct GateSide {
   const std::vector<Mat3>* covariances_m2 = nullptr;
 };
 
+/// The k nearest target landmarks each source landmark had at the previous call, used as seeds
+/// of the next search (KdTree::knn_seeded: the same neighbours as a fresh search, found faster
+/// when the pose moved little, as between two iterations of a refinement). One per refinement;
+/// not shared between threads that gate concurrently. Empty = no seeds yet.
+struct GateNeighbourCache {
+  std::vector<PointIndex> indices;  ///< source landmark i's at [i k, i k + counts[i])
+  std::vector<std::uint8_t> counts;
+  int k = 0;
+};
+
 /// Pairs and gates the source landmarks `subset` (indices into source.points; nullptr = all)
 /// against `target` at T_target_source. Writes the kept pairs, in increasing source index, to
-/// *pairs. Throws InvalidArgument on invalid options, a negative or non-finite floor or sigma, or
-/// covariance counts that do not match the points.
+/// *pairs. `cache`, optional: seeds the searches with the previous call's neighbours (the result
+/// is identical with or without it; GateNeighbourCache). Throws InvalidArgument on invalid options,
+/// a negative or non-finite floor or sigma, or covariance counts that do not match the points.
 void gate_correspondences(const GateSide& source, const PreparedTarget& target,
                           const Isometry3& T_target_source, double floor_m,
                           const PoseSigma& pose_sigma, const MahalanobisGateOptions& options,
-                          const std::vector<std::uint32_t>* subset, std::vector<GatedPair>* pairs);
+                          const std::vector<std::uint32_t>* subset, std::vector<GatedPair>* pairs,
+                          GateNeighbourCache* cache = nullptr);
 
 /// The covariance-aware inlier score of an estimate: sum over the gated pairs (zero pose
 /// sigma) of max(0, 1 - d^2 / chi2_threshold). Each source landmark adds at most 1, more the
