@@ -164,7 +164,8 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
     (bad option, an unreadable or empty map, output_dir holding an earlier run's edges), and
     with Dask what a task raised.
     """
-    manifest_path = os.fspath(manifest_path)
+    # Absolute, so that the map paths sent to Dask workers do not depend on this process's cwd.
+    manifest_path = os.path.abspath(os.fspath(manifest_path))
     output_dir = os.fspath(output_dir)
     if max_pairs is not None and int(max_pairs) < 0:
         raise _c.InvalidArgument("max_pairs must be >= 0 (None or 0 = no limit)")

@@ -44,7 +44,11 @@ def main(argv=None):
             except ImportError as e:
                 sys.exit("lmalign merge --dask-scheduler: needs Dask distributed "
                          "(apt-get install python3-distributed): %s" % e)
-            client = Client(args.dask_scheduler, timeout="30s")
+            try:
+                client = Client(args.dask_scheduler, timeout="30s")
+            except (OSError, TimeoutError, ValueError) as e:
+                sys.exit("lmalign merge --dask-scheduler %s: cannot reach the Dask scheduler: %s"
+                         % (args.dask_scheduler, e))
         run = lmalign.merge(args.manifest, args.output, ground_truth=args.ground_truth,
                             max_pairs=args.max_pairs, threads=args.threads, dask_client=client,
                             resume=args.resume, thresholds=thresholds,
