@@ -26,8 +26,9 @@ DEB_PACKAGES := cmake make g++ pkg-config libeigen3-dev libcli11-dev \
 # (lmalign itself has its own exact kd-tree and does not use it).
 DEB_PACKAGES += libpcl-dev libopen3d-dev libnanoflann-dev libbenchmark-dev
 
-# Python bindings and their tests (docs/python.md): pybind11, Python's headers, pytest.
-DEB_PACKAGES += pybind11-dev python3-dev python3-pytest
+# Python bindings and their tests (docs/python.md): pybind11, Python's headers, pytest; Dask
+# distributed for the merge's scale-out (docs/merge.md, "Scale-out on Dask").
+DEB_PACKAGES += pybind11-dev python3-dev python3-pytest python3-distributed
 
 # Robustness (docs/robustness.md): clang and its libFuzzer/sanitizer runtimes, and clang's
 # OpenMP, for `make fuzz`.

@@ -1,7 +1,14 @@
 // `lmalign merge`: merge many mini-maps into one frame (docs/merge.md).
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <iostream>
+#include <string>
+#include <vector>
 
 #include "cli_util.hpp"
 #include "commands.hpp"
@@ -25,9 +32,58 @@ struct MergeArgs {
   int threads = 0;
   std::string thresholds = "5,0.1";
   bool no_fuse = false;
+  std::string dask_scheduler;
 };
 
+/// --dask-scheduler: the pairs run on a Dask cluster through the Python package; this process
+/// becomes `python3 -c <bootstrap> ARGS` (lmalign.merge_cli, docs/merge.md "Scale-out on Dask").
+/// Returns only if the interpreter cannot be started.
+int exec_python_merge(const MergeArgs& a) {
+  const char* env = std::getenv("LMALIGN_PYTHON");
+  const std::string python = env != nullptr && *env != '\0' ? env : LMALIGN_PYTHON;
+  const std::string bootstrap =
+      "import sys\n"
+      "try:\n"
+      "    from lmalign.merge_cli import main\n"
+      "except ImportError as e:\n"
+      "    sys.exit('lmalign merge --dask-scheduler: needs the Python package lmalign (make "
+      "install, or PYTHONPATH=<build>/python) and python3-distributed: %s' % e)\n"
+      "sys.exit(main(sys.argv[1:]))\n";
+  std::vector<std::string> args{python,
+                                "-c",
+                                bootstrap,
+                                a.manifest,
+                                "-o",
+                                a.out_dir,
+                                "--thresholds",
+                                a.thresholds,
+                                "--max-pairs",
+                                std::to_string(a.max_pairs),
+                                "--threads",
+                                std::to_string(a.threads),
+                                "--dask-scheduler",
+                                a.dask_scheduler};
+  if (!a.ground_truth.empty()) {
+    args.push_back("--ground-truth");
+    args.push_back(a.ground_truth);
+  }
+  if (a.resume) args.push_back("--resume");
+  if (a.no_fuse) args.push_back("--no-fuse");
+  std::vector<char*> argv;
+  for (std::string& s : args) argv.push_back(s.data());
+  argv.push_back(nullptr);
+  std::fflush(stdout);
+  std::fflush(stderr);
+  execvp(argv[0], argv.data());
+  std::fprintf(stderr,
+               "lmalign merge --dask-scheduler: cannot run the Python interpreter '%s' (%s); set "
+               "LMALIGN_PYTHON, or use lmalign.merge(..., dask_client=...) from Python\n",
+               python.c_str(), std::strerror(errno));
+  return 2;
+}
+
 int run_merge_command(const MergeArgs& a) {
+  if (!a.dask_scheduler.empty()) return exec_python_merge(a);
   if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
   if (a.threads < 0) throw InvalidArgument("--threads must be >= 0 (0 = all)");
   const std::vector<double> thr =
@@ -157,6 +213,11 @@ CommandRunner add_merge_command(CLI::App& root) {
       ->capture_default_str();
   cmd->add_flag("--no-fuse", args->no_fuse,
                 "Do not fuse landmarks with the same id in maps of the same session");
+  cmd->add_option("--dask-scheduler", args->dask_scheduler,
+                  "Run the pairwise alignments on this Dask scheduler (e.g. tcp://host:8786): "
+                  "hands over to the Python package (python3 -m lmalign.merge_cli; needs it "
+                  "installed and python3-distributed; the maps on a filesystem every worker "
+                  "sees). Same result as in process");
   return [args]() { return run_merge_command(*args); };
 }
 

@@ -36,12 +36,49 @@ from . import _lmalign
 
 __version__ = "@PROJECT_VERSION@"
 
+#: True when the compiled module has the merge (lmalign::merge is built when Ceres is found);
+#: else the merge names below (MERGE_NAMES) are absent. docs/python.md, "Merge".
+HAVE_MERGE = bool(_lmalign.HAVE_MERGE)
+MERGE_NAMES = (
+    "CandidatePair", "Edge", "EdgeReport", "Manifest", "ManifestEntry", "MapPose", "MapPrior",
+    "MergeOutcome", "PoseGraphResult", "align_edge", "edge_file_path", "edge_key",
+    "evaluate_merge", "load_manifest_maps", "map_fingerprint", "merge", "plan_candidates",
+    "read_edge_file", "read_ground_truth", "read_manifest", "read_manifest_map",
+    "solve_pose_graph", "write_edge_file", "write_merge_outputs",
+)
+if HAVE_MERGE:
+    from ._lmalign import (  # noqa: F401  (re-exported)
+        CandidatePair,
+        Edge,
+        EdgeReport,
+        Manifest,
+        ManifestEntry,
+        MapPose,
+        MapPrior,
+        PoseGraphResult,
+        align_edge,
+        edge_file_path,
+        edge_key,
+        evaluate_merge,
+        load_manifest_maps,
+        map_fingerprint,
+        plan_candidates,
+        read_edge_file,
+        read_ground_truth,
+        read_manifest,
+        read_manifest_map,
+        solve_pose_graph,
+        write_edge_file,
+        write_merge_outputs,
+    )
+    from ._merge import MergeOutcome, merge  # noqa: F401
+
 __all__ = [
     "AlignmentResult", "Error", "InvalidArgument", "IoError", "Map", "ParseError",
     "RECOMMENDED_STRATEGY", "align", "evaluate_trajectory", "experiment", "pose_from_xyz_rpy_deg",
     "read_map", "read_tum_trajectory", "split", "strategies", "transform_covariances",
-    "transform_points", "write_map",
-]
+    "transform_points", "write_map", "HAVE_MERGE", "MERGE_NAMES",
+] + (list(MERGE_NAMES) if HAVE_MERGE else [])
 
 _ALIGN_OPTIONS = ("k", "max_iterations", "max_distance_m", "covariance_norm")
 

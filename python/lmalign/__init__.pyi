@@ -138,3 +138,198 @@ def pose_from_xyz_rpy_deg(
 ) -> F64: ...  # (4, 4)
 def transform_points(T: ArrayLike, points: ArrayLike) -> F64: ...  # (N, 3)
 def transform_covariances(T: ArrayLike, covariances: ArrayLike) -> F64: ...  # (N, 3, 3)
+
+# ---- merge (docs/merge.md): present only when HAVE_MERGE (lmalign::merge built, Ceres found)
+HAVE_MERGE: bool
+MERGE_NAMES: Tuple[str, ...]
+
+class MapPrior:
+    def __init__(self, T_world_map: ArrayLike, covariance: ArrayLike) -> None: ...
+    @property
+    def T_world_map(self) -> F64: ...  # (4, 4) p_world = T @ p_map, m
+    @property
+    def covariance(self) -> F64: ...  # (6, 6) (rho m, phi rad), left, world frame
+
+class ManifestEntry:
+    @property
+    def name(self) -> str: ...
+    @property
+    def path(self) -> str: ...
+    @property
+    def format(self) -> str: ...
+    @property
+    def session(self) -> str: ...
+    @property
+    def prior(self) -> Optional[MapPrior]: ...
+
+class Manifest:
+    @property
+    def file(self) -> str: ...
+    @property
+    def maps(self) -> List[ManifestEntry]: ...
+    @property
+    def names(self) -> List[str]: ...
+    @property
+    def priors(self) -> List[Optional[MapPrior]]: ...
+
+class CandidatePair:
+    def __init__(
+        self,
+        source: int,
+        target: int,
+        initial_guess: Optional[ArrayLike] = None,  # (4, 4) T_target_source
+        prior_sigma: Optional[ArrayLike] = None,  # (rot_deg, trans_m)
+    ) -> None: ...
+    @property
+    def source(self) -> int: ...
+    @property
+    def target(self) -> int: ...
+    @property
+    def rank(self) -> float: ...
+    @property
+    def initial_guess(self) -> Optional[F64]: ...  # (4, 4)
+    @property
+    def prior_sigma(self) -> Optional[Tuple[float, float]]: ...
+
+class Edge:
+    @property
+    def source(self) -> int: ...
+    @property
+    def target(self) -> int: ...
+    @property
+    def T_target_source(self) -> F64: ...  # (4, 4) m
+    @property
+    def covariance(self) -> F64: ...  # (6, 6) (rho m, phi rad), left, target frame
+    @property
+    def covariance_valid(self) -> bool: ...
+    @property
+    def trusted(self) -> bool: ...
+    @property
+    def trust_reason(self) -> str: ...
+    @property
+    def num_inliers(self) -> int: ...
+    @property
+    def inlier_ratio(self) -> float: ...
+    @property
+    def initialisation(self) -> str: ...  # global, prior, given
+    @property
+    def key(self) -> str: ...
+    def with_key(self, key: str) -> Edge: ...
+
+class MapPose:
+    @property
+    def T_world_map(self) -> F64: ...  # (4, 4) m
+    @property
+    def covariance(self) -> F64: ...  # (6, 6)
+    @property
+    def covariance_valid(self) -> bool: ...
+    @property
+    def component(self) -> int: ...
+    @property
+    def is_gauge(self) -> bool: ...
+
+class EdgeReport:
+    @property
+    def used(self) -> bool: ...
+    @property
+    def rejected(self) -> bool: ...
+    @property
+    def chi2(self) -> float: ...
+    @property
+    def skip_reason(self) -> str: ...
+
+class PoseGraphResult:
+    @property
+    def maps(self) -> List[MapPose]: ...
+    @property
+    def edges(self) -> List[EdgeReport]: ...
+    @property
+    def num_components(self) -> int: ...
+    @property
+    def final_chi2(self) -> float: ...
+    @property
+    def edge_covariance_scale(self) -> float: ...
+    @property
+    def rounds(self) -> int: ...
+    @property
+    def converged(self) -> bool: ...
+
+class MergeOutcome:
+    names: List[str]
+    T_world_map: F64  # (N, 4, 4) p_world = T @ p_map, m
+    covariances: F64  # (N, 6, 6) (rho m, phi rad), left, world frame
+    components: I64  # (N,)
+    is_gauge: npt.NDArray[np.bool_]  # (N,)
+    candidates: List[CandidatePair]
+    edges: List[Edge]
+    trusted: npt.NDArray[np.bool_]  # (E,)
+    used: npt.NDArray[np.bool_]  # (E,)
+    rejected: npt.NDArray[np.bool_]  # (E,)
+    chi2: F64  # (E,)
+    num_components: int
+    final_chi2: float
+    edge_covariance_scale: float
+    graph: PoseGraphResult
+    evaluation: Optional[Dict[str, Any]]
+    backend: str  # 'in-process' or 'dask'
+    edges_reused: int
+    seconds_edges: float
+    seconds_graph: float
+    output_dir: str
+
+def read_manifest(path: PathLike) -> Manifest: ...
+def load_manifest_maps(manifest: Manifest) -> List[Map]: ...
+def read_manifest_map(entry: ManifestEntry) -> Map: ...
+def plan_candidates(
+    maps: Sequence[Map],
+    priors: Optional[Sequence[Optional[MapPrior]]] = None,
+    *,
+    max_pairs: int = 0,
+    keep_per_map: int = 4,
+    all_pairs_max_maps: int = 12,
+) -> List[CandidatePair]: ...
+def align_edge(
+    source: Map, target: Map, pair: CandidatePair, max_iterations: Optional[int] = None
+) -> Edge: ...
+def map_fingerprint(map: Map) -> str: ...
+def edge_key(
+    source_fingerprint: str,
+    target_fingerprint: str,
+    pair: CandidatePair,
+    max_iterations: Optional[int] = None,
+) -> str: ...
+def edge_file_path(dir: PathLike, source_name: str, target_name: str) -> str: ...
+def write_edge_file(path: PathLike, edge: Edge) -> None: ...
+def read_edge_file(path: PathLike) -> Optional[Edge]: ...
+def solve_pose_graph(
+    num_maps: int, priors: Optional[Sequence[Optional[MapPrior]]], edges: Sequence[Edge]
+) -> PoseGraphResult: ...
+def write_merge_outputs(
+    out_dir: PathLike,
+    names: Sequence[str],
+    sessions: Sequence[str],
+    maps: Sequence[Map],
+    edges: Sequence[Edge],
+    result: PoseGraphResult,
+    fuse_landmarks: bool = True,
+) -> None: ...
+def read_ground_truth(path: PathLike, names: Sequence[str]) -> F64: ...  # (N, 4, 4)
+def evaluate_merge(
+    result: PoseGraphResult,
+    edges: Sequence[Edge],
+    truth: ArrayLike,  # (N, 4, 4) T_world_map_true
+    rotation_deg: float = 5.0,
+    translation_m: float = 0.10,
+) -> Dict[str, Any]: ...
+def merge(
+    manifest_path: PathLike,
+    output_dir: PathLike,
+    *,
+    ground_truth: Optional[Union[str, PathLike]] = None,  # 'identity' or a YAML file
+    max_pairs: Optional[int] = None,
+    threads: Optional[int] = None,
+    dask_client: Optional[Any] = None,  # distributed.Client
+    resume: bool = False,
+    thresholds: Tuple[float, float] = (5.0, 0.10),  # (rot_deg, trans_m)
+    fuse_landmarks: bool = True,
+) -> MergeOutcome: ...

@@ -43,3 +43,29 @@ def cli():
     if not path or not os.path.exists(path):
         pytest.fail("LMALIGN_CLI does not name the lmalign executable (run through ctest)")
     return path
+
+
+def write_desk_windows(directory, count=4, frames=30, prior_sigma=None):
+    """Cuts the real desk map (motion-capture anchored, map_fr1_desk_gt.txt) into `count` windows
+    of `frames` frames with lmalign.split, writes them and a merge manifest into `directory`,
+    and returns the manifest's path. Every window stays in the map's frame: the truth is the
+    identity. prior_sigma (rot_deg, trans_m): each map gets the identity prior with that sigma.
+    """
+    import lmalign
+
+    path = require_file(data_dir() / "tum_fr1_desk" / "ground_truth_pair" /
+                        "map_fr1_desk_gt.txt")
+    full = lmalign.read_map(path, min_observations=0)
+    directory = pathlib.Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    lines = ["maps:"]
+    for k in range(count):
+        window = lmalign.split(full, k * frames, k * frames + frames - 1)
+        lmalign.write_map(directory / ("w%d.txt" % k), window)
+        lines += ["  - name: w%d" % k, "    path: w%d.txt" % k]
+        if prior_sigma is not None:
+            lines += ["    T_world_map: [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]",
+                      "    prior_sigma: [%r, %r]" % tuple(prior_sigma)]
+    manifest = directory / "manifest.yaml"
+    manifest.write_text("\n".join(lines) + "\n")
+    return manifest
