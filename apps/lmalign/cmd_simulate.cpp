@@ -39,27 +39,14 @@ std::string to_text(double value) {
   return os.str();
 }
 
-std::string matrix_rows(const Isometry3& T) {
-  const Eigen::Matrix4d M = T.matrix();
+// A matrix as YAML flow rows, doubles to round-trip precision.
+template <typename Matrix>
+std::string yaml_rows(const Matrix& M) {
   std::string s = "[";
   char buf[64];
-  for (int r = 0; r < 4; ++r) {
+  for (int r = 0; r < M.rows(); ++r) {
     s += r ? ", [" : "[";
-    for (int c = 0; c < 4; ++c) {
-      std::snprintf(buf, sizeof(buf), "%s%.17g", c ? ", " : "", M(r, c));
-      s += buf;
-    }
-    s += "]";
-  }
-  return s + "]";
-}
-
-std::string matrix6_rows(const Mat6& M) {
-  std::string s = "[";
-  char buf[64];
-  for (int r = 0; r < 6; ++r) {
-    s += r ? ", [" : "[";
-    for (int c = 0; c < 6; ++c) {
+    for (int c = 0; c < M.cols(); ++c) {
       std::snprintf(buf, sizeof(buf), "%s%.17g", c ? ", " : "", M(r, c));
       s += buf;
     }
@@ -99,7 +86,7 @@ int run_simulate_fleet(const SimulateArgs& a) {
   write_file_atomically((dir / "ground_truth.yaml").string(), [&](std::ostream& os) {
     os << "# lmalign simulate --scene fleet --seed " << a.seed << ": true T_world_map (m)\nmaps:\n";
     for (std::size_t i = 0; i < scene.maps.size(); ++i) {
-      os << "  " << scene.names[i] << ": " << matrix_rows(scene.T_world_map[i]) << "\n";
+      os << "  " << scene.names[i] << ": " << yaml_rows(scene.T_world_map[i].matrix()) << "\n";
     }
   });
   write_file_atomically((dir / "overlaps.csv").string(), [&](std::ostream& os) {
@@ -118,8 +105,8 @@ int run_simulate_fleet(const SimulateArgs& a) {
     for (std::size_t i = 0; i < scene.maps.size(); ++i) {
       os << "  - name: " << scene.names[i] << "\n    path: maps/" << scene.names[i] << ".txt\n";
       if (priors) {
-        os << "    T_world_map: " << matrix_rows(scene.prior_T_world_map[i])
-           << "\n    prior_covariance: " << matrix6_rows(scene.prior_covariance[i]) << "\n";
+        os << "    T_world_map: " << yaml_rows(scene.prior_T_world_map[i].matrix())
+           << "\n    prior_covariance: " << yaml_rows(scene.prior_covariance[i]) << "\n";
       }
     }
   });

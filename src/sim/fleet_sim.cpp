@@ -9,6 +9,7 @@
 #include <unordered_set>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
 
 namespace lmalign::sim {
 
@@ -268,14 +269,7 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
       }
       E.translation() = o.prior_sigma_m * rho;
       const Isometry3 T_prior = scene.T_world_map[i] * E;
-      const Mat3 R = T_prior.linear();
-      const Vec3 t = T_prior.translation();
-      Mat3 tx;
-      tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
-      Mat6 A = Mat6::Zero();
-      A.block<3, 3>(0, 0) = R;
-      A.block<3, 3>(0, 3) = tx * R;
-      A.block<3, 3>(3, 3) = R;
+      const Mat6 A = se3_adjoint(T_prior);
       const Mat6 C = A * C_map * A.transpose();
       scene.prior_T_world_map.push_back(T_prior);
       scene.prior_covariance.push_back(0.5 * (C + C.transpose()));
