@@ -7,6 +7,7 @@
 #   make install  installs the library, headers, CMake/pkg-config package, CLI and Python package
 #               under PREFIX (default /usr/local; docs/packaging.md).
 # Also: make bench (against PCL and Open3D), make bench-merge (the synthetic 200-map merge),
+# make bench-merge-real (configs/merge_desk.yaml, merge_kitti.yaml),
 # make test-sanitize (the sanitizer half alone),
 # make fuzz (libFuzzer targets, FUZZ_SECONDS each; .ci/run runs it after make test).
 # Real data: ../shared/data by default; set LMALIGN_DATA to point elsewhere.
@@ -135,6 +136,16 @@ bench-merge: build
 	  -o $(BUILD_DIR)/bench-merge/plan_no_priors --plan-only
 	$(PYTHON) bench/merge_prefilter_recall.py $(BUILD_DIR)/bench-merge/fleet_no_priors \
 	  $(BUILD_DIR)/bench-merge/plan_no_priors
+
+# `make bench-merge-real`: configs/merge_desk.yaml and configs/merge_kitti.yaml through
+# bench/merge_real.py (real maps cut with `lmalign split`, moved by seeded poses, merged without
+# and with priors; data from LMALIGN_DATA). Writes $(BUILD_DIR)/bench-merge/{desk,kitti}_*/.
+.PHONY: bench-merge-real
+bench-merge-real: build
+	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
+	  echo "lmalign bench-merge-real: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
+	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_desk.yaml --build-dir $(BUILD_DIR)
+	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_kitti.yaml --build-dir $(BUILD_DIR)
 
 demo: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
