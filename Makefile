@@ -6,7 +6,9 @@
 #               again under ASan + UBSan in $(ASAN_BUILD_DIR) (make test-sanitize).
 #   make install  installs the library, headers, CMake/pkg-config package, CLI and Python package
 #               under PREFIX (default /usr/local; docs/packaging.md).
-# Also: make bench (against PCL and Open3D), make test-sanitize (the sanitizer half alone),
+# Also: make bench (against PCL and Open3D), make bench-merge (the synthetic 200-map merge),
+# make bench-merge-real (configs/merge_desk.yaml, merge_kitti.yaml),
+# make test-sanitize (the sanitizer half alone),
 # make fuzz (libFuzzer targets, FUZZ_SECONDS each; .ci/run runs it after make test).
 # Real data: ../shared/data by default; set LMALIGN_DATA to point elsewhere.
 
@@ -116,6 +118,35 @@ bench-accuracy: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign bench-accuracy: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
 	$(PYTHON) bench/run_accuracy.py --build-dir $(BUILD_DIR) $(ACCURACY_ARGS)
+
+# `make bench-merge`: the synthetic multi-robot merge (docs/merge.md, "Synthetic fleet"): a
+# seeded fleet of MERGE_MAPS mini-maps with GPS-like priors, merged with ground truth (time and
+# per-map errors on stdout), then the candidate pre-filter's recall on the same world without
+# priors (plan only, no alignment). Writes $(BUILD_DIR)/bench-merge/.
+MERGE_MAPS ?= 200
+.PHONY: bench-merge
+bench-merge: build
+	rm -rf $(BUILD_DIR)/bench-merge
+	$(LMALIGN) simulate --scene fleet --maps $(MERGE_MAPS) --twins 4 --seed 1 \
+	  --out $(BUILD_DIR)/bench-merge/fleet
+	$(LMALIGN) merge $(BUILD_DIR)/bench-merge/fleet/manifest.yaml -o $(BUILD_DIR)/bench-merge/out \
+	  --ground-truth $(BUILD_DIR)/bench-merge/fleet/ground_truth.yaml --thresholds 1,0.1 --threads 2
+	$(LMALIGN) simulate --scene fleet --maps $(MERGE_MAPS) --twins 4 --seed 1 --prior-sigma none \
+	  --out $(BUILD_DIR)/bench-merge/fleet_no_priors
+	$(LMALIGN) merge $(BUILD_DIR)/bench-merge/fleet_no_priors/manifest.yaml \
+	  -o $(BUILD_DIR)/bench-merge/plan_no_priors --plan-only
+	$(PYTHON) bench/merge_prefilter_recall.py $(BUILD_DIR)/bench-merge/fleet_no_priors \
+	  $(BUILD_DIR)/bench-merge/plan_no_priors
+
+# `make bench-merge-real`: configs/merge_desk.yaml and configs/merge_kitti.yaml through
+# bench/merge_real.py (real maps cut with `lmalign split`, moved by seeded poses, merged without
+# and with priors; data from LMALIGN_DATA). Writes $(BUILD_DIR)/bench-merge/{desk,kitti}_*/.
+.PHONY: bench-merge-real
+bench-merge-real: build
+	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
+	  echo "lmalign bench-merge-real: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
+	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_desk.yaml --build-dir $(BUILD_DIR)
+	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_kitti.yaml --build-dir $(BUILD_DIR)
 
 demo: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \

@@ -3,6 +3,7 @@
 #
 #   find_package(lmalign 0.1 CONFIG REQUIRED)              -> lmalign::lmalign
 #   find_package(lmalign CONFIG REQUIRED COMPONENTS vo)    -> also lmalign::vo (OpenCV + Ceres)
+#   find_package(lmalign CONFIG REQUIRED COMPONENTS merge) -> also lmalign::merge (Ceres)
 #   find_package(lmalign CONFIG REQUIRED COMPONENTS pcl)   -> also lmalign::pcl (the PCL drop-in)
 #   pkg-config --cflags --libs lmalign
 include(GNUInstallDirs)
@@ -17,10 +18,10 @@ install(TARGETS lmalign EXPORT lmalignTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
         RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
-# Every public header; vo/ only with the map builder, pcl.hpp always (header-only; the pcl
+# Every public header; vo/ only with the map builder, merge/ only with lmalign::merge, pcl.hpp always (header-only; the pcl
 # component checks that PCL itself is there).
 install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}
-        FILES_MATCHING PATTERN "*.hpp" PATTERN "vo" EXCLUDE)
+        FILES_MATCHING PATTERN "*.hpp" PATTERN "vo" EXCLUDE PATTERN "merge" EXCLUDE)
 install(EXPORT lmalignTargets NAMESPACE lmalign:: FILE lmalignTargets.cmake
         DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
 
@@ -35,6 +36,20 @@ if(TARGET lmalign_vo)
   install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign/vo
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lmalign FILES_MATCHING PATTERN "*.hpp")
   install(EXPORT lmalignVoTargets NAMESPACE lmalign:: FILE lmalignVoTargets.cmake
+          DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
+endif()
+
+# --- optional component: map merging (the pose graph needs Ceres)
+set(LMALIGN_INSTALLED_MERGE OFF)
+if(TARGET lmalign_merge)
+  set(LMALIGN_INSTALLED_MERGE ON)
+  set_target_properties(lmalign_merge PROPERTIES EXPORT_NAME merge)
+  install(TARGETS lmalign_merge EXPORT lmalignMergeTargets
+          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign/merge
+          DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lmalign FILES_MATCHING PATTERN "*.hpp")
+  install(EXPORT lmalignMergeTargets NAMESPACE lmalign:: FILE lmalignMergeTargets.cmake
           DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
 endif()
 

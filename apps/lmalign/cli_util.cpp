@@ -1,8 +1,15 @@
 #include "cli_util.hpp"
 
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <iostream>
 
 #include "lmalign/core/error.hpp"
 
@@ -120,6 +127,45 @@ StopSignals::StopSignals() {
 StopSignals::~StopSignals() {
   ::sigaction(SIGINT, &old_int_, nullptr);
   ::sigaction(SIGTERM, &old_term_, nullptr);
+}
+
+std::filesystem::path repository_root() {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return {};
+  for (fs::path p = exe.parent_path(); !p.empty(); p = p.parent_path()) {
+    if (fs::exists(p / "scripts" / "plot_experiment.py", ec)) return p;
+    if (p == p.root_path()) break;
+  }
+  return {};
+}
+
+std::string python_interpreter() {
+  if (const char* env = std::getenv("LMALIGN_PYTHON"); env != nullptr && *env != '\0') return env;
+  if (::access("/usr/bin/python3", X_OK) == 0) return "/usr/bin/python3";
+  return "python3";
+}
+
+int run_process(const std::vector<std::string>& argv) {
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  std::cout.flush();
+  std::fflush(stdout);
+  const pid_t pid = ::fork();
+  if (pid < 0) return -1;
+  if (pid == 0) {
+    ::execvp(args[0], args.data());
+    std::fprintf(stderr, "lmalign: cannot run %s\n", args[0]);
+    ::_exit(127);
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) return -1;
+  }
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  return -1;
 }
 
 }  // namespace lmalign::cli

@@ -5,6 +5,7 @@
 
 #include <array>
 #include <atomic>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -57,5 +58,15 @@ class StopSignals {
   struct sigaction old_int_ {};
   struct sigaction old_term_ {};
 };
+
+/// The source checkout this executable was built in (the folder holding scripts/), found by
+/// walking up from /proc/self/exe; empty when not found (e.g. an installed binary).
+std::filesystem::path repository_root();
+
+/// $LMALIGN_PYTHON, else /usr/bin/python3 if executable, else python3 (PATH).
+std::string python_interpreter();
+
+/// Runs argv (PATH lookup for argv[0]); returns the exit status, or -1 if it could not run.
+int run_process(const std::vector<std::string>& argv);
 
 }  // namespace lmalign::cli

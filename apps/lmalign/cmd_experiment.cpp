@@ -81,17 +81,6 @@ std::string read_whole_file(const std::string& path) {
 
 /// The repository holding this executable (the first ancestor with scripts/plot_experiment.py),
 /// or empty.
-fs::path repository_root() {
-  std::error_code ec;
-  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) return {};
-  for (fs::path p = exe.parent_path(); !p.empty(); p = p.parent_path()) {
-    if (fs::exists(p / "scripts" / "plot_experiment.py", ec)) return p;
-    if (p == p.root_path()) break;
-  }
-  return {};
-}
-
 /// $LMALIGN_DATA, else ../shared/data beside the repository (as the Makefile), else empty.
 std::string data_dir() {
   if (const char* env = std::getenv("LMALIGN_DATA"); env != nullptr && *env != '\0') return env;
@@ -103,39 +92,11 @@ std::string data_dir() {
   return {};
 }
 
-std::string python_interpreter() {
-  if (const char* env = std::getenv("LMALIGN_PYTHON"); env != nullptr && *env != '\0') return env;
-  if (::access("/usr/bin/python3", X_OK) == 0) return "/usr/bin/python3";
-  return "python3";
-}
-
 std::string plot_script() {
   if (const char* env = std::getenv("LMALIGN_PLOT_SCRIPT"); env != nullptr && *env != '\0')
     return env;
   const fs::path root = repository_root();
   return root.empty() ? std::string() : (root / "scripts" / "plot_experiment.py").string();
-}
-
-/// Runs argv (PATH lookup for argv[0]); returns the exit status, or -1 if it could not run.
-int run_process(const std::vector<std::string>& argv) {
-  std::vector<char*> args;
-  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  std::cout.flush();
-  std::fflush(stdout);
-  const pid_t pid = ::fork();
-  if (pid < 0) return -1;
-  if (pid == 0) {
-    ::execvp(args[0], args.data());
-    std::fprintf(stderr, "lmalign: cannot run %s\n", args[0]);
-    ::_exit(127);
-  }
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0) {
-    if (errno != EINTR) return -1;
-  }
-  if (WIFEXITED(status)) return WEXITSTATUS(status);
-  return -1;
 }
 
 std::string duration_text(double seconds) {

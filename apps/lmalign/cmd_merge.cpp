@@ -13,6 +13,7 @@
 #include "cli_util.hpp"
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
+#include "lmalign/io/atomic_file.hpp"
 #include "lmalign/merge/evaluation.hpp"
 #include "lmalign/merge/merge.hpp"
 #include "lmalign/merge/output.hpp"
@@ -33,6 +34,8 @@ struct MergeArgs {
   std::string thresholds = "5,0.1";
   bool no_fuse = false;
   std::string dask_scheduler;
+  bool no_plots = false;
+  bool plan_only = false;
 };
 
 /// --dask-scheduler: the pairs run on a Dask cluster through the Python package; this process
@@ -82,6 +85,60 @@ int exec_python_merge(const MergeArgs& a) {
   return 2;
 }
 
+// --plan-only: the candidate pairs (candidates.hpp), written to OUTDIR/candidates.csv, no
+// alignment (to inspect a large merge before running it, or to measure the pre-filter).
+int plan_only(const std::vector<Map>& maps, const std::vector<std::string>& names,
+              const std::vector<std::optional<MapPrior>>& priors, const MergeOptions& options,
+              const std::string& out_dir) {
+  std::vector<MapSummary> summaries;
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    summaries.push_back(summarise_map(maps[i], options.candidates, i + 1));  // as run_merge
+  }
+  const std::vector<CandidatePair> pairs = plan_candidates(summaries, priors, options.candidates);
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) throw IoError("cannot create '" + out_dir + "': " + ec.message());
+  const std::string path = (fs::path(out_dir) / "candidates.csv").string();
+  write_file_atomically(path, [&](std::ostream& os) {
+    os << "source,target,rank,prior\n";
+    for (const CandidatePair& c : pairs) {
+      os << names[c.source] << "," << names[c.target] << "," << c.rank << "," << (c.prior ? 1 : 0)
+         << "\n";
+    }
+  });
+  std::printf("%zu maps: %zu candidate pairs; wrote %s\n", maps.size(), pairs.size(), path.c_str());
+  return 0;
+}
+
+// The PNGs of docs/merge.md ("Plots"), drawn by scripts/plot_merge.py (matplotlib), as
+// `lmalign experiment` does; without the script or matplotlib: a warning, no plots.
+bool plot_merge(const std::string& out_dir) {
+  std::string script;
+  if (const char* env = std::getenv("LMALIGN_MERGE_PLOT_SCRIPT"); env != nullptr && *env) {
+    script = env;
+  } else if (const fs::path root = repository_root(); !root.empty()) {
+    script = (root / "scripts" / "plot_merge.py").string();
+  }
+  std::error_code ec;
+  if (script.empty() || !fs::exists(script, ec)) {
+    std::fprintf(stderr,
+                 "lmalign merge: warning: no plots: scripts/plot_merge.py not found beside this "
+                 "executable (set LMALIGN_MERGE_PLOT_SCRIPT); the outputs are complete without "
+                 "them\n");
+    return false;
+  }
+  const int rc = run_process({python_interpreter(), script, out_dir, "--quiet"});
+  if (rc != 0) {
+    std::fprintf(stderr,
+                 "lmalign merge: warning: no plots (%s exited with %d; it needs matplotlib and "
+                 "numpy; set LMALIGN_PYTHON to choose the interpreter); the outputs are complete "
+                 "without them\n",
+                 script.c_str(), rc);
+    return false;
+  }
+  return true;
+}
+
 int run_merge_command(const MergeArgs& a) {
   if (!a.dask_scheduler.empty()) return exec_python_merge(a);
   if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
@@ -123,6 +180,7 @@ int run_merge_command(const MergeArgs& a) {
   options.candidates.max_pairs = static_cast<std::size_t>(a.max_pairs);
   options.threads = a.threads;
   options.edge_cache_dir = (fs::path(a.out_dir) / "edges").string();
+  if (a.plan_only) return plan_only(maps, names, priors, options, a.out_dir);
   const StopSignals signals;
   stop_flag().store(false);
   auto progress = [](const std::string& stage, std::size_t done, std::size_t total) {
@@ -173,8 +231,11 @@ int run_merge_command(const MergeArgs& a) {
                 100.0 * ev.fraction_within, ev.kept_edges, ev.false_kept_edges, ev.edge_precision,
                 ev.edge_recall);
   }
-  std::printf("wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map%s, edges/)\n",
-              a.out_dir.c_str(), run.result.num_components > 1 ? "s per component" : "");
+  const bool plotted = !a.no_plots && plot_merge(a.out_dir);
+  std::printf(
+      "wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map%s, edges/%s)\n",
+      a.out_dir.c_str(), run.result.num_components > 1 ? "s per component" : "",
+      plotted ? ", merge_graph.png, merged_landmarks.png" : "");
   return 0;
 }
 
@@ -218,6 +279,10 @@ CommandRunner add_merge_command(CLI::App& root) {
                   "hands over to the Python package (python3 -m lmalign.merge_cli; needs it "
                   "installed and python3-distributed; the maps on a filesystem every worker "
                   "sees). Same result as in process");
+  cmd->add_flag("--plan-only", args->plan_only,
+                "Only plan the candidate pairs: write OUTDIR/candidates.csv and stop");
+  cmd->add_flag("--no-plots", args->no_plots,
+                "Do not draw merge_graph.png and merged_landmarks.png (scripts/plot_merge.py)");
   return [args]() { return run_merge_command(*args); };
 }
 

@@ -1,5 +1,6 @@
 // `lmalign simulate`: write a seeded synthetic map pair with its true transform (the simulators
 // of include/lmalign/sim/: the indoor corridor of slam_sim.hpp, the outdoor road of road_sim.hpp).
+#include <cstdio>
 #include <filesystem>
 #include <iostream>
 #include <sstream>
@@ -9,8 +10,10 @@
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/io/atomic_file.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "lmalign/sim/fleet_sim.hpp"
 #include "lmalign/sim/road_sim.hpp"
 #include "lmalign/sim/slam_sim.hpp"
 
@@ -25,6 +28,9 @@ struct SimulateArgs {
   unsigned long long landmarks = 3000;
   std::string transform = "0,0,0,0,0,0";
   std::string output;
+  unsigned long long maps = 50;
+  unsigned long long twins = 2;
+  std::string prior_sigma = "3,0.5";
 };
 
 std::string to_text(double value) {
@@ -33,7 +39,91 @@ std::string to_text(double value) {
   return os.str();
 }
 
+// A matrix as YAML flow rows, doubles to round-trip precision.
+template <typename Matrix>
+std::string yaml_rows(const Matrix& M) {
+  std::string s = "[";
+  char buf[64];
+  for (int r = 0; r < M.rows(); ++r) {
+    s += r ? ", [" : "[";
+    for (int c = 0; c < M.cols(); ++c) {
+      std::snprintf(buf, sizeof(buf), "%s%.17g", c ? ", " : "", M(r, c));
+      s += buf;
+    }
+    s += "]";
+  }
+  return s + "]";
+}
+
+// --scene fleet: N mini-maps of one world (fleet_sim.hpp) with a manifest and the truth.
+int run_simulate_fleet(const SimulateArgs& a) {
+  sim::FleetSimOptions o;
+  o.num_maps = static_cast<std::size_t>(a.maps);
+  o.seed = a.seed;
+  o.num_twins = static_cast<std::size_t>(a.twins);
+  if (a.maps < 2 || a.maps > 100000ULL) {
+    throw InvalidArgument("--maps " + std::to_string(a.maps) + ": must be in [2, 100000]");
+  }
+  if (a.twins > 1000ULL) throw InvalidArgument("--twins: must be <= 1000");
+  if (a.prior_sigma != "none") {
+    const std::vector<double> ps =
+        parse_number_list("--prior-sigma", a.prior_sigma, 2, "ROT_DEG,TRANS_M, e.g. 3,0.5");
+    if (!(ps[0] > 0.0 && ps[1] > 0.0)) {
+      throw InvalidArgument("--prior-sigma " + a.prior_sigma + ": both sigmas must be > 0");
+    }
+    o.prior_sigma_deg = ps[0];
+    o.prior_sigma_m = ps[1];
+  }
+  const sim::FleetScene scene = sim::simulate_fleet(o);
+  const std::filesystem::path dir(a.output);
+  std::error_code ec;
+  std::filesystem::create_directories(dir / "maps", ec);
+  if (ec) throw IoError("cannot create output folder '" + a.output + "': " + ec.message());
+  const bool priors = !scene.prior_T_world_map.empty();
+  for (std::size_t i = 0; i < scene.maps.size(); ++i) {
+    write_map((dir / "maps" / (scene.names[i] + ".txt")).string(), scene.maps[i]);
+  }
+  write_file_atomically((dir / "ground_truth.yaml").string(), [&](std::ostream& os) {
+    os << "# lmalign simulate --scene fleet --seed " << a.seed << ": true T_world_map (m)\nmaps:\n";
+    for (std::size_t i = 0; i < scene.maps.size(); ++i) {
+      os << "  " << scene.names[i] << ": " << yaml_rows(scene.T_world_map[i].matrix()) << "\n";
+    }
+  });
+  write_file_atomically((dir / "overlaps.csv").string(), [&](std::ostream& os) {
+    os << "source,target,kind,shared_fraction\n";
+    for (const sim::FleetOverlap& v : scene.overlaps) {
+      os << scene.names[v.i] << "," << scene.names[v.j] << ",overlap," << v.shared_fraction << "\n";
+    }
+    for (const auto& t : scene.twins) {
+      os << scene.names[t.first] << "," << scene.names[t.second] << ",twin,0\n";
+    }
+  });
+  // The manifest last: its presence marks a complete scene.
+  write_file_atomically((dir / "manifest.yaml").string(), [&](std::ostream& os) {
+    os << "# lmalign simulate --scene fleet --maps " << a.maps << " --seed " << a.seed
+       << " (docs/merge.md)\nmaps:\n";
+    for (std::size_t i = 0; i < scene.maps.size(); ++i) {
+      os << "  - name: " << scene.names[i] << "\n    path: maps/" << scene.names[i] << ".txt\n";
+      if (priors) {
+        os << "    T_world_map: " << yaml_rows(scene.prior_T_world_map[i].matrix())
+           << "\n    prior_covariance: " << yaml_rows(scene.prior_covariance[i]) << "\n";
+      }
+    }
+  });
+  std::size_t landmarks = 0;
+  for (const Map& m : scene.maps) landmarks += m.landmarks.size();
+  std::cout << "simulated fleet, seed " << a.seed << ": " << scene.maps.size() << " maps ("
+            << landmarks / scene.maps.size() << " landmarks on average), " << scene.overlaps.size()
+            << " truly overlapping pairs, " << scene.twins.size() << " planted look-alike pairs"
+            << (priors ? ", noisy priors" : ", no priors")
+            << "\n  wrote: " << (dir / "manifest.yaml").string() << ", "
+            << (dir / "ground_truth.yaml").string() << ", " << (dir / "overlaps.csv").string()
+            << ", " << (dir / "maps").string() << "/\n";
+  return 0;
+}
+
 int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
+  if (a.scene == "fleet") return run_simulate_fleet(a);
   const bool overlap_given = cmd.count("--overlap") > 0;
   const std::vector<double> t = parse_number_list("--transform", a.transform, 6,
                                                   "x,y,z,roll,pitch,yaw (m, m, m, deg, deg, deg)");
@@ -70,7 +160,7 @@ int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
     }
     pair = sim::simulate_map_pair(o);
   } else {
-    throw InvalidArgument("--scene '" + a.scene + "': expected road or corridor");
+    throw InvalidArgument("--scene '" + a.scene + "': expected road, corridor or fleet");
   }
 
   std::error_code ec;
@@ -100,8 +190,11 @@ CommandRunner add_simulate_command(CLI::App& root) {
       "--scene road: a forward-moving KITTI-like stereo camera on a road (facades, a repetitive\n"
       "ground, range-squared depth noise; include/lmalign/sim/road_sim.hpp); consecutive windows,\n"
       "--overlap in [0, 0.5] (default 0.2). --scene corridor: the indoor RGB-D corridor of\n"
-      "slam_sim.hpp, --overlap in (0, 1] (default 0.8). Same seed, same files.");
-  cmd->add_option("--scene", args->scene, "road or corridor")->capture_default_str();
+      "slam_sim.hpp, --overlap in (0, 1] (default 0.8). --scene fleet: --maps N mini-maps of one\n"
+      "world (fleet_sim.hpp) in random frames, with look-alike pairs planted (--twins), written\n"
+      "as DIR/maps/*.txt, DIR/manifest.yaml (for lmalign merge; --prior-sigma adds noisy priors),\n"
+      "DIR/ground_truth.yaml (merge --ground-truth) and DIR/overlaps.csv. Same seed, same files.");
+  cmd->add_option("--scene", args->scene, "road, corridor or fleet")->capture_default_str();
   cmd->add_option("--seed", args->seed, "seed of every draw")->capture_default_str();
   cmd->add_option("--overlap", args->overlap, "fraction of the source stretch the target also maps")
       ->type_name("F");
@@ -111,7 +204,16 @@ CommandRunner add_simulate_command(CLI::App& root) {
                   "true T_target_source as x,y,z,roll,pitch,yaw (m, deg; R = Rz Ry Rx)")
       ->capture_default_str()
       ->type_name("X,Y,Z,R,P,Y");
-  cmd->add_option("-o,--output", args->output, "output folder (created if missing)")
+  cmd->add_option("--maps", args->maps, "fleet: number of mini-maps")->capture_default_str();
+  cmd->add_option("--twins", args->twins, "fleet: look-alike map pairs planted")
+      ->capture_default_str();
+  cmd->add_option(
+         "--prior-sigma", args->prior_sigma,
+         "fleet: noisy priors in the manifest (GPS-like), ROT_DEG,TRANS_M, or 'none' (global "
+         "alignment and the candidate pre-filter)")
+      ->capture_default_str()
+      ->type_name("ROT_DEG,TRANS_M|none");
+  cmd->add_option("-o,--output,--out", args->output, "output folder (created if missing)")
       ->required()
       ->type_name("DIR");
   return [args, cmd]() { return run_simulate(*args, *cmd); };

@@ -28,19 +28,6 @@ std::vector<double> quantiles(std::vector<double>& values, std::size_t n) {
   return out;
 }
 
-Mat6 adjoint(const Isometry3& T) {
-  // (rho, phi) ordering: Ad = [[R, [t]x R], [0, R]].
-  Mat6 A = Mat6::Zero();
-  const Mat3 R = T.linear();
-  const Vec3 t = T.translation();
-  Mat3 tx;
-  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
-  A.block<3, 3>(0, 0) = R;
-  A.block<3, 3>(0, 3) = tx * R;
-  A.block<3, 3>(3, 3) = R;
-  return A;
-}
-
 double worst_sd(const Mat3& C) {
   Eigen::SelfAdjointEigenSolver<Mat3> eig(C);
   return std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
@@ -109,7 +96,7 @@ Isometry3 relative_prior(const MapPrior& source, const MapPrior& target, Mat6* c
   const Isometry3 T_target_world = target.T_world_map.inverse();
   if (covariance != nullptr) {
     // T_wj^-1 Exp(-xi_j) Exp(xi_i) T_wi ~= Exp(Ad(T_jw) (xi_i - xi_j)) T_ji.
-    const Mat6 A = adjoint(T_target_world);
+    const Mat6 A = se3_adjoint(T_target_world);
     *covariance = A * (source.covariance + target.covariance) * A.transpose();
   }
   return T_target_world * source.T_world_map;

@@ -3,7 +3,8 @@
 #         -P run_package_test.cmake
 # 1. installs BUILD_DIR into the fresh prefix WORK_DIR/prefix (cmake --install --prefix);
 # 2. configures and builds CONSUMER_DIR against it (find_package(lmalign CONFIG) and pkg-config);
-# 3. runs both executables (each recovers a known transform), and, when PCL is found, a user of
+# 3. runs both executables (each recovers a known transform), a user of the merge component
+#    when it is built, and, when PCL is found, a user of
 #    the pcl component (find_package(lmalign COMPONENTS pcl), lmalign::pcl);
 # 4. with PYTHON: imports the installed Python module from another directory and aligns.
 function(run)
@@ -35,6 +36,14 @@ if(EXISTS ${WORK_DIR}/consumer-build/consumer_pcl)
   run(${WORK_DIR}/consumer-build/consumer_pcl)
 else()
   message(STATUS "package test: PCL not found: the pcl component is not tested")
+endif()
+if(EXISTS ${prefix}/include/lmalign/merge/merge.hpp)
+  if(NOT EXISTS ${WORK_DIR}/consumer-build/consumer_merge)
+    message(FATAL_ERROR "package test: merge headers installed but the merge component not found")
+  endif()
+  run(${WORK_DIR}/consumer-build/consumer_merge)
+else()
+  message(STATUS "package test: lmalign::merge not built: the merge component is not tested")
 endif()
 run(${prefix}/bin/lmalign --version)
 if(PYTHON)

@@ -1,0 +1,164 @@
+#!/usr/bin/env python3
+"""Merge benchmark on real maps cut into windows (configs/merge_desk.yaml, merge_kitti.yaml).
+
+    merge_real.py CONFIG.yaml [--build-dir build] [--case NAME]
+
+For each case of the config: cuts the map into windows with `lmalign split --frames A-B`, moves
+each window by a seeded random pose (a yaw uniform in [-180, 180) deg about the map's up axis --
+the mean of its frames' -y axes, the camera convention of docs/map-format.md -- and a translation
+uniform in the ball of max_translation_m), writes manifest.yaml (with noisy priors when the case
+has prior_sigma: [rot_deg, trans_m], left perturbation in the world frame as manifest.hpp) and
+ground_truth.yaml, then runs `lmalign merge --ground-truth` and prints its report. The map is read
+from $LMALIGN_DATA (default ../shared/data beside the repository); nothing is copied into the
+repository. Every file is written to a temporary name and renamed. Needs numpy and PyYAML.
+"""
+
+import argparse
+import os
+import subprocess
+import sys
+
+import numpy as np
+import yaml
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def data_dir():
+    env = os.environ.get("LMALIGN_DATA")
+    return env if env else os.path.normpath(os.path.join(HERE, "..", "..", "shared", "data"))
+
+
+def write_atomic(path, text):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def quat_to_matrix(w, x, y, z):
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / n, x / n, y / n, z / n
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def matrix_to_quat(R):
+    w = np.sqrt(max(0.0, 1 + R[0, 0] + R[1, 1] + R[2, 2])) / 2
+    x = np.copysign(np.sqrt(max(0.0, 1 + R[0, 0] - R[1, 1] - R[2, 2])) / 2, R[2, 1] - R[1, 2])
+    y = np.copysign(np.sqrt(max(0.0, 1 - R[0, 0] + R[1, 1] - R[2, 2])) / 2, R[0, 2] - R[2, 0])
+    z = np.copysign(np.sqrt(max(0.0, 1 - R[0, 0] - R[1, 1] + R[2, 2])) / 2, R[1, 0] - R[0, 1])
+    return w, x, y, z
+
+
+def axis_angle(axis, angle):
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def read_lines(path):
+    with open(path) as f:
+        return f.read().splitlines()
+
+
+def up_axis(lines):
+    up = np.zeros(3)
+    for line in lines:
+        if line.startswith("FRAME"):
+            v = [float(t) for t in line.split()[2:9]]
+            up -= quat_to_matrix(*v[3:7])[:, 1]
+    return up / np.linalg.norm(up)
+
+
+def transform_map(lines, T):
+    """The map's records moved by T (p_new = T p_old): frames, positions, covariances."""
+    R, t = T[:3, :3], T[:3, 3]
+    out = []
+    for line in lines:
+        f = line.split()
+        if f and f[0] == "FRAME":
+            p = R @ np.array([float(v) for v in f[2:5]]) + t
+            q = matrix_to_quat(R @ quat_to_matrix(*[float(v) for v in f[5:9]]))
+            out.append(" ".join([f[0], f[1]] + ["%.17g" % v for v in (*p, *q)]))
+        elif f and f[0] == "LANDMARK":
+            p = R @ np.array([float(v) for v in f[2:5]]) + t
+            C = R @ np.array([float(v) for v in f[5:14]]).reshape(3, 3) @ R.T
+            out.append(" ".join([f[0], f[1]] + ["%.17g" % v for v in (*p, *C.reshape(-1))] + f[14:]))
+        else:
+            out.append(line)
+    return "\n".join(out) + "\n"
+
+
+def rows(M):
+    return "[" + ", ".join("[" + ", ".join("%.17g" % v for v in r) + "]" for r in M) + "]"
+
+
+def run_case(cfg, case, lmalign, out_root, name):
+    rng = np.random.default_rng(cfg["seed"])
+    path = cfg["map"].replace("${LMALIGN_DATA}", data_dir())
+    if not os.path.exists(path):
+        sys.exit("merge_real.py: real data not found: %s (set LMALIGN_DATA)" % path)
+    up = up_axis(read_lines(path))
+    folder = os.path.join(out_root, "%s_%s" % (name, case["name"]))
+    os.makedirs(os.path.join(folder, "maps"), exist_ok=True)
+    w = cfg["windows"]
+    truth = {}
+    for k in range(w["count"]):
+        a = w["first"] + k * w["step"]
+        cut = os.path.join(folder, "maps", "cut%d.txt" % k)
+        subprocess.run([lmalign, "split", path, "--frames", "%d-%d" % (a, a + w["length"] - 1),
+                        "-o", cut], check=True, stdout=subprocess.DEVNULL)
+        T_map_world = np.eye(4)
+        T_map_world[:3, :3] = axis_angle(up, rng.uniform(-np.pi, np.pi))
+        v = rng.uniform(-1, 1, 3)
+        T_map_world[:3, 3] = cfg["max_translation_m"] * v / max(1.0, np.linalg.norm(v))
+        write_atomic(os.path.join(folder, "maps", "w%d.txt" % k),
+                     transform_map(read_lines(cut), T_map_world))
+        os.remove(cut)
+        truth["w%d" % k] = np.linalg.inv(T_map_world)
+    write_atomic(os.path.join(folder, "ground_truth.yaml"),
+                 "maps:\n" + "".join("  %s: %s\n" % (n, rows(T)) for n, T in truth.items()))
+    manifest = "maps:\n"
+    prng = np.random.default_rng(case.get("seed", 0))
+    for n, T in truth.items():
+        manifest += "  - name: %s\n    path: maps/%s.txt\n" % (n, n)
+        if "prior_sigma" in case:
+            sd_deg, sd_m = case["prior_sigma"]
+            phi = np.radians(sd_deg) * prng.standard_normal(3)
+            D = np.eye(4)
+            if np.linalg.norm(phi) > 0:
+                D[:3, :3] = axis_angle(phi, np.linalg.norm(phi))
+            D[:3, 3] = sd_m * prng.standard_normal(3)
+            manifest += "    T_world_map: %s\n    prior_sigma: [%g, %g]\n" % (rows(D @ T), sd_deg,
+                                                                              sd_m)
+    write_atomic(os.path.join(folder, "manifest.yaml"), manifest)
+    th = cfg["thresholds"]
+    cmd = [lmalign, "merge", os.path.join(folder, "manifest.yaml"), "-o",
+           os.path.join(folder, "out"), "--ground-truth", os.path.join(folder, "ground_truth.yaml"),
+           "--thresholds", "%g,%g" % (th["rotation_deg"], th["translation_m"]), "--resume"]
+    print("$ " + " ".join(cmd), flush=True)
+    return subprocess.run(cmd, stderr=subprocess.DEVNULL).returncode
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("config")
+    p.add_argument("--build-dir", default=os.path.join(HERE, "..", "build"))
+    p.add_argument("--case", default=None)
+    a = p.parse_args()
+    with open(a.config) as f:
+        cfg = yaml.safe_load(f)
+    lmalign = os.path.join(a.build_dir, "apps", "lmalign", "lmalign")
+    name = os.path.splitext(os.path.basename(a.config))[0].replace("merge_", "")
+    out_root = os.path.join(a.build_dir, "bench-merge")
+    rc = 0
+    for case in cfg["cases"]:
+        if a.case is None or case["name"] == a.case:
+            rc |= run_case(cfg, case, lmalign, out_root, name)
+    sys.exit(rc)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,293 @@
+// The synthetic multi-robot fleet (include/lmalign/sim/fleet_sim.hpp).
+#include "lmalign/sim/fleet_sim.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <unordered_map>
+#include <unordered_set>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+
+namespace lmalign::sim {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kFocalPx = 500.0;  // pinhole of the keyframes (640 x 480 px, centred)
+
+struct WorldPoint {
+  Vec3 p;
+  Id id;
+};
+
+Isometry3 yaw_pose(double yaw_rad, const Vec3& t) {
+  Isometry3 T = Isometry3::Identity();
+  T.linear() = Eigen::AngleAxisd(yaw_rad, Vec3::UnitZ()).toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+double terrain(double x, double y) { return 0.15 * std::sin(x / 7.0) + 0.1 * std::cos(y / 9.0); }
+
+}  // namespace
+
+bool FleetSimOptions::is_valid(std::string* why) const {
+  auto bad = [&](const std::string& m) {
+    if (why) *why = m;
+    return false;
+  };
+  if (num_maps < 2 || num_maps > 100000) return bad("num_maps must be in [2, 100000]");
+  if (!(map_radius_m > 0.0) || !std::isfinite(map_radius_m)) return bad("map_radius_m must be > 0");
+  if (!(spacing_factor >= 0.3 && spacing_factor <= 2.0)) {
+    return bad("spacing_factor must be in [0.3, 2]");
+  }
+  if (!(ground_density_per_m2 >= 0.0 && ground_density_per_m2 < 1e4)) {
+    return bad("ground_density_per_m2 must be in [0, 1e4)");
+  }
+  if (!(object_density_per_m2 >= 0.0 && object_density_per_m2 < 10.0)) {
+    return bad("object_density_per_m2 must be in [0, 10)");
+  }
+  if (!(surface_density_per_m2 >= 0.0 && surface_density_per_m2 < 1e4)) {
+    return bad("surface_density_per_m2 must be in [0, 1e4)");
+  }
+  if (!(detection_probability > 0.0 && detection_probability <= 1.0)) {
+    return bad("detection_probability must be in (0, 1]");
+  }
+  if (!(position_sigma_m > 0.0) || !std::isfinite(position_sigma_m)) {
+    return bad("position_sigma_m must be > 0");
+  }
+  const bool no_prior = prior_sigma_deg == 0.0 && prior_sigma_m == 0.0;
+  const bool prior = prior_sigma_deg > 0.0 && prior_sigma_m > 0.0 &&
+                     std::isfinite(prior_sigma_deg) && std::isfinite(prior_sigma_m);
+  if (!no_prior && !prior) return bad("prior_sigma_deg and prior_sigma_m must both be 0 or > 0");
+  if (!(min_overlap > 0.0 && min_overlap <= 1.0)) return bad("min_overlap must be in (0, 1]");
+  return true;
+}
+
+FleetScene simulate_fleet(const FleetSimOptions& o) {
+  std::string why;
+  if (!o.is_valid(&why)) throw InvalidArgument("FleetSimOptions: " + why);
+  std::mt19937_64 rng(o.seed);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  const double r = o.map_radius_m;
+  const std::size_t n = o.num_maps;
+
+  // Map centres on a jittered grid.
+  const std::size_t cols = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(n))));
+  const double spacing = o.spacing_factor * r;
+  std::vector<Vec3> centres(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double jx = (u01(rng) - 0.5) * 0.4 * spacing;
+    const double jy = (u01(rng) - 0.5) * 0.4 * spacing;
+    centres[i] = Vec3(static_cast<double>(i % cols) * spacing + jx,
+                      static_cast<double>(i / cols) * spacing + jy, 0.0);
+  }
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (const Vec3& c : centres) {
+    x0 = std::min(x0, c.x() - 2.0 * r);
+    y0 = std::min(y0, c.y() - 2.0 * r);
+    x1 = std::max(x1, c.x() + 2.0 * r);
+    y1 = std::max(y1, c.y() + 2.0 * r);
+  }
+  const double area = (x1 - x0) * (y1 - y0);
+
+  // The world: ground landmarks and boxes, heights from a smooth random field.
+  std::vector<WorldPoint> world;
+  Id next_id = 0;
+  const std::size_t num_ground = static_cast<std::size_t>(o.ground_density_per_m2 * area);
+  for (std::size_t k = 0; k < num_ground; ++k) {
+    const double x = x0 + u01(rng) * (x1 - x0);
+    const double y = y0 + u01(rng) * (y1 - y0);
+    world.push_back({Vec3(x, y, terrain(x, y)), next_id++});
+  }
+  const double ph1 = 2.0 * kPi * u01(rng), ph2 = 2.0 * kPi * u01(rng);
+  const double ph3 = 2.0 * kPi * u01(rng);
+  auto height_field = [&](double x, double y) {
+    const double s = 0.5 + 0.2 * std::sin(x / (1.7 * r) + ph1) +
+                     0.2 * std::cos(y / (1.3 * r) + ph2) +
+                     0.1 * std::sin((x + y) / (0.9 * r) + ph3);
+    return 0.5 + 5.5 * std::clamp(s, 0.0, 1.0);
+  };
+  const std::size_t num_boxes = static_cast<std::size_t>(o.object_density_per_m2 * area);
+  for (std::size_t b = 0; b < num_boxes; ++b) {
+    const double cx = x0 + u01(rng) * (x1 - x0);
+    const double cy = y0 + u01(rng) * (y1 - y0);
+    const double sx = 0.5 + 2.0 * u01(rng), sy = 0.5 + 2.0 * u01(rng);
+    const double h = height_field(cx, cy) * (0.6 + 0.8 * u01(rng));
+    const double yaw = 2.0 * kPi * u01(rng);
+    const double base = terrain(cx, cy);
+    const Mat3 R = Eigen::AngleAxisd(yaw, Vec3::UnitZ()).toRotationMatrix();
+    // Four walls and the top, landmarks uniform on each face.
+    const double faces[5] = {sx * h, sx * h, sy * h, sy * h, sx * sy};
+    for (int f = 0; f < 5; ++f) {
+      const std::size_t count =
+          static_cast<std::size_t>(faces[f] * o.surface_density_per_m2 + u01(rng));
+      for (std::size_t k = 0; k < count; ++k) {
+        const double a = u01(rng) - 0.5, c = u01(rng);
+        Vec3 q;
+        switch (f) {
+          case 0:
+            q = Vec3(a * sx, -0.5 * sy, c * h);
+            break;
+          case 1:
+            q = Vec3(a * sx, 0.5 * sy, c * h);
+            break;
+          case 2:
+            q = Vec3(-0.5 * sx, a * sy, c * h);
+            break;
+          case 3:
+            q = Vec3(0.5 * sx, a * sy, c * h);
+            break;
+          default:
+            q = Vec3(a * sx, (c - 0.5) * sy, h);
+            break;
+        }
+        world.push_back({Vec3(cx, cy, base) + R * q, next_id++});
+      }
+    }
+  }
+
+  FleetScene scene;
+  // Twins: the world around b replaced by a turned copy of the world around a.
+  const double twin_radius = 1.6 * r;
+  std::vector<std::size_t> used;
+  for (std::size_t t = 0; t < o.num_twins; ++t) {
+    bool placed = false;
+    for (int attempt = 0; attempt < 200 && !placed; ++attempt) {
+      std::size_t a = static_cast<std::size_t>(u01(rng) * static_cast<double>(n)) % n;
+      std::size_t b = static_cast<std::size_t>(u01(rng) * static_cast<double>(n)) % n;
+      if ((centres[a] - centres[b]).norm() <= 2.0 * twin_radius) continue;
+      bool clear = true;
+      for (std::size_t u : used) {
+        if ((centres[u] - centres[a]).norm() <= 2.0 * twin_radius ||
+            (centres[u] - centres[b]).norm() <= 2.0 * twin_radius) {
+          clear = false;
+        }
+      }
+      if (!clear) continue;
+      const Vec3 ca = centres[a], cb = centres[b];
+      const Mat3 R = Eigen::AngleAxisd(2.0 * kPi * u01(rng), Vec3::UnitZ()).toRotationMatrix();
+      std::vector<WorldPoint> kept, copies;
+      for (const WorldPoint& w : world) {
+        const double da = (w.p - ca).head<2>().norm();
+        const double db = (w.p - cb).head<2>().norm();
+        if (db > twin_radius) kept.push_back(w);
+        if (da <= twin_radius) {
+          Vec3 q = R * (w.p - ca) + cb;
+          q.z() = w.p.z();
+          copies.push_back({q, next_id++});
+        }
+      }
+      kept.insert(kept.end(), copies.begin(), copies.end());
+      world = std::move(kept);
+      used.push_back(a);
+      used.push_back(b);
+      scene.twins.emplace_back(std::min(a, b), std::max(a, b));
+      placed = true;
+    }
+  }
+  std::sort(scene.twins.begin(), scene.twins.end());
+
+  // Maps: what each sees, in its own frame.
+  scene.maps.resize(n);
+  scene.names.resize(n);
+  scene.T_world_map.resize(n);
+  std::vector<std::unordered_set<Id>> seen(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "map_%03zu", i);
+    scene.names[i] = name;
+    const Vec3 c = centres[i];
+    const Isometry3 T_world_map =
+        yaw_pose(2.0 * kPi * u01(rng) - kPi,
+                 c + Vec3(10.0 * (u01(rng) - 0.5), 10.0 * (u01(rng) - 0.5), u01(rng) - 0.5));
+    scene.T_world_map[i] = T_world_map;
+    const Isometry3 T_map_world = T_world_map.inverse();
+    Map& m = scene.maps[i];
+    std::vector<Isometry3> cameras(8, Isometry3::Identity());  // T_world_camera
+    for (int k = 0; k < 8; ++k) {
+      const double a = 2.0 * kPi * k / 8.0;
+      const Vec3 d(std::cos(a), std::sin(a), 0.0);
+      Mat3 R;  // camera axes in the world: x right, y down, z forward
+      R.col(2) = d;
+      R.col(1) = -Vec3::UnitZ();
+      R.col(0) = R.col(1).cross(R.col(2));
+      Frame f;
+      f.id = k;
+      const Vec3 p = c + 0.3 * r * d + Vec3(0, 0, terrain(c.x(), c.y()) + 1.5);
+      cameras[k].linear() = R;
+      cameras[k].translation() = p;
+      f.p_world_camera = T_map_world * p;
+      f.q_world_camera = Quat(T_map_world.linear() * R);
+      m.frames.push_back(f);
+    }
+    const Mat3 cov = Mat3::Identity() * (o.position_sigma_m * o.position_sigma_m);
+    for (const WorldPoint& w : world) {
+      if ((w.p - c).head<2>().norm() > r) continue;
+      if (u01(rng) >= o.detection_probability) continue;
+      Landmark l;
+      l.id = w.id;
+      const Vec3 noise(gauss(rng), gauss(rng), gauss(rng));
+      l.p_world = T_map_world * (w.p + o.position_sigma_m * noise);
+      l.cov_world_m2 = T_map_world.linear() * cov * T_map_world.linear().transpose();
+      // Two observations: the two keyframes looking most directly at it (pinhole pixels of the
+      // true point; maps need >= 2 observations per landmark to be read).
+      std::vector<std::pair<double, int>> facing;
+      for (int k = 0; k < 8; ++k) {
+        const Vec3 q = cameras[k].inverse() * w.p;
+        if (q.z() > 0.1) facing.emplace_back(-q.z() / q.norm(), k);
+      }
+      if (facing.size() < 2) continue;
+      std::partial_sort(facing.begin(), facing.begin() + 2, facing.end());
+      for (int v = 0; v < 2; ++v) {
+        const Vec3 q = cameras[facing[v].second].inverse() * w.p;
+        l.observations.push_back(
+            {facing[v].second, kFocalPx * q.x() / q.z() + 320.0, kFocalPx * q.y() / q.z() + 240.0});
+      }
+      m.landmarks.push_back(l);
+      seen[i].insert(w.id);
+    }
+  }
+  if (o.prior_sigma_m > 0.0) {
+    // Noise about the map's own origin (a GPS-like heading error turns a map about itself):
+    // T_prior = T_true * Exp(xi_map), reported in the world-frame left convention,
+    // C_world = Ad(T_prior) C_map Ad(T_prior)^T.
+    const double sr = o.prior_sigma_deg * kPi / 180.0;
+    Mat6 C_map = Mat6::Zero();
+    C_map.diagonal() << Vec3::Constant(o.prior_sigma_m * o.prior_sigma_m), Vec3::Constant(sr * sr);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 rho(gauss(rng), gauss(rng), gauss(rng));
+      const Vec3 phi(gauss(rng), gauss(rng), gauss(rng));
+      Isometry3 E = Isometry3::Identity();
+      const Vec3 phi_rad = sr * phi;
+      if (phi_rad.norm() > 0.0) {
+        E.linear() = Eigen::AngleAxisd(phi_rad.norm(), phi_rad.normalized()).toRotationMatrix();
+      }
+      E.translation() = o.prior_sigma_m * rho;
+      const Isometry3 T_prior = scene.T_world_map[i] * E;
+      const Mat6 A = se3_adjoint(T_prior);
+      const Mat6 C = A * C_map * A.transpose();
+      scene.prior_T_world_map.push_back(T_prior);
+      scene.prior_covariance.push_back(0.5 * (C + C.transpose()));
+    }
+  }
+  // True overlaps (shared landmark ids) between maps whose discs intersect.
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = i + 1; j < n; ++j) {
+      if ((centres[i] - centres[j]).head<2>().norm() >= 2.0 * r) continue;
+      std::size_t shared = 0;
+      for (Id id : seen[i]) shared += seen[j].count(id);
+      const std::size_t smaller = std::min(seen[i].size(), seen[j].size());
+      if (smaller == 0) continue;
+      const double f = static_cast<double>(shared) / static_cast<double>(smaller);
+      if (f >= o.min_overlap) scene.overlaps.push_back({i, j, f});
+    }
+  }
+  return scene;
+}
+
+}  // namespace lmalign::sim

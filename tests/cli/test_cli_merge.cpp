@@ -1,0 +1,134 @@
+// `lmalign merge` end to end on a small synthetic fleet (`lmalign simulate --scene fleet`):
+// the outputs, --resume reusing the finished edges, the plots, and one-line errors for bad
+// manifests. Built only when the CLI has `merge` (Ceres found: LMALIGN_CLI_HAS_MERGE).
+#ifdef LMALIGN_CLI_HAS_MERGE
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+
+#include "support/run_cli.hpp"
+
+namespace lmalign {
+namespace {
+
+namespace fs = std::filesystem;
+using test::CliTest;
+using test::read_text;
+using test::shell_quote;
+
+using CliMerge = CliTest;
+
+void write_text(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
+
+std::size_t count_lines(const std::string& text) {
+  std::size_t n = 0;
+  for (char c : text) n += c == '\n' ? 1 : 0;
+  return n;
+}
+
+TEST_F(CliMerge, SimulatedFleetMergesEndToEndAndResumeReusesEveryEdge) {
+  const std::string scene = path("fleet"), out = path("out");
+  const test::CliRun s =
+      run("simulate --scene fleet --maps 5 --twins 0 --seed 4 --out " + shell_quote(scene));
+  ASSERT_EQ(s.exit_code, 0) << s.err;
+  for (const char* f : {"manifest.yaml", "ground_truth.yaml", "overlaps.csv", "maps/map_004.txt"}) {
+    EXPECT_TRUE(fs::exists(scene + "/" + f)) << f;
+  }
+  const std::string merge = "merge " + shell_quote(scene + "/manifest.yaml") + " -o " +
+                            shell_quote(out) + " --ground-truth " +
+                            shell_quote(scene + "/ground_truth.yaml") + " --thresholds 1,0.1";
+  const test::CliRun r = run(merge);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  // 5 maps: every pair, all placed within 1 deg / 10 cm, no false edge kept.
+  EXPECT_NE(r.out.find("merged 5 maps: 10 candidate pairs (0 reused)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("within: 100.0%"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("false kept 0"), std::string::npos) << r.out;
+  for (const char* f :
+       {"poses.yaml", "poses.json", "edges.csv", "summary.json", "merged_map.txt"}) {
+    EXPECT_TRUE(fs::exists(out + "/" + f)) << f;
+  }
+  EXPECT_EQ(count_lines(read_text(out + "/edges.csv")), 11u);  // header + 10 pairs
+  // The plots: valid PNGs (signature), written beside the outputs.
+  for (const char* f : {"merge_graph.png", "merged_landmarks.png"}) {
+    const std::string png = read_text(out + "/" + f);
+    ASSERT_GT(png.size(), 1000u) << f << ": " << r.err;
+    EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8)) << f;
+  }
+  EXPECT_NE(r.out.find("merge_graph.png"), std::string::npos) << r.out;
+  std::map<std::string, std::string> edge_files;
+  for (const auto& e : fs::directory_iterator(out + "/edges")) {
+    edge_files[e.path().string()] = read_text(e.path());
+  }
+  EXPECT_EQ(edge_files.size(), 10u);
+  // A second run into the same folder refuses without --resume, and reuses every edge with it.
+  const test::CliRun again = run(merge);
+  EXPECT_EQ(again.exit_code, 2);
+  EXPECT_NE(again.err.find("--resume"), std::string::npos) << again.err;
+  const test::CliRun resumed = run(merge + " --resume");
+  ASSERT_EQ(resumed.exit_code, 0) << resumed.err;
+  EXPECT_NE(resumed.out.find("10 candidate pairs (10 reused)"), std::string::npos) << resumed.out;
+  EXPECT_NE(resumed.out.find("within: 100.0%"), std::string::npos) << resumed.out;
+  for (const auto& [file, text] : edge_files) EXPECT_EQ(read_text(file), text) << file;
+}
+
+TEST_F(CliMerge, WithoutMatplotlibThePlotsAreSkippedWithAWarning) {
+  const std::string scene = path("fleet"), out = path("out");
+  ASSERT_EQ(run("simulate --scene fleet --maps 2 --twins 0 --out " + shell_quote(scene)).exit_code,
+            0);
+  // An interpreter that fails stands for a Python without matplotlib.
+  const test::CliRun r =
+      run_with_env("LMALIGN_PYTHON=false",
+                   "merge " + shell_quote(scene + "/manifest.yaml") + " -o " + shell_quote(out));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("warning: no plots"), std::string::npos) << r.err;
+  EXPECT_TRUE(fs::exists(out + "/poses.yaml"));
+  EXPECT_FALSE(fs::exists(out + "/merge_graph.png"));
+}
+
+TEST_F(CliMerge, BadManifestsGiveOneLineErrorsNamingTheFieldOrFile) {
+  const std::string scene = path("fleet");
+  ASSERT_EQ(run("simulate --scene fleet --maps 2 --twins 0 --out " + shell_quote(scene)).exit_code,
+            0);
+  const std::string map0 = scene + "/maps/map_000.txt";
+  const std::string rigid = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+  struct Case {
+    std::string name, yaml, expected;
+  } cases[] = {
+      {"empty", "maps: []\n", "empty manifest"},
+      {"duplicate", "maps:\n  - {name: a, path: " + map0 + "}\n  - {name: a, path: " + map0 + "}\n",
+       "maps[1].name: duplicate map name 'a'"},
+      {"unreadable", "maps:\n  - {name: a, path: " + map0 + "}\n  - {name: b, path: nowhere.txt}\n",
+       "map 'b'"},
+      {"not_spd",
+       "maps:\n  - {name: a, path: " + map0 + ", T_world_map: " + rigid +
+           ", prior_covariance: [[1,0,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],"
+           "[0,0,0,0,1,0],[0,0,0,0,0,-1]]}\n",
+       "maps[0].prior_covariance: not positive definite"},
+      {"not_rigid",
+       "maps:\n  - {name: a, path: " + map0 +
+           ", T_world_map: [[2,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]], prior_sigma: [1, 1]}\n",
+       "maps[0].T_world_map: not a rigid transform"},
+  };
+  for (const Case& c : cases) {
+    const std::string manifest = path(c.name + ".yaml");
+    write_text(manifest, c.yaml);
+    const test::CliRun r =
+        run("merge " + shell_quote(manifest) + " -o " + shell_quote(path("out_" + c.name)));
+    EXPECT_EQ(r.exit_code, 2) << c.name << ": " << r.err;
+    EXPECT_NE(r.err.find(c.expected), std::string::npos) << c.name << ": " << r.err;
+    EXPECT_NE(r.err.find(c.name == "unreadable" ? "nowhere.txt" : manifest), std::string::npos)
+        << c.name << ": " << r.err;
+    // One error line (after the progress line "reading N maps", when the maps are read).
+    const std::size_t at = r.err.find("lmalign: error: ");
+    ASSERT_NE(at, std::string::npos) << c.name << ": " << r.err;
+    EXPECT_EQ(count_lines(r.err.substr(at)), 1u) << c.name << ": " << r.err;
+    EXPECT_FALSE(fs::exists(path("out_" + c.name) + "/poses.yaml")) << c.name;
+  }
+}
+
+}  // namespace
+}  // namespace lmalign
+#endif  // LMALIGN_CLI_HAS_MERGE
