@@ -25,33 +25,27 @@ install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign DESTINATION ${CMAKE_INST
 install(EXPORT lmalignTargets NAMESPACE lmalign:: FILE lmalignTargets.cmake
         DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
 
-# --- optional component: the map builder
-set(LMALIGN_INSTALLED_VO OFF)
-if(TARGET lmalign_vo)
-  set(LMALIGN_INSTALLED_VO ON)
-  set_target_properties(lmalign_vo PROPERTIES EXPORT_NAME vo)
-  install(TARGETS lmalign_vo EXPORT lmalignVoTargets
+# --- optional components: a library target installed with its headers and its own export set,
+# so that find_package(lmalign COMPONENTS <name>) can load it; sets <flag> ON when installed.
+function(lmalign_install_component target export_name headers_dir export_set flag)
+  set(${flag} OFF PARENT_SCOPE)
+  if(NOT TARGET ${target})
+    return()
+  endif()
+  set(${flag} ON PARENT_SCOPE)
+  set_target_properties(${target} PROPERTIES EXPORT_NAME ${export_name})
+  install(TARGETS ${target} EXPORT ${export_set}
           ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
           LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
-  install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign/vo
+  install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign/${headers_dir}
           DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lmalign FILES_MATCHING PATTERN "*.hpp")
-  install(EXPORT lmalignVoTargets NAMESPACE lmalign:: FILE lmalignVoTargets.cmake
+  install(EXPORT ${export_set} NAMESPACE lmalign:: FILE ${export_set}.cmake
           DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
-endif()
+endfunction()
 
-# --- optional component: map merging (the pose graph needs Ceres)
-set(LMALIGN_INSTALLED_MERGE OFF)
-if(TARGET lmalign_merge)
-  set(LMALIGN_INSTALLED_MERGE ON)
-  set_target_properties(lmalign_merge PROPERTIES EXPORT_NAME merge)
-  install(TARGETS lmalign_merge EXPORT lmalignMergeTargets
-          ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
-          LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR})
-  install(DIRECTORY ${PROJECT_SOURCE_DIR}/include/lmalign/merge
-          DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/lmalign FILES_MATCHING PATTERN "*.hpp")
-  install(EXPORT lmalignMergeTargets NAMESPACE lmalign:: FILE lmalignMergeTargets.cmake
-          DESTINATION ${LMALIGN_INSTALL_CMAKEDIR})
-endif()
+# The map builder (OpenCV + Ceres) and map merging (the pose graph needs Ceres).
+lmalign_install_component(lmalign_vo vo vo lmalignVoTargets LMALIGN_INSTALLED_VO)
+lmalign_install_component(lmalign_merge merge merge lmalignMergeTargets LMALIGN_INSTALLED_MERGE)
 
 # --- the command-line tool (and its build-map helper, found beside it)
 if(TARGET lmalign_cli)

@@ -15,12 +15,6 @@ namespace lmalign {
 
 namespace {
 
-std::string num(double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 std::vector<std::uint32_t> strided_indices(std::size_t n, std::size_t want) {
   std::vector<std::uint32_t> out;
   const std::size_t m = std::min(n, want);
@@ -125,11 +119,12 @@ bool PriorSigma::is_valid(std::string* why) const {
     return false;
   };
   if (!(rotation_deg > 0.0) || !std::isfinite(rotation_deg)) {
-    return fail("prior rotation sigma must be > 0 and finite (degrees), got " + num(rotation_deg));
+    return fail("prior rotation sigma must be > 0 and finite (degrees), got " +
+                message_number(rotation_deg));
   }
   if (!(translation_m > 0.0) || !std::isfinite(translation_m)) {
     return fail("prior translation sigma must be > 0 and finite (metres), got " +
-                num(translation_m));
+                message_number(translation_m));
   }
   return true;
 }
@@ -152,48 +147,50 @@ bool AdaptiveOptions::is_valid(std::string* why) const {
   if (!search.is_valid(&inner)) return fail("search." + inner);
   if (!gate.is_valid(&inner)) return fail("gate." + inner);
   if (!(vote_cell_factor > 0.0) || !std::isfinite(vote_cell_factor)) {
-    return fail("vote_cell_factor must be > 0 and finite, got " + num(vote_cell_factor));
+    return fail("vote_cell_factor must be > 0 and finite, got " + message_number(vote_cell_factor));
   }
   if (!(start_sigma_factor > 0.0 && start_sigma_factor <= 10.0)) {
-    return fail("start_sigma_factor must be in (0, 10], got " + num(start_sigma_factor));
+    return fail("start_sigma_factor must be in (0, 10], got " + message_number(start_sigma_factor));
   }
   if (hypothesis_samples < 16) return fail("hypothesis_samples must be >= 16");
   if (!default_up.allFinite() || !(default_up.norm() > 0.0)) {
     return fail("default_up must be finite and non-zero");
   }
   if (!(floor_m >= 0.0) || !std::isfinite(floor_m)) {
-    return fail("floor_m must be >= 0 and finite (0 = from the data), got " + num(floor_m));
+    return fail("floor_m must be >= 0 and finite (0 = from the data), got " +
+                message_number(floor_m));
   }
   if (max_iterations < 1) return fail("max_iterations must be >= 1");
   if (max_iterations_per_level < 1) return fail("max_iterations_per_level must be >= 1");
   if (!(sigma_decay > 0.0 && sigma_decay < 1.0)) {
-    return fail("sigma_decay must be in (0, 1), got " + num(sigma_decay));
+    return fail("sigma_decay must be in (0, 1), got " + message_number(sigma_decay));
   }
   if (!(level_settle_ratio >= 0.0 && level_settle_ratio < 1.0)) {
-    return fail("level_settle_ratio must be in [0, 1), got " + num(level_settle_ratio));
+    return fail("level_settle_ratio must be in [0, 1), got " + message_number(level_settle_ratio));
   }
   if (!(settle_ratio > 0.0 && settle_ratio <= 1.0)) {
-    return fail("settle_ratio must be in (0, 1], got " + num(settle_ratio));
+    return fail("settle_ratio must be in (0, 1], got " + message_number(settle_ratio));
   }
   if (!(max_ambiguity > 0.0 && max_ambiguity <= 1.0)) {
-    return fail("max_ambiguity must be in (0, 1], got " + num(max_ambiguity));
+    return fail("max_ambiguity must be in (0, 1], got " + message_number(max_ambiguity));
   }
   if (min_inliers < 3) return fail("min_inliers must be >= 3");
   if (!(min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0)) {
-    return fail("min_inlier_ratio must be in [0, 1], got " + num(min_inlier_ratio));
+    return fail("min_inlier_ratio must be in [0, 1], got " + message_number(min_inlier_ratio));
   }
   if (!(second_up_min_angle_deg >= 0.0 && second_up_min_angle_deg <= 180.0)) {
-    return fail("second_up_min_angle_deg must be in [0, 180], got " + num(second_up_min_angle_deg));
+    return fail("second_up_min_angle_deg must be in [0, 180], got " +
+                message_number(second_up_min_angle_deg));
   }
   if (!(max_nis_ratio >= 1.0) || !std::isfinite(max_nis_ratio)) {
-    return fail("max_nis_ratio must be >= 1 and finite, got " + num(max_nis_ratio));
+    return fail("max_nis_ratio must be >= 1 and finite, got " + message_number(max_nis_ratio));
   }
   if (!(distinct_cells > 0.0) || !std::isfinite(distinct_cells)) {
-    return fail("distinct_cells must be > 0 and finite, got " + num(distinct_cells));
+    return fail("distinct_cells must be > 0 and finite, got " + message_number(distinct_cells));
   }
   if (!(covariance_block_factor > 0.0) || !std::isfinite(covariance_block_factor)) {
     return fail("covariance_block_factor must be > 0 and finite, got " +
-                num(covariance_block_factor));
+                message_number(covariance_block_factor));
   }
   return true;
 }
@@ -430,7 +427,8 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
                           std::to_string(result.num_overlap) + " near a target landmark)";
   } else if (result.mean_nis > options.max_nis_ratio * result.expected_nis) {
     result.trust_reason = "the inliers' residuals exceed their covariances (mean NIS " +
-                          num(result.mean_nis) + ", " + num(result.expected_nis) +
+                          message_number(result.mean_nis) + ", " +
+                          message_number(result.expected_nis) +
                           " expected): repeated structure may have aliased the pose";
   } else if (result.ambiguity >= options.max_ambiguity) {
     result.trust_reason = "ambiguous: a distinct pose scores " +

@@ -16,12 +16,6 @@ namespace lmalign {
 
 namespace {
 
-std::string num(double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 // Every `stride`-th point so that about `want` are taken (all if fewer).
 Points3 strided_sample(const Points3& points, std::size_t want) {
   if (points.size() <= want) return points;
@@ -115,10 +109,10 @@ bool GlobalInitOptions::is_valid(std::string* why) const {
   };
   if (!up.allFinite() || !(up.norm() > 0.0)) return fail("up must be a finite non-zero vector");
   if (!(yaw_step_deg > 0.0 && yaw_step_deg <= 90.0)) {
-    return fail("yaw_step_deg must be in (0, 90], got " + num(yaw_step_deg));
+    return fail("yaw_step_deg must be in (0, 90], got " + message_number(yaw_step_deg));
   }
   if (!(vote_cell_m > 0.0) || !std::isfinite(vote_cell_m)) {
-    return fail("vote_cell_m must be > 0 and finite, got " + num(vote_cell_m));
+    return fail("vote_cell_m must be > 0 and finite, got " + message_number(vote_cell_m));
   }
   if (max_vote_cells < 27) return fail("max_vote_cells must be >= 27");
   if (vote_source_samples < 3 || vote_target_samples < 3) {
@@ -127,11 +121,13 @@ bool GlobalInitOptions::is_valid(std::string* why) const {
   if (hypotheses < 1) return fail("hypotheses must be >= 1");
   if (refine_schedule_m.empty()) return fail("refine_schedule_m must have at least one stage");
   for (double d : refine_schedule_m) {
-    if (!(d > 0.0)) return fail("refine_schedule_m: every distance must be > 0, got " + num(d));
+    if (!(d > 0.0))
+      return fail("refine_schedule_m: every distance must be > 0, got " + message_number(d));
   }
   if (refine_iterations < 1) return fail("refine_iterations must be >= 1");
   if (!(inlier_distance_m > 0.0) || !std::isfinite(inlier_distance_m)) {
-    return fail("inlier_distance_m must be > 0 and finite, got " + num(inlier_distance_m));
+    return fail("inlier_distance_m must be > 0 and finite, got " +
+                message_number(inlier_distance_m));
   }
   return true;
 }

@@ -21,12 +21,6 @@ Mat3 skew(const Vec3& v) {
   return S;
 }
 
-std::string num(double v) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%g", v);
-  return b;
-}
-
 }  // namespace
 
 double PoseCovariance::translation_sd_m() const {
@@ -113,23 +107,25 @@ bool TrustOptions::is_valid(std::string* why) const {
     return false;
   };
   if (!(inlier_distance_m > 0.0) || !std::isfinite(inlier_distance_m)) {
-    return fail("inlier_distance_m must be > 0 and finite, got " + num(inlier_distance_m));
+    return fail("inlier_distance_m must be > 0 and finite, got " +
+                message_number(inlier_distance_m));
   }
   if (!(overlap_distance_m >= inlier_distance_m) || !std::isfinite(overlap_distance_m)) {
     return fail("overlap_distance_m must be finite and >= inlier_distance_m, got " +
-                num(overlap_distance_m));
+                message_number(overlap_distance_m));
   }
   if (!(min_inlier_ratio >= 0.0 && min_inlier_ratio <= 1.0)) {
-    return fail("min_inlier_ratio must be in [0, 1], got " + num(min_inlier_ratio));
+    return fail("min_inlier_ratio must be in [0, 1], got " + message_number(min_inlier_ratio));
   }
   if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
-    return fail("min_inlier_fraction must be in [0, 1], got " + num(min_inlier_fraction));
+    return fail("min_inlier_fraction must be in [0, 1], got " +
+                message_number(min_inlier_fraction));
   }
   if (!(max_translation_sd_m > 0.0)) {
-    return fail("max_translation_sd_m must be > 0, got " + num(max_translation_sd_m));
+    return fail("max_translation_sd_m must be > 0, got " + message_number(max_translation_sd_m));
   }
   if (!(max_rotation_sd_deg > 0.0)) {
-    return fail("max_rotation_sd_deg must be > 0, got " + num(max_rotation_sd_deg));
+    return fail("max_rotation_sd_deg must be > 0, got " + message_number(max_rotation_sd_deg));
   }
   return true;
 }
@@ -168,19 +164,20 @@ TrustVerdict judge_alignment(const Points3& source_points, const KdTree& target,
   v.rotation_sd_deg = cov.rotation_sd_deg();
   const double ratio = overlap > 0 ? static_cast<double>(inliers.size()) / overlap : 0.0;
   if (!(v.inlier_fraction >= options.min_inlier_fraction)) {
-    v.reason = "inlier fraction " + num(v.inlier_fraction) + " below " +
-               num(options.min_inlier_fraction) + " (too little overlap)";
+    v.reason = "inlier fraction " + message_number(v.inlier_fraction) + " below " +
+               message_number(options.min_inlier_fraction) + " (too little overlap)";
   } else if (!(ratio >= options.min_inlier_ratio)) {
-    v.reason = "inlier ratio " + num(ratio) + " below " + num(options.min_inlier_ratio) +
+    v.reason = "inlier ratio " + message_number(ratio) + " below " +
+               message_number(options.min_inlier_ratio) +
                " (landmarks in the overlap do not coincide)";
   } else if (!cov.valid) {
     v.reason = "the inliers do not determine the transform (degenerate)";
   } else if (!(v.translation_sd_m <= options.max_translation_sd_m)) {
-    v.reason = "translation sd " + num(v.translation_sd_m) + " m above " +
-               num(options.max_translation_sd_m);
+    v.reason = "translation sd " + message_number(v.translation_sd_m) + " m above " +
+               message_number(options.max_translation_sd_m);
   } else if (!(v.rotation_sd_deg <= options.max_rotation_sd_deg)) {
-    v.reason =
-        "rotation sd " + num(v.rotation_sd_deg) + " deg above " + num(options.max_rotation_sd_deg);
+    v.reason = "rotation sd " + message_number(v.rotation_sd_deg) + " deg above " +
+               message_number(options.max_rotation_sd_deg);
   } else {
     v.trustworthy = true;
     v.reason = "ok";

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -48,5 +49,12 @@ class ParseError : public Error {
   std::size_t line_;
   std::string detail_;
 };
+
+/// A number as error messages show it: printf's %g (six significant digits, "inf", "nan").
+inline std::string message_number(double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
 
 }  // namespace lmalign

@@ -31,6 +31,24 @@ double cauchy_weight(const GatedPair& p, double chi2_threshold) {
   return 1.0 / (1.0 + p.d2 / chi2_threshold);
 }
 
+// What one pair adds to the normal equations: residual, Cauchy weight, Jacobian and J^T S^-1.
+struct PairTerms {
+  Vec3 r;
+  double w;
+  Eigen::Matrix<double, 3, 6> J;
+  Eigen::Matrix<double, 6, 3> JtO;
+};
+
+PairTerms pair_terms(const GatedPair& p, const Points3& target_points, const Vec3& pivot_m,
+                     double chi2_threshold) {
+  PairTerms t;
+  t.r = target_points[p.target_index] - p.moved_source_m;
+  t.w = cauchy_weight(p, chi2_threshold);
+  t.J = pair_jacobian(p, pivot_m);
+  t.JtO = t.J.transpose() * p.information;
+  return t;
+}
+
 // Moves a covariance about the pivot to one about the target frame's origin (p2d_covariance).
 Mat6 about_origin(const Mat6& cov_about_pivot, const Vec3& pivot_m) {
   Mat6 A = Mat6::Identity();
@@ -48,10 +66,7 @@ P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& targe
   Vec6 g = Vec6::Zero();
   // Serial sums in pair order: deterministic.
   for (const GatedPair& p : pairs) {
-    const Vec3 r = target_points[p.target_index] - p.moved_source_m;
-    const double w = cauchy_weight(p, chi2_threshold);
-    const Eigen::Matrix<double, 3, 6> J = pair_jacobian(p, pivot_m);
-    const Eigen::Matrix<double, 6, 3> JtO = J.transpose() * p.information;
+    const auto [r, w, J, JtO] = pair_terms(p, target_points, pivot_m, chi2_threshold);
     H.noalias() += w * JtO * J;
     g.noalias() += w * JtO * r;
     step.chi2 += w * r.dot(p.information * r);
@@ -128,10 +143,7 @@ PoseCovariance p2d_cluster_covariance(const std::vector<GatedPair>& pairs,
   double chi2 = 0.0;
   std::map<std::array<long long, 3>, Vec6> blocks;
   for (const GatedPair& p : pairs) {
-    const Vec3 r = target_points[p.target_index] - p.moved_source_m;
-    const double w = cauchy_weight(p, chi2_threshold);
-    const Eigen::Matrix<double, 3, 6> J = pair_jacobian(p, pivot_m);
-    const Eigen::Matrix<double, 6, 3> JtO = J.transpose() * p.information;
+    const auto [r, w, J, JtO] = pair_terms(p, target_points, pivot_m, chi2_threshold);
     H.noalias() += w * JtO * J;
     chi2 += w * r.dot(p.information * r);
     const Vec3 cell = (p.moved_source_m / block_m).array().floor();
