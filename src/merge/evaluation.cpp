@@ -1,6 +1,8 @@
 // Ground-truth evaluation of a merge (include/lmalign/merge/evaluation.hpp).
 #include "lmalign/merge/evaluation.hpp"
 
+#include <algorithm>
+
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/SVD>
@@ -61,29 +63,62 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
   }
   MergeEvaluation ev;
   ev.maps.resize(n);
-  // Per component: G = argmin sum |G T_est - T_true| (chordal rotation mean, then translation).
-  for (std::size_t c = 0; c < result.num_components; ++c) {
+  // Per component without priors: G fitted to the maps that agree with the truth (docs/merge.md,
+  // "Ground truth"): each map's own G_k = T_true_k T_est_k^-1 is a candidate; the one that puts the
+  // most maps within the thresholds wins (ties: the lowest map), then G is refitted to those maps
+  // (chordal rotation mean of R_true R_est^T, then mean translation) when that keeps as many.
+  auto fit = [&](const std::vector<std::size_t>& members) {
     Mat3 M = Mat3::Zero();
-    std::size_t count = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (result.maps[i].component != c) continue;
+    for (const std::size_t i : members) {
       M += truth[i].linear() * result.maps[i].T_world_map.linear().transpose();
-      ++count;
     }
-    if (count == 0) continue;
     Eigen::JacobiSVD<Mat3> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
     Mat3 D = Mat3::Identity();
     D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
     Isometry3 G = Isometry3::Identity();
     G.linear() = svd.matrixU() * D * svd.matrixV().transpose();
     Vec3 t = Vec3::Zero();
-    for (std::size_t i = 0; i < n; ++i) {
-      if (result.maps[i].component != c) continue;
+    for (const std::size_t i : members) {
       t += truth[i].translation() - G.linear() * result.maps[i].T_world_map.translation();
     }
-    G.translation() = t / static_cast<double>(count);
+    G.translation() = t / static_cast<double>(members.size());
+    return G;
+  };
+  auto agreeing = [&](const Isometry3& G, const std::vector<std::size_t>& members) {
+    std::vector<std::size_t> in;
+    for (const std::size_t i : members) {
+      const TransformError err = transform_error(G * result.maps[i].T_world_map, truth[i]);
+      if (err.rotation_deg <= thresholds.rotation_deg &&
+          err.translation_m <= thresholds.translation_m) {
+        in.push_back(i);
+      }
+    }
+    return in;
+  };
+  for (std::size_t c = 0; c < result.num_components; ++c) {
+    std::vector<std::size_t> members;
     for (std::size_t i = 0; i < n; ++i) {
-      if (result.maps[i].component != c) continue;
+      if (result.maps[i].component == c) members.push_back(i);
+    }
+    if (members.empty()) continue;
+    // Held by priors (no gauge map): G fitted to all its maps, whose priors place them all.
+    const bool held_by_priors = std::none_of(
+        members.begin(), members.end(), [&](std::size_t i) { return result.maps[i].is_gauge; });
+    Isometry3 G = fit(members);
+    std::vector<std::size_t> best = agreeing(G, members);
+    for (const std::size_t k : held_by_priors ? std::vector<std::size_t>{} : members) {
+      const Isometry3 G_k = truth[k] * result.maps[k].T_world_map.inverse();
+      std::vector<std::size_t> in = agreeing(G_k, members);
+      if (in.size() > best.size()) {
+        best = std::move(in);
+        G = G_k;
+      }
+    }
+    if (!best.empty() && !held_by_priors) {
+      const Isometry3 G_fit = fit(best);
+      if (agreeing(G_fit, members).size() >= best.size()) G = G_fit;
+    }
+    for (const std::size_t i : members) {
       const TransformError err = transform_error(G * result.maps[i].T_world_map, truth[i]);
       ev.maps[i] = {err.rotation_deg, err.translation_m,
                     err.rotation_deg <= thresholds.rotation_deg &&

@@ -157,8 +157,10 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
     for (std::size_t e = 0; e < edges.size(); ++e) {
       const Edge& ed = edges[e];
       const EdgeReport& r = result.edges[e];
-      std::string reason =
-          r.skip_reason.empty() ? (r.rejected ? "rejected by the graph" : "ok") : r.skip_reason;
+      std::string reason = !r.skip_reason.empty()     ? r.skip_reason
+                           : !r.reject_reason.empty() ? r.reject_reason
+                           : r.rejected               ? "rejected by the graph"
+                                                      : "ok";
       for (char& c : reason) {
         if (c == ',' || c == '\n' || c == '"') c = ';';
       }

@@ -14,6 +14,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 
@@ -150,6 +151,115 @@ Vec6 prior_twist(const PoseBlock& wi, const PoseBlock& prior) {
   Vec6 r;
   cost(wi.data(), r.data());
   return r;
+}
+
+// chi2 of the discrepancy between a measured T_j_i and another estimate of it, both with
+// covariances in j's frame (left perturbation): xi = pose_error_twist(measured, other).
+double discrepancy_chi2(const Isometry3& measured, const Mat6& C_measured, const Isometry3& other,
+                        const Mat6& C_other) {
+  const Vec6 xi = pose_error_twist(measured, other);
+  const Mat6 C = C_measured + C_other;
+  const Eigen::LDLT<Mat6> ldlt(0.5 * (C + C.transpose()));
+  return xi.dot(ldlt.solve(xi));
+}
+
+// The cycle check of PoseGraphOptions::check_cycles. First, an edge between two maps with
+// priors is compared with their relative prior P_j^-1 P_i (covariance Ad(P_j^-1) (C_i + C_j)
+// Ad(P_j^-1)^T in j's frame). Then Kruskal over the remaining usable edges by decreasing
+// inliers (ties: edge order): an edge joining two trees joins them; one closing a cycle is
+// compared with the tree's path between its maps (covariance: each tree edge's, moved to the
+// target's frame by the adjoint). Either way chi2 = xi^T C^-1 xi with xi =
+// pose_error_twist(measured, other) and C the sum; above `threshold` the edge is rejected, so in
+// an inconsistent cycle the weakest edge goes. Returns the chi2 of each rejected edge and whether
+// the priors rejected it (nullopt: kept).
+std::vector<std::optional<std::pair<double, bool>>> cycle_check(
+    const std::vector<Edge>& edges, const std::vector<bool>& usable,
+    const std::vector<Mat6>& edge_cov, const std::vector<std::optional<MapPrior>>& priors,
+    std::size_t num_maps, double threshold) {
+  std::vector<std::optional<std::pair<double, bool>>> rejected(edges.size());
+  std::vector<std::size_t> order;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (!usable[e]) continue;
+    const std::optional<MapPrior>& pi = priors[edges[e].source];
+    const std::optional<MapPrior>& pj = priors[edges[e].target];
+    if (pi && pj) {
+      const Isometry3 P_jw = pj->T_world_map.inverse();
+      const Mat6 Ad = se3_adjoint(P_jw);
+      const double chi2 =
+          discrepancy_chi2(edges[e].T_target_source, edge_cov[e], P_jw * pi->T_world_map,
+                           Ad * (pi->covariance + pj->covariance) * Ad.transpose());
+      if (!(chi2 <= threshold)) {
+        rejected[e] = std::make_pair(chi2, true);
+        continue;
+      }
+    }
+    order.push_back(e);
+  }
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return edges[a].num_inliers > edges[b].num_inliers;
+  });
+  std::vector<std::vector<std::size_t>> tree(num_maps);  // tree edges at each map
+  std::vector<std::size_t> parent(num_maps);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](std::size_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  for (const std::size_t e : order) {
+    const std::size_t i = edges[e].source, j = edges[e].target;
+    const std::size_t ri = find(i), rj = find(j);
+    if (ri != rj) {
+      parent[std::max(ri, rj)] = std::min(ri, rj);
+      tree[i].push_back(e);
+      tree[j].push_back(e);
+      continue;
+    }
+    // The tree path from j to i (breadth-first, tree edges in insertion order).
+    std::vector<std::optional<std::size_t>> via(num_maps);  // the edge that reached a map
+    std::vector<bool> seen(num_maps, false);
+    std::vector<std::size_t> queue{j};
+    seen[j] = true;
+    for (std::size_t h = 0; h < queue.size() && !seen[i]; ++h) {
+      const std::size_t a = queue[h];
+      for (const std::size_t t : tree[a]) {
+        const std::size_t b = edges[t].source == a ? edges[t].target : edges[t].source;
+        if (seen[b]) continue;
+        seen[b] = true;
+        via[b] = t;
+        queue.push_back(b);
+      }
+    }
+    std::vector<std::size_t> path;  // maps from i back to j
+    for (std::size_t b = i; b != j;) {
+      path.push_back(b);
+      const Edge& t = edges[*via[b]];
+      b = t.source == b ? t.target : t.source;
+    }
+    path.push_back(j);
+    // Compose T_j_i along the path, from j outward, with its covariance in j's frame.
+    Isometry3 T_ja = Isometry3::Identity();
+    Mat6 C_path = Mat6::Zero();
+    for (std::size_t k = path.size() - 1; k > 0; --k) {
+      const std::size_t a = path[k], b = path[k - 1];
+      const Edge& t = edges[*via[b]];
+      Isometry3 T_ab;
+      Mat6 C_ab;  // in a's frame
+      if (t.target == a) {
+        T_ab = t.T_target_source;
+        C_ab = edge_cov[*via[b]];
+      } else {
+        T_ab = t.T_target_source.inverse();
+        const Mat6 Ad = se3_adjoint(T_ab);
+        C_ab = Ad * edge_cov[*via[b]] * Ad.transpose();
+      }
+      const Mat6 Ad_ja = se3_adjoint(T_ja);
+      C_path += Ad_ja * C_ab * Ad_ja.transpose();
+      T_ja = T_ja * T_ab;
+    }
+    const double chi2 = discrepancy_chi2(edges[e].T_target_source, edge_cov[e], T_ja, C_path);
+    if (!(chi2 <= threshold)) rejected[e] = std::make_pair(chi2, false);
+  }
+  return rejected;
 }
 
 // Union-find components; ordered by their lowest map index.
@@ -348,6 +458,18 @@ MergeResult solve_pose_graph(std::size_t num_maps,
   }
   const double threshold = chi2_quantile(options.reject_quantile, 6);
   std::vector<bool> active = usable;
+  if (options.check_cycles) {
+    const auto inconsistent = cycle_check(edges, usable, edge_cov, priors, num_maps, threshold);
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (!inconsistent[e]) continue;
+      active[e] = false;
+      out.edges[e].rejected = true;
+      out.edges[e].reject_reason =
+          std::string("rejected by the cycle check: disagrees with ") +
+          (inconsistent[e]->second ? "the maps' priors" : "a path of edges with more inliers") +
+          " (chi2 " + message_number(inconsistent[e]->first) + ")";
+    }
+  }
   std::vector<PoseBlock> pose(num_maps);
   double scale = options.edge_covariance_scale > 0.0 ? options.edge_covariance_scale : 1.0;
   bool robust = true;

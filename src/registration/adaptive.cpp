@@ -5,11 +5,17 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/score.hpp"
 #include "lmalign/registration/stages/p2d_step.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 
@@ -103,6 +109,63 @@ Refinement refine(const Context& c, const Isometry3& T0, PoseSigma sigma0,
   return out;
 }
 
+// The half-sample deviations of AdaptiveOptions::covariance_half_sample_planes: for each
+// plane (n vertical ones about `up` from the overlap's widest horizontal direction, then the
+// horizontal one) and each side of it, the refinement of the landmarks `overlap` on that side
+// from T (gate started at `sigma0`), as pose_error_twist against T. Halves with fewer than
+// min_inliers landmarks, and refinements that do not end settled or at max_iterations, are left
+// out. Deterministic: one refinement per slot, in plane order.
+std::vector<Vec6> half_sample_deviations(const Context& c,
+                                         const std::vector<std::uint32_t>& overlap, const Vec3& up,
+                                         const Isometry3& T, const PoseSigma& sigma0) {
+  const AdaptiveOptions& o = *c.options;
+  const Points3& p = *c.side.points;
+  std::vector<Vec6> out;
+  if (overlap.size() < 2 * o.min_inliers) return out;
+  Vec3 centre = Vec3::Zero();
+  for (std::uint32_t i : overlap) centre += p[i];
+  centre /= static_cast<double>(overlap.size());
+  Mat3 scatter = Mat3::Zero();
+  for (std::uint32_t i : overlap) {
+    Vec3 q = p[i] - centre;
+    q -= up * up.dot(q);
+    scatter.noalias() += q * q.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(scatter);
+  Vec3 widest = eig.eigenvectors().col(2);
+  widest -= up * up.dot(widest);
+  if (!(widest.norm() > 0.0)) widest = up.unitOrthogonal();
+  widest.normalize();
+  const int n = o.covariance_half_sample_planes;
+  std::vector<Vec3> normals;
+  for (int k = 0; k < n; ++k) {
+    normals.push_back(Eigen::AngleAxisd(kPi * k / n, up) * widest);
+  }
+  normals.push_back(up);
+  const std::size_t slots = 2 * normals.size();
+  std::vector<std::optional<Vec6>> dev(slots);
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::ptrdiff_t s = 0; s < static_cast<std::ptrdiff_t>(slots); ++s) {
+    const Vec3& normal = normals[static_cast<std::size_t>(s) / 2];
+    const bool below = s % 2 == 0;
+    std::vector<std::uint32_t> half;
+    for (std::uint32_t i : overlap) {
+      if ((normal.dot(p[i] - centre) < 0.0) == below) half.push_back(i);
+    }
+    if (half.size() < o.min_inliers) continue;
+    const Refinement r = refine(c, T, sigma0, &half);
+    if (r.termination != TerminationReason::kTransform &&
+        r.termination != TerminationReason::kMaxIterations) {
+      continue;
+    }
+    dev[static_cast<std::size_t>(s)] = pose_error_twist(r.T, T);
+  }
+  for (const auto& d : dev) {
+    if (d && d->allFinite()) out.push_back(*d);
+  }
+  return out;
+}
+
 // Two estimates are distinct poses when they move a landmark at the source's typical distance
 // from its centre apart by more than `distance_m`.
 bool distinct(const Isometry3& a, const Isometry3& b, const Vec3& centre, double radius_m,
@@ -191,6 +254,10 @@ bool AdaptiveOptions::is_valid(std::string* why) const {
   if (!(covariance_block_factor > 0.0) || !std::isfinite(covariance_block_factor)) {
     return fail("covariance_block_factor must be > 0 and finite, got " +
                 message_number(covariance_block_factor));
+  }
+  if (covariance_half_sample_planes < 0 || covariance_half_sample_planes > 1000) {
+    return fail("covariance_half_sample_planes must be in [0, 1000], got " +
+                std::to_string(covariance_half_sample_planes));
   }
   return true;
 }
@@ -388,6 +455,7 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     result.mean_nis = inliers.empty() ? 0.0 : sum_d2 / static_cast<double>(inliers.size());
     result.expected_nis = expected_gated_d2(options.gate.chi2_threshold);
   }
+  std::vector<std::uint32_t> overlap;  // source indices of the landmarks in the overlap
   {
     PoseSigma wide;
     wide.translation_m = result.vote_cell_m;
@@ -398,6 +466,8 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     result.inlier_ratio =
         pairs.empty() ? 0.0
                       : static_cast<double>(result.num_inliers) / static_cast<double>(pairs.size());
+    overlap.reserve(pairs.size());
+    for (const GatedPair& g : pairs) overlap.push_back(g.source_index);
   }
   if (fin.last_step.ok) {
     // Validity (and with it the trust verdict) as the normal equations of the last step say;
@@ -409,6 +479,19 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
           fin.last_pairs, target.points(), fin.pivot, options.gate.chi2_threshold,
           options.covariance_block_factor * c.source_radius_m);
       if (robust.valid) result.covariance = robust;
+      if (options.covariance_half_sample_planes > 0) {
+        const std::vector<Vec6> deviations =
+            half_sample_deviations(c, overlap, result.up_source, fin.T, PoseSigma{});
+        const std::size_t halves =
+            2 * static_cast<std::size_t>(options.covariance_half_sample_planes + 1);
+        if (2 * deviations.size() >= halves) {
+          Mat6 B = Mat6::Zero();
+          for (const Vec6& d : deviations) B.noalias() += d * d.transpose();
+          B /= static_cast<double>(deviations.size());
+          result.covariance.covariance = covariance_max(result.covariance.covariance, B);
+          result.num_half_samples = deviations.size();
+        }
+      }
     }
   }
 

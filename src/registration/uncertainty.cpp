@@ -96,6 +96,20 @@ Vec6 pose_error_twist(const Isometry3& T_est, const Isometry3& T_true) {
   return xi;
 }
 
+Mat6 covariance_max(const Mat6& floor, const Mat6& other) {
+  const Eigen::LLT<Mat6> llt(floor);
+  if (llt.info() != Eigen::Success) return floor;
+  const Mat6 L = llt.matrixL();
+  const Mat6 L_inv = L.inverse();
+  Mat6 K = L_inv * other * L_inv.transpose();
+  K = (0.5 * (K + K.transpose())).eval();
+  const Eigen::SelfAdjointEigenSolver<Mat6> eig(K);
+  const Vec6 d = eig.eigenvalues().cwiseMax(1.0);
+  const Mat6 raised =
+      L * eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose() * L.transpose();
+  return raised.allFinite() ? raised : floor;
+}
+
 double nees(const Vec6& error, const PoseCovariance& covariance) {
   if (!covariance.valid) return std::numeric_limits<double>::infinity();
   return error.dot(covariance.covariance.ldlt().solve(error));

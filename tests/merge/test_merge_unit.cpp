@@ -259,6 +259,62 @@ TEST(MergePoseGraph, PriorsHoldTheGaugeAndInvalidCovarianceIsSkipped) {
   }
 }
 
+// A triangle 0-1-2 with a confident wrong edge 0 -> 2 (65 deg off, as a look-alike desk
+// window): without priors any two of the three edges agree, so only their strength can say
+// which goes. The wrong edge is listed first and has the fewest inliers.
+TEST(MergePoseGraph, CycleCheckRejectsTheWeakestEdgeOfAnInconsistentCycle) {
+  std::mt19937_64 rng(21);
+  std::vector<Isometry3> truth;
+  for (int i = 0; i < 3; ++i) truth.push_back(random_pose(rng, 3.0, 180.0));
+  Edge wrong = make_edge(0, 2, truth, rng, 0.01, 0.003);
+  wrong.T_target_source = pose_from_xyz_rpy_deg(0.5, 0.2, 0, 0, 0, 65) * wrong.T_target_source;
+  wrong.num_inliers = 410;
+  Edge e01 = make_edge(0, 1, truth, rng, 0.01, 0.003);
+  e01.num_inliers = 445;
+  Edge e12 = make_edge(1, 2, truth, rng, 0.01, 0.003);
+  e12.num_inliers = 660;
+  const std::vector<Edge> edges{wrong, e01, e12};
+  const std::vector<std::optional<MapPrior>> none(3);
+  const MergeResult r = solve_pose_graph(3, none, edges);
+  EXPECT_TRUE(r.edges[0].rejected);
+  EXPECT_NE(r.edges[0].reject_reason.find("cycle check"), std::string::npos);
+  EXPECT_FALSE(r.edges[1].rejected);
+  EXPECT_FALSE(r.edges[2].rejected);
+  EXPECT_EQ(r.num_components, 1u);
+  const MergeEvaluation ev = evaluate_merge(r, edges, truth, {1.0, 0.1});
+  EXPECT_DOUBLE_EQ(ev.fraction_within, 1.0);
+  EXPECT_EQ(ev.false_kept_edges, 0u);
+  // The same edges with the strengths swapped: the wrong one is now the strongest and stays,
+  // so the check is what decides (and a consistent cycle keeps all three).
+  std::vector<Edge> swapped = edges;
+  swapped[0].num_inliers = 900;
+  const MergeResult s = solve_pose_graph(3, none, swapped);
+  EXPECT_FALSE(s.edges[0].rejected);
+  EXPECT_TRUE(s.edges[1].rejected || s.edges[2].rejected);
+  std::vector<Edge> consistent = edges;
+  consistent[0] = make_edge(0, 2, truth, rng, 0.01, 0.003);
+  const MergeResult k = solve_pose_graph(3, none, consistent);
+  for (const EdgeReport& e : k.edges) EXPECT_FALSE(e.rejected);
+  // Off, the robust solve alone decides.
+  PoseGraphOptions off;
+  off.check_cycles = false;
+  const MergeResult o = solve_pose_graph(3, none, edges, off);
+  for (const EdgeReport& e : o.edges) EXPECT_TRUE(e.reject_reason.empty());
+}
+
+// One misplaced map in a component does not move the others' errors.
+TEST(MergeEvaluation, OneMisplacedMapDoesNotMoveTheOthersErrors) {
+  Ring ring = make_ring(6, 14);
+  const std::vector<std::optional<MapPrior>> none(6);
+  MergeResult r = solve_pose_graph(6, none, ring.edges);
+  r.maps[5].T_world_map = pose_from_xyz_rpy_deg(1.5, 0, 0, 0, 0, 120) * r.maps[5].T_world_map;
+  const MergeEvaluation ev = evaluate_merge(r, ring.edges, ring.truth, {2.0, 0.2});
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_TRUE(ev.maps[i].within) << i;
+  EXPECT_FALSE(ev.maps[5].within);
+  EXPECT_GT(ev.maps[5].rotation_deg, 100.0);
+  EXPECT_NEAR(ev.fraction_within, 5.0 / 6.0, 1e-12);
+}
+
 TEST(MergePoseGraph, Chi2QuantileMatchesTables) {
   EXPECT_NEAR(chi2_quantile(0.999, 6), 22.458, 0.01 * 22.458);
   EXPECT_NEAR(chi2_quantile(0.5, 6), 5.348, 0.05);

@@ -1181,6 +1181,40 @@ TEST(Adaptive, ResidualsBeyondTheCovariancesFailTheNisTest) {
   EXPECT_TRUE(align_adaptive(understated.source, target4, o).trustworthy);
 }
 
+// The source bent as a whole (a smooth non-rigid error of the map, as frames' pose errors or
+// depth distortion leave): each landmark moved by up to 3 cm along z, growing with x. The
+// residuals of the landmarks that agree stay within their covariances, so the block sandwich
+// still believes the estimate to a few tenths of a millimetre; the halves re-aligned on their
+// own disagree, and the half-sample covariance covers the error against the unbent truth.
+TEST(Adaptive, HalfSampleCovarianceCoversAMapBentAsAWhole) {
+  Room room = make_room(pose_from_xyz_rpy_deg(0.3, -0.2, 0.0, 0.0, 0.0, 20.0), 43);
+  for (Vec3& p : room.source.positions) {
+    Vec3 w = room.T_true * p;
+    w.z() += 0.03 * std::clamp(w.x() / 4.0, 0.0, 1.0) * std::clamp(w.x() / 4.0, 0.0, 1.0);
+    p = room.T_true.inverse() * w;
+  }
+  const PreparedTarget target = room.target();
+  AdaptiveOptions off;
+  off.covariance_half_sample_planes = 0;
+  const AdaptiveResult a = align_adaptive(room.source, target, off);
+  const AdaptiveResult b = align_adaptive(room.source, target);
+  ASSERT_TRUE(a.trustworthy) << a.trust_reason;
+  ASSERT_TRUE(b.trustworthy) << b.trust_reason;
+  // The same estimate; only its covariance differs.
+  EXPECT_TRUE(a.registration.T_target_source.isApprox(b.registration.T_target_source, 1e-12));
+  EXPECT_EQ(a.num_half_samples, 0u);
+  EXPECT_EQ(b.num_half_samples, 2u * (AdaptiveOptions{}.covariance_half_sample_planes + 1u));
+  const Vec6 err = pose_error_twist(b.registration.T_target_source, room.T_true);
+  const double nees_off = nees(err, a.covariance);
+  const double nees_on = nees(err, b.covariance);
+  EXPECT_GT(nees_off, 30.0);
+  EXPECT_LT(nees_on, 15.0);
+  // Never narrower than the sandwich: C_on - C_off is positive semi-definite.
+  const Eigen::SelfAdjointEigenSolver<Mat6> diff(b.covariance.covariance - a.covariance.covariance);
+  EXPECT_GT(diff.eigenvalues().minCoeff(), -1e-9 * a.covariance.covariance.norm());
+  EXPECT_TRUE(b.covariance.valid);
+}
+
 TEST(Adaptive, RefusesBadInput) {
   const Room room = make_room(far_truth(), 48);
   const PreparedTarget target = room.target();
@@ -1257,6 +1291,10 @@ TEST(Adaptive, RefusesBadInput) {
   o.default_up = Vec3::Zero();
   EXPECT_FALSE(o.is_valid(&why));
   EXPECT_NE(why.find("default_up"), std::string::npos);
+  o = AdaptiveOptions{};
+  o.covariance_half_sample_planes = -1;
+  EXPECT_FALSE(o.is_valid(&why));
+  EXPECT_NE(why.find("covariance_half_sample_planes"), std::string::npos);
 }
 
 TEST(Adaptive, FewerThanThreeLandmarksGiveNoCorrespondencesUntrusted) {

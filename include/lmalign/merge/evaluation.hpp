@@ -1,10 +1,14 @@
 // Ground-truth evaluation of a merge (docs/merge.md, "Ground truth").
 //
-// The merged frame of each component is aligned to the truth frame by the rigid transform G
-// that best fits its maps (chordal rotation mean of R_true R_est^T, then mean translation);
-// per map, the error of G * T_world_map_est against T_world_map_true (transform_error,
-// core/geometry.hpp). An edge is true when its T_target_source agrees with
-// T_world_target_true^-1 * T_world_source_true within the thresholds.
+// A component held by priors is aligned to the truth frame by the rigid transform G that best
+// fits all its maps (chordal rotation mean of R_true R_est^T, then mean translation). Any other
+// component's frame is arbitrary: it is aligned by a G fitted to the maps that agree with the
+// truth. Of the fit to all its maps and each map's own G_k = T_true_k T_est_k^-1, the one that
+// puts the most maps within the thresholds wins, refitted to those maps when that keeps as many;
+// so one misplaced map does not move the others' errors. Per map, the error of
+// G * T_world_map_est against T_world_map_true (transform_error, core/geometry.hpp). An edge is
+// true when its T_target_source agrees with T_world_target_true^-1 * T_world_source_true within
+// the thresholds.
 #pragma once
 
 #include <optional>

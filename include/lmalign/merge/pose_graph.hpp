@@ -46,6 +46,13 @@ struct PoseGraphOptions {
   /// in rad^2) before whitening. > 0.
   double floor_translation_m = 1e-3;
   double floor_rotation_deg = 0.01;
+  /// Cycle check before the solve (docs/merge.md, "Pose graph"): an edge between two maps with
+  /// priors is rejected when it disagrees with their relative prior; then the edges are taken
+  /// by decreasing inliers, Kruskal-fashion, and an edge that closes a cycle is rejected when it
+  /// disagrees with the path of stronger edges between its maps. Disagrees: beyond the chi^2(6)
+  /// `reject_quantile` under the sum of the two covariances. In an inconsistent cycle the
+  /// weakest edge goes, where the robust solve alone may keep any two of three.
+  bool check_cycles = true;
   int max_rounds = 4;        ///< >= 1
   int max_iterations = 100;  ///< Ceres iterations per solve, >= 1
   bool compute_covariances = true;
@@ -68,6 +75,8 @@ struct EdgeReport {
   bool rejected = false;    ///< used, then rejected after optimisation
   double chi2 = 0.0;        ///< whitened chi^2 at the final poses (with the scale), 0 if unused
   std::string skip_reason;  ///< why not used ("untrusted: ...", "invalid covariance")
+  /// Why rejected, when by the cycle check (empty: by the chi^2 after optimisation, or kept).
+  std::string reject_reason;
 };
 
 struct MergeResult {

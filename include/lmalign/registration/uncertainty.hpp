@@ -50,6 +50,14 @@ PoseCovariance point_to_point_covariance(const Points3& moved_source, const Poin
 /// (rho = translation of T_est T_true^-1, phi = its rotation vector).
 Vec6 pose_error_twist(const Isometry3& T_est, const Isometry3& T_true);
 
+/// The larger of two covariances, direction by direction (a Loewner upper bound of both that
+/// keeps `floor` wherever `other` is smaller): with floor = L L^T, the eigenvalues of
+/// L^-1 other L^-T are raised to at least 1 and mapped back. Used to widen a model covariance by
+/// an empirical one without ever narrowing it (p2d_cluster_covariance, the adaptive default's
+/// half-sample covariance). Returns `floor` unchanged when it is not positive definite or the
+/// result is not finite. Both 6x6, any units as long as they agree.
+Mat6 covariance_max(const Mat6& floor, const Mat6& other);
+
 /// Normalised estimation error squared e^T Cov^-1 e (6 dof: its mean is 6 when the covariance
 /// is calibrated). +inf when the covariance is not valid.
 double nees(const Vec6& error, const PoseCovariance& covariance);

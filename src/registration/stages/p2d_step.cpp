@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 
@@ -171,18 +172,7 @@ PoseCovariance p2d_cluster_covariance(const std::vector<GatedPair>& pairs,
     B *= G / (G - 1.0);
     const Mat6 S = H_inv * B * H_inv.transpose();
     // max(model, S) in the Loewner order: whiten by the model, raise eigenvalues below 1.
-    const Eigen::LLT<Mat6> llt(model);
-    if (llt.info() == Eigen::Success) {
-      const Mat6 L = llt.matrixL();
-      const Mat6 L_inv = L.inverse();
-      Mat6 K = L_inv * S * L_inv.transpose();
-      K = (0.5 * (K + K.transpose())).eval();
-      const Eigen::SelfAdjointEigenSolver<Mat6> eig(K);
-      const Vec6 d = eig.eigenvalues().cwiseMax(1.0);
-      const Mat6 raised =
-          L * eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose() * L.transpose();
-      if (raised.allFinite()) cov = raised;
-    }
+    cov = covariance_max(model, S);
   }
   pc.covariance = about_origin(cov, pivot_m);
   const double dof = 3.0 * static_cast<double>(n) - 6.0;
