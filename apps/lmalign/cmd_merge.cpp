@@ -211,9 +211,14 @@ int run_merge_command(const MergeArgs& a) {
       run.result.num_components, run.result.final_chi2, run.result.edge_covariance_scale);
   std::printf("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
   for (std::size_t e = 0; e < run.edges.size(); ++e) {
-    if (run.result.edges[e].rejected) {
-      std::printf("rejected edge: %s -> %s (chi2 %.1f)\n", names[run.edges[e].source].c_str(),
-                  names[run.edges[e].target].c_str(), run.result.edges[e].chi2);
+    const EdgeReport& r = run.result.edges[e];
+    if (!r.rejected) continue;
+    if (r.reject_reason.empty()) {
+      std::printf("rejected edge: %s -> %s (chi2 %.1f after optimisation)\n",
+                  names[run.edges[e].source].c_str(), names[run.edges[e].target].c_str(), r.chi2);
+    } else {
+      std::printf("rejected edge: %s -> %s (%s)\n", names[run.edges[e].source].c_str(),
+                  names[run.edges[e].target].c_str(), r.reject_reason.c_str());
     }
   }
   if (!truth.empty()) {

@@ -419,7 +419,9 @@ void bind_merge(py::module_& m) {
       .def_readonly("used", &EdgeReport::used, "Trusted with a usable covariance: in the graph.")
       .def_readonly("rejected", &EdgeReport::rejected, "Used, then rejected after optimisation.")
       .def_readonly("chi2", &EdgeReport::chi2, "Whitened chi^2 at the final poses (0 if unused).")
-      .def_readonly("skip_reason", &EdgeReport::skip_reason, "Why not used ('' if used).");
+      .def_readonly("skip_reason", &EdgeReport::skip_reason, "Why not used ('' if used).")
+      .def_readonly("reject_reason", &EdgeReport::reject_reason,
+                    "Why rejected, when by the cycle check ('' otherwise).");
   py::class_<MergeResult>(m, "PoseGraphResult",
                           "solve_pose_graph()'s result (C++ lmalign::MergeResult).")
       .def_readonly("maps", &MergeResult::maps, "List of MapPose, one per map.")

@@ -105,7 +105,7 @@ std::string map_fingerprint(const Map& map) {
 std::string edge_key(const std::string& source_fingerprint, const std::string& target_fingerprint,
                      const CandidatePair& pair, const EdgeOptions& options) {
   Fnv1a f;
-  f.text("lmalign-merge-edge-v1");
+  f.text("lmalign-merge-edge-v2");  // v2: the half-sample covariance, the prior window
   f.text(source_fingerprint);
   f.text(target_fingerprint);
   f.integer(pair.source);

@@ -344,8 +344,14 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     window.rotation_sd_rad = prior->rotation_deg * kPi / 180.0;
     window.translation_sd_m = prior->translation_m;
   }
+  // The prior's translation sigma is about the target origin (uncertainty.hpp); where the
+  // source centre lands it grows by the rotation's sigma times that point's distance from there.
+  const double centre_sd_m =
+      prior == nullptr
+          ? 0.0
+          : window.translation_sd_m + window.rotation_sd_rad * (guess * c.source_centre).norm();
   const bool search_needed = prior == nullptr || window.rotation_sd_rad > 0.5 * step_rad ||
-                             window.translation_sd_m > result.vote_cell_m;
+                             centre_sd_m > result.vote_cell_m;
   std::vector<AdaptiveHypothesis> hyps;
   PoseSigma sigma_search;
   sigma_search.translation_m = options.start_sigma_factor * 2.0 * result.vote_cell_m;
@@ -354,7 +360,8 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
     // Up-axis candidates of each map: its frames' (or the default), and its landmark plane's
     // normal when that disagrees by more than second_up_min_angle_deg. Without a prior the
     // search votes once per pair of candidates and keeps the best hypotheses of all of them.
-    // With a prior the guess's rotation is the base and the up axes do not enter.
+    // With a prior the guess's rotation is the base (and, below, the guess tilted to agree
+    // with the frames' up axes); the landmark-plane candidates do not enter.
     const double min_cos = std::cos(options.second_up_min_angle_deg * kPi / 180.0);
     auto candidates = [&](const Vec3& up, const Points3& points) {
       std::vector<Vec3> ups{up};
@@ -372,6 +379,23 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
         const std::vector<YawHypothesis> part =
             yaw_vote_hypotheses(source.positions, target.points(), us, ut, result.vote_cell_m,
                                 options.search, prior != nullptr ? &window : nullptr);
+        yh.insert(yh.end(), part.begin(), part.end());
+      }
+    }
+    if (prior != nullptr) {
+      // A second base with a prior: the guess tilted (about the target origin, as the prior's
+      // perturbation) so that the maps' up axes agree, when that takes more than half a yaw step
+      // and stays within 3 sigma of the prior's rotation. The up axes measure the tilt that a
+      // yaw search cannot correct.
+      const Mat3 R_guess = guess.linear();
+      const Mat3 tilt = rotation_between(R_guess * result.up_source, result.up_target);
+      const double angle = Eigen::AngleAxisd(tilt).angle();
+      if (angle > 0.5 * step_rad && angle <= 3.0 * window.rotation_sd_rad) {
+        PoseWindow tilted = window;
+        tilted.T_target_source_guess = Isometry3(tilt) * guess;  // about the target origin
+        const std::vector<YawHypothesis> part =
+            yaw_vote_hypotheses(source.positions, target.points(), result.up_source,
+                                result.up_target, result.vote_cell_m, options.search, &tilted);
         yh.insert(yh.end(), part.begin(), part.end());
       }
     }
@@ -397,7 +421,8 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
   }
   PoseSigma sigma_guess = sigma_search;
   if (prior != nullptr) {
-    sigma_guess.translation_m = options.start_sigma_factor * window.translation_sd_m;
+    // The gate's pose sigma is about the source centre's image (its pivot).
+    sigma_guess.translation_m = options.start_sigma_factor * centre_sd_m;
     sigma_guess.rotation_rad = options.start_sigma_factor * window.rotation_sd_rad;
   }
 

@@ -145,13 +145,12 @@ TEST(MergeReal, KittiWindowsWithoutPriors) {
   expect_placed(w, run, 2.0, 0.5, 1.0);
 }
 
-// DISABLED, known failure (docs/merge.md, "Known gaps"): with priors of 3 deg / 0.5 m per axis
-// (each window's prior 4.4-9.3 deg off here), window w4 is reached by no trusted edge: under the
-// prior-bounded search its pairs end with 7-9% of the overlapping landmarks within their
-// covariances (the verdict asks for 20%). It keeps its prior, and the gauge fit over all five
-// windows then puts it 8 deg off (measured 2026-11-23); w0-w3 are consistent among themselves.
-// Enable when the bounded search finds those pairs.
-TEST(MergeReal, DISABLED_KittiWindowsWithOdometryPriors) {
+// Priors of 3 deg / 0.5 m per axis: each window's prior is 4.4-9.3 deg off, and the relative
+// priors of the pairs with w4 are 10-13 deg off, partly in tilt, with the windows tens of metres
+// from the target's origin. The prior-bounded search finds them with its window widened by the
+// rotation's lever arm and its second base (the guess tilted to agree with the maps' up axes)
+// (docs/merge.md, "Edges with priors").
+TEST(MergeReal, KittiWindowsWithOdometryPriors) {
   const std::string path = test::data_file(kKitti);
   LMALIGN_REQUIRE_FILE(path);
   const Windows w = cut(read_map(path, MapReadOptions{0}), 1, 6, 5, 5, 24);

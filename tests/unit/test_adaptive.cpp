@@ -848,10 +848,18 @@ TEST(YawVote, APriorWindowKeepsEveryHypothesisNearTheGuess) {
       // sigma 4 deg and 3 deg steps 3 sigma / step evaluates to 4.0000000000000009, so the
       // hypotheses reach 15 deg: within 3 sigma plus one step (reported as a library bug).
       EXPECT_LE(e.rotation_deg, 3.0 * 4.0 + o.yaw_step_deg + 1e-9);
-      // Votes are accepted within 3 sigma + 2 cells of where the guess puts the centroid; the
-      // peak's cell centres may add one more cell.
-      EXPECT_LE((y.T_target_source * c - w.T_target_source_guess * c).norm(),
-                3.0 * w.translation_sd_m + 3.0 * cell);
+      // Votes are accepted around where the hypothesis' yaw about the up axis through the
+      // target origin takes the guess's centroid image: within 3 (sd_t + sd_r h) + 2 cells
+      // across the up axis and 3 (sd_t + sd_r d) + 2 cells along it (the header); the peak's
+      // cell centres may add one more cell.
+      const Vec3 guess_c = w.T_target_source_guess * c;
+      const Vec3 centre = Eigen::AngleAxisd(y.yaw_rad, Vec3::UnitZ()) * guess_c;
+      const Vec3 d = y.T_target_source * c - centre;
+      const double h = std::abs(guess_c.z()), across = guess_c.head<2>().norm();
+      EXPECT_LE(d.head<2>().norm(),
+                3.0 * (w.translation_sd_m + w.rotation_sd_rad * h) + 3.0 * cell);
+      EXPECT_LE(std::abs(d.z()),
+                3.0 * (w.translation_sd_m + w.rotation_sd_rad * across) + 3.0 * cell);
     }
   }
   // Around the truth, the best hypothesis is the truth.
@@ -1213,6 +1221,58 @@ TEST(Adaptive, HalfSampleCovarianceCoversAMapBentAsAWhole) {
   const Eigen::SelfAdjointEigenSolver<Mat6> diff(b.covariance.covariance - a.covariance.covariance);
   EXPECT_GT(diff.eigenvalues().minCoeff(), -1e-9 * a.covariance.covariance.norm());
   EXPECT_TRUE(b.covariance.valid);
+}
+
+// With a prior, the search also votes from the guess tilted so that the maps' up axes agree
+// (the tilt a yaw search cannot correct), when that tilt is within 3 sigma of the prior.
+TEST(Adaptive, APriorsTiltIsCorrectedByTheUpAxesWithinThreeSigma) {
+  const Room room = make_room(pose_from_xyz_rpy_deg(0.5, -0.3, 0.0, 0.0, 0.0, 40.0), 47);
+  const PreparedTarget target = room.target();
+  const Vec3 c(2.0, 1.5, 1.0);
+  auto tilted_guess = [&](double tilt_deg) {
+    return Isometry3(Eigen::Translation3d(c) *
+                     Eigen::AngleAxisd(tilt_deg * kRadPerDeg, Vec3(1, 1, 0).normalized()) *
+                     Eigen::Translation3d(-c)) *
+           room.T_true;
+  };
+  const PriorSigma prior{3.0, 0.3};
+  auto upright_starts = [&](const AdaptiveResult& r) {
+    std::size_t n = 0;
+    for (const AdaptiveHypothesis& h : r.hypotheses) {
+      const Vec3 up = h.T_start.linear() * r.up_source;
+      if (!h.from_guess && (up - r.up_target).norm() < 1e-9) ++n;
+    }
+    return n;
+  };
+  const Isometry3 six = tilted_guess(6.0);
+  const AdaptiveResult r6 = align_adaptive(room.source, target, AdaptiveOptions{}, &six, &prior);
+  EXPECT_GT(upright_starts(r6), 0u);
+  EXPECT_LT(transform_error(r6.registration.T_target_source, room.T_true).rotation_deg, 0.5);
+  EXPECT_TRUE(r6.trustworthy) << r6.trust_reason;
+  // 15 deg is 5 sigma: the up axes disagree with the prior, and only the guess's base votes.
+  const Isometry3 fifteen = tilted_guess(15.0);
+  const AdaptiveResult r15 =
+      align_adaptive(room.source, target, AdaptiveOptions{}, &fifteen, &prior);
+  EXPECT_EQ(upright_starts(r15), 0u);
+}
+
+// A prior's sigmas are about the target origin (uncertainty.hpp). With the room 60 m from that
+// origin, a guess 6 deg off in yaw about the origin (2 sigma) puts the source 6 m from the
+// truth: the bounded search must widen its translation window by the rotation's lever arm.
+TEST(Adaptive, APriorWindowCoversTheRotationsLeverArmFromTheTargetOrigin) {
+  Room room = make_room(pose_from_xyz_rpy_deg(0.5, -0.3, 0.0, 0.0, 0.0, 40.0), 53);
+  const Vec3 far(60.0, 10.0, 0.0);  // the target's landmarks, 60 m from its origin
+  for (Vec3& p : room.target_points) p += far;
+  room.T_true = Eigen::Translation3d(far) * room.T_true;
+  const PreparedTarget target = room.target();
+  const Isometry3 guess =
+      Isometry3(Eigen::AngleAxisd(6.0 * kRadPerDeg, Vec3::UnitZ())) * room.T_true;
+  const PriorSigma prior{3.0, 0.3};
+  const AdaptiveResult r = align_adaptive(room.source, target, AdaptiveOptions{}, &guess, &prior);
+  EXPECT_EQ(r.initialisation, "prior");
+  EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).rotation_deg, 0.5);
+  EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).translation_m, 0.05);
+  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
 }
 
 TEST(Adaptive, RefusesBadInput) {

@@ -4,7 +4,10 @@
 //                   (stages/data_scales.hpp). Every metric setting below is derived from them.
 //   initialisation  global: yaw-vote hypotheses over every yaw (stages/yaw_vote_search.hpp),
 //                   plus the initial guess if one is given; prior-bounded: the same search
-//                   confined to 3 sigma of the guess; given: the guess alone.
+//                   confined to 3 sigma of the guess, from the guess's rotation and, when the
+//                   maps' up axes disagree with it by more than half a yaw step and at most
+//                   3 sigma, also from the guess tilted to agree with them; given: the guess
+//                   alone.
 //   selection       the k Euclidean nearest target landmarks of each source landmark, keeping
 //   + gating        the one with the smallest Mahalanobis distance under both landmarks'
 //                   covariances, the floor and the current pose uncertainty, if it passes a

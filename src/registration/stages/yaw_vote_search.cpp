@@ -115,13 +115,21 @@ struct Peak {
   Vec3 t = Vec3::Zero();
 };
 
+// Where a prior lets the source centroid's image be: within radius_h of `centre` across the up
+// axis and within radius_v along it (infinite: anywhere).
+struct VoteWindow {
+  Vec3 centre = Vec3::Zero();
+  double radius_h = std::numeric_limits<double>::infinity();
+  double radius_v = std::numeric_limits<double>::infinity();
+};
+
 // The translation with the most votes among translations t = q - x for the rotated, centred
-// source samples x; within `radius` of `centre` when radius is finite. The vote is over the
+// source samples x; within `window` when its radii are finite. The vote is over the
 // horizontal part of t (in the plane normal to `up`, 3x3 cells): an error in either map's up axis
 // (a hand-held camera gives it to a few degrees) tilts the source, which moves its landmarks
 // mostly vertically. The vertical part of t is then the median of the peak's votes.
 Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3& up,
-          const Vec3& centre, double radius, VoteGrid& grid, std::vector<double>& heights,
+          const VoteWindow& window, VoteGrid& grid, std::vector<double>& heights,
           std::vector<std::pair<double, std::size_t>>& by_e1) {
   const Vec3 e1 = up.unitOrthogonal();
   const Vec3 e2 = up.cross(e1);
@@ -148,12 +156,17 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
     grid.reset(rotated.size() * target.size(), cell_of(q1_lo - x1_hi) - 1,
                cell_of(q1_hi - x1_lo) + 1, cell_of(q2_lo - x2_hi) - 1, cell_of(q2_hi - x2_lo) + 1);
   }
-  const double r2 = radius * radius;
+  const bool bounded = std::isfinite(window.radius_h);
+  const double rh2 = window.radius_h * window.radius_h;
   // Every vote t = q - x within the window, with its horizontal cell (a, b); both passes below
   // (the vote, then the peak's heights) see the same votes.
   auto vote_of = [&](const Vec3& x, const Vec3& q, auto&& visit) {
     const Vec3 t = q - x;
-    if (std::isfinite(radius) && (t - centre).squaredNorm() > r2) return;
+    if (bounded) {
+      const Vec3 d = t - window.centre;
+      const double v = d.dot(up);
+      if (std::abs(v) > window.radius_v || (d - v * up).squaredNorm() > rh2) return;
+    }
     const double a = std::floor(t.dot(e1) * inv);
     const double b = std::floor(t.dot(e2) * inv);
     if (std::abs(a) >= static_cast<double>(kCellLimit - 2) ||
@@ -316,7 +329,8 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
   int n_yaw = 0;
   const double step = options.yaw_step_deg * kPi / 180.0;
   Vec3 t_centre = Vec3::Zero();
-  double t_radius = std::numeric_limits<double>::infinity();
+  double radius_h = std::numeric_limits<double>::infinity();
+  double radius_v = std::numeric_limits<double>::infinity();
   bool circular = true;
   if (window == nullptr) {
     base = rotation_between(up_source, up);
@@ -333,9 +347,16 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
       n_yaw = 2 * per_side + 1;
       yaw_from = -per_side * step;
     }
-    // Where the guess puts the source centroid; the votes are for that point's image.
+    // Where the guess puts the source centroid; the votes are for that point's image. The
+    // sigmas are of the left perturbation about the target origin (uncertainty.hpp): a yaw
+    // about the up axis through the origin moves that image along a circle (each yaw's window
+    // is centred on it, below), a tilt moves it by the rotation's sigma times its lever arm:
+    // across the up axis by its height, along it by its horizontal distance.
     t_centre = window->T_target_source_guess * centroid;
-    t_radius = 3.0 * window->translation_sd_m + 2.0 * cell_m;
+    const double height = std::abs(t_centre.dot(up));
+    const double across = (t_centre - t_centre.dot(up) * up).norm();
+    radius_h = 3.0 * (window->translation_sd_m + window->rotation_sd_rad * height) + 2.0 * cell_m;
+    radius_v = 3.0 * (window->translation_sd_m + window->rotation_sd_rad * across) + 2.0 * cell_m;
   }
 
   std::vector<YawHypothesis> all(static_cast<std::size_t>(n_yaw));
@@ -348,9 +369,11 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
 #pragma omp for schedule(dynamic, 1)
     for (int i = 0; i < n_yaw; ++i) {
       const double yaw = yaw_from + step * i;
-      const Mat3 R = Eigen::AngleAxisd(yaw, up).toRotationMatrix() * base;
+      const Mat3 R_yaw = Eigen::AngleAxisd(yaw, up).toRotationMatrix();
+      const Mat3 R = R_yaw * base;
       for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * (src[j] - centroid);
-      const Peak peak = vote(rotated, tgt, cell_m, up, t_centre, t_radius, grid, heights, by_e1);
+      const VoteWindow w{R_yaw * t_centre, radius_h, radius_v};
+      const Peak peak = vote(rotated, tgt, cell_m, up, w, grid, heights, by_e1);
       YawHypothesis& h = all[static_cast<std::size_t>(i)];
       h.yaw_rad = yaw;
       h.votes = peak.votes;

@@ -9,7 +9,12 @@
 // spread out, so partial overlap lowers the peak but does not move it. The peak (3x3x3 cells)
 // gives each yaw a translation and a vote count; the yaws whose counts are local maxima over yaw,
 // best first, are the hypotheses. With a prior (an initial guess and its sigmas) the yaws stay
-// within 3 sigma of the guess's rotation, and the votes within 3 sigma of its translation.
+// within 3 sigma of the guess's rotation, and the votes within 3 sigma of where the guess puts
+// the source centroid. The sigmas are of the left perturbation about the target origin
+// (uncertainty.hpp): each yaw's window is centred where that yaw about the up axis through the
+// origin takes the guess's centroid image, with radius 3 (sd_t + sd_r h) + 2 cells across the up
+// axis and 3 (sd_t + sd_r d) + 2 cells along it (h, d: the image's height and horizontal
+// distance from the origin, the lever arms of a tilt).
 //
 // Frames: T_target_source, p_target = T_target_source * p_source. Deterministic: strided
 // samples, no random draws, one slot per yaw.
@@ -36,7 +41,8 @@ struct YawVoteOptions {
   bool is_valid(std::string* why = nullptr) const;
 };
 
-/// A prior on T_target_source: the guess and its standard deviations.
+/// A prior on T_target_source: the guess and its standard deviations (of the left perturbation
+/// T = Exp(xi) T_guess about the target origin, uncertainty.hpp; worst axes).
 struct PoseWindow {
   Isometry3 T_target_source_guess = Isometry3::Identity();
   double rotation_sd_rad = 0.0;   ///< > 0
