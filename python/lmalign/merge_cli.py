@@ -64,9 +64,10 @@ def main(argv=None):
              run.rejected.sum(), run.num_components, run.final_chi2, run.edge_covariance_scale))
     print("time: edges %.2f s, graph %.2f s (%s)" % (run.seconds_edges, run.seconds_graph,
                                                      run.backend))
-    for e, r in zip(run.edges, run.rejected):
-        if r:
-            print("rejected edge: %s -> %s" % (run.names[e.source], run.names[e.target]))
+    for e, report in zip(run.edges, run.graph.edges):
+        if report.rejected:
+            why = report.reject_reason or "chi2 %.1f after optimisation" % report.chi2
+            print("rejected edge: %s -> %s (%s)" % (run.names[e.source], run.names[e.target], why))
     if run.evaluation is not None:
         ev = run.evaluation
         print("ground truth (within %g deg / %g m):" % thresholds)

@@ -112,12 +112,12 @@ Refinement refine(const Context& c, const Isometry3& T0, PoseSigma sigma0,
 // The half-sample deviations of AdaptiveOptions::covariance_half_sample_planes: for each
 // plane (n vertical ones about `up` from the overlap's widest horizontal direction, then the
 // horizontal one) and each side of it, the refinement of the landmarks `overlap` on that side
-// from T (gate started at `sigma0`), as pose_error_twist against T. Halves with fewer than
+// from T (the gate at its floor), as pose_error_twist against T. Halves with fewer than
 // min_inliers landmarks, and refinements that do not end settled or at max_iterations, are left
 // out. Deterministic: one refinement per slot, in plane order.
 std::vector<Vec6> half_sample_deviations(const Context& c,
                                          const std::vector<std::uint32_t>& overlap, const Vec3& up,
-                                         const Isometry3& T, const PoseSigma& sigma0) {
+                                         const Isometry3& T) {
   const AdaptiveOptions& o = *c.options;
   const Points3& p = *c.side.points;
   std::vector<Vec6> out;
@@ -153,7 +153,7 @@ std::vector<Vec6> half_sample_deviations(const Context& c,
       if ((normal.dot(p[i] - centre) < 0.0) == below) half.push_back(i);
     }
     if (half.size() < o.min_inliers) continue;
-    const Refinement r = refine(c, T, sigma0, &half);
+    const Refinement r = refine(c, T, PoseSigma{}, &half);
     if (r.termination != TerminationReason::kTransform &&
         r.termination != TerminationReason::kMaxIterations) {
       continue;
@@ -506,7 +506,7 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
       if (robust.valid) result.covariance = robust;
       if (options.covariance_half_sample_planes > 0) {
         const std::vector<Vec6> deviations =
-            half_sample_deviations(c, overlap, result.up_source, fin.T, PoseSigma{});
+            half_sample_deviations(c, overlap, result.up_source, fin.T);
         const std::size_t halves =
             2 * static_cast<std::size_t>(options.covariance_half_sample_planes + 1);
         if (2 * deviations.size() >= halves) {
