@@ -105,18 +105,20 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
     const bool held_by_priors = std::none_of(
         members.begin(), members.end(), [&](std::size_t i) { return result.maps[i].is_gauge; });
     Isometry3 G = fit(members);
-    std::vector<std::size_t> best = agreeing(G, members);
-    for (const std::size_t k : held_by_priors ? std::vector<std::size_t>{} : members) {
-      const Isometry3 G_k = truth[k] * result.maps[k].T_world_map.inverse();
-      std::vector<std::size_t> in = agreeing(G_k, members);
-      if (in.size() > best.size()) {
-        best = std::move(in);
-        G = G_k;
+    if (!held_by_priors) {
+      std::vector<std::size_t> best = agreeing(G, members);
+      for (const std::size_t k : members) {
+        const Isometry3 G_k = truth[k] * result.maps[k].T_world_map.inverse();
+        std::vector<std::size_t> in = agreeing(G_k, members);
+        if (in.size() > best.size()) {
+          best = std::move(in);
+          G = G_k;
+        }
       }
-    }
-    if (!best.empty() && !held_by_priors) {
-      const Isometry3 G_fit = fit(best);
-      if (agreeing(G_fit, members).size() >= best.size()) G = G_fit;
+      if (!best.empty()) {
+        const Isometry3 G_fit = fit(best);
+        if (agreeing(G_fit, members).size() >= best.size()) G = G_fit;
+      }
     }
     for (const std::size_t i : members) {
       const TransformError err = transform_error(G * result.maps[i].T_world_map, truth[i]);
