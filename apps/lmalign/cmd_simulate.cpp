@@ -16,6 +16,7 @@
 #include "lmalign/sim/fleet_sim.hpp"
 #include "lmalign/sim/road_sim.hpp"
 #include "lmalign/sim/slam_sim.hpp"
+#include "lmalign/sim/street_sim.hpp"
 
 namespace lmalign::cli {
 
@@ -31,6 +32,8 @@ struct SimulateArgs {
   unsigned long long maps = 50;
   unsigned long long twins = 2;
   std::string prior_sigma = "3,0.5";
+  unsigned long long frames = 30;  // street: keyframes per window
+  unsigned long long windows = 0;  // street: 0 = a pair; else that many windows + a manifest
 };
 
 std::string to_text(double value) {
@@ -122,9 +125,78 @@ int run_simulate_fleet(const SimulateArgs& a) {
   return 0;
 }
 
+// The street simulator's options from the command line; one-line errors naming the option.
+sim::StreetSimOptions street_options(const SimulateArgs& a, bool overlap_given,
+                                     const Isometry3& T_target_source) {
+  sim::StreetSimOptions o;
+  o.num_landmarks = static_cast<std::size_t>(a.landmarks);
+  o.seed = a.seed;
+  if (overlap_given) o.overlap = a.overlap;
+  if (a.frames < 2 || a.frames > 100000ULL) {
+    throw InvalidArgument("--frames " + std::to_string(a.frames) + ": must be in [2, 100000]");
+  }
+  o.window_frames = static_cast<std::size_t>(a.frames);
+  o.T_target_source = T_target_source;
+  std::string why;
+  if (!o.is_valid(&why)) {
+    if (!(o.overlap >= 0.0 && o.overlap <= 0.75))
+      throw InvalidArgument("--overlap " + to_text(a.overlap) + ": must be in [0, 0.75] (street)");
+    if (o.num_landmarks > 1000000)
+      throw InvalidArgument("--landmarks " + std::to_string(a.landmarks) +
+                            ": must be <= 1000000 (street)");
+    throw InvalidArgument("--transform " + a.transform + ": " + why);
+  }
+  return o;
+}
+
+// --scene street --windows N: N windows of one drive, each in its own first keyframe's frame,
+// with a manifest (no priors) and the truth, for lmalign merge.
+int run_simulate_street_windows(const SimulateArgs& a, bool overlap_given) {
+  if (a.windows < 2 || a.windows > 10000ULL) {
+    throw InvalidArgument("--windows " + std::to_string(a.windows) + ": must be in [2, 10000]");
+  }
+  const sim::StreetSimOptions o = street_options(a, overlap_given, Isometry3::Identity());
+  const sim::StreetWindows w = sim::simulate_street_windows(o, static_cast<std::size_t>(a.windows));
+  const std::filesystem::path dir(a.output);
+  std::error_code ec;
+  std::filesystem::create_directories(dir / "maps", ec);
+  if (ec) throw IoError("cannot create output folder '" + a.output + "': " + ec.message());
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < w.maps.size(); ++i) {
+    names.push_back("w" + std::to_string(i));
+    write_map((dir / "maps" / (names[i] + ".txt")).string(), w.maps[i]);
+  }
+  write_file_atomically((dir / "ground_truth.yaml").string(), [&](std::ostream& os) {
+    os << "# lmalign simulate --scene street --windows " << a.windows << " --seed " << a.seed
+       << ": true T_world_map (m)\nmaps:\n";
+    for (std::size_t i = 0; i < w.maps.size(); ++i) {
+      os << "  " << names[i] << ": " << yaml_rows(w.T_world_map[i].matrix()) << "\n";
+    }
+  });
+  // The manifest last: its presence marks a complete scene.
+  write_file_atomically((dir / "manifest.yaml").string(), [&](std::ostream& os) {
+    os << "# lmalign simulate --scene street --windows " << a.windows << " --seed " << a.seed
+       << " (docs/merge.md): no priors\nmaps:\n";
+    for (const std::string& n : names)
+      os << "  - name: " << n << "\n    path: maps/" << n << ".txt\n";
+  });
+  std::cout << "simulated street, seed " << a.seed << ": " << w.maps.size() << " windows of "
+            << o.window_frames << " keyframes (" << std::llround(o.overlap * o.window_frames)
+            << " shared with the next), " << o.num_landmarks
+            << " landmarks each\n  wrote: " << (dir / "manifest.yaml").string() << ", "
+            << (dir / "ground_truth.yaml").string() << ", " << (dir / "maps").string() << "/\n";
+  return 0;
+}
+
 int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
   if (a.scene == "fleet") return run_simulate_fleet(a);
   const bool overlap_given = cmd.count("--overlap") > 0;
+  if (a.scene != "street" && (cmd.count("--windows") > 0 || cmd.count("--frames") > 0)) {
+    throw InvalidArgument("--windows and --frames only apply to --scene street");
+  }
+  if (a.scene == "street" && cmd.count("--windows") > 0) {
+    return run_simulate_street_windows(a, overlap_given);
+  }
   const std::vector<double> t = parse_number_list("--transform", a.transform, 6,
                                                   "x,y,z,roll,pitch,yaw (m, m, m, deg, deg, deg)");
   const Isometry3 T_target_source = pose_from_xyz_rpy_deg(t[0], t[1], t[2], t[3], t[4], t[5]);
@@ -159,8 +231,10 @@ int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
       throw InvalidArgument("--transform " + a.transform + ": " + why);
     }
     pair = sim::simulate_map_pair(o);
+  } else if (a.scene == "street") {
+    pair = sim::simulate_street_pair(street_options(a, overlap_given, T_target_source));
   } else {
-    throw InvalidArgument("--scene '" + a.scene + "': expected road, corridor or fleet");
+    throw InvalidArgument("--scene '" + a.scene + "': expected road, street, corridor or fleet");
   }
 
   std::error_code ec;
@@ -189,12 +263,18 @@ CommandRunner add_simulate_command(CLI::App& root) {
       "source.txt, target.txt (method.md section 1 format) and T_target_source.txt (4x4).\n"
       "--scene road: a forward-moving KITTI-like stereo camera on a road (facades, a repetitive\n"
       "ground, range-squared depth noise; include/lmalign/sim/road_sim.hpp); consecutive windows,\n"
-      "--overlap in [0, 0.5] (default 0.2). --scene corridor: the indoor RGB-D corridor of\n"
-      "slam_sim.hpp, --overlap in (0, 1] (default 0.8). --scene fleet: --maps N mini-maps of one\n"
+      "--overlap in [0, 0.5] (default 0.2): periodic facades and ground, the aliasing case.\n"
+      "--scene street: aperiodic streets (buildings of random widths and setbacks, trees, poles,\n"
+      "parked cars, gaps, curves and turns; street_sim.hpp) seen by a KITTI-like stereo rig,\n"
+      "windows of --frames keyframes about 1 m apart sharing --overlap of them (default 0.25,\n"
+      "at most 0.75); --windows N writes N windows for lmalign merge instead of a pair\n"
+      "(DIR/maps/w*.txt, DIR/manifest.yaml without priors, DIR/ground_truth.yaml).\n"
+      "--scene corridor: the indoor RGB-D corridor of slam_sim.hpp, --overlap in (0, 1]\n"
+      "(default 0.8). --scene fleet: --maps N mini-maps of one\n"
       "world (fleet_sim.hpp) in random frames, with look-alike pairs planted (--twins), written\n"
       "as DIR/maps/*.txt, DIR/manifest.yaml (for lmalign merge; --prior-sigma adds noisy priors),\n"
       "DIR/ground_truth.yaml (merge --ground-truth) and DIR/overlaps.csv. Same seed, same files.");
-  cmd->add_option("--scene", args->scene, "road, corridor or fleet")->capture_default_str();
+  cmd->add_option("--scene", args->scene, "road, street, corridor or fleet")->capture_default_str();
   cmd->add_option("--seed", args->seed, "seed of every draw")->capture_default_str();
   cmd->add_option("--overlap", args->overlap, "fraction of the source stretch the target also maps")
       ->type_name("F");
@@ -204,6 +284,12 @@ CommandRunner add_simulate_command(CLI::App& root) {
                   "true T_target_source as x,y,z,roll,pitch,yaw (m, deg; R = Rz Ry Rx)")
       ->capture_default_str()
       ->type_name("X,Y,Z,R,P,Y");
+  cmd->add_option("--frames", args->frames, "street: keyframes per window (about 1 m apart)")
+      ->capture_default_str();
+  cmd->add_option("--windows", args->windows,
+                  "street: write this many consecutive windows with a manifest (>= 2) instead of "
+                  "a pair")
+      ->type_name("N");
   cmd->add_option("--maps", args->maps, "fleet: number of mini-maps")->capture_default_str();
   cmd->add_option("--twins", args->twins, "fleet: look-alike map pairs planted")
       ->capture_default_str();

@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "draws.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 
@@ -29,20 +30,9 @@ constexpr double kTextureStepM = 1.5;     // regular ground texture
 constexpr double kTextureJitterM = 0.15;  // per texture node, per axis
 constexpr double kWindowJitterM = 0.10;   // per window corner, per axis
 
-std::uint64_t mix(std::uint64_t x) {  // splitmix64 finaliser
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
-
-double uniform01(std::mt19937_64& rng) { return static_cast<double>(rng() >> 11) * 0x1.0p-53; }
-
-double gauss(std::mt19937_64& rng) {       // Box-Muller, one value per call
-  const double u1 = 1.0 - uniform01(rng);  // (0, 1]
-  const double u2 = uniform01(rng);
-  return std::sqrt(-2.0 * std::log(u1)) * std::cos(2.0 * M_PI * u2);
-}
+using detail::gauss;
+using detail::mix;
+using detail::uniform01;
 
 Isometry3 keyframe_pose(double z) {
   const double x = kLaneX + 0.3 * std::sin(0.05 * z);

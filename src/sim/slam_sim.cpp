@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "draws.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/camera.hpp"
@@ -28,12 +29,7 @@ struct Patch {
   double area_m2;
 };
 
-std::uint64_t mix(std::uint64_t x) {  // splitmix64 finaliser
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
-}
+using detail::mix;
 
 Patch patch(const Vec3& o, const Vec3& u, const Vec3& v) { return {o, u, v, u.cross(v).norm()}; }
 
