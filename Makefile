@@ -108,8 +108,10 @@ bench: build
 
 # `make bench-accuracy`: the multi-dataset accuracy benchmark (bench/accuracy.yaml; issue 18):
 # every strategy on the desk pair, re-triangulated desk windows, the KITTI stereo pairs and
-# simulated roads, from the 39 protocol displacements and 100 seeded random starts each. Writes
-# $(BUILD_DIR)/bench-accuracy/ (accuracy.csv, accuracy.json, plots/) and bench/results/accuracy.json.
+# windows of the whole drive, simulated streets and periodic roads, from the 39 protocol
+# displacements and 100 seeded random starts each; for the default also its search regret, the
+# basin of its refinement and its time. Writes $(BUILD_DIR)/bench-accuracy/ (accuracy.csv,
+# default.csv, accuracy.json, plots/) and bench/results/accuracy.json.
 # ACCURACY_ARGS=--quick runs a fraction; --strategies a,b and --datasets x,y select
 # (docs/accuracy.md, "Multi-dataset benchmark").
 ACCURACY_ARGS ?=

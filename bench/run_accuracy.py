@@ -14,10 +14,15 @@ runs' results.csv it reports, per dataset and strategy: right-basin success (pro
 the median rotation and translation errors of the successes, the trust verdict's precision and
 recall (trustworthy against right basin), the mean and median NEES of the right-basin results
 (their reported 6x6 covariance against the truth; 6 when calibrated), and the time per alignment
-(median, max) with the landmark counts. Output in --output (default build/bench-accuracy): accuracy.csv, accuracy.json,
-accuracy.md (the tables as Markdown), plots/<dataset>.png (success against start offset, random starts, one line per strategy), and per
-dataset its maps, configs and experiment folders. A full run (no --quick, every dataset and every
-configured strategy) also writes bench/results/accuracy.json.
+(median, max) with the landmark counts. For the default strategy (`lmalign align` without
+--strategy; bench/accuracy_default.py) it adds, per dataset, the search regret of every start
+(the score refined from the truth minus the score of the answer), the basin of its refinement
+alone along each axis and in yaw, and its time per alignment (--no-regret, --no-basin skip them).
+Output in --output (default build/bench-accuracy): accuracy.csv, default.csv, accuracy.json,
+accuracy.md (the tables as Markdown), plots/<dataset>.png (success against start offset, random
+starts, one line per strategy), and per dataset its maps, configs and experiment folders. A full
+run (no --quick, every dataset and every configured strategy) also writes
+bench/results/accuracy.json.
 """
 import argparse
 import csv
@@ -32,6 +37,8 @@ import sys
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+import accuracy_default  # noqa: E402
 DEFAULT_CONFIG = os.path.join(ROOT, "bench", "accuracy.yaml")
 RESULTS_JSON = os.path.join(ROOT, "bench", "results", "accuracy.json")
 
@@ -114,6 +121,11 @@ def load_config(path, data_dir):
         for k, v in cfg["kinds"][kind].items():
             d.setdefault(k, v)
         d.setdefault("up_axis", "z")
+        prior = d.get("basin_prior_sigma", [1.0, 0.05])
+        if (not isinstance(prior, list) or len(prior) != 2 or
+                not all(isinstance(v, (int, float)) and v > 0 for v in prior)):
+            raise BenchError("%s.basin_prior_sigma: expected [ROT_DEG, TRANS_M], both > 0" % where)
+        d["basin_prior_sigma"] = [float(v) for v in prior]
         if d["up_axis"] not in ("x", "y", "z"):
             raise BenchError("%s.up_axis: expected x, y or z" % where)
         sources = [k for k in ("source", "split", "simulate") if k in d]
@@ -132,10 +144,21 @@ def load_config(path, data_dir):
                 if k not in s:
                     raise BenchError("%s.split: missing key '%s'" % (where, k))
             s["map"] = expand_data(s["map"], data_dir, where + ".split.map")
+            if "intrinsics" in s and not re.fullmatch(r"[0-9.eE+-]+(,[0-9.eE+-]+){3}",
+                                                      str(s["intrinsics"])):
+                raise BenchError("%s.split.intrinsics: expected FX,FY,CX,CY (pixels)" % where)
         else:
             s = d["simulate"]
-            if s.get("scene") not in ("road", "corridor"):
-                raise BenchError("%s.simulate.scene: expected road or corridor" % where)
+            if s.get("scene") not in ("road", "street", "corridor"):
+                raise BenchError("%s.simulate.scene: expected road, street or corridor" % where)
+            if "frames" in s and s["scene"] != "street":
+                raise BenchError("%s.simulate.frames: only for scene street" % where)
+    dflt = cfg.setdefault("default", {})
+    prior = dflt.setdefault("truth_prior_sigma", [0.05, 0.005])
+    if (not isinstance(prior, list) or len(prior) != 2 or
+            not all(isinstance(v, (int, float)) and v > 0 for v in prior)):
+        raise BenchError("%s: default.truth_prior_sigma: expected [ROT_DEG, TRANS_M], both > 0"
+                         % path)
     return cfg
 
 
@@ -189,17 +212,22 @@ def prepare_maps(lmalign, d, folder, log):
         for role in ("source", "target"):
             path = os.path.join(folder, role + ".txt")
             if not os.path.isfile(path):
-                run_command([lmalign, "split", s["map"], "--frames", str(s[role + "_frames"]),
-                             "--retriangulate", "--min-parallax",
-                             str(s.get("min_parallax_deg", 2)), "-o", path], log)
+                cmd = [lmalign, "split", s["map"], "--frames", str(s[role + "_frames"]),
+                       "--retriangulate", "--min-parallax", str(s.get("min_parallax_deg", 2))]
+                if "intrinsics" in s:
+                    cmd += ["--intrinsics", str(s["intrinsics"])]
+                run_command(cmd + ["-o", path], log)
             out.append(path)
         return out[0], out[1], d.get("truth", "identity")
     s = d["simulate"]
     truth = os.path.join(folder, "T_target_source.txt")
     if not os.path.isfile(truth):  # written last by lmalign simulate
-        run_command([lmalign, "simulate", "--scene", s["scene"], "--seed", str(s.get("seed", 1)),
-                     "--overlap", str(s.get("overlap", 0.2)),
-                     "--landmarks", str(s.get("landmarks", 3000)), "-o", folder], log)
+        cmd = [lmalign, "simulate", "--scene", s["scene"], "--seed", str(s.get("seed", 1)),
+               "--overlap", str(s.get("overlap", 0.2)),
+               "--landmarks", str(s.get("landmarks", 3000))]
+        if "frames" in s:
+            cmd += ["--frames", str(s["frames"])]
+        run_command(cmd + ["-o", folder], log)
     return os.path.join(folder, "source.txt"), os.path.join(folder, "target.txt"), truth
 
 
@@ -417,10 +445,10 @@ def csv_rows(report):
     return out
 
 
-def write_csv(path, rows):
+def write_csv(path, rows, columns=None):
     tmp = path + ".tmp"
     with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=CSV_COLUMNS)
+        w = csv.DictWriter(f, fieldnames=columns or CSV_COLUMNS)
         w.writeheader()
         for r in rows:
             w.writerow({k: ("" if v is None else (round(v, 6) if isinstance(v, float) else v))
@@ -475,6 +503,7 @@ def markdown_tables(report):
                 _num(m["trust_precision"], "%.2f"), _num(m["trust_recall"], "%.2f"),
                 _num(m["median_time_s"], "%.3f"), _num(m["max_time_s"], "%.2f"),
                 _num(m["mean_nees"], "%.3g"), _num(m["median_nees"], "%.3g")))
+    lines += default_markdown(report)
     return "\n".join(lines) + "\n"
 
 
@@ -520,6 +549,142 @@ def plot_dataset(path, name, rep):
     os.replace(tmp, path)
 
 
+# --------------------------------------------------------------------------- the default
+
+def default_report(lmalign, d, source, target, truth, rows, folder, log, spec, a):
+    """The default strategy's regret, basin and time on dataset d (bench/accuracy_default.py)."""
+    aligner = accuracy_default.Aligner(lmalign, source, target, truth,
+                                       (float(d["rotation_deg"]), float(d["translation_m"])),
+                                       os.path.join(folder, "default"), log)
+    try:
+        out = {}
+        if not a.no_regret:
+            out = accuracy_default.regret_report(aligner, rows, spec["truth_prior_sigma"])
+        if not a.no_basin:
+            out["basin"] = accuracy_default.basin_report(
+                aligner, d, source, target, d["basin_prior_sigma"], 2 if a.quick else 4,
+                a.threads)
+    except accuracy_default.DefaultError as e:
+        raise BenchError("dataset %s: %s" % (d["name"], e))
+    return out
+
+
+def default_line(dflt):
+    """One line of the default's numbers for the progress output."""
+    parts = []
+    if "starts" in dflt:
+        parts.append("%s: right basin %s, regret %s" % (
+            dflt["strategy"], _pct(dflt["right_basin_rate"]),
+            "-" if not dflt.get("regret") else "max %.3g (%.1f%%), %s of starts > 1%%" % (
+                dflt["regret"]["max"], 100 * dflt["regret"]["max_relative"],
+                _pct(dflt["regret"]["fraction_above_tolerance"]))))
+    b = dflt.get("basin")
+    if b and b.get("directions"):
+        parts.append("basin " + ", ".join("%s %s" % (k, _basin_cell(v))
+                                          for k, v in b["directions"].items()))
+    return "; ".join(parts)
+
+
+def _basin_cell(v):
+    """'-a / +b' of a basin direction, '>=' where the search limit was reached."""
+    def one(sign):
+        return "%s%.3g" % (">=" if v.get("at_limit" + sign) else "", v[sign])
+    return "-%s / +%s" % (one("-"), one("+"))
+
+
+DEFAULT_COLUMNS = ["dataset", "kind", "source_landmarks", "target_landmarks", "strategy",
+                   "starts", "right_basin_rate", "trust_precision", "trust_recall",
+                   "truth_gated_score", "truth_rotation_error_deg", "truth_translation_error_m",
+                   "truth_trustworthy", "regret_max", "regret_median", "regret_max_relative",
+                   "fraction_regret_above_1pct", "search_failures", "score_failures",
+                   "median_time_s", "max_time_s", "basin_prior_rotation_deg",
+                   "basin_prior_translation_m"] + [
+    "basin_%s_%s" % (k, s) for k in ("x_m", "y_m", "z_m", "forward_m", "yaw_deg")
+    for s in ("minus", "plus")]
+
+
+def default_csv_rows(report):
+    out = []
+    for name, rep in report["datasets"].items():
+        dflt = rep.get("default")
+        if not dflt:
+            continue
+        lm = rep["landmarks"] or {"source": None, "target": None}
+        tr = dflt.get("truth_refined") or {}
+        rg = dflt.get("regret") or {}
+        b = dflt.get("basin") or {}
+        prior = b.get("prior_sigma") or [None, None]
+        row = {"dataset": name, "kind": rep["kind"], "source_landmarks": lm["source"],
+               "target_landmarks": lm["target"], "strategy": dflt.get("strategy"),
+               "starts": dflt.get("starts"), "right_basin_rate": dflt.get("right_basin_rate"),
+               "trust_precision": dflt.get("trust_precision"),
+               "trust_recall": dflt.get("trust_recall"),
+               "truth_gated_score": tr.get("gated_score"),
+               "truth_rotation_error_deg": tr.get("rotation_error_deg"),
+               "truth_translation_error_m": tr.get("translation_error_m"),
+               "truth_trustworthy": tr.get("trustworthy"),
+               "regret_max": rg.get("max"), "regret_median": rg.get("median"),
+               "regret_max_relative": rg.get("max_relative"),
+               "fraction_regret_above_1pct": rg.get("fraction_above_tolerance"),
+               "search_failures": rg.get("search_failures"),
+               "score_failures": rg.get("score_failures"),
+               "median_time_s": dflt.get("median_time_s"), "max_time_s": dflt.get("max_time_s"),
+               "basin_prior_rotation_deg": prior[0], "basin_prior_translation_m": prior[1]}
+        for k, v in (b.get("directions") or {}).items():
+            row["basin_%s_minus" % k] = v["-"]
+            row["basin_%s_plus" % k] = v["+"]
+        out.append(row)
+    return out
+
+
+def default_markdown(report):
+    """The default's table: right basin, trust, regret, time and basin per dataset."""
+    rows = [(n, r) for n, r in report["datasets"].items() if r.get("default")]
+    if not rows:
+        return []
+    strategy = next((r["default"].get("strategy") for _, r in rows
+                     if r["default"].get("strategy")), "the default")
+    lines = ["", "The default (%s, `lmalign align` without --strategy), from the same starts: "
+             "right basin, trust precision / recall, the covariance-gated score refined from "
+             "the truth, the search regret (that score minus the answer's: max, and the share of "
+             "starts above 1%% of it; search failures = wrong basin with regret > 1%%, score "
+             "failures = wrong basin, regret <= 1%%), time per alignment:" % strategy, "",
+             "| dataset | landmarks | right basin | trust P / R | truth score | regret max "
+             "| starts > 1% | search / score failures | time median / max (s) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for n, rep in rows:
+        dflt = rep["default"]
+        if "starts" not in dflt:
+            continue
+        lm = rep["landmarks"] or {"source": "?", "target": "?"}
+        rg = dflt.get("regret")
+        tr = dflt.get("truth_refined") or {}
+        lines.append("| %s | %s / %s | %s | %s / %s | %s | %s | %s | %s | %s / %s |" % (
+            n, lm["source"], lm["target"], _pct(dflt["right_basin_rate"]),
+            _num(dflt["trust_precision"], "%.2f"), _num(dflt["trust_recall"], "%.2f"),
+            _num(tr.get("gated_score"), "%.4g"),
+            "–" if not rg else "%.4g (%.1f%%)" % (rg["max"], 100 * rg["max_relative"]),
+            "–" if not rg else _pct(rg["fraction_above_tolerance"]),
+            "–" if not rg else "%d / %d" % (rg["search_failures"], rg["score_failures"]),
+            _num(dflt["median_time_s"], "%.3f"), _num(dflt["max_time_s"], "%.2f")))
+    basins = [(n, rep["default"]["basin"]) for n, rep in rows if rep["default"].get("basin")]
+    if basins:
+        lines += ["", "Basin of the default's refinement alone (`--initial-guess` at an offset "
+                  "from the truth, `--prior-sigma` as given, initialisation \"given\"): the "
+                  "largest offset, each sign, that still ends in the right basin (m, deg; >= : "
+                  "the search's limit):", "",
+                  "| dataset | prior (deg, m) | x | y | z | forward | yaw |",
+                  "|---|---|---|---|---|---|---|"]
+        for n, b in basins:
+            dirs = b.get("directions") or {}
+            prior = b.get("prior_sigma")
+            lines.append("| %s | %s | %s |" % (
+                n, "–" if not prior else "%g, %g" % tuple(prior),
+                " | ".join(_basin_cell(dirs[k]) if k in dirs else "–"
+                           for k in ("x_m", "y_m", "z_m", "forward_m", "yaw_deg"))))
+    return lines
+
+
 # --------------------------------------------------------------------------- main
 
 def parse_args(argv):
@@ -536,6 +701,10 @@ def parse_args(argv):
     p.add_argument("--samples", type=int, help="random starts per dataset (default: config's)")
     p.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--no-regret", action="store_true",
+                   help="skip the default's search regret (and its own alignment per start)")
+    p.add_argument("--no-basin", action="store_true",
+                   help="skip the default's refinement basin (bisection along each axis)")
     return p.parse_args(argv)
 
 
@@ -593,6 +762,9 @@ def main(argv=None):
         if counts:
             write_json(os.path.join(folder, "landmarks.json"), list(counts))
         rep = dataset_report(d, rows, ref_rows, counts, strategies)
+        if not (a.no_regret and a.no_basin):
+            rep["default"] = default_report(lmalign, d, source, target, truth, rows, folder, log,
+                                            cfg["default"], a)
         rep["wall_time_s"] = time.time() - t0
         report["datasets"][name] = rep
         if not a.no_plots:
@@ -600,14 +772,18 @@ def main(argv=None):
         print("%-16s %5.0f s  %s" % (name, rep["wall_time_s"], "  ".join(
             "%s %.0f%%" % (s, 100 * m["success_rate"]) for s, m in rep["strategies"].items()
             if m["success_rate"] is not None)), flush=True)
+        if rep.get("default"):
+            print("%-16s         %s" % ("", default_line(rep["default"])), flush=True)
     report["overall"] = overall_report(report["datasets"])
     report["wall_time_s"] = time.time() - started
     write_csv(os.path.join(out, "accuracy.csv"), csv_rows(report))
+    write_csv(os.path.join(out, "default.csv"), default_csv_rows(report), DEFAULT_COLUMNS)
     write_json(os.path.join(out, "accuracy.json"), report)
     write_text(os.path.join(out, "accuracy.md"), markdown_tables(report))
     if full:
         write_json(RESULTS_JSON, report)
-    print("accuracy benchmark: %s/accuracy.csv, accuracy.json, accuracy.md, plots/ (%.0f s)%s"
+    print("accuracy benchmark: %s/accuracy.csv, default.csv, accuracy.json, accuracy.md, plots/ "
+          "(%.0f s)%s"
           % (out, report["wall_time_s"], "; bench/results/accuracy.json" if full else ""))
     return 0
 

@@ -2,9 +2,11 @@
 """Tests of bench/run_accuracy.py's bookkeeping (no timing, no real alignment): the protocol's 39
 displacements, the config's checks, the metrics (success, medians of the successes, trust
 precision and recall, binned success), and a whole run with a stand-in `lmalign` that writes
-results.csv as the real one does. Run by ctest (tests/CMakeLists.txt)."""
+results.csv as the real one does, and `align --json` for the default's regret and basin. Run by
+ctest (tests/CMakeLists.txt)."""
 import csv
 import json
+import math
 import os
 import shutil
 import stat
@@ -14,14 +16,20 @@ import unittest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, "bench"))
+import accuracy_default  # noqa: E402
 import run_accuracy  # noqa: E402
 
 # A stand-in for the `lmalign` subcommands the driver calls. experiment: one row per case and
 # strategy, the case's offset in `value`; strategy "good" succeeds (error 1 deg, 2 cm, trusted),
 # "far" succeeds below an offset of 1 m only and is trusted always, "bad" never succeeds and is
-# never trusted. Every call is appended to CALLS.
+# never trusted. align (the default, bench/accuracy_default.py): from a --displace start with
+# x in (-0.8, 1) m it finds the truth (gated score 100); x >= 1: a wrong pose scoring 60 (a search
+# failure, regret 40); x <= -0.8: a wrong pose scoring 100.5 (a score failure). From an
+# --initial-guess (with --prior-sigma: initialisation "given" only if its rotation sigma is at
+# most 0.5 deg) it reaches the truth when the guess is within 2 m and 11 deg of it. Every call
+# is appended to CALLS.
 FAKE_LMALIGN = r'''#!/usr/bin/python3
-import json, os, sys, yaml
+import json, os, sys
 with open(os.environ["FAKE_CALLS"], "a") as f:
     f.write(json.dumps(sys.argv[1:]) + "\n")
 cmd = sys.argv[1]
@@ -36,6 +44,7 @@ elif cmd == "simulate":
     open(os.path.join(out, "T_target_source.txt"), "w").write(
         "1 0 0 0.5\n0 1 0 0\n0 0 1 0\n0 0 0 1\n")
 elif cmd == "experiment":
+    import yaml
     cfg_path = sys.argv[2]
     out = sys.argv[sys.argv.index("-o") + 1] if "-o" in sys.argv else sys.argv[sys.argv.index("--resume") + 1]
     cfg = yaml.safe_load(open(cfg_path))
@@ -52,12 +61,13 @@ elif cmd == "experiment":
         n = len(e["poses"]) if e["type"] == "poses" else e["samples"]
         for i in range(n):
             value = 0.0 if e["type"] == "poses" else e["translation_m"] * (i + 0.5) / n
+            x = e["poses"][i].get("x_m", 0.0) if e["type"] == "poses" else value
             for s in cfg["strategies"]:
                 ok = s == "good" or s == "base" or (s == "far" and value < 1.0)
                 trusted = s in ("good", "far")
                 rot, tr = (1.0, 0.02) if ok else (40.0, 3.0)
-                lines.append("%s,%d,c%d,,x,%g,0,0,0,0,0,0,%s,5,1,1,10,transform,%g,%g,%g,%s,ground_truth,%s"
-                             % (e["name"], case, i, value, s, 0.01 * (1 + i % 3), rot, tr,
+                lines.append("%s,%d,c%d,,x,%g,%r,0,0,0,0,0,%s,5,1,1,10,transform,%g,%g,%g,%s,ground_truth,%s"
+                             % (e["name"], case, i, value, x, s, 0.01 * (1 + i % 3), rot, tr,
                                 "true" if ok else "false", "true" if trusted else "false"))
             case += 1
     open(os.path.join(out, "results.csv"), "w").write("\n".join(lines) + "\n")
@@ -65,6 +75,30 @@ elif cmd == "experiment":
     open(os.path.join(out, "summary.json"), "w").write("{}")
     print("experiment %s" % cfg_path)
     print("  source %s (1200 landmarks), target %s (1300 landmarks)" % (cfg["source"], cfg["target"]))
+elif cmd == "align":
+    import math
+    arg = lambda name: sys.argv[sys.argv.index(name) + 1] if name in sys.argv else None
+    truth = arg("--ground-truth")
+    T = ([[float(v) for v in l.split()] for l in open(truth) if l.strip()]
+         if truth != "identity" else [[float(r == c) for c in range(4)] for r in range(4)])
+    r = {"strategy": "adaptive", "wall_time_s": 0.2}
+    if arg("--initial-guess"):
+        G = [[float(v) for v in l.split()] for l in open(arg("--initial-guess")) if l.strip()]
+        prior = [float(v) for v in arg("--prior-sigma").split(",")]
+        dt = math.sqrt(sum((G[i][3] - T[i][3]) ** 2 for i in range(3)))
+        trace = sum(G[i][k] * T[i][k] for i in range(3) for k in range(3))
+        angle = math.degrees(math.acos(max(-1.0, min(1.0, (trace - 1) / 2))))
+        ok = dt < 2.0 and angle < 11.0
+        r.update(initialisation="given" if prior[0] <= 0.5 else "prior",
+                 gated_score=100.0 if ok else 40.0)
+    else:
+        x = float(arg("--displace").split(",")[0])
+        ok = -0.8 < x < 1.0
+        r.update(initialisation="global",
+                 gated_score=100.0 if ok else (60.0 if x >= 1.0 else 100.5))
+    r.update(right_basin=ok, trustworthy=ok, rotation_error_deg=0.5 if ok else 90.0,
+             translation_error_m=0.01 if ok else 5.0, trust_reason="ok")
+    json.dump({"results": [r]}, open(arg("--json"), "w"))
 else:
     sys.exit(2)
 '''
@@ -160,6 +194,74 @@ class Metrics(unittest.TestCase):
                          [[2, 1], [0, 0], [0, 0], [0, 0], [2, 2]])
 
 
+class StubAligner:
+    """accuracy_default's Aligner without processes: right basin within `reach` of the truth
+    (translation m along x, or yaw deg), scores per displacement from `scores`."""
+
+    def __init__(self, reach_m=1.5, reach_deg=7.0, scores=None):
+        self.T_true = accuracy_default.identity4()
+        self.reach_m, self.reach_deg, self.scores = reach_m, reach_deg, scores or {}
+        self.calls = 0
+
+    def given(self, guess, prior):
+        self.calls += 1
+        dt = math.sqrt(sum(guess[i][3] ** 2 for i in range(3)))
+        angle = math.degrees(math.acos(max(-1.0, min(1.0, (guess[0][0] + guess[1][1]
+                                                           + guess[2][2] - 1) / 2))))
+        ok = dt < self.reach_m and angle < self.reach_deg
+        return {"right_basin": ok, "gated_score": 10.0, "initialisation": "given"}, prior
+
+    def run(self, displace=None, **_):
+        score, ok = self.scores[displace[0]]
+        return {"gated_score": score, "right_basin": ok, "trustworthy": ok, "wall_time_s": 1.0,
+                "strategy": "adaptive"}
+
+
+class DefaultMeasures(unittest.TestCase):
+    def test_basin_doubles_then_bisects_both_signs(self):
+        a = StubAligner(reach_m=1.5)
+        amount, at_limit = accuracy_default.measure_direction(
+            a, "translation", [1.0, 0.0, 0.0], -1.0, [1, 1], 0.25, 64.0, 5, [0, 0, 0])
+        # 0.25, 0.5, 1 ok, 2 fails; bisected 5 times in [1, 2]: 1.46875 <= 1.5.
+        self.assertFalse(at_limit)
+        self.assertAlmostEqual(amount, 1.46875)
+        self.assertEqual(a.calls, 4 + 5)
+        # Never failing: the limit itself, flagged.
+        amount, at_limit = accuracy_default.measure_direction(
+            StubAligner(reach_m=100), "translation", [0.0, 1.0, 0.0], 1.0, [1, 1], 0.25, 3.0, 5,
+            [0, 0, 0])
+        self.assertEqual((amount, at_limit), (3.0, True))
+        # Failing at the first step: 0 after bisecting [0, first].
+        amount, _ = accuracy_default.measure_direction(
+            StubAligner(reach_m=0.01), "translation", [0.0, 0.0, 1.0], 1.0, [1, 1], 0.25, 3.0, 2,
+            [0, 0, 0])
+        self.assertEqual(amount, 0.0)
+        # Yaw about a pivot: a rotation about the pivot moves the origin too (stub: within 1.5 m).
+        amount, _ = accuracy_default.measure_direction(
+            StubAligner(reach_m=1.5, reach_deg=90), "yaw", [0.0, 0.0, 1.0], 1.0, [1, 1], 1.0, 90.0,
+            6, [10.0, 0.0, 0.0])
+        # |origin moved| = 2 * 10 m * sin(yaw / 2) < 1.5 m: yaw < 8.6 deg.
+        self.assertLess(amount, 8.6)
+        self.assertGreater(amount, 8.0)
+
+    def test_regret_classifies_search_and_score_failures(self):
+        rows = [{"experiment": "p", "case": str(i), "value": "0", "x_m": str(float(i)),
+                 "y_m": "0", "z_m": "0", "roll_deg": "0", "pitch_deg": "0", "yaw_deg": "0",
+                 "strategy": s} for i in range(4) for s in ("a", "b")]  # 4 starts, 2 strategies
+        a = StubAligner(scores={0.0: (10.0, True), 1.0: (5.0, False), 2.0: (10.05, False),
+                                3.0: (12.0, False)})
+        rep = accuracy_default.regret_report(a, rows, [0.05, 0.005])
+        self.assertEqual(rep["starts"], 4)
+        g = rep["regret"]
+        self.assertEqual(g["search_failures"], 1)  # 5 < 10 by 50%
+        self.assertEqual(g["score_failures"], 2)   # 10.05 within 1%, 12 above the truth
+        self.assertAlmostEqual(g["max"], 5.0)
+        self.assertAlmostEqual(g["max_relative"], 0.5)
+        self.assertAlmostEqual(g["fraction_above_tolerance"], 0.25)
+        self.assertEqual(g["worst_start"]["gated_score"], 5.0)
+        self.assertAlmostEqual(rep["right_basin_rate"], 0.25)
+
+
 class Driver(unittest.TestCase):
     def setUp(self):
         self.tmp = tempfile.mkdtemp(prefix="lmalign_acc_")
@@ -187,9 +289,12 @@ class Driver(unittest.TestCase):
         run_accuracy.RESULTS_JSON = self.saved_results
         shutil.rmtree(self.tmp)
 
-    def run_driver(self, *extra):
+    def run_driver(self, *extra, default=False):
+        """The driver on the test config; the default's regret and basin (many fake alignments)
+        only when asked."""
+        flags = [] if default else ["--no-regret", "--no-basin"]
         return run_accuracy.main(["--config", self.config, "--lmalign", self.fake, "--output",
-                                  self.out, "--threads", "1"] + list(extra))
+                                  self.out, "--threads", "1"] + flags + list(extra))
 
     def calls_of(self, command):
         with open(self.calls) as f:
@@ -268,6 +373,56 @@ class Driver(unittest.TestCase):
         self.assertEqual(self.run_driver("--no-plots"), 0)
         self.assertEqual(len(self.calls_of("experiment")), n)
         self.assertEqual(len(self.calls_of("split")), 2)
+        self.assertEqual(self.calls_of("align"), [])  # --no-regret --no-basin
+
+    def test_default_regret_basin_time_and_cache(self):
+        self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
+                                         "--datasets", "files", default=True), 0)
+        with open(os.path.join(self.out, "accuracy.json")) as f:
+            rep = json.load(f)
+        with open(os.path.join(self.out, "accuracy.md")) as f:
+            md = f.read()
+        files = rep["datasets"]["files"]
+        # The regret of every start against the score refined from the truth.
+        dflt = files["default"]
+        self.assertEqual(dflt["strategy"], "adaptive")
+        self.assertEqual(dflt["starts"], 8 + 10)
+        self.assertEqual(dflt["truth_refined"]["gated_score"], 100.0)
+        self.assertEqual(dflt["truth_refined"]["prior_sigma"], [0.05, 0.005])
+        # Quick protocol (every 5th): x = 0, 0, 0.5, -0.9, 1.25, 0.5, -0.5, 0.5: one x >= 1, one
+        # x <= -0.8; random x = 3 (i + 0.5) / 10 >= 1: i = 3..9.
+        self.assertEqual(dflt["regret"]["search_failures"], 1 + 7)
+        self.assertEqual(dflt["regret"]["score_failures"], 1)
+        self.assertAlmostEqual(dflt["regret"]["max"], 40.0)
+        self.assertAlmostEqual(dflt["regret"]["max_relative"], 0.4)
+        self.assertAlmostEqual(dflt["regret"]["fraction_above_tolerance"], 8 / 18)
+        self.assertAlmostEqual(dflt["right_basin_rate"], 9 / 18)
+        self.assertEqual(dflt["trust_precision"], 1.0)
+        self.assertAlmostEqual(dflt["median_time_s"], 0.2)
+        # The basin: the prior halved until "given"; 2 m found as 1.82 (doubled from 0.02 m to
+        # 1.28, the 2 m limit fails, 2 bisections), 11 deg as 10 (8 ok, 16 and 12 fail).
+        basin = dflt["basin"]
+        self.assertEqual(basin["prior_sigma"], [0.5, 0.025])
+        self.assertEqual(sorted(basin["directions"]), ["x_m", "y_m", "yaw_deg", "z_m"])
+        for k in ["x_m", "y_m", "z_m"]:
+            self.assertAlmostEqual(basin["directions"][k]["+"], 1.82)
+            self.assertAlmostEqual(basin["directions"][k]["-"], 1.82)
+        self.assertAlmostEqual(basin["directions"]["yaw_deg"]["+"], 10.0)
+        self.assertAlmostEqual(basin["directions"]["yaw_deg"]["-"], 10.0)
+        with open(os.path.join(self.out, "default.csv")) as f:
+            drows = list(csv.DictReader(f))
+        self.assertEqual([r["dataset"] for r in drows], ["files"])
+        self.assertEqual(drows[0]["search_failures"], "8")
+        self.assertEqual(drows[0]["basin_yaw_deg_plus"], "10.0")
+        self.assertIn("| files | 1200 / 1300 | 50% | 1.00 / 1.00 | 100 | 40 (40.0%) | 44% "
+                      "| 8 / 1 | 0.200 / 0.20 |", md)
+        self.assertIn("| files | 0.5, 0.025 | -1.82 / +1.82 | -1.82 / +1.82 | -1.82 / +1.82 "
+                      "| – | -10 / +10 |", md)
+        # A second run reuses every alignment (cached by arguments and binary).
+        n_align = len(self.calls_of("align"))
+        self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
+                                         "--datasets", "files", default=True), 0)
+        self.assertEqual(len(self.calls_of("align")), n_align)
 
     def test_quick_and_selection(self):
         self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
@@ -301,6 +456,12 @@ class Driver(unittest.TestCase):
         with self.assertRaises(run_accuracy.BenchError) as e:
             run_accuracy.load_config(self.config, self.data)
         self.assertIn("used twice", str(e.exception))
+        with open(self.config, "w") as f:
+            f.write(CONFIG.replace("reference_max_distance_m: 0.25}",
+                                   "reference_max_distance_m: 0.25, basin_prior_sigma: [1, -2]}"))
+        with self.assertRaises(run_accuracy.BenchError) as e:
+            run_accuracy.load_config(self.config, self.data)
+        self.assertIn("datasets[2].basin_prior_sigma", str(e.exception))
 
 
 if __name__ == "__main__":
