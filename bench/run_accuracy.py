@@ -790,14 +790,10 @@ def main(argv=None):
 
 def truth_pose(path):
     """The 6 pose parameters (x, y, z m; roll, pitch, yaw deg; R = Rz Ry Rx) of a 4x4 file."""
-    rows = []
-    with open(path) as f:
-        for line in f:
-            line = line.split("#")[0].strip()
-            if line:
-                rows.append([float(v) for v in line.split()])
-    if len(rows) != 4 or any(len(r) != 4 for r in rows):
-        raise BenchError("%s: expected a 4x4 transform" % path)
+    try:
+        rows = accuracy_default.read_transform(path)
+    except accuracy_default.DefaultError as e:
+        raise BenchError(str(e))
     R = [r[:3] for r in rows[:3]]
     pitch = math.asin(max(-1.0, min(1.0, -R[2][0])))
     roll = math.atan2(R[2][1], R[2][2])
