@@ -132,11 +132,64 @@ std::optional<PixelView> make_pixel_view(const Isometry3& T_world_camera,
   PixelView view{T_world_camera, u_px, v_px, std::nullopt};
   if (!camera) return view;
   if (!camera->is_valid()) return std::nullopt;
-  const std::optional<Eigen::Vector2d> undistorted = camera->undistort_px(u_px, v_px);
-  if (!undistorted) return std::nullopt;
-  view.u_px = undistorted->x();
-  view.v_px = undistorted->y();
-  view.intrinsics = camera->pinhole();
+  if (static_cast<int>(camera->model) <= static_cast<int>(CameraModel::kOpenCv)) {
+    // The camera's own image plane: its undistorted pixel and pinhole part.
+    const std::optional<Eigen::Vector2d> undistorted = camera->undistort_px(u_px, v_px);
+    if (!undistorted) return std::nullopt;
+    view.u_px = undistorted->x();
+    view.v_px = undistorted->y();
+    view.intrinsics = camera->pinhole();
+    return view;
+  }
+  return make_bearing_view(T_world_camera, *camera, u_px, v_px);
+}
+
+std::optional<PixelView> make_bearing_view(const Isometry3& T_world_camera,
+                                           const CameraIntrinsics& camera, double u_px,
+                                           double v_px) {
+  if (!camera.is_valid()) return std::nullopt;
+  const std::optional<Vec3> bearing = camera.unproject(u_px, v_px);
+  if (!bearing) return std::nullopt;
+  const Vec3& b = *bearing;
+  // A tangent basis e1, e2 with e1 x e2 = b.
+  const Vec3 helper = std::abs(b.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  const Vec3 e1 = helper.cross(b).normalized();
+  const Vec3 e2 = b.cross(e1);
+  // A = d(tangent)/d(pixel) by central differences of the unprojection: the tangent coordinates
+  // of a nearby pixel's ray are its gnomonic projection onto the plane at b.
+  constexpr double kStepPx = 1e-3;
+  Eigen::Matrix2d A;
+  for (int c = 0; c < 2; ++c) {
+    const double du = c == 0 ? kStepPx : 0.0;
+    const double dv = c == 1 ? kStepPx : 0.0;
+    const std::optional<Vec3> plus = camera.unproject(u_px + du, v_px + dv);
+    const std::optional<Vec3> minus = camera.unproject(u_px - du, v_px - dv);
+    if (!plus || !minus || !(plus->dot(b) > 0.0) || !(minus->dot(b) > 0.0)) return std::nullopt;
+    const Eigen::Vector2d tp(plus->dot(e1) / plus->dot(b), plus->dot(e2) / plus->dot(b));
+    const Eigen::Vector2d tm(minus->dot(e1) / minus->dot(b), minus->dot(e2) / minus->dot(b));
+    A.col(c) = (tp - tm) / (2.0 * kStepPx);
+  }
+  // Pixel noise sigma I maps to the tangent covariance sigma^2 A A^T = sigma^2 U S^2 U^T: along
+  // the columns of U the tangent error has standard deviation sigma s_i, so a pinhole camera
+  // with those axes and focal lengths 1 / s_i turns it back into isotropic pixel noise.
+  const Eigen::JacobiSVD<Eigen::Matrix2d> svd(A, Eigen::ComputeFullU);
+  Eigen::Matrix2d U = svd.matrixU();
+  if (U.determinant() < 0.0) U.col(1) = -U.col(1);
+  const Eigen::Vector2d s = svd.singularValues();
+  if (!A.allFinite() || !(s(1) > 0.0) || !(s(0) < std::numeric_limits<double>::infinity())) {
+    return std::nullopt;
+  }
+  Mat3 R_camera_virtual;
+  R_camera_virtual.col(0) = U(0, 0) * e1 + U(1, 0) * e2;
+  R_camera_virtual.col(1) = U(0, 1) * e1 + U(1, 1) * e2;
+  R_camera_virtual.col(2) = b;
+  Isometry3 T_camera_virtual = Isometry3::Identity();
+  T_camera_virtual.linear() = R_camera_virtual;
+  PixelView view{T_world_camera * T_camera_virtual, 0.0, 0.0,
+                 PinholeIntrinsics{1.0 / s(0), 1.0 / s(1), 0.0, 0.0}};
+  if (!view.intrinsics->is_valid() || !view.T_world_camera.matrix().allFinite()) {
+    return std::nullopt;
+  }
   return view;
 }
 

@@ -247,7 +247,14 @@ TEST(ColmapText, HostileInputNamesFileLineAndExpectation) {
     std::string fragment;
   };
   const std::vector<Case> cases = {
-      {"cameras.txt", "1 FISHEYE 640 480 1 2 3\n", "cameras.txt:1", "unknown camera model"},
+      {"cameras.txt", "1 FISHEYE_624 640 480 1 2 3\n", "cameras.txt:1",
+       "unknown camera model 'FISHEYE_624' (known: SIMPLE_PINHOLE (0), PINHOLE (1), "},
+      {"cameras.txt", "1 FISHEYE_624 640 480 1 2 3\n", "cameras.txt:1",
+       "OPENCV_FISHEYE (5), FULL_OPENCV (6), FOV (7), SIMPLE_RADIAL_FISHEYE (8), RADIAL_FISHEYE "
+       "(9), THIN_PRISM_FISHEYE (10), RAD_TAN_THIN_PRISM_FISHEYE (11), SIMPLE_DIVISION (12), "
+       "DIVISION (13), SIMPLE_FISHEYE (14), FISHEYE (15), EUCM (16), EQUIRECTANGULAR (17))"},
+      {"cameras.txt", "1 FISHEYE 640 480 1 2 3\n", "cameras.txt:1",
+       "file ends where FISHEYE parameter 4 of 4 was expected"},
       {"cameras.txt", "1 PINHOLE 640 480 500 400 320\n", "cameras.txt:1", "file ends where"},
       {"cameras.txt", "1 PINHOLE 640 480 500 nan 320 240\n", "cameras.txt:1", "not a finite"},
       {"cameras.txt", "1 PINHOLE 640 480 500 400 320 240 7\n", "cameras.txt:1", "more than 4"},
@@ -610,10 +617,10 @@ std::string stella_bytes(const StellaSpoil& s) {
   w.str("cameras");
   w.map_header(1);
   w.str("c");
-  w.map_header(12);
-  const std::pair<const char*, double> values[] = {{"cx", 320},  {"cy", 240},  {"fx", 500},
-                                                   {"fy", 400},  {"k1", s.k1}, {"k2", 0},
-                                                   {"k3", s.k3}, {"p1", 0},    {"p2", 0}};
+  w.map_header(13);
+  const std::pair<const char*, double> values[] = {
+      {"cx", 320}, {"cy", 240},  {"fx", 500}, {"fy", 400}, {"k1", s.k1},
+      {"k2", 0},   {"k3", s.k3}, {"k4", 0},   {"p1", 0},   {"p2", 0}};
   for (const auto& [key, value] : values) {
     w.str(key);
     w.f64(value);
@@ -678,6 +685,25 @@ TEST(StellaVslam, OneKeyframeMapEveryNumber) {
   distorted.k1 = 0.1;
   EXPECT_EQ(read_stella_vslam_bytes(stella_bytes(distorted), "m.msg").frames[0].camera->model,
             CameraModel::kOpenCv);
+  // OpenCV's k3 makes it COLMAP's FULL_OPENCV (k4 = k5 = k6 = 0).
+  StellaSpoil k3;
+  k3.k3 = 0.01;
+  const Map full = read_stella_vslam_bytes(stella_bytes(k3), "m.msg");
+  EXPECT_EQ(full.frames[0].camera->model, CameraModel::kFullOpenCv);
+  EXPECT_EQ(full.frames[0].camera->params,
+            (std::vector<double>{500, 400, 320, 240, 0, 0, 0, 0, 0.01, 0, 0, 0}));
+  // stella_vslam's other models, in its own spelling and its YAML's.
+  for (const auto& [name, model] : std::vector<std::pair<std::string, CameraModel>>{
+           {"Fisheye", CameraModel::kOpenCvFisheye},
+           {"fisheye", CameraModel::kOpenCvFisheye},
+           {"Equirectangular", CameraModel::kEquirectangular},
+           {"equirectangular", CameraModel::kEquirectangular},
+           {"Perspective", CameraModel::kPinhole}}) {
+    StellaSpoil s;
+    s.model = name;
+    EXPECT_EQ(read_stella_vslam_bytes(stella_bytes(s), "m.msg").frames[0].camera->model, model)
+        << name;
+  }
 }
 
 TEST(StellaVslam, HostileInputNamesRecordFieldAndExpectation) {
@@ -686,10 +712,12 @@ TEST(StellaVslam, HostileInputNamesRecordFieldAndExpectation) {
     std::string fragment;
   };
   std::vector<Case> cases(6);
-  cases[0].spoil.model = "fisheye";
-  cases[0].fragment = "camera 'c'.model_type: unknown camera model 'fisheye'";
-  cases[1].spoil.k3 = 0.01;
-  cases[1].fragment = "camera 'c'.k3";
+  cases[0].spoil.model = "pinhole360";
+  cases[0].fragment =
+      "camera 'c'.model_type: unknown camera model 'pinhole360' (known: perspective, fisheye, "
+      "equirectangular, radial_division)";
+  cases[1].spoil.k1 = std::nan("");
+  cases[1].fragment = "camera 'c'.k1";
   cases[2].spoil.cam = "other";
   cases[2].fragment = "keyframe 3.cam: names no camera";
   cases[3].spoil.qw = 2.0;

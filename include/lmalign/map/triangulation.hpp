@@ -1,6 +1,7 @@
 // Re-estimating a landmark from pixel observations alone (method.md §6, `split --retriangulate`):
 // linear DLT triangulation, Gauss-Newton refinement of the reprojection error with the pinhole
-// intrinsics, and the covariance (J^T J)^-1 * sigma^2 from the final normal matrix.
+// intrinsics, and the covariance (J^T J)^-1 * sigma^2 from the final normal matrix. Cameras of
+// any model enter as views along their pixels' bearing vectors (make_pixel_view()).
 #pragma once
 
 #include <optional>
@@ -23,13 +24,34 @@ struct PixelView {
 };
 
 /// The view of a raw pixel seen by a camera with pose T_world_camera and, if given, its own
-/// intrinsics: the pixel is undistorted (CameraIntrinsics::undistort_px) and the view carries the
-/// camera's pinhole part. Without intrinsics the view is the raw pixel with no intrinsics of its
-/// own (TriangulationOptions::intrinsics apply). nullopt if the intrinsics are invalid or the
-/// undistortion does not converge.
+/// intrinsics (any model of camera_model.hpp). Every view is a pinhole camera looking along the
+/// pixel's ray, so that triangulate() serves every model with one code path:
+///   - no intrinsics: the raw pixel, with no intrinsics of its own (TriangulationOptions::
+///     intrinsics apply);
+///   - SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV: the camera itself, with the
+///     undistorted pixel (CameraIntrinsics::undistort_px) and the pinhole part: pixel noise is
+///     taken on the undistorted pixel, as for every map read before the other models existed;
+///   - every other model (fisheye, FOV, division, EUCM, FULL_OPENCV, equirectangular):
+///     make_bearing_view().
+/// nullopt if the intrinsics are invalid or the pixel has no ray (the undistortion does not
+/// converge, a pixel outside the model's domain).
 std::optional<PixelView> make_pixel_view(const Isometry3& T_world_camera,
                                          const std::optional<CameraIntrinsics>& camera, double u_px,
                                          double v_px);
+
+/// The view of a raw pixel from its bearing vector b (CameraIntrinsics::unproject): a virtual
+/// pinhole camera at the same centre whose optical axis is b, observing the pixel (0, 0). Its
+/// axes and focal lengths are the singular vectors and inverse singular values of
+/// A = d(tangent coordinates)/d(pixel), the model's local resolution measured by central
+/// differences (1e-3 px) of its unprojection, so that isotropic raw pixel noise sigma is
+/// isotropic noise sigma in the virtual pixels, to first order, whatever the distortion: the
+/// reprojection residual of triangulate() becomes the angular error of the ray, weighted by
+/// the model's pixels per radian in each direction. Rays up to 180 degrees from the camera's
+/// axis are served (fisheye and equirectangular cameras). nullopt if the intrinsics are invalid
+/// or the pixel or its neighbours have no ray.
+std::optional<PixelView> make_bearing_view(const Isometry3& T_world_camera,
+                                           const CameraIntrinsics& camera, double u_px,
+                                           double v_px);
 
 struct TriangulationOptions {
   PinholeIntrinsics intrinsics = PinholeIntrinsics::tum_fr1();

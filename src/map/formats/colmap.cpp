@@ -54,6 +54,12 @@ struct Model {
   std::unordered_map<long long, std::string> point_where;
 };
 
+/// A token without one trailing ',' (COLMAP text written with ", " separators).
+std::string_view strip_comma(std::string_view token) {
+  if (token.size() > 1 && token.back() == ',') token.remove_suffix(1);
+  return token;
+}
+
 std::string read_file(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw IoError("cannot open COLMAP file '" + path + "'");
@@ -153,13 +159,15 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
     std::string_view line;
     while (lines.next_record(line)) {
       TokenReader t(line, path, lines.line());
+      t.allow_trailing_comma(true);
       const Fail fail = [&t](const std::string& d) { t.fail(d); };
       const long long id = t.integer("CAMERA_ID", 0, kMaxId);
       const std::string_view model_name = t.next();
-      const std::optional<CameraModel> model = camera_model_from_name(std::string(model_name));
+      const std::optional<CameraModel> model =
+          camera_model_from_name(std::string(strip_comma(model_name)));
       if (!model) {
-        t.fail("unknown camera model " + quoted(model_name) +
-               " (expected SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV)");
+        t.fail("unknown camera model " + quoted(model_name) + " (known: " + camera_model_list() +
+               ")");
       }
       CameraIntrinsics k;
       k.model = *model;
@@ -182,6 +190,7 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
     std::string_view line;
     while (lines.next_record(line)) {
       TokenReader t(line, path, lines.line());
+      t.allow_trailing_comma(true);
       const Fail fail = [&t](const std::string& d) { t.fail(d); };
       const long long id = t.integer("IMAGE_ID", 0, kMaxId);
       double qt[7];
@@ -197,6 +206,7 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
                ": file ends where its POINTS2D line was expected (truncated?)");
       }
       TokenReader p(points_line, path, lines.line());
+      p.allow_trailing_comma(true);
       std::vector<Point2D> points;
       while (!p.at_end()) {
         const std::string what = "POINTS2D[" + std::to_string(points.size()) + "] ";
@@ -217,6 +227,7 @@ void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model
     std::string_view line;
     while (lines.next_record(line)) {
       TokenReader t(line, path, lines.line());
+      t.allow_trailing_comma(true);
       const Fail fail = [&t](const std::string& d) { t.fail(d); };
       Landmark landmark;
       landmark.id = t.integer("POINT3D_ID", 0, std::numeric_limits<long long>::max());
@@ -251,9 +262,7 @@ void read_binary(const ColmapFiles& files, const ColmapReadOptions& options, Mod
       const std::optional<CameraModel> model = camera_model_from_id(model_id);
       if (!model) {
         fail("camera " + std::to_string(id) + ": unknown camera model id " +
-             std::to_string(model_id) +
-             " (expected 0-4: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, "
-             "RADIAL, OPENCV)");
+             std::to_string(model_id) + " (known: " + camera_model_list() + ")");
       }
       CameraIntrinsics k;
       k.model = *model;

@@ -3,10 +3,12 @@
 #include "lmalign/map/formats/stella_vslam.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <unordered_map>
 #include <utility>
 #include <vector>
@@ -80,41 +82,113 @@ class Reader {
   std::string name_;
 };
 
-CameraIntrinsics read_camera(const Reader& r, const Json& camera, const std::string& where) {
+/// A camera of the map database: its model as stored (`raw`, the camera of `keypts`) and the
+/// camera of its undistorted keypoints (`undistorted`, the camera of `undist_keypts`): stella_vslam
+/// undistorts perspective, fisheye and radial-division keypoints onto the pinhole (fx, fy, cx,
+/// cy), and leaves equirectangular ones as they are.
+struct StellaCamera {
+  CameraIntrinsics raw;
+  CameraIntrinsics undistorted;
+  /// setup_type: Monocular -> false, Stereo / RGBD -> true; nullopt if absent or unknown.
+  std::optional<bool> metric;
+};
+
+/// stella_vslam's model names: model_type_to_string writes "Perspective", "Fisheye",
+/// "Equirectangular", "RadialDivision"; its YAML configs say "perspective", ... "radial_division".
+std::string model_key(std::string name) {
+  std::string out;
+  for (const char c : name) {
+    if (c != '_') out.push_back(static_cast<char>(std::tolower(static_cast<unsigned char>(c))));
+  }
+  return out;
+}
+
+StellaCamera read_camera(const Reader& r, const Json& camera, const std::string& where) {
   const Json& model = r.member(camera, "model_type", where);
-  if (!model.is_string() || model.get<std::string>() != "perspective") {
+  const std::string name = model.is_string() ? model.get<std::string>() : "";
+  const std::string key = model_key(name);
+  if (key != "perspective" && key != "fisheye" && key != "equirectangular" &&
+      key != "radialdivision") {
     r.fail(where + ".model_type",
            "unknown camera model " +
-               (model.is_string() ? formats_detail::quoted(model.get<std::string>())
-                                  : std::string(model.type_name())) +
-               " (expected perspective)");
+               (model.is_string() ? formats_detail::quoted(name) : std::string(model.type_name())) +
+               " (known: perspective, fisheye, equirectangular, radial_division)");
   }
-  CameraIntrinsics k;
+  StellaCamera out;
+  CameraIntrinsics& k = out.raw;
   k.width_px = r.integer(r.member(camera, "cols", where), where + ".cols");
   k.height_px = r.integer(r.member(camera, "rows", where), where + ".rows");
-  const double fx = r.number(camera, "fx", where);
-  const double fy = r.number(camera, "fy", where);
-  const double cx = r.number(camera, "cx", where);
-  const double cy = r.number(camera, "cy", where);
-  const double k1 = r.number(camera, "k1", where);
-  const double k2 = r.number(camera, "k2", where);
-  const double p1 = r.number(camera, "p1", where);
-  const double p2 = r.number(camera, "p2", where);
-  const double k3 = r.number(camera, "k3", where);
-  if (k3 != 0.0) {
-    r.fail(where + ".k3", "is " + std::to_string(k3) +
-                              "; only k3 = 0 is supported (COLMAP's OPENCV model has no k3)");
+  if (k.width_px < 0 || k.height_px < 0 || k.width_px > 1000000 || k.height_px > 1000000) {
+    r.fail(where, "image size " + std::to_string(k.width_px) + "x" + std::to_string(k.height_px) +
+                      " is outside [0, 1000000] px");
   }
-  if (k1 == 0.0 && k2 == 0.0 && p1 == 0.0 && p2 == 0.0) {
-    k.model = CameraModel::kPinhole;
-    k.params = {fx, fy, cx, cy};
+  if (key == "equirectangular") {
+    k.model = CameraModel::kEquirectangular;
+    k.params = {static_cast<double>(k.width_px), static_cast<double>(k.height_px)};
   } else {
-    k.model = CameraModel::kOpenCv;
-    k.params = {fx, fy, cx, cy, k1, k2, p1, p2};
+    const double fx = r.number(camera, "fx", where);
+    const double fy = r.number(camera, "fy", where);
+    const double cx = r.number(camera, "cx", where);
+    const double cy = r.number(camera, "cy", where);
+    if (key == "perspective") {
+      const double k1 = r.number(camera, "k1", where);
+      const double k2 = r.number(camera, "k2", where);
+      const double p1 = r.number(camera, "p1", where);
+      const double p2 = r.number(camera, "p2", where);
+      const double k3 = r.number(camera, "k3", where);
+      if (k3 != 0.0) {
+        k.model = CameraModel::kFullOpenCv;  // OpenCV's k3: FULL_OPENCV with k4 = k5 = k6 = 0
+        k.params = {fx, fy, cx, cy, k1, k2, p1, p2, k3, 0.0, 0.0, 0.0};
+      } else if (k1 == 0.0 && k2 == 0.0 && p1 == 0.0 && p2 == 0.0) {
+        k.model = CameraModel::kPinhole;
+        k.params = {fx, fy, cx, cy};
+      } else {
+        k.model = CameraModel::kOpenCv;
+        k.params = {fx, fy, cx, cy, k1, k2, p1, p2};
+      }
+    } else if (key == "fisheye") {
+      k.model = CameraModel::kOpenCvFisheye;  // cv::fisheye, as COLMAP's OPENCV_FISHEYE
+      k.params = {fx,
+                  fy,
+                  cx,
+                  cy,
+                  r.number(camera, "k1", where),
+                  r.number(camera, "k2", where),
+                  r.number(camera, "k3", where),
+                  r.number(camera, "k4", where)};
+    } else {
+      k.model = CameraModel::kDivision;  // x_u = x_d / (1 + k |x_d|^2), as COLMAP's DIVISION
+      k.params = {fx, fy, cx, cy, r.number(camera, "distortion", where)};
+    }
+    out.undistorted.model = CameraModel::kPinhole;
+    out.undistorted.params = {fx, fy, cx, cy};
   }
   std::string why;
   if (!k.is_valid(&why)) r.fail(where, why);
-  return k;
+  if (k.model == CameraModel::kEquirectangular) {
+    out.undistorted = k;
+  } else {
+    out.undistorted.width_px = k.width_px;
+    out.undistorted.height_px = k.height_px;
+  }
+  const auto setup = camera.find("setup_type");
+  if (setup != camera.end() && setup->is_string()) {
+    const std::string value = model_key(setup->get<std::string>());
+    if (value == "monocular") out.metric = false;
+    if (value == "stereo" || value == "rgbd") out.metric = true;
+  }
+  return out;
+}
+
+/// A keypoint's pixel: {pt: [x, y], ...} (stella_vslam's convert_keypoints_to_json) or [x, y]
+/// (some versions' undist_keypts).
+std::vector<double> keypoint_pixel(const Reader& r, const Json& keypoint,
+                                   const std::string& where) {
+  if (keypoint.is_array()) {
+    if (keypoint.size() != 2) r.fail(where, "expected [x, y] or {pt: [x, y]}");
+    return {r.number(keypoint[0], where + "[0]"), r.number(keypoint[1], where + "[1]")};
+  }
+  return r.numbers(keypoint, "pt", 2, where);
 }
 
 }  // namespace
@@ -136,7 +210,7 @@ Map read_stella_vslam_bytes(std::string_view bytes, const std::string& name) {
   const Reader r(name);
   const std::string top = "map database";
 
-  std::unordered_map<std::string, CameraIntrinsics> cameras;
+  std::unordered_map<std::string, StellaCamera> cameras;
   const Json& json_cameras = r.member(root, "cameras", top);
   if (!json_cameras.is_object()) r.fail("cameras", "expected a map of camera name -> camera");
   for (const auto& [camera_name, camera] : json_cameras.items()) {
@@ -188,17 +262,21 @@ Map read_stella_vslam_bytes(std::string_view bytes, const std::string& name) {
     frame.id = id;
     frame.q_world_camera = q_camera_world.conjugate();
     frame.p_world_camera = -(q_camera_world.conjugate() * Vec3(t[0], t[1], t[2]));
-    frame.camera = cameras.at(cam.get<std::string>());
+    // Raw keypoints (OpenVSLAM) where the keyframe has them, else the undistorted ones that
+    // stella_vslam writes alone; the frame's camera is the one of the pixels read.
+    const bool raw = keyframe->is_object() && keyframe->contains("keypts");
+    const char* keypts_key = raw ? "keypts" : "undist_keypts";
+    const StellaCamera& camera = cameras.at(cam.get<std::string>());
+    frame.camera = raw ? camera.raw : camera.undistorted;
     map.frames.push_back(frame);
 
-    const Json& keypts = r.member(*keyframe, "keypts", where);
+    const Json& keypts = r.member(*keyframe, keypts_key, where);
     const Json& lm_ids = r.member(*keyframe, "lm_ids", where);
     if (!keypts.is_array() || !lm_ids.is_array() || keypts.size() != lm_ids.size()) {
-      r.fail(where,
-             "expected arrays keypts and lm_ids of the same length (one landmark id per "
-             "keypoint), got " +
-                 std::to_string(keypts.is_array() ? keypts.size() : 0) + " and " +
-                 std::to_string(lm_ids.is_array() ? lm_ids.size() : 0));
+      r.fail(where, std::string("expected arrays ") + keypts_key +
+                        " and lm_ids of the same length (one landmark id per keypoint), got " +
+                        std::to_string(keypts.is_array() ? keypts.size() : 0) + " and " +
+                        std::to_string(lm_ids.is_array() ? lm_ids.size() : 0));
     }
     for (std::size_t i = 0; i < lm_ids.size(); ++i) {
       const std::string at = where + ".lm_ids[" + std::to_string(i) + "]";
@@ -208,7 +286,7 @@ Map read_stella_vslam_bytes(std::string_view bytes, const std::string& name) {
       if (it == landmark_at.end())
         r.fail(at, "names unknown landmark " + std::to_string(landmark_id));
       const std::vector<double> pt =
-          r.numbers(keypts[i], "pt", 2, where + ".keypts[" + std::to_string(i) + "]");
+          keypoint_pixel(r, keypts[i], where + "." + keypts_key + "[" + std::to_string(i) + "]");
       map.landmarks[it->second].observations.push_back({id, pt[0], pt[1]});
     }
   }

@@ -70,9 +70,13 @@ class TokenReader {
     return text_.substr(start, pos_ - start);
   }
 
+  /// Lets number() and integer() accept one trailing ',' on a token (COLMAP text files written
+  /// with ", " between fields, which COLMAP's own reader accepts).
+  void allow_trailing_comma(bool allow) { trailing_comma_ = allow; }
+
   /// A finite number named `what`; ParseError otherwise.
   double number(const std::string& what) {
-    const std::string_view token = require(what);
+    const std::string_view token = require_value(what);
     double value = 0.0;
     if (!parse_double(token, value)) fail(what + " is not a finite number: " + quoted(token));
     return value;
@@ -80,7 +84,7 @@ class TokenReader {
 
   /// An integer in [min, max] named `what`; ParseError otherwise.
   long long integer(const std::string& what, long long min, long long max) {
-    const std::string_view token = require(what);
+    const std::string_view token = require_value(what);
     long long value = 0;
     if (!parse_integer(token, value) || value < min || value > max) {
       fail(what + " is not an integer in [" + std::to_string(min) + ", " + std::to_string(max) +
@@ -120,11 +124,18 @@ class TokenReader {
     return token;
   }
 
+  std::string_view require_value(const std::string& what) {
+    std::string_view token = require(what);
+    if (trailing_comma_ && token.size() > 1 && token.back() == ',') token.remove_suffix(1);
+    return token;
+  }
+
   std::string_view text_;
   std::string name_;
   std::size_t pos_ = 0;
   std::size_t line_ = 1;
   std::size_t token_line_ = 1;
+  bool trailing_comma_ = false;
 };
 
 /// The lines of a whole text, numbered from 1, without their '\n' and one trailing '\r'.
