@@ -6,6 +6,9 @@
 #               again under ASan + UBSan in $(ASAN_BUILD_DIR) (make test-sanitize).
 #   make install  installs the library, headers, CMake/pkg-config package, CLI and Python package
 #               under PREFIX (default /usr/local; docs/packaging.md).
+#   make package  the same as a Debian package, $(BUILD_DIR)/lmalign_<version>_<arch>.deb, for
+#               `apt install ./lmalign_*.deb` (docs/packaging.md). Python alone: `pip install
+#               --no-build-isolation .` in a venv, or a wheel (docs/python.md).
 # Also: make bench (against PCL and Open3D), make bench-merge (the synthetic 200-map merge),
 # make bench-merge-real (configs/merge_desk.yaml, merge_kitti.yaml),
 # make test-sanitize (the sanitizer half alone),
@@ -32,6 +35,12 @@ DEB_PACKAGES += libpcl-dev libopen3d-dev libnanoflann-dev libbenchmark-dev
 # distributed for the merge's scale-out (docs/merge.md, "Scale-out on Dask").
 DEB_PACKAGES += pybind11-dev python3-dev python3-pytest python3-distributed
 
+# Installing the way users do (docs/python.md, docs/packaging.md): pip install . and the wheel
+# (setup.py drives CMake) in a venv, offline; the .deb of `make package` (CPack: dpkg-shlibdeps
+# from dpkg-dev, and file).
+DEB_PACKAGES += python3-venv python3-pip python3-setuptools python3-wheel python3-build \
+                dpkg-dev file
+
 # Robustness (docs/robustness.md): clang and its libFuzzer/sanitizer runtimes, and clang's
 # OpenMP, for `make fuzz`.
 DEB_PACKAGES += clang libclang-rt-14-dev libomp-dev
@@ -48,7 +57,7 @@ PYTHON ?= $(shell test -x /usr/bin/python3 && echo /usr/bin/python3 || echo pyth
 GT_PAIR := $(LMALIGN_DATA)/tum_fr1_desk/ground_truth_pair
 KITTI   := $(LMALIGN_DATA)/kitti_stereo_vo
 
-.PHONY: all deps configure build test demo clean install
+.PHONY: all deps configure build test demo clean install package
 
 all: build
 
@@ -182,5 +191,11 @@ PREFIX ?= /usr/local
 install: build
 	cmake --install $(BUILD_DIR) --prefix $(PREFIX)
 
+# `make package`: what `make install` installs, under /usr, as the Debian package
+# $(BUILD_DIR)/lmalign_<version>_<arch>.deb (CPack; cmake/lmalign_cpack.cmake). Its dependencies
+# are Debian's package names. `apt install ./$(BUILD_DIR)/lmalign_*.deb`, `apt remove lmalign`.
+package: build
+	cd $(BUILD_DIR) && cpack -G DEB
+
 clean:
-	rm -rf $(BUILD_DIR) $(ASAN_BUILD_DIR) $(FUZZ_BUILD_DIR)
+	rm -rf $(BUILD_DIR) $(ASAN_BUILD_DIR) $(FUZZ_BUILD_DIR) build-pip

@@ -1,8 +1,9 @@
 # ctest: the installed package works for a project outside this build (docs/packaging.md).
-#   cmake -DBUILD_DIR=... -DWORK_DIR=... -DCONSUMER_DIR=... [-DPYTHON=... -DPYTHON_DIR=...]
-#         -P run_package_test.cmake
+#   cmake -DBUILD_DIR=... -DWORK_DIR=... -DCONSUMER_DIR=... -DVERSION=...
+#         [-DPYTHON=... -DPYTHON_DIR=...] -P run_package_test.cmake
 # 1. installs BUILD_DIR into the fresh prefix WORK_DIR/prefix (cmake --install --prefix);
-# 2. configures and builds CONSUMER_DIR against it (find_package(lmalign CONFIG) and pkg-config);
+# 2. configures and builds CONSUMER_DIR against it (find_package(lmalign VERSION CONFIG) and
+#    pkg-config, both of which must report VERSION, the project's);
 # 3. runs both executables (each recovers a known transform), a user of the merge component
 #    when it is built, and, when PCL is found, a user of
 #    the pcl component (find_package(lmalign COMPONENTS pcl), lmalign::pcl);
@@ -11,6 +12,7 @@ function(run)
   execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
                   WORKING_DIRECTORY ${WORK_DIR})
   message(STATUS "$ ${ARGN}\n${out}${err}")
+  set(out "${out}" PARENT_SCOPE)
   if(NOT rc EQUAL 0)
     message(FATAL_ERROR "package test: failed (exit ${rc}): ${ARGN}")
   endif()
@@ -28,7 +30,8 @@ foreach(f lib/cmake/lmalign/lmalignConfig.cmake lib/cmake/lmalign/lmalignConfigV
 endforeach()
 set(ENV{PKG_CONFIG_PATH} ${prefix}/lib/pkgconfig)
 run(${CMAKE_COMMAND} -S ${CONSUMER_DIR} -B ${WORK_DIR}/consumer-build -DCMAKE_BUILD_TYPE=Release
-    -DCMAKE_PREFIX_PATH=${prefix})
+    -DCMAKE_PREFIX_PATH=${prefix} -DLMALIGN_REQUEST_VERSION=${VERSION}
+    -DLMALIGN_EXPECT_CONFIG_DIR=${prefix}/lib/cmake/lmalign)
 run(${CMAKE_COMMAND} --build ${WORK_DIR}/consumer-build -j 2)
 run(${WORK_DIR}/consumer-build/consumer_cmake)
 run(${WORK_DIR}/consumer-build/consumer_pkgconfig)
@@ -46,6 +49,9 @@ else()
   message(STATUS "package test: lmalign::merge not built: the merge component is not tested")
 endif()
 run(${prefix}/bin/lmalign --version)
+if(NOT out STREQUAL "lmalign ${VERSION}\n")
+  message(FATAL_ERROR "package test: lmalign --version says '${out}', the project is ${VERSION}")
+endif()
 if(PYTHON)
   set(ENV{PYTHONPATH} ${prefix}/${PYTHON_DIR})
   run(${PYTHON} ${CMAKE_CURRENT_LIST_DIR}/check_installed_python.py ${prefix})
