@@ -20,27 +20,12 @@ import shutil
 import subprocess
 import sys
 import tempfile
-import time
+
+from commands import check_call, run
 
 HERE = pathlib.Path(__file__).resolve().parent
 SKIP = 77
 PYTHON = "/usr/bin/python3"
-
-
-def run(command, **kwargs):
-    print("$", " ".join(map(str, command)), flush=True)
-    start = time.monotonic()
-    done = subprocess.run([str(c) for c in command], **kwargs)
-    print("  (%.1f s, exit %d)" % (time.monotonic() - start, done.returncode), flush=True)
-    return done
-
-
-def check_call(command, **kwargs):
-    done = run(command, **kwargs)
-    if done.returncode != 0:
-        raise SystemExit("deb package test: failed (exit %d): %s"
-                         % (done.returncode, " ".join(map(str, command))))
-    return done
 
 
 def output(command):

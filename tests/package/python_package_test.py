@@ -26,27 +26,12 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
-import time
 import zipfile
+
+from commands import check_call, run
 
 HERE = pathlib.Path(__file__).resolve().parent
 SKIP = 77
-
-
-def run(command, **kwargs):
-    print("$", " ".join(map(str, command)), flush=True)
-    start = time.monotonic()
-    done = subprocess.run([str(c) for c in command], **kwargs)
-    print("  (%.1f s, exit %d)" % (time.monotonic() - start, done.returncode), flush=True)
-    return done
-
-
-def check_call(command, **kwargs):
-    done = run(command, **kwargs)
-    if done.returncode != 0:
-        sys.exit("python package test: failed (exit %d): %s"
-                 % (done.returncode, " ".join(map(str, command))))
-    return done
 
 
 def fresh_venv(path, env):
@@ -177,7 +162,9 @@ def main():
                     args.source], env=env)
     code = check_and_uninstall(python, site, args, env)
 
-    added = sorted(set(p.name for p in args.source.iterdir()) - set(source_entries))
+    # (__pycache__: a developer's own python3 -m py_compile while the test ran.)
+    added = sorted(set(p.name for p in args.source.iterdir()) - set(source_entries)
+                   - {"__pycache__"})
     assert not added, "written into the source folder: %s" % added
     if code == SKIP:
         if os.environ.get("CI") == "true":
