@@ -8,8 +8,8 @@ wheel: `python3 -m build --no-isolation --wheel` makes the wheel. Its name carri
        this interpreter's tags, and it holds the module, the stubs and no build path. It installs
        with `pip install --no-index` into a fresh `python3 -m venv --system-site-packages`.
 pip:   `pip install --no-build-isolation --no-index SOURCE` into a fresh venv of the same kind.
-(Before that, pip without cmake, a compiler and make on PATH: one message naming the Debian
-packages, nothing installed.) Then, in both: check_python_install.py imports the installed copy from an empty folder, checks
+(Before that, pip without cmake, a compiler, make and, as root, the headers: one message naming
+the Debian packages, nothing installed.) Then, in both: check_python_install.py imports the installed copy from an empty folder, checks
 the version and aligns the real desk pair against the truth; `pip uninstall` removes every file
 that was installed; the source folder has no new file.
 
@@ -108,22 +108,41 @@ def check_and_uninstall(python, site, args, env, metadata=True):
     return checked.returncode
 
 
-def check_missing_tools(python, site, args, env):
-    """pip install . on a machine without cmake, a compiler and make (here: a PATH that has
-    none of them) stops before building, with one line naming the Debian packages, and leaves
-    nothing installed."""
+# The headers the build needs (setup.py looks for them), and the Debian package of each.
+HEADERS = [(sysconfig.get_paths()["include"], "python3-dev"),
+           ("/usr/include/eigen3", "libeigen3-dev"), ("/usr/include/yaml-cpp", "libyaml-cpp-dev"),
+           ("/usr/include/nlohmann", "nlohmann-json3-dev"),
+           ("/usr/include/pybind11", "pybind11-dev")]
+
+
+def check_missing_dependencies(python, site, args, env):
+    """pip install . on a machine without the build dependencies stops before building, with one
+    line naming the Debian packages, and leaves nothing installed. The machine is imitated by a
+    PATH without cmake, a compiler and make and, as root where mount namespaces are allowed (CI),
+    by empty folders mounted over the headers' folders for this command alone (unshare -m)."""
+    command = [python, "-m", "pip", "install", "--no-build-isolation", "--no-index", args.source]
+    missing = ["cmake", "g++", "make"]
     with tempfile.TemporaryDirectory() as empty:
-        done = run([python, "-m", "pip", "install", "--no-build-isolation", "--no-index",
-                    args.source], env=dict(env, PATH=empty), capture_output=True, text=True)
+        hide = [d for d, _ in HEADERS if os.path.isdir(d)]
+        unshare, mount = shutil.which("unshare"), shutil.which("mount")  # (PATH is empty below)
+        if os.geteuid() == 0 and unshare and mount and subprocess.run(
+                [unshare, "-m", "true"], capture_output=True).returncode == 0:
+            mounts = " && ".join("%s --bind %s %s" % (mount, empty, d) for d in hide)
+            command = [unshare, "-m", "/bin/sh", "-c", mounts + ' && exec "$@"', "sh"] + command
+            missing += [package for d, package in HEADERS if d in hide]
+        else:
+            print("(not root, or no mount namespace: only the missing programs are imitated)")
+        done = run(command, env=dict(env, PATH=empty), capture_output=True, text=True)
     out = done.stdout + done.stderr
     print(out)
-    expected = "lmalign: cannot build the Python package: missing Debian packages: cmake g++ make."
-    assert done.returncode != 0 and expected in out, "no message naming the missing packages"
+    expected = ("lmalign: cannot build the Python package: missing Debian packages: %s."
+                % " ".join(missing))
+    assert done.returncode != 0 and expected in out, "no message naming %s" % missing
     assert out.count("lmalign: cannot build") == 1, "the message is not given once"
     assert "lmalign: cmake" not in out, "CMake ran without its tools"
     left = sorted(p.name for p in site.iterdir() if p.name.lower().startswith("lmalign"))
     assert not left, "a failed pip install left %s in %s" % (left, site)
-    print("missing build tools: one message, nothing installed")
+    print("missing build dependencies (%s): one message, nothing installed" % " ".join(missing))
 
 
 def main():
@@ -157,7 +176,7 @@ def main():
         check_wheel(dist / wheels[0], args.version)
         check_call([python, "-m", "pip", "install", "--no-index", dist / wheels[0]], env=env)
     else:
-        check_missing_tools(python, site, args, env)
+        check_missing_dependencies(python, site, args, env)
         check_call([python, "-m", "pip", "install", "--no-build-isolation", "--no-index",
                     args.source], env=env)
     code = check_and_uninstall(python, site, args, env)
