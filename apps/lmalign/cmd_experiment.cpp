@@ -156,7 +156,7 @@ std::string rate_cell(const StrategySummary& s) {
   return buf;
 }
 
-void print_summary(const Summary& summary) {
+void print_summary(const ReportSummary& summary) {
   std::vector<PaperStrategy> strategies;
   for (const StrategySummary& s : summary.overall) strategies.push_back(s.strategy);
   std::size_t name_width = 10;
@@ -372,7 +372,7 @@ int run_experiment(ExperimentArgs a) {
 
   write_file_atomically(csv_path,
                         [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
-  const Summary summary = summarize(config, cases, outcome);
+  const ReportSummary summary = summarize(config, cases, outcome);
   write_file_atomically((out / "summary.json").string(),
                         [&](std::ostream& o) { write_summary_json(o, config, summary); });
   write_file_atomically((out / "tables.md").string(), [&](std::ostream& o) {

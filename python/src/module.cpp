@@ -582,7 +582,7 @@ PYBIND11_MODULE(_lmalign, m) {
         write_file_atomically((out / "results.csv").string(), [&](std::ostream& o) {
           write_results_csv(o, cases, outcome.records);
         });
-        const Summary summary = summarize(config, cases, outcome);
+        const ReportSummary summary = summarize(config, cases, outcome);
         write_file_atomically((out / "summary.json").string(),
                               [&](std::ostream& o) { write_summary_json(o, config, summary); });
         write_file_atomically((out / "tables.md").string(), [&](std::ostream& o) {

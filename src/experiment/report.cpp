@@ -394,9 +394,9 @@ double median(std::vector<double> values) {
   return n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
 }
 
-Summary summarize(const ExperimentConfig& config, const std::vector<Case>& cases,
+ReportSummary summarize(const ExperimentConfig& config, const std::vector<Case>& cases,
                   const RunnerOutcome& outcome) {
-  Summary s;
+  ReportSummary s;
   s.has_ground_truth = config.has_ground_truth();
   s.interrupted = outcome.cancelled;
   s.cases_planned = outcome.cases_planned;
@@ -444,7 +444,7 @@ Summary summarize(const ExperimentConfig& config, const std::vector<Case>& cases
   return s;
 }
 
-void write_summary_json(std::ostream& out, const ExperimentConfig& config, const Summary& summary) {
+void write_summary_json(std::ostream& out, const ExperimentConfig& config, const ReportSummary& summary) {
   nlohmann::ordered_json j;
   j["config"] = config.path;
   j["source"] = config.source.path;
@@ -500,7 +500,7 @@ void write_summary_json(std::ostream& out, const ExperimentConfig& config, const
 
 void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
                            const std::vector<Case>& cases, const RunnerOutcome& outcome,
-                           const Summary& summary) {
+                           const ReportSummary& summary) {
   const bool gt = summary.has_ground_truth;
   out << "# Experiment report: " << config.name << "\n\n";
   out << "- config: `" << config.path << "`\n";

@@ -7,8 +7,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
-#include "lmalign/registration/estimation.hpp"
-#include "lmalign/registration/score.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 
 namespace lmalign {
@@ -260,92 +259,45 @@ RegistrationResult align(const Points3& source_points, const PreparedTarget& tar
                           std::to_string(kMaxCoordinateM) + " m");
   }
 
-  CorrespondenceOptions copt;
-  copt.kind = options.correspondence;
-  copt.k = options.k;
-  copt.max_distance_m = options.max_correspondence_distance_m;
-  // The finder borrows the target's weights (no copy). The workspace holds every buffer of the
-  // loop (allocated once, in the first iteration) and the exact neighbour-reuse cache.
-  const std::vector<double> no_weights;
-  const CorrespondenceFinder finder = CorrespondenceFinder::borrowing(
-      target.tree(),
-      options.correspondence == CorrespondenceKind::kWeightedKnn ? target.weights(options.weight)
-                                                                 : no_weights,
-      copt);
-  CorrespondenceWorkspace workspace;
-  const bool reuse = options.reuse_neighbours;
-  // Scores through the cache are bit-identical to fitness_score() on the tree.
-  auto score_at = [&](const Isometry3& T_score) {
-    return reuse
-               ? fitness_score(source_points, finder, T_score, options.score_max_range_m, workspace)
-               : fitness_score(source_points, target.tree(), T_score, options.score_max_range_m);
-  };
-  ConvergenceCriteria criteria(options.convergence);
-
-  RegistrationResult result;
-  if (options.record_history) {
-    result.history.reserve(static_cast<std::size_t>(options.convergence.max_iterations));
-  }
-  result.initial_score_m2 = score_at(T_target_source_init).mean_sq_m2;
-
-  Isometry3 T = T_target_source_init;
-  Points3 moved;
-  Correspondences correspondences;
-  const std::size_t min_corr = static_cast<std::size_t>(options.convergence.min_correspondences);
-  bool last_step_degenerate = false;
-
-  for (;;) {
-    // moved = T * source (exactly transform_points()), then the correspondences of `moved`.
-    finder.find(source_points, T, moved, correspondences, workspace, reuse);
-    if (correspondences.size() < min_corr) {
-      result.termination = TerminationReason::kNoCorrespondences;
-      result.num_correspondences = correspondences.size();
-      break;
-    }
-    EstimationReport estimation;
-    const Isometry3 increment =
-        estimate_rigid_transform(moved, target.points(), correspondences, nullptr, &estimation);
-    last_step_degenerate = estimation.degenerate;
-    if (!is_finite(increment)) {
-      // Cannot happen with finite inputs; guard so a result is never NaN.
-      result.termination = TerminationReason::kDegenerate;
-      break;
-    }
-    T = increment * T;
-    ++result.iterations;
-    result.num_correspondences = correspondences.size();
-
-    if (options.record_history) {
-      IterationRecord rec;
-      rec.iteration = result.iterations;
-      rec.num_correspondences = correspondences.size();
-      rec.mse_m2 = correspondence_mse_m2(correspondences);
-      if (options.history_scores) {
-        rec.score_m2 = score_at(T).mean_sq_m2;
-      }
-      result.history.push_back(rec);
-    }
-
-    const TerminationReason reason = criteria.check(result.iterations, increment, correspondences);
-    if (reason != TerminationReason::kNotTerminated) {
-      result.termination = reason;
-      break;
-    }
-  }
-
-  // The rotation of a rank-deficient last step is one minimiser among many: say so rather than
-  // report convergence (docs/robustness.md).
-  if (last_step_degenerate && result.termination != TerminationReason::kNoCorrespondences) {
-    result.termination = TerminationReason::kDegenerate;
-  }
-  result.converged = result.termination == TerminationReason::kTransform ||
-                     result.termination == TerminationReason::kAbsoluteMse ||
-                     result.termination == TerminationReason::kRelativeMse;
-  result.T_target_source = T;
-  result.final_score_m2 = score_at(T).mean_sq_m2;
+  // The paper's ICP is a preset of the engine (pipeline.hpp): the initial guess, the nearest or
+  // the weighted-kNN matcher, no kernel, Umeyama, PCL's convergence criteria.
+  const Pipeline pipeline(paper_pipeline_spec(options));
+  SourceView view;
+  view.positions = &source_points;
+  PipelineRequest request;
+  request.initial_guess = T_target_source_init;
+  request.record_history = options.record_history;
+  request.history_scores = options.history_scores;
+  RegistrationResult result = pipeline.run(view, target, request).registration;
   result.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return result;
+}
+
+PipelineSpec paper_pipeline_spec(const RegistrationOptions& options) {
+  PipelineSpec spec;
+  spec.name = "paper";
+  spec.matcher =
+      options.correspondence == CorrespondenceKind::kWeightedKnn ? "weighted_knn" : "nearest";
+  if (options.correspondence == CorrespondenceKind::kWeightedKnn) {
+    spec.settings.emplace_back("match.k", static_cast<long long>(options.k));
+    spec.settings.emplace_back("match.confidence", to_string(options.weight));
+  }
+  spec.settings.emplace_back("match.reuse_neighbours", options.reuse_neighbours);
+  const ConvergenceOptions& c = options.convergence;
+  spec.settings.emplace_back("schedule.max_distance_m", options.max_correspondence_distance_m);
+  spec.settings.emplace_back("schedule.max_iterations", static_cast<long long>(c.max_iterations));
+  spec.settings.emplace_back("schedule.transformation_epsilon_m2", c.transformation_epsilon_m2);
+  spec.settings.emplace_back("schedule.transformation_rotation_epsilon_cos",
+                             c.transformation_rotation_epsilon_cos);
+  spec.settings.emplace_back("schedule.euclidean_fitness_epsilon", c.euclidean_fitness_epsilon);
+  spec.settings.emplace_back("schedule.absolute_mse_epsilon_m2", c.absolute_mse_epsilon_m2);
+  spec.settings.emplace_back("schedule.max_iterations_similar_transforms",
+                             static_cast<long long>(c.max_iterations_similar_transforms));
+  spec.settings.emplace_back("schedule.min_correspondences",
+                             static_cast<long long>(c.min_correspondences));
+  spec.settings.emplace_back("fitness.max_range_m", options.score_max_range_m);
+  return spec;
 }
 
 RegistrationResult align_maps(const Map& source, const Map& target,

@@ -9,6 +9,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/estimation.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/score.hpp"
 #include "lmalign/search/kdtree.hpp"
 
@@ -76,7 +77,7 @@ double robust_weight(RobustKernel kernel, double residual_m, double scale_m) {
     case RobustKernel::kHuber:
       return r <= scale_m ? 1.0 : scale_m / r;
     case RobustKernel::kCauchy:
-      return 1.0 / (1.0 + u2);
+      return cauchy_weight(u2);
     case RobustKernel::kGemanMcClure:
       return 1.0 / ((1.0 + u2) * (1.0 + u2));
   }
@@ -332,86 +333,6 @@ RobustRegistrationOptions with_limits(RobustRegistrationOptions options, int max
   return options;
 }
 
-namespace {
-
-/// Source points within `distance_m` of a target point at T (the global search's score).
-std::size_t consensus(const Points3& source_points, const KdTree& tree, const Isometry3& T,
-                      double distance_m) {
-  std::size_t n = 0;
-  const double d2max = distance_m * distance_m;
-  for (const Vec3& p : source_points) {
-    PointIndex idx = 0;
-    double d2 = 0.0;
-    if (tree.nearest(T * p, &idx, &d2) && d2 <= d2max) ++n;
-  }
-  return n;
-}
-
-RobustRegistrationResult align_global(const Points3& source_points, const PreparedTarget& target,
-                                      const RobustRegistrationOptions& options,
-                                      const Isometry3& T_init,
-                                      std::chrono::steady_clock::time_point t_start,
-                                      const std::vector<Mat3>* source_cov) {
-  // Hypotheses: the guess itself, then yaws about the moved source's centroid with the centroid
-  // moved onto the target's centroid.
-  Vec3 cs = Vec3::Zero();
-  for (const Vec3& p : source_points) cs += T_init * p;
-  cs /= static_cast<double>(source_points.size());
-  Vec3 ct = Vec3::Zero();
-  for (const Vec3& p : target.points()) ct += p;
-  ct /= static_cast<double>(target.size());
-  std::vector<Isometry3> hypotheses{T_init};
-  for (int h = 0; h < options.yaw_hypotheses; ++h) {
-    const double yaw = 2.0 * M_PI * h / options.yaw_hypotheses;
-    Isometry3 H = Isometry3::Identity();
-    H.linear() = rotation_about_up(options.up_axis, yaw);
-    H.translation() = ct - H.linear() * cs;
-    hypotheses.push_back(H * T_init);
-  }
-  RobustRegistrationOptions coarse = options;
-  coarse.global_search = false;
-  coarse.max_distance_schedule_m = options.global_schedule_m;
-  coarse.max_iterations = options.global_iterations;
-  coarse.max_iterations_per_level =
-      std::max(1, options.global_iterations / static_cast<int>(options.global_schedule_m.size()));
-  Points3 sub;
-  std::vector<Mat3> sub_cov;
-  for (std::size_t i = 0; i < source_points.size();
-       i += static_cast<std::size_t>(options.global_subsample)) {
-    sub.push_back(source_points[i]);
-    if (source_cov != nullptr) sub_cov.push_back((*source_cov)[i]);
-  }
-  std::size_t best = 0;
-  std::size_t best_score = 0;
-  Isometry3 best_T = T_init;
-  int iterations = 0;
-  for (std::size_t h = 0; h < hypotheses.size(); ++h) {
-    const RobustRegistrationResult r =
-        align_robust(sub, target, coarse, hypotheses[h], source_cov ? &sub_cov : nullptr);
-    iterations += r.iterations;
-    const std::size_t score =
-        consensus(sub, target.tree(), r.T_target_source, options.global_inlier_distance_m);
-    if (h == 0 || score > best_score) {
-      best = h;
-      best_score = score;
-      best_T = r.T_target_source;
-    }
-  }
-  // The full run starts again at an unlimited distance from the chosen estimate: skipping that
-  // level (the coarse run used a subsample) ended in a wrong minimum on the real pair.
-  RobustRegistrationOptions local = options;
-  local.global_search = false;
-  RobustRegistrationResult result = align_robust(source_points, target, local, best_T, source_cov);
-  result.initial_score_m2 = fitness_score(source_points, target.tree(), T_init).mean_sq_m2;
-  result.iterations += iterations;
-  (void)best;
-  result.wall_time_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  return result;
-}
-
-}  // namespace
-
 RobustRegistrationResult align_robust(const Points3& source_points, const PreparedTarget& target,
                                       const RobustRegistrationOptions& options,
                                       const Isometry3& T_target_source_init,
@@ -452,196 +373,101 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
     }
     (void)target.covariances_m2();  // throws if the target has none
   }
-  const std::vector<Mat3>* source_cov = p2d ? source_covariances_m2 : nullptr;
-
-  if (options.global_search) {
-    return align_global(source_points, target, options, T_target_source_init, t_start, source_cov);
+  if (options.global_search && options.global_initialisation) {
+    throw InvalidArgument(
+        "robust registration options: global_search and global_initialisation cannot be combined");
   }
-  const std::vector<Mat3> no_covariances;
-  const std::vector<Mat3>& target_cov = p2d ? target.covariances_m2() : no_covariances;
-  const double floor2 = options.p2d.covariance_floor_m * options.p2d.covariance_floor_m;
-  // The residual the IRLS kernel sees for pair i under the full estimate T_full (see
-  // KernelResidual): Euclidean metres, or the Mahalanobis distance rescaled to metres.
-  auto kernel_residual = [&](const Correspondence& c, const Vec3& r, const Isometry3& T_full,
-                             bool p2d_here) {
-    if (!p2d_here || options.kernel_residual == KernelResidual::kEuclidean) return r.norm();
-    const Mat3 R = T_full.linear();
-    Mat3 M = target_cov[c.target_index] + R * (*source_cov)[c.source_index] * R.transpose();
-    M.diagonal().array() += floor2;
-    const double m2 = r.dot(M.ldlt().solve(r));
-    return std::sqrt(std::max(0.0, m2)) * options.kernel_scale_m / options.kernel_scale_sigma;
-  };
-
-  const std::vector<double> no_weights;
-  const std::vector<double>& selection_weights =
-      options.selection == CorrespondenceKind::kWeightedKnn
-          ? target.weights(options.selection_weight)
-          : no_weights;
-  const std::vector<double>* confidence = options.estimation_weight == WeightKind::kUniform
-                                              ? nullptr
-                                              : &target.weights(options.estimation_weight);
-  // One finder per level (borrowed weights; stable addresses for the workspace binding).
-  std::vector<CorrespondenceFinder> finders;
-  finders.reserve(options.max_distance_schedule_m.size());
-  for (double d : options.max_distance_schedule_m) {
-    CorrespondenceOptions copt;
-    copt.kind = options.selection;
-    copt.k = options.k;
-    copt.max_distance_m = d;
-    finders.push_back(CorrespondenceFinder::borrowing(target.tree(), selection_weights, copt));
-  }
-
+  // A preset of the engine (pipeline.hpp).
+  const Pipeline pipeline(robust_pipeline_spec(options));
+  SourceView view;
+  view.positions = &source_points;
+  if (p2d) view.covariances_m2 = source_covariances_m2;
+  PipelineRequest request;
+  request.initial_guess = T_target_source_init;
+  const Summary s = pipeline.run(view, target, request);
   RobustRegistrationResult result;
-  result.initial_score_m2 =
-      fitness_score(source_points, target.tree(), T_target_source_init).mean_sq_m2;
-
-  // With global initialisation the guess is ignored: the robust loop refines global_align()'s
-  // (which needs 3 points a side; with fewer, the loop ends with no_correspondences anyway).
-  Isometry3 T = options.global_initialisation && source_points.size() >= 3 && target.size() >= 3
-                    ? global_align(source_points, target, options.global).T_target_source
-                    : T_target_source_init;
-  Points3 moved;
-  Correspondences corr;
-  std::vector<double> weights;
-  std::vector<double> residuals_sq;
-  std::size_t level = 0;
-  int level_iterations = 0;
-  CorrespondenceWorkspace workspace;
-  const std::size_t min_corr = static_cast<std::size_t>(options.min_correspondences);
-  const Points3& tp = target.points();
-
-  for (;;) {
-    const double d_level = options.max_distance_schedule_m[level];
-    finders[level].find(source_points, T, moved, corr, workspace, true);
-    // Mutual and trimming act once the distance gate is finite: at an unlimited level they would
-    // shrink the basin (measured on the real pair; docs/accuracy.md).
-    const bool gated = std::isfinite(d_level);
-    if (options.mutual && gated) keep_mutual(moved, tp, corr);
-    double ratio = gated ? options.trim_ratio : 1.0;
-    if (gated && options.estimate_overlap && corr.size() >= 2) {
-      residuals_sq.clear();
-      for (const Correspondence& c : corr) residuals_sq.push_back(c.distance_sq_m2);
-      ratio = estimate_overlap_ratio(residuals_sq, options.min_overlap_ratio);
-    }
-    if (ratio < 1.0) trim_correspondences(corr, ratio);
-    result.overlap_ratio = ratio;
-    if (corr.size() < min_corr) {
-      result.termination = TerminationReason::kNoCorrespondences;
-      result.num_correspondences = corr.size();
-      break;
-    }
-
-    // IRLS on fixed correspondences: weights from the residuals under the current increment.
-    const double scale = std::max(options.kernel_scale_m, options.kernel_scale_ratio * d_level);
-    const bool p2d_level = p2d && d_level <= options.p2d_max_level_distance_m;
-    Isometry3 increment = Isometry3::Identity();
-    Isometry3 T_p2d = T;  // the point-to-distribution estimate itself (not composed: see below)
-    EstimationReport report;
-    weights.assign(corr.size(), 1.0);
-    const int irls = options.kernel == RobustKernel::kNone ? 1 : options.irls_iterations;
-    for (int it = 0; it < irls; ++it) {
-      for (std::size_t i = 0; i < corr.size(); ++i) {
-        const Vec3 r = increment * moved[corr[i].source_index] - tp[corr[i].target_index];
-        const double c = confidence ? (*confidence)[corr[i].target_index] : 1.0;
-        weights[i] =
-            c * robust_weight(options.kernel, kernel_residual(corr[i], r, increment * T, p2d_level),
-                              scale);
-      }
-      double wsum = 0.0;
-      for (double w : weights) wsum += w;
-      if (!(wsum > 0.0)) break;  // keep the last increment
-      if (p2d_level) {
-        // Gauss-Newton on the source in its own frame (so the source covariances need no
-        // rotating), warm-started from the current increment.
-        const PointToDistributionResult g = estimate_point_to_distribution(
-            source_points, tp, corr, *source_cov, target_cov, &weights, options.p2d, increment * T);
-        T_p2d = g.T_target_source;
-        increment = T_p2d * T.inverse();
-        report.degenerate = g.degenerate;
-      } else {
-        increment = options.dof == DegreesOfFreedom::k6
-                        ? estimate_rigid_transform(moved, tp, corr, &weights, &report)
-                        : estimate_4dof_transform(moved, tp, corr, &weights, options.up_axis);
-      }
-    }
-    if (!is_finite(increment)) {
-      result.termination = TerminationReason::kDegenerate;
-      break;
-    }
-    // Gauss-Newton returns the full estimate with an orthonormalised rotation: taking it as is
-    // (rather than composing increment * T, whose rounding would compound) keeps T rigid.
-    T = p2d_level ? T_p2d : increment * T;
-    ++result.iterations;
-    ++level_iterations;
-    result.num_correspondences = corr.size();
-
-    const bool settled =
-        increment.translation().norm() < options.settle_translation_m &&
-        Eigen::AngleAxisd(increment.linear()).angle() < options.settle_rotation_rad;
-    if (settled || level_iterations >= options.max_iterations_per_level) {
-      if (level + 1 == finders.size()) {
-        if (settled) {
-          result.termination =
-              report.degenerate ? TerminationReason::kDegenerate : TerminationReason::kTransform;
-          break;
-        }
-        // not settled at the last level: keep going until the total budget ends
-      } else {
-        ++level;
-        level_iterations = 0;
-      }
-    }
-    if (result.iterations >= options.max_iterations) {
-      result.termination = TerminationReason::kMaxIterations;
-      break;
-    }
-  }
-
-  // Final diagnostics at the final estimate, with the last level's correspondences.
-  const std::size_t last = level;
-  result.final_max_distance_m = options.max_distance_schedule_m[last];
-  finders[last].find(source_points, T, moved, corr, workspace, true);
-  if (options.mutual && std::isfinite(result.final_max_distance_m)) keep_mutual(moved, tp, corr);
-  if (result.overlap_ratio < 1.0) trim_correspondences(corr, result.overlap_ratio);
-  result.inlier_ratio =
-      static_cast<double>(corr.size()) / static_cast<double>(source_points.size());
-  if (!corr.empty()) {
-    const double scale =
-        std::max(options.kernel_scale_m, options.kernel_scale_ratio * result.final_max_distance_m);
-    weights.resize(corr.size());
-    const bool p2d_final = p2d && result.final_max_distance_m <= options.p2d_max_level_distance_m;
-    double wsum = 0.0, wr2 = 0.0;
-    for (std::size_t i = 0; i < corr.size(); ++i) {
-      const Vec3 r = moved[corr[i].source_index] - tp[corr[i].target_index];
-      const double c = confidence ? (*confidence)[corr[i].target_index] : 1.0;
-      // Point-to-point keeps the pair's own distance (bit-identical to before P2D existed).
-      const double rn =
-          p2d_final ? kernel_residual(corr[i], r, T, true) : std::sqrt(corr[i].distance_sq_m2);
-      weights[i] = c * robust_weight(options.kernel, rn, scale);
-      wsum += weights[i];
-      wr2 += weights[i] * corr[i].distance_sq_m2;
-    }
-    result.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
-    if (p2d_final) {
-      result.covariance = Mat6::Zero();
-      if (wsum > 0.0) {
-        PointToDistributionOptions eval = options.p2d;
-        eval.max_iterations = 0;  // the normal equations at T only
-        const PointToDistributionResult g = estimate_point_to_distribution(
-            source_points, tp, corr, *source_cov, target_cov, &weights, eval, T);
-        if (!g.degenerate) result.covariance = g.variance_factor * g.covariance;
-      }
-    } else {
-      const PoseCovariance cov = point_to_point_covariance(moved, tp, corr, &weights);
-      result.covariance = cov.valid ? cov.covariance : Mat6::Zero();
-    }
-  }
-  result.converged = result.termination == TerminationReason::kTransform;
-  result.T_target_source = T;
-  result.final_score_m2 = fitness_score(source_points, target.tree(), T).mean_sq_m2;
+  static_cast<RegistrationResult&>(result) = s.registration;
+  result.inlier_ratio = s.at_estimate.inlier_ratio;
+  result.overlap_ratio = s.at_estimate.overlap_ratio;
+  result.final_max_distance_m = s.at_estimate.max_distance_m;
+  result.inlier_rms_m = s.at_estimate.inlier_rms_m;
+  result.covariance =
+      s.estimator_covariance.valid ? s.estimator_covariance.covariance : Mat6::Zero();
   result.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return result;
+}
+
+PipelineSpec robust_pipeline_spec(const RobustRegistrationOptions& o) {
+  PipelineSpec spec;
+  spec.name = "robust";
+  auto set = [&](const char* key, SettingValue v) {
+    spec.settings.emplace_back(key, std::move(v));
+  };
+  auto integer = [](int v) { return static_cast<long long>(v); };
+  if (o.global_search) {
+    spec.initialiser = "yaw_centroid";
+    set("init.yaw_hypotheses", integer(o.yaw_hypotheses));
+    set("init.up_axis", to_string(o.up_axis));
+    spec.scorer = "consensus";
+    set("score.stride", integer(o.global_subsample));
+    set("score.inlier_distance_m", o.global_inlier_distance_m);
+  } else if (o.global_initialisation) {
+    spec.initialiser = "global_vote";
+    const GlobalInitOptions& g = o.global;
+    set("init.up", std::vector<double>{g.up.x(), g.up.y(), g.up.z()});
+    set("init.yaw_step_deg", g.yaw_step_deg);
+    set("init.vote_cell_m", g.vote_cell_m);
+    set("init.max_vote_cells", static_cast<long long>(g.max_vote_cells));
+    set("init.source_samples", static_cast<long long>(g.vote_source_samples));
+    set("init.target_samples", static_cast<long long>(g.vote_target_samples));
+    set("init.hypotheses", static_cast<long long>(g.hypotheses));
+    set("init.refine_levels_m", g.refine_schedule_m);
+    set("init.refine_iterations", integer(g.refine_iterations));
+    set("init.inlier_distance_m", g.inlier_distance_m);
+  }
+  if (o.selection == CorrespondenceKind::kWeightedKnn) {
+    spec.matcher = "weighted_knn";
+    set("match.k", integer(o.k));
+    set("match.confidence", to_string(o.selection_weight));
+  }
+  if (o.mutual) spec.rejectors.push_back("mutual");
+  if (o.trim_ratio < 1.0 || o.estimate_overlap) {
+    spec.rejectors.push_back("trim");
+    set("reject.trim_ratio", o.trim_ratio);
+    set("reject.estimate_overlap", o.estimate_overlap);
+    set("reject.min_overlap_ratio", o.min_overlap_ratio);
+  }
+  spec.kernel = to_string(o.kernel);
+  set("kernel.confidence", to_string(o.estimation_weight));
+  if (o.kernel != RobustKernel::kNone) {
+    set("kernel.scale_m", o.kernel_scale_m);
+    set("kernel.scale_ratio", o.kernel_scale_ratio);
+    set("kernel.irls_iterations", integer(o.irls_iterations));
+    set("kernel.residual", to_string(o.kernel_residual));
+    set("kernel.scale_sigma", o.kernel_scale_sigma);
+    set("kernel.floor_m", o.p2d.covariance_floor_m);
+  }
+  if (o.cost == EstimationCost::kPointToDistribution) {
+    spec.estimator = "p2d_gn";
+    set("estimate.p2d_iterations", integer(o.p2d.max_iterations));
+    set("estimate.p2d_step_tolerance", o.p2d.step_tolerance);
+    set("estimate.p2d_floor_m", o.p2d.covariance_floor_m);
+    set("estimate.p2d_max_level_distance_m", o.p2d_max_level_distance_m);
+  } else if (o.dof == DegreesOfFreedom::k4) {
+    spec.estimator = "four_dof";
+    set("estimate.up_axis", to_string(o.up_axis));
+  }
+  spec.schedule = "distance_levels";
+  set("schedule.levels_m", o.max_distance_schedule_m);
+  set("schedule.max_iterations", integer(o.max_iterations));
+  set("schedule.max_iterations_per_level", integer(o.max_iterations_per_level));
+  set("schedule.settle_translation_m", o.settle_translation_m);
+  set("schedule.settle_rotation_rad", o.settle_rotation_rad);
+  set("schedule.min_correspondences", integer(o.min_correspondences));
+  set("schedule.hypothesis_levels_m", o.global_schedule_m);
+  set("schedule.hypothesis_iterations", integer(o.global_iterations));
+  return spec;
 }
 
 }  // namespace lmalign

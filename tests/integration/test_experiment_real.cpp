@@ -70,7 +70,7 @@ TEST(ExperimentRealPair, Table1OfThePaperConfigFindsTheRightBasinWithTheMeasured
   // would count as a failure (scores ~0.008 m^2).
   EXPECT_GT(base.final_score_m2, config.success.score_m2);
 
-  const Summary s = summarize(config, cases, o);
+  const ReportSummary s = summarize(config, cases, o);
   EXPECT_EQ(s.overall[0].successes, 2u);  // base at k = 1 and 5
   std::ostringstream md;
   write_tables_markdown(md, config, cases, o, s);

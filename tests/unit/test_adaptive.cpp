@@ -630,7 +630,7 @@ TEST(P2DStep, AFewStepsRecoverAKnownSmallTransform) {
   for (int it = 0; it < 8; ++it) {
     const std::vector<GatedPair> pairs = make_pairs(s.src, s.tgt, T, s.info);
     const Vec3 pivot = T * centroid(s.src);
-    const P2DStep step = solve_p2d_step(pairs, s.tgt, pivot, kChi2Dof3P99);
+    const P2DStep step = solve_p2d_step(pairs, s.tgt, pivot, cauchy_weights(pairs, kChi2Dof3P99));
     ASSERT_TRUE(step.ok);
     T = apply_step(T, step.xi, pivot);
     const double now = transform_error(T, T_true).rotation_deg;
@@ -669,7 +669,8 @@ TEST(P2DStep, FourDofStepsChangeOnlyYawAboutTheUpAxisAndTranslation) {
   const Isometry3 T0 = pose_from_xyz_rpy_deg(0.02, 0.01, 0.0, 0.5, 0.3, -1.0);
   const std::vector<GatedPair> pairs = make_pairs(s.src, s.tgt, T0, s.info);
   const Vec3 pivot = T0 * centroid(s.src);
-  const P2DStep step = solve_p2d_step(pairs, s.tgt, pivot, kChi2Dof3P99, &up);
+  const P2DStep step =
+      solve_p2d_step(pairs, s.tgt, pivot, cauchy_weights(pairs, kChi2Dof3P99), &up);
   ASSERT_TRUE(step.ok);
   EXPECT_LT(step.xi.tail<3>().cross(up).norm(), 1e-12);
   EXPECT_GT(std::abs(step.xi.tail<3>().dot(up)), 1e-3);  // it did rotate
@@ -689,8 +690,10 @@ TEST(P2DStep, FourDofStepsChangeOnlyYawAboutTheUpAxisAndTranslation) {
   Isometry3 T = Isometry3::Identity();
   for (int it = 0; it < 8; ++it) {
     const Vec3 c = T * centroid(s4.src);
-    const P2DStep st =
-        solve_p2d_step(make_pairs(s4.src, s4.tgt, T, s4.info), s4.tgt, c, kChi2Dof3P99, &up);
+    const P2DStep st = [&] {
+      const auto pr = make_pairs(s4.src, s4.tgt, T, s4.info);
+      return solve_p2d_step(pr, s4.tgt, c, cauchy_weights(pr, kChi2Dof3P99), &up);
+    }();
     ASSERT_TRUE(st.ok);
     T = apply_step(T, st.xi, c);
   }
@@ -706,19 +709,20 @@ TEST(P2DStep, TooFewPairsOrDegenerateGeometryAreNotOk) {
   const std::vector<GatedPair> one(all.begin(), all.begin() + 1);
   const Vec3 pivot = centroid(s.src);
   const Vec3 up = Vec3::UnitZ();
-  EXPECT_FALSE(solve_p2d_step({}, s.tgt, pivot, kChi2Dof3P99).ok);
-  EXPECT_FALSE(solve_p2d_step(two, s.tgt, pivot, kChi2Dof3P99).ok);
-  EXPECT_TRUE(solve_p2d_step(two, s.tgt, pivot, kChi2Dof3P99, &up).ok);  // 4 unknowns, 6 rows
-  EXPECT_FALSE(solve_p2d_step(one, s.tgt, pivot, kChi2Dof3P99, &up).ok);
+  EXPECT_FALSE(solve_p2d_step({}, s.tgt, pivot, {}).ok);
+  EXPECT_FALSE(solve_p2d_step(two, s.tgt, pivot, cauchy_weights(two, kChi2Dof3P99)).ok);
+  EXPECT_TRUE(solve_p2d_step(two, s.tgt, pivot, cauchy_weights(two, kChi2Dof3P99), &up)
+                  .ok);  // 4 unknowns, 6 rows
+  EXPECT_FALSE(solve_p2d_step(one, s.tgt, pivot, cauchy_weights(one, kChi2Dof3P99), &up).ok);
   // Five pairs all at the pivot: no rotation is observable.
   std::vector<GatedPair> same(all.begin(), all.begin() + 5);
   for (GatedPair& g : same) g.moved_source_m = pivot;
-  const P2DStep st = solve_p2d_step(same, s.tgt, pivot, kChi2Dof3P99);
+  const P2DStep st = solve_p2d_step(same, s.tgt, pivot, cauchy_weights(same, kChi2Dof3P99));
   EXPECT_FALSE(st.ok);
   EXPECT_TRUE(st.xi.isZero(0.0));
   EXPECT_FALSE(p2d_covariance(st, same.size(), pivot).valid);
   // Fewer than 3 pairs: no covariance either.
-  const P2DStep ok = solve_p2d_step(all, s.tgt, pivot, kChi2Dof3P99);
+  const P2DStep ok = solve_p2d_step(all, s.tgt, pivot, cauchy_weights(all, kChi2Dof3P99));
   ASSERT_TRUE(ok.ok);
   EXPECT_FALSE(p2d_covariance(ok, 2, pivot).valid);
 }
@@ -738,15 +742,16 @@ TEST(P2DStep, CovarianceIsValidSymmetricAndIndependentOfThePivot) {
   Isometry3 T = T_true;
   for (int it = 0; it < 30; ++it) {
     const Vec3 c = T * centroid(s.src);
-    const P2DStep st = solve_p2d_step(make_pairs(s.src, s.tgt, T, s.info), s.tgt, c, kChi2Dof3P99);
+    const auto pr = make_pairs(s.src, s.tgt, T, s.info);
+    const P2DStep st = solve_p2d_step(pr, s.tgt, c, cauchy_weights(pr, kChi2Dof3P99));
     ASSERT_TRUE(st.ok);
     T = apply_step(T, st.xi, c);
   }
   const std::vector<GatedPair> pairs = make_pairs(s.src, s.tgt, T, s.info);
   const Vec3 c1 = T * centroid(s.src);
   const Vec3 c2(-3.0, 4.0, 1.0);
-  const P2DStep st1 = solve_p2d_step(pairs, s.tgt, c1, kChi2Dof3P99);
-  const P2DStep st2 = solve_p2d_step(pairs, s.tgt, c2, kChi2Dof3P99);
+  const P2DStep st1 = solve_p2d_step(pairs, s.tgt, c1, cauchy_weights(pairs, kChi2Dof3P99));
+  const P2DStep st2 = solve_p2d_step(pairs, s.tgt, c2, cauchy_weights(pairs, kChi2Dof3P99));
   ASSERT_TRUE(st1.ok && st2.ok);
   EXPECT_LT(st1.xi.norm(), 1e-9);  // at the optimum
   EXPECT_GT(st1.chi2, 0.0);

@@ -195,7 +195,7 @@ TEST(ExperimentReport, SummaryGivesSuccessRatesAndMediansOfTheSuccessfulRuns) {
 
   const ExperimentConfig c = config(true);
   const std::vector<Case> cases = expand_cases(c);
-  const Summary s = summarize(c, cases, outcome(true));
+  const ReportSummary s = summarize(c, cases, outcome(true));
   EXPECT_TRUE(s.has_ground_truth);
   EXPECT_EQ(s.runs, 12u);
   ASSERT_EQ(s.overall.size(), 3u);

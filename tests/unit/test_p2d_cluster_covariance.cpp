@@ -63,7 +63,8 @@ TrialNees run_trial(std::uint64_t seed, double sigma_point_m, double sigma_block
   for (int it = 0; it < 8; ++it) {
     sigma.pivot_m = T * centre;
     gate_correspondences(side, prepared, T, floor_m, sigma, gate, nullptr, &pairs);
-    step = solve_p2d_step(pairs, prepared.points(), sigma.pivot_m, gate.chi2_threshold);
+    step = solve_p2d_step(pairs, prepared.points(), sigma.pivot_m,
+                          cauchy_weights(pairs, gate.chi2_threshold));
     EXPECT_TRUE(step.ok);
     if (!step.ok) return {};
     if (it + 1 < 8) T = apply_step(T, step.xi, sigma.pivot_m);
@@ -75,8 +76,8 @@ TrialNees run_trial(std::uint64_t seed, double sigma_point_m, double sigma_block
   // Blocks of 0.25 m (about half the source's radius, as the adaptive pipeline sizes them), each
   // holding whole blocks of the simulated errors: the regime where a cluster-robust estimate
   // holds (errors shared across blocks would not be seen).
-  const PoseCovariance cluster =
-      p2d_cluster_covariance(pairs, prepared.points(), sigma.pivot_m, gate.chi2_threshold, 0.25);
+  const PoseCovariance cluster = p2d_cluster_covariance(
+      pairs, prepared.points(), sigma.pivot_m, cauchy_weights(pairs, gate.chi2_threshold), 0.25);
   EXPECT_TRUE(model.valid);
   EXPECT_TRUE(cluster.valid);
   return {nees(e, model), nees(e, cluster)};
@@ -122,11 +123,17 @@ TEST(P2DClusterCovariance, DegenerateAndInvalidInput) {
   pairs[1].target_index = 1;
   pairs[1].moved_source_m = Vec3(1, 0, 0);
   for (GatedPair& p : pairs) p.information = Mat3::Identity();
-  EXPECT_FALSE(p2d_cluster_covariance(pairs, target, Vec3::Zero(), 11.3, 0.5).valid);  // n < 3
+  EXPECT_FALSE(p2d_cluster_covariance(pairs, target, Vec3::Zero(), cauchy_weights(pairs, 11.3), 0.5)
+                   .valid);   // n < 3
   pairs.push_back(pairs[1]);  // three pairs on a line: singular
-  EXPECT_FALSE(p2d_cluster_covariance(pairs, target, Vec3::Zero(), 11.3, 0.5).valid);
-  EXPECT_THROW(p2d_cluster_covariance(pairs, target, Vec3::Zero(), 11.3, 0.0), InvalidArgument);
-  EXPECT_THROW(p2d_cluster_covariance(pairs, target, Vec3::Zero(), 11.3, NAN), InvalidArgument);
+  EXPECT_FALSE(
+      p2d_cluster_covariance(pairs, target, Vec3::Zero(), cauchy_weights(pairs, 11.3), 0.5).valid);
+  EXPECT_THROW(
+      p2d_cluster_covariance(pairs, target, Vec3::Zero(), cauchy_weights(pairs, 11.3), 0.0),
+      InvalidArgument);
+  EXPECT_THROW(
+      p2d_cluster_covariance(pairs, target, Vec3::Zero(), cauchy_weights(pairs, 11.3), NAN),
+      InvalidArgument);
 }
 
 }  // namespace

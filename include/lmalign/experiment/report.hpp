@@ -67,7 +67,7 @@ struct ExperimentSummary {
   std::vector<BasinLevelSummary> basin_levels;  ///< basin experiments only
 };
 
-struct Summary {
+struct ReportSummary {
   bool has_ground_truth = false;
   bool interrupted = false;
   std::size_t cases_planned = 0;
@@ -82,12 +82,12 @@ struct Summary {
 /// Median of `values` (mean of the two middle ones for an even count); NaN if empty.
 double median(std::vector<double> values);
 
-Summary summarize(const ExperimentConfig& config, const std::vector<Case>& cases,
+ReportSummary summarize(const ExperimentConfig& config, const std::vector<Case>& cases,
                   const RunnerOutcome& outcome);
 
 /// summary.json: the settings, and success rate and medians per strategy and per experiment
 /// (basin: per level). Non-finite numbers are null.
-void write_summary_json(std::ostream& out, const ExperimentConfig& config, const Summary& summary);
+void write_summary_json(std::ostream& out, const ExperimentConfig& config, const ReportSummary& summary);
 
 /// tables.md: paper-style tables. Per experiment: the final score (x 10^-3 m^2) and, with ground
 /// truth, the rotation (deg) and translation (cm) errors, one row per case and one column per
@@ -96,7 +96,7 @@ void write_summary_json(std::ostream& out, const ExperimentConfig& config, const
 /// level, the best (highest) in bold. Also an overview of success rates and median errors.
 void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
                            const std::vector<Case>& cases, const RunnerOutcome& outcome,
-                           const Summary& summary);
+                           const ReportSummary& summary);
 
 /// history.csv for one case: case, experiment, label, strategy, iteration, num_correspondences,
 /// mse_m2, score_m2 (the score after each iteration), one row per iteration of every record.

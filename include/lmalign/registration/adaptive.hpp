@@ -36,6 +36,7 @@
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/map/map.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
@@ -43,25 +44,6 @@
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
-
-/// A prior on the transform: standard deviations of the rotation (degrees, about any axis) and
-/// of the translation (metres) of the initial guess. Both finite and > 0.
-struct PriorSigma {
-  double rotation_deg = 0.0;
-  double translation_m = 0.0;
-  bool is_valid(std::string* why = nullptr) const;
-};
-
-/// The source of an adaptive alignment: landmark positions (metres, source frame), optional
-/// covariances (one 3x3 per landmark, m^2, source frame; empty = none) and an optional up axis
-/// (unit, source frame; estimate_up_axis()).
-struct SourceLandmarks {
-  Points3 positions;
-  std::vector<Mat3> covariances_m2;
-  std::optional<Vec3> up;
-  /// From a map: positions, covariances and the up axis of its frames.
-  static SourceLandmarks from_map(const Map& map);
-};
 
 /// Settings of the adaptive pipeline. Every length is derived from the data (DataScales); what
 /// is left are dimensionless ratios, counts and probabilities. Plain struct; is_valid().
@@ -220,6 +202,9 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
                               const AdaptiveOptions& options = {},
                               const Isometry3* initial_guess = nullptr,
                               const PriorSigma* prior = nullptr);
+
+/// The engine's stages and settings that align_adaptive() runs (pipeline.hpp).
+PipelineSpec adaptive_pipeline_spec(const AdaptiveOptions& options);
 
 /// True when T's linear part is a rotation (orthonormal to 1e-6, determinant +1) and T is finite.
 bool is_rigid_transform(const Isometry3& T);

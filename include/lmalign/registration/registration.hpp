@@ -185,6 +185,10 @@ RegistrationResult align(const Points3& source_points, const PreparedTarget& tar
                          const RegistrationOptions& options,
                          const Isometry3& T_target_source_init = Isometry3::Identity());
 
+struct PipelineSpec;
+/// The engine's stages and settings that align() runs (pipeline.hpp): the paper's ICP as a preset.
+PipelineSpec paper_pipeline_spec(const RegistrationOptions& options);
+
 /// Convenience: aligns the landmark positions of two maps (builds a PreparedTarget).
 RegistrationResult align_maps(const Map& source, const Map& target,
                               const RegistrationOptions& options,

@@ -36,6 +36,9 @@ std::string to_string(RobustKernel kernel);  ///< "none", "huber", "cauchy", "ge
 RobustKernel parse_robust_kernel(const std::string& name);
 /// The IRLS weight of residual `residual_m` at scale `scale_m` (> 0; +inf gives 1). In [0, 1].
 double robust_weight(RobustKernel kernel, double residual_m, double scale_m);
+/// The Cauchy weight 1 / (1 + u2) of a squared normalised residual u2 = (r / c)^2 (>= 0): the one
+/// Cauchy kernel of lmalign (robust_weight's, and the Mahalanobis kernel's with u2 = d^2 / c).
+inline double cauchy_weight(double u2) { return 1.0 / (1.0 + u2); }
 
 /// Which degrees of freedom are estimated.
 enum class DegreesOfFreedom {
@@ -212,6 +215,10 @@ RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k 
 /// InvalidArgument on a bad limit.
 RobustRegistrationOptions with_limits(RobustRegistrationOptions options, int max_iterations,
                                       double max_distance_m);
+
+struct PipelineSpec;
+/// The engine's stages and settings that align_robust() runs (pipeline.hpp).
+PipelineSpec robust_pipeline_spec(const RobustRegistrationOptions& options);
 
 /// Aligns `source_points` to `target` from T_target_source_init with the robust loop:
 /// per iteration, transform the source, find correspondences (nearest or weighted-kNN at the

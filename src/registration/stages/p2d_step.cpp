@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/registration/robust.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -28,11 +29,15 @@ Eigen::Matrix<double, 3, 6> pair_jacobian(const GatedPair& p, const Vec3& pivot_
   return J;
 }
 
-double cauchy_weight(const GatedPair& p, double chi2_threshold) {
-  return 1.0 / (1.0 + p.d2 / chi2_threshold);
+void check_weights(const char* what, const std::vector<GatedPair>& pairs,
+                   const std::vector<double>& weights) {
+  if (!weights.empty() && weights.size() != pairs.size()) {
+    throw InvalidArgument(std::string(what) + ": " + std::to_string(weights.size()) +
+                          " weights for " + std::to_string(pairs.size()) + " pairs");
+  }
 }
 
-// What one pair adds to the normal equations: residual, Cauchy weight, Jacobian and J^T S^-1.
+// What one pair adds to the normal equations: residual, weight, Jacobian and J^T S^-1.
 struct PairTerms {
   Vec3 r;
   double w;
@@ -41,10 +46,10 @@ struct PairTerms {
 };
 
 PairTerms pair_terms(const GatedPair& p, const Points3& target_points, const Vec3& pivot_m,
-                     double chi2_threshold) {
+                     double weight) {
   PairTerms t;
   t.r = target_points[p.target_index] - p.moved_source_m;
-  t.w = cauchy_weight(p, chi2_threshold);
+  t.w = weight;
   t.J = pair_jacobian(p, pivot_m);
   t.JtO = t.J.transpose() * p.information;
   return t;
@@ -60,14 +65,23 @@ Mat6 about_origin(const Mat6& cov_about_pivot, const Vec3& pivot_m) {
 
 }  // namespace
 
+std::vector<double> cauchy_weights(const std::vector<GatedPair>& pairs, double scale_d2) {
+  std::vector<double> w(pairs.size());
+  for (std::size_t i = 0; i < pairs.size(); ++i) w[i] = cauchy_weight(pairs[i].d2 / scale_d2);
+  return w;
+}
+
 P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& target_points,
-                       const Vec3& pivot_m, double chi2_threshold, const Vec3* up) {
+                       const Vec3& pivot_m, const std::vector<double>& weights, const Vec3* up) {
+  check_weights("solve_p2d_step", pairs, weights);
   P2DStep step;
   Mat6 H = Mat6::Zero();
   Vec6 g = Vec6::Zero();
   // Serial sums in pair order: deterministic.
-  for (const GatedPair& p : pairs) {
-    const auto [r, w, J, JtO] = pair_terms(p, target_points, pivot_m, chi2_threshold);
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    const GatedPair& p = pairs[i];
+    const auto [r, w, J, JtO] =
+        pair_terms(p, target_points, pivot_m, weights.empty() ? 1.0 : weights[i]);
     H.noalias() += w * JtO * J;
     g.noalias() += w * JtO * r;
     step.chi2 += w * r.dot(p.information * r);
@@ -130,10 +144,11 @@ PoseCovariance p2d_covariance(const P2DStep& step, std::size_t num_pairs, const 
 
 PoseCovariance p2d_cluster_covariance(const std::vector<GatedPair>& pairs,
                                       const Points3& target_points, const Vec3& pivot_m,
-                                      double chi2_threshold, double block_m) {
+                                      const std::vector<double>& weights, double block_m) {
   if (!(block_m > 0.0) || !std::isfinite(block_m)) {
     throw InvalidArgument("p2d_cluster_covariance: block_m must be > 0 and finite");
   }
+  check_weights("p2d_cluster_covariance", pairs, weights);
   PoseCovariance pc;
   const std::size_t n = pairs.size();
   pc.num_correspondences = n;
@@ -143,8 +158,10 @@ PoseCovariance p2d_cluster_covariance(const std::vector<GatedPair>& pairs,
   Mat6 H = Mat6::Zero();
   double chi2 = 0.0;
   std::map<std::array<long long, 3>, Vec6> blocks;
-  for (const GatedPair& p : pairs) {
-    const auto [r, w, J, JtO] = pair_terms(p, target_points, pivot_m, chi2_threshold);
+  for (std::size_t i = 0; i < n; ++i) {
+    const GatedPair& p = pairs[i];
+    const auto [r, w, J, JtO] =
+        pair_terms(p, target_points, pivot_m, weights.empty() ? 1.0 : weights[i]);
     H.noalias() += w * JtO * J;
     chi2 += w * r.dot(p.information * r);
     const Vec3 cell = (p.moved_source_m / block_m).array().floor();

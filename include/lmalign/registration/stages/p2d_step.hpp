@@ -1,8 +1,8 @@
 // Estimation on gated pairs: one Gauss-Newton step of the point-to-distribution cost
 //   E(T) = sum_i w_i r_i^T Omega_i r_i,  r_i = q_i - T p_i,
 // with Omega_i the pair's information from the Mahalanobis gate (both landmarks' covariances, the
-// floor and the pose term; GICP's cost, Segal et al. 2009, with SLAM covariances), and w_i a
-// robust kernel of the pair's Mahalanobis distance (Cauchy: 1 / (1 + d^2 / chi2_threshold)).
+// floor and the pose term; GICP's cost, Segal et al. 2009, with SLAM covariances), and w_i each
+// pair's weight (a robust kernel of its Mahalanobis distance: the pipeline's kernel stage).
 // 6 degrees of freedom, or 4 (translation and the rotation about a given up axis only).
 //
 // Parametrisation: a left perturbation about `pivot` (target frame), x -> Exp(phi)(x - pivot) +
@@ -28,12 +28,17 @@ struct P2DStep {
   double weight_sum = 0.0;
 };
 
+/// The Cauchy weights 1 / (1 + d^2 / scale_d2) of gated pairs (cauchy_weight, robust.hpp): the
+/// adaptive default's kernel. scale_d2 > 0.
+std::vector<double> cauchy_weights(const std::vector<GatedPair>& pairs, double scale_d2);
+
 /// Solves one step on `pairs` (their moved_source_m and information are used; the target points
-/// are `target_points[pair.target_index]`). `chi2_threshold` scales the Cauchy kernel (> 0).
+/// are `target_points[pair.target_index]`) with `weights` (one per pair, >= 0; empty = all 1).
 /// `up`: nullptr for 6 DoF, else the unit up axis of a 4-DoF step. Never throws for degenerate
-/// geometry (ok = false).
+/// geometry (ok = false); throws InvalidArgument when the weights do not match the pairs.
 P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& target_points,
-                       const Vec3& pivot_m, double chi2_threshold, const Vec3* up = nullptr);
+                       const Vec3& pivot_m, const std::vector<double>& weights,
+                       const Vec3* up = nullptr);
 
 /// T <- Exp(xi) about pivot, composed on the left of T_target_source.
 Isometry3 apply_step(const Isometry3& T_target_source, const Vec6& xi, const Vec3& pivot_m);
@@ -61,11 +66,11 @@ PoseCovariance p2d_covariance(const P2DStep& step, std::size_t num_pairs, const 
 /// covariances that are larger than the residuals (conservative maps) as they are. A common error
 /// of a whole map (its frame, relative to the other's) leaves no trace in the residuals and is
 /// not in it. sigma_m = sqrt(chi2 / (3n - 6)) as in p2d_covariance.
-/// `pairs` as solve_p2d_step (their moved_source_m at the estimate), `chi2_threshold` > 0,
-/// `block_m` > 0 and finite. valid = false when H is singular or n < 3. Never throws for
-/// degenerate geometry; throws InvalidArgument for block_m <= 0 or non-finite.
+/// `pairs` and `weights` as solve_p2d_step (their moved_source_m at the estimate), `block_m` > 0
+/// and finite. valid = false when H is singular or n < 3. Never throws for degenerate geometry;
+/// throws InvalidArgument for block_m <= 0 or non-finite, or weights that do not match the pairs.
 PoseCovariance p2d_cluster_covariance(const std::vector<GatedPair>& pairs,
                                       const Points3& target_points, const Vec3& pivot_m,
-                                      double chi2_threshold, double block_m);
+                                      const std::vector<double>& weights, double block_m);
 
 }  // namespace lmalign

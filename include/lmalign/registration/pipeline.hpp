@@ -1,0 +1,167 @@
+// The registration engine: one Pipeline, built at run time from one stage per seam
+// (seams.hpp) and one table of settings (settings.hpp). Every named strategy is a preset of it
+// (presets.hpp): the paper's ICP, lmalign's robust presets and the adaptive default.
+//
+//   scales        measured when a stage needs them (data_scales.hpp)
+//   initialiser   hypotheses, each with the pose uncertainty its gate starts from
+//   with a scorer each hypothesis is refined on the scorer's samples and scored; the best wins
+//   refinement    per iteration: match -> reject -> (weigh -> estimate) x re-weightings ->
+//                 schedule (level changes, termination), from the best hypothesis, every
+//                 landmark
+//   covariance    the estimator's, from the last step or from the pairs at the estimate
+//   trust judge   from every refined hypothesis, their scores and the initialiser's report
+//
+// Hypotheses are refined in parallel, one per thread, each in its own slot; stages loop over
+// landmarks with one slot each and sum serially. Results are identical for any thread count.
+//
+// Frames: T_target_source, p_target = T_target_source * p_source.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/seams.hpp"
+#include "lmalign/registration/settings.hpp"
+
+namespace lmalign {
+
+/// A prior on the transform: standard deviations of the rotation (degrees, about any axis) and
+/// of the translation (metres) of the initial guess, of the left perturbation about the target
+/// origin (uncertainty.hpp). Both finite and > 0.
+struct PriorSigma {
+  double rotation_deg = 0.0;
+  double translation_m = 0.0;
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+/// Which stage fills each seam (registry names, stages/registry), and the settings that differ
+/// from the stages' defaults (by key).
+struct PipelineSpec {
+  std::string name = "custom";
+  std::string initialiser = "guess";
+  std::string matcher = "nearest";
+  std::vector<std::string> rejectors;
+  std::string kernel = "none";
+  std::string estimator = "umeyama";
+  std::string schedule = "pcl";
+  std::string scorer = "none";
+  std::string trust = "none";
+  std::vector<std::pair<std::string, SettingValue>> settings;
+};
+
+/// What one alignment is asked, beyond the pipeline.
+struct PipelineRequest {
+  /// The start (identity if none). An initialiser that searches adds it to its hypotheses, or
+  /// with `prior` bounds its search around it.
+  std::optional<Isometry3> initial_guess;
+  std::optional<PriorSigma> prior;
+  /// Per-iteration history of the final refinement (pairs, their mean squared distance), with
+  /// the fitness score at every iteration when history_scores is set.
+  bool record_history = false;
+  bool history_scores = false;
+};
+
+/// The diagnostics at the estimate after the last step (schedules that ask for them): the last
+/// level's pairs there.
+struct EstimateDiagnostics {
+  bool computed = false;
+  std::size_t num_pairs = 0;
+  double inlier_ratio = 0.0;   ///< pairs kept / source landmarks
+  double overlap_ratio = 1.0;  ///< the trim ratio used
+  double max_distance_m = std::numeric_limits<double>::infinity();  ///< of the last level
+  double inlier_rms_m = 0.0;  ///< weighted RMS distance of the pairs, metres
+};
+
+/// What an alignment returns.
+struct Summary {
+  std::string preset;
+  /// The estimate, termination, iterations (every refinement's), pairs of the last iteration,
+  /// PCL's fitness scores at the initial guess and at the estimate, the history, the wall time.
+  RegistrationResult registration;
+  InitialiserReport initialisation;
+  /// Every refined hypothesis, by decreasing score (empty when there was no scoring).
+  std::vector<RefinedHypothesis> hypotheses;
+  /// The scales (when a stage needed them).
+  std::optional<Scales> scales;
+  EstimateDiagnostics at_estimate;
+  /// The estimator's covariance (raised to the half-sample covariance where that ran), and the
+  /// halves that entered it.
+  PoseCovariance estimator_covariance;
+  std::size_t num_half_samples = 0;
+  Verdict verdict;
+  /// The covariance reported: the judge's own if it has one, else the estimator's.
+  PoseCovariance covariance;
+};
+
+/// The registry of stages (stages/registry.cpp): one row per stage.
+struct StageInfo {
+  Seam seam;
+  std::string name;
+  std::string doc;
+  std::vector<SettingRow> (*settings)();
+  std::unique_ptr<Stage> (*make)(const Settings&);
+};
+const std::vector<StageInfo>& stage_registry();
+/// Nullptr when no stage of that seam has that name.
+const StageInfo* find_stage(Seam seam, const std::string& name);
+/// The engine's own settings (the scales, the fitness score's range).
+std::vector<SettingRow> engine_settings();
+
+class Pipeline {
+ public:
+  /// Builds the stages. Throws InvalidArgument for an unknown stage (naming the seam, the stage
+  /// and the known ones), stages that do not fit together (an estimator that needs the pairs'
+  /// covariances after a point matcher), an unknown setting (naming the nearest known key) or a
+  /// value outside its bound (naming key, value and bound).
+  explicit Pipeline(const PipelineSpec& spec);
+  ~Pipeline();
+  Pipeline(Pipeline&&) noexcept;
+  Pipeline& operator=(Pipeline&&) noexcept;
+
+  /// Aligns the source onto the target. Throws InvalidArgument on an empty source or target, a
+  /// non-finite landmark, covariance counts that do not match, a non-rigid initial guess, an
+  /// invalid prior or one for an initialiser that does not use it, or what a stage needs and
+  /// does not get (weights, covariances).
+  Summary run(const SourceView& source, const PreparedTarget& target,
+              const PipelineRequest& request = {}) const;
+
+  const PipelineSpec& spec() const { return spec_; }
+  const Settings& settings() const { return settings_; }
+  const Initialiser& initialiser() const { return *initialiser_; }
+  const Matcher& matcher() const { return *matcher_; }
+  const Kernel& kernel() const { return *kernel_; }
+  const Estimator& estimator() const { return *estimator_; }
+  const Schedule& schedule() const { return *schedule_; }
+  const Scorer* scorer() const { return scorer_.get(); }
+  const TrustJudge* trust() const { return trust_.get(); }
+  bool needs_scales() const { return needs_scales_; }
+
+  /// One refinement from `start` in `phase` on the landmarks of `context`. `keep_pairs`: keep
+  /// the last iteration's pairs in the result. `history`: 0 none, 1 pairs, 2 pairs and scores.
+  Refinement refine(const RefineContext& context, const Hypothesis& start, Phase phase,
+                    bool keep_pairs = false, int history = 0) const;
+  /// refine() on the source landmarks `indices` (increasing) of `context`, copied out.
+  Refinement refine_part(const RefineContext& context, const std::vector<std::uint32_t>& indices,
+                         const Hypothesis& start, Phase phase) const;
+
+ private:
+  PipelineSpec spec_;
+  Settings settings_;
+  std::unique_ptr<Initialiser> initialiser_;
+  std::unique_ptr<Matcher> matcher_;
+  std::vector<std::unique_ptr<Rejector>> rejectors_;
+  std::unique_ptr<Kernel> kernel_;
+  std::unique_ptr<Estimator> estimator_;
+  std::unique_ptr<Schedule> schedule_;
+  std::unique_ptr<Scorer> scorer_;
+  std::unique_ptr<TrustJudge> trust_;
+  bool needs_scales_ = false;
+};
+
+}  // namespace lmalign

@@ -1,0 +1,413 @@
+// The seams of the registration engine (pipeline.hpp): the interfaces its stages implement,
+// and the plain data that passes between them.
+//
+//   Initialiser  the hypotheses to refine (poses, each with the pose uncertainty the gate starts
+//                from) and a report the trust judge reads (what the search found and certified)
+//   Matcher      which target landmark each source landmark is paired with, within the current
+//                gate (a Euclidean distance, or the landmark covariances widened by the pose
+//                uncertainty)
+//   Rejector     pairs dropped after matching (mutual nearest neighbours, trimming)
+//   Kernel       each pair's weight (robust kernel times landmark confidence)
+//   Estimator    the new pose from the weighted pairs, and its covariance
+//   Schedule     the gate's schedule (levels of distance, or of pose uncertainty) and when to stop
+//   Scorer       a refined hypothesis' score, which picks the best one
+//   TrustJudge   whether the result can be trusted, from every refined hypothesis, their scores
+//                and the initialiser's report
+//
+// Each seam is called once per stage per iteration, never per landmark: what a stage does per
+// landmark it does in its own loop, one slot per landmark, so that results do not depend on the
+// thread count. Stages are immutable once built (a pipeline refines several hypotheses at once);
+// what a stage keeps during one refinement lives in the StageState it returns from begin().
+//
+// Frames: T_target_source, p_target = T_target_source * p_source. Units in names.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/registration/convergence.hpp"
+#include "lmalign/registration/correspondence.hpp"
+#include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/score.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
+#include "lmalign/registration/stages/mahalanobis_gate.hpp"
+#include "lmalign/registration/uncertainty.hpp"
+
+namespace lmalign {
+
+class Settings;
+class Pipeline;
+
+/// The source landmarks as the engine reads them (not owned): positions (metres, source frame),
+/// optional covariances (one 3x3 per landmark, m^2, source frame; null or empty = none) and an
+/// optional up axis (unit, source frame). The pointed-to vectors must outlive the alignment.
+struct SourceView {
+  const Points3* positions = nullptr;
+  const std::vector<Mat3>* covariances_m2 = nullptr;
+  std::optional<Vec3> up;
+
+  std::size_t size() const { return positions != nullptr ? positions->size() : 0; }
+  bool has_covariances() const { return covariances_m2 != nullptr && !covariances_m2->empty(); }
+};
+
+/// The source landmarks, owned: what front ends build from a map or from arrays.
+struct SourceLandmarks {
+  Points3 positions;
+  std::vector<Mat3> covariances_m2;  ///< empty = none
+  std::optional<Vec3> up;
+  /// From a map: positions, covariances and the up axis of its frames (estimate_up_axis()).
+  /// Throws InvalidArgument if the map is invalid.
+  static SourceLandmarks from_map(const Map& map);
+  SourceView view() const { return {&positions, &covariances_m2, up}; }
+};
+
+/// The scales read off the data (stages/data_scales.hpp), for the stages that need them.
+struct Scales {
+  DataScales source;
+  DataScales target;
+  /// Covariance floor of the gate, metres: the larger of the two maps' (or a setting).
+  double floor_m = 0.0;
+  /// The maps' up axes (unit, each in its own frame): their frames', else the default.
+  Vec3 up_source = Vec3::UnitZ();
+  Vec3 up_target = Vec3::UnitZ();
+};
+
+/// A pose the estimator works on. A struct so that a scale (a 7th degree of freedom) can join
+/// T_target_source without changing any seam.
+struct Pose {
+  Isometry3 T_target_source = Isometry3::Identity();
+};
+
+// ----------------------------------------------------------------------------- stages
+
+enum class Seam {
+  kInitialiser,
+  kMatcher,
+  kRejector,
+  kKernel,
+  kEstimator,
+  kSchedule,
+  kScorer,
+  kTrustJudge,
+};
+/// "initialiser", "matcher", "rejectors", "kernel", "estimator", "schedule", "scorer", "trust"
+/// (the keys of a preset file).
+std::string to_string(Seam seam);
+
+/// What a stage keeps during one refinement (a search cache, a convergence test's memory).
+class StageState {
+ public:
+  virtual ~StageState() = default;
+};
+
+/// The base of every stage: its registry name and what it needs of the pipeline.
+class Stage {
+ public:
+  virtual ~Stage() = default;
+  /// The stage's registry name ("nearest", "mahalanobis_gate", ...).
+  const std::string& name() const { return name_; }
+  void set_name(std::string name) { name_ = std::move(name); }
+  /// True when the stage reads Scales (the engine measures them only then).
+  virtual bool needs_scales() const { return false; }
+  /// Whether the stage works on the pairs a matcher of this kind makes (point pairs, or pairs
+  /// with their covariances); kPoints or kDistributions. The pipeline refuses stages that do not.
+  virtual bool accepts(int pair_kind) const {
+    (void)pair_kind;
+    return true;
+  }
+
+ private:
+  std::string name_;
+};
+
+// ----------------------------------------------------------------------------- initialiser
+
+/// One hypothesis to refine.
+struct Hypothesis {
+  Isometry3 T_target_source = Isometry3::Identity();
+  /// The pose uncertainty the gate starts from (translation about `pivot` below, metres;
+  /// rotation, radians): how far the search's resolution or the prior leaves the pose.
+  double start_sigma_m = 0.0;
+  double start_sigma_rad = 0.0;
+  /// The search's own score of the hypothesis (votes, a bound); 0 for the guess.
+  double search_score = 0.0;
+  /// Where it came from: "search", "guess", "prior", ...
+  std::string origin;
+};
+
+/// What an initialiser tells the rest of the pipeline and the trust judge.
+struct InitialiserReport {
+  /// How the hypotheses were found: "global" (a search over every pose), "prior" (a search
+  /// bounded by a prior), "given" (the initial guess alone), "global_vote" (the robust presets'
+  /// global initialisation), "yaw_centroid".
+  std::string initialisation = "given";
+  /// The search's resolution: the largest translation (metres, at the source's typical distance
+  /// from its centre) and rotation (radians) by which a hypothesis may miss the best pose of its
+  /// cell. 0 when there was no search. Distinct poses, and the overlap, are measured in it.
+  double resolution_m = 0.0;
+  double resolution_rad = 0.0;
+  /// Up-axis candidates the search used (empty when none).
+  std::vector<Vec3> ups_source;
+  std::vector<Vec3> ups_target;
+  /// What the search certified, for the trust judge: the best search score, and the best score
+  /// of a pose distinct from it (NaN when the search gives none). A complete search reports the
+  /// bounds it proved here.
+  double best_search_score = std::numeric_limits<double>::quiet_NaN();
+  double second_search_score = std::numeric_limits<double>::quiet_NaN();
+  /// Other numbers worth a line in the report (name, value).
+  std::vector<std::pair<std::string, double>> notes;
+};
+
+/// What an initialiser may read.
+struct InitialiserContext {
+  SourceView source;
+  const PreparedTarget* target = nullptr;
+  const Scales* scales = nullptr;  ///< null unless a stage needs them
+  /// The initial guess (T_target_source) and its prior (standard deviations of the rotation,
+  /// degrees, and of the translation, metres, about the target origin), if given.
+  std::optional<Isometry3> initial_guess;
+  std::optional<std::pair<double, double>> prior_sigma_deg_m;
+};
+
+class Initialiser : public Stage {
+ public:
+  /// The hypotheses (at least one) and the report. Deterministic.
+  virtual std::vector<Hypothesis> propose(const InitialiserContext& context,
+                                          InitialiserReport* report) const = 0;
+  /// True when the initialiser searches on its own and ignores an initial guess it is not given.
+  virtual bool uses_prior() const { return false; }
+};
+
+// ----------------------------------------------------------------------------- the loop
+
+/// Which refinement the loop runs.
+enum class Phase {
+  kHypothesis,  ///< a hypothesis on the samples, from its start uncertainty
+  kFinal,       ///< the best hypothesis on every landmark
+  kResample,    ///< a part of the landmarks from the estimate (half-sample covariance)
+};
+
+/// What the schedule keeps and every stage of the loop may read.
+struct LoopState {
+  Phase phase = Phase::kFinal;
+  int iterations = 0;        ///< steps taken in this refinement
+  int level_iterations = 0;  ///< since the schedule last changed its level
+  std::size_t level = 0;     ///< the schedule's level
+  /// The Euclidean gate of point matchers at this level, metres (+inf = none).
+  double max_distance_m = std::numeric_limits<double>::infinity();
+  /// The pose uncertainty that widens the gate of distribution matchers; its pivot is the
+  /// source centre's image at the current estimate.
+  PoseSigma sigma;
+  /// The trimming rejector's last ratio (1 without trimming).
+  double overlap_ratio = 1.0;
+  /// Diagnostics at the estimate after the last step: rejectors reuse their last ratio.
+  bool final_pass = false;
+  /// The estimator's cost this iteration uses the pair covariances (kernels then may measure
+  /// residuals in their metric).
+  bool distribution_step = false;
+};
+
+/// The pairs of one iteration. Point matchers fill `moved` and `points`; distribution matchers
+/// fill `gated`. `weights`, set by the kernel, has one weight per pair (empty: all 1).
+struct Pairs {
+  enum class Kind { kPoints, kDistributions };
+  Kind kind = Kind::kPoints;
+  Points3 moved;                 ///< T * p for every source landmark of the refinement
+  Correspondences points;        ///< in increasing source index
+  std::vector<GatedPair> gated;  ///< in increasing source index
+  std::vector<double> weights;
+  /// Distribution matchers: the gate on d^2 (dimensionless).
+  double chi2_threshold = 0.0;
+  std::size_t size() const { return kind == Kind::kPoints ? points.size() : gated.size(); }
+};
+
+/// What every stage of one refinement reads: the landmarks of the refinement (all, or a part
+/// copied out), the target, the scales (or null), the initialiser's report.
+struct RefineContext {
+  SourceView source;
+  const PreparedTarget* target = nullptr;
+  const Scales* scales = nullptr;
+  const InitialiserReport* init = nullptr;
+};
+
+class Matcher : public Stage {
+ public:
+  /// What kind of pairs it makes.
+  virtual Pairs::Kind kind() const = 0;
+  virtual std::unique_ptr<StageState> begin(const RefineContext& context) const = 0;
+  /// Replaces *pairs with the pairs at T within the state's gate. Parallel inside, one slot per
+  /// landmark; the pairs in increasing source index.
+  virtual void match(const RefineContext& context, StageState* state, const Isometry3& T,
+                     const LoopState& loop, Pairs* pairs) const = 0;
+  /// PCL's fitness score at T (score.hpp), served from the state's caches where it can be.
+  virtual FitnessScore fitness(const RefineContext& context, StageState* state, const Isometry3& T,
+                               double max_range_m) const;
+};
+
+class Rejector : public Stage {
+ public:
+  /// Drops pairs (keeping the order); may record what it did in *loop (the trim ratio).
+  virtual void reject(const RefineContext& context, LoopState* loop, Pairs* pairs) const = 0;
+};
+
+class Kernel : public Stage {
+ public:
+  /// Re-weightings per iteration on fixed pairs (iteratively re-weighted least squares), >= 1.
+  virtual int reweightings() const { return 1; }
+  /// Writes one weight per pair into *weights (or clears it: all 1), for the estimate
+  /// increment * T (the pairs were made at T).
+  virtual void weigh(const RefineContext& context, const LoopState& loop, const Pairs& pairs,
+                     const Isometry3& T, const Isometry3& increment,
+                     std::vector<double>* weights) const = 0;
+};
+
+/// One solved step.
+struct Step {
+  /// False: the normal equations were singular or the step not finite (the loop then stops with
+  /// kDegenerate, keeping the estimate).
+  bool ok = true;
+  Pose estimate;                                ///< the new estimate
+  Isometry3 increment = Isometry3::Identity();  ///< the step as a left increment
+  /// The step's own parameters about `pivot_m` (rho [m], phi [rad]) when the estimator has them.
+  bool has_xi = false;
+  Vec6 xi = Vec6::Zero();
+  Vec3 pivot_m = Vec3::Zero();
+  /// A minimiser among many (rank-deficient cross-covariance, singular point-to-distribution).
+  bool degenerate = false;
+  /// The normal equations the step solved, about pivot_m (for the covariance): sum w J^T W J, and
+  /// the weighted chi-square before the step.
+  Mat6 hessian = Mat6::Zero();
+  double chi2 = 0.0;
+};
+
+class Estimator : public Stage {
+ public:
+  /// Pairs it needs at least (fewer: the loop stops with kNoCorrespondences).
+  virtual std::size_t min_pairs() const { return 1; }
+  virtual Pairs::Kind needs() const = 0;
+  /// 6, or 4 for x, y, z and yaw.
+  virtual int degrees_of_freedom() const { return 6; }
+  /// True when this iteration's cost uses the pair covariances.
+  virtual bool distribution_step(const LoopState&) const { return false; }
+  /// The step from `pairs` (weighted) at `current`; `increment` is the re-weighting's estimate
+  /// so far (identity at the first), from which a Gauss-Newton solver may start.
+  virtual Step solve(const RefineContext& context, const LoopState& loop, const Pairs& pairs,
+                     const Pose& current, const Isometry3& increment) const = 0;
+  /// The 6x6 covariance of the estimate (uncertainty.hpp's convention), from `pairs` (weighted):
+  /// the pairs at the estimate, or those the last step was solved on (then `last_step` is that
+  /// step). An estimator may re-run refinements of the pipeline on parts of the landmarks (a
+  /// half-sample covariance) and count them in *num_resamples.
+  virtual PoseCovariance covariance(const RefineContext& context, const Pipeline& pipeline,
+                                    const LoopState& loop, const Pairs& pairs, const Pose& estimate,
+                                    const Step* last_step, std::size_t* num_resamples) const = 0;
+};
+
+class Schedule : public Stage {
+ public:
+  /// Where the estimator's covariance and the diagnostics come from once the loop stops.
+  enum class EndPass {
+    kNone,        ///< nothing (the paper's ICP)
+    kLastStep,    ///< the last step's normal equations and pairs
+    kAtEstimate,  ///< the last level's pairs re-made at the estimate (and the diagnostics)
+  };
+  virtual EndPass end_pass() const { return EndPass::kNone; }
+  /// Starts a refinement: sets the gate of *loop (level 0, its distance or pose uncertainty).
+  virtual std::unique_ptr<StageState> begin(const RefineContext& context, const Hypothesis& start,
+                                            LoopState* loop) const = 0;
+  /// Pairs needed to go on.
+  virtual std::size_t min_pairs() const { return 1; }
+  /// Checked before each iteration: false stops with kMaxIterations.
+  virtual bool may_iterate(const LoopState&) const { return true; }
+  /// After a step (loop->iterations counts it): kNotTerminated to go on, else why it stops. May
+  /// change the level (and the gate) in *loop.
+  virtual TerminationReason after_step(const RefineContext& context, StageState* state,
+                                       const Step& step, const Pairs& pairs,
+                                       LoopState* loop) const = 0;
+  /// The reason reported once stopped (`last_degenerate`: the last step was a minimiser among
+  /// many).
+  virtual TerminationReason finish(TerminationReason reason, bool last_degenerate) const {
+    (void)last_degenerate;
+    return reason;
+  }
+};
+
+// ----------------------------------------------------------------------------- the result
+
+/// One refinement, as the engine ran it.
+struct Refinement {
+  Isometry3 T = Isometry3::Identity();
+  TerminationReason termination = TerminationReason::kNotTerminated;
+  int iterations = 0;
+  std::size_t num_pairs = 0;  ///< pairs of the last iteration
+  LoopState loop;             ///< the loop's state at the end
+  Step last_step;             ///< the last solved step (ok = false if none)
+  bool has_step = false;
+  Pairs last_pairs;  ///< the pairs the last step was solved on (final phase)
+  std::vector<IterationRecord> history;
+};
+
+/// A refined hypothesis.
+struct RefinedHypothesis {
+  Hypothesis start;
+  Isometry3 T_refined = Isometry3::Identity();
+  double score = 0.0;  ///< the scorer's, on the samples
+  int iterations = 0;
+  TerminationReason termination = TerminationReason::kNotTerminated;
+};
+
+class Scorer : public Stage {
+ public:
+  /// The source landmarks (indices, increasing) on which hypotheses are refined and scored.
+  virtual std::vector<std::uint32_t> samples(std::size_t num_landmarks) const = 0;
+  /// The score of T on the refinement's landmarks (larger is better).
+  virtual double score(const RefineContext& context, const Pipeline& pipeline,
+                       const Isometry3& T) const = 0;
+};
+
+/// The trust verdict and what it was decided on.
+struct Verdict {
+  bool trustworthy = false;
+  std::string reason;  ///< "ok", or why not
+  /// Point presets (judge "inliers"): source landmarks within the inlier distance, and within the
+  /// overlap distance, of all (NaN otherwise).
+  double inlier_fraction = std::numeric_limits<double>::quiet_NaN();
+  double overlap_fraction = std::numeric_limits<double>::quiet_NaN();
+  /// Covariance-gated evidence (judge "gated"): the gated inliers at the estimate, their score
+  /// sum (1 - d^2 / chi2), their mean Mahalanobis d^2 (NIS) and its expectation, the landmarks
+  /// near a target landmark (the gate widened by the search's resolution), the inliers over
+  /// those, and the best distinct hypothesis' score over the best's.
+  std::size_t num_inliers = 0;
+  double score = 0.0;
+  double mean_nis = 0.0;
+  double expected_nis = 0.0;
+  std::size_t num_overlap = 0;
+  double inlier_ratio = 0.0;
+  double ambiguity = 0.0;
+  /// A covariance of the judge's own (judge "inliers": point-to-point on its inliers), reported
+  /// instead of the estimator's.
+  std::optional<PoseCovariance> covariance;
+};
+
+/// What the trust judge reads.
+struct JudgeContext {
+  RefineContext context;  ///< every source landmark
+  const Pipeline* pipeline = nullptr;
+  const Refinement* final = nullptr;
+  const std::vector<RefinedHypothesis>* hypotheses = nullptr;  ///< by decreasing score
+  const InitialiserReport* init = nullptr;
+  const PoseCovariance* covariance = nullptr;  ///< the estimator's
+};
+
+class TrustJudge : public Stage {
+ public:
+  virtual Verdict judge(const JudgeContext& context) const = 0;
+};
+
+}  // namespace lmalign

@@ -1,0 +1,188 @@
+// Estimator "p2d_step": one Gauss-Newton step of the point-to-distribution cost on the gated
+// pairs per iteration, about the source centre's image (stages/p2d_step.hpp; 6 DoF, or 4 about
+// the target's up axis). Its covariance: the last step's normal equations (p2d_covariance), for 6
+// DoF the cluster-robust sandwich over spatial blocks (p2d_cluster_covariance), raised to the
+// half-sample covariance (balanced repeated replication over spatial halves of the overlap,
+// docs/accuracy.md, "Uncertainty of the adaptive default").
+#include <optional>
+
+#include <Eigen/Eigenvalues>
+
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/stages/p2d_step.hpp"
+#include "stage.hpp"
+
+LMALIGN_STAGE_FUNCTIONS(estimate_p2d_step)
+
+namespace lmalign::stages {
+
+namespace {
+
+struct P2DStepOptions {
+  bool four_dof = false;
+  double block_factor = 0.5;
+  int half_sample_planes = 8;
+  std::size_t half_sample_min_landmarks = 12;
+};
+
+class P2DStepEstimator : public Estimator {
+ public:
+  explicit P2DStepEstimator(P2DStepOptions o) : o_(o) {}
+  bool needs_scales() const override { return true; }
+  Pairs::Kind needs() const override { return Pairs::Kind::kDistributions; }
+  std::size_t min_pairs() const override { return o_.four_dof ? 2 : 3; }
+  int degrees_of_freedom() const override { return o_.four_dof ? 4 : 6; }
+  bool distribution_step(const LoopState&) const override { return true; }
+
+  Step solve(const RefineContext& c, const LoopState& loop, const Pairs& pairs, const Pose& current,
+             const Isometry3&) const override {
+    const Vec3& pivot = loop.sigma.pivot_m;
+    const P2DStep s = solve_p2d_step(pairs.gated, c.target->points(), pivot, pairs.weights,
+                                     o_.four_dof ? &c.scales->up_target : nullptr);
+    Step step;
+    step.ok = s.ok;
+    step.has_xi = true;
+    step.xi = s.xi;
+    step.pivot_m = pivot;
+    step.hessian = s.hessian;
+    step.chi2 = s.chi2;
+    step.estimate = current;
+    if (s.ok) {
+      step.estimate.T_target_source = apply_step(current.T_target_source, s.xi, pivot);
+      step.increment = step.estimate.T_target_source * current.T_target_source.inverse();
+    }
+    return step;
+  }
+
+  PoseCovariance covariance(const RefineContext& c, const Pipeline& pipeline, const LoopState&,
+                            const Pairs& pairs, const Pose& estimate, const Step* last_step,
+                            std::size_t* num_resamples) const override {
+    if (last_step == nullptr) return {};
+    P2DStep s;
+    s.ok = last_step->ok;
+    s.xi = last_step->xi;
+    s.hessian = last_step->hessian;
+    s.chi2 = last_step->chi2;
+    // Validity (and with it the trust verdict) as the normal equations of the last step say.
+    PoseCovariance cov = p2d_covariance(s, pairs.size(), last_step->pivot_m);
+    if (!cov.valid || o_.four_dof) return cov;
+    const PoseCovariance robust =
+        p2d_cluster_covariance(pairs.gated, c.target->points(), last_step->pivot_m, pairs.weights,
+                               o_.block_factor * c.scales->source.radius_m);
+    if (robust.valid) cov = robust;
+    if (o_.half_sample_planes > 0) {
+      const std::vector<Vec6> deviations = half_sample_deviations(c, pipeline, estimate);
+      const std::size_t halves = 2 * static_cast<std::size_t>(o_.half_sample_planes + 1);
+      if (2 * deviations.size() >= halves) {
+        Mat6 B = Mat6::Zero();
+        for (const Vec6& d : deviations) B.noalias() += d * d.transpose();
+        B /= static_cast<double>(deviations.size());
+        cov.covariance = covariance_max(cov.covariance, B);
+        if (num_resamples != nullptr) *num_resamples = deviations.size();
+      }
+    }
+    return cov;
+  }
+
+ private:
+  // The overlap landmarks (those that pass the gate widened by one resolution of pose
+  // uncertainty at the estimate) are cut by half_sample_planes vertical planes through their
+  // centroid (at k x 180 deg / n about the source's up axis from their widest horizontal
+  // direction) and one horizontal plane; each side of each plane is refined again from the
+  // estimate (the gate at its floor), and its deviation is pose_error_twist against the
+  // estimate. Halves with fewer than half_sample_min_landmarks landmarks, and refinements that
+  // do not end settled or at their budget, are left out. One slot per half: deterministic.
+  std::vector<Vec6> half_sample_deviations(const RefineContext& c, const Pipeline& pipeline,
+                                           const Pose& estimate) const {
+    const Isometry3& T = estimate.T_target_source;
+    const Vec3& up = c.scales->up_source;
+    LoopState wide;
+    wide.sigma.translation_m = c.init->resolution_m;
+    wide.sigma.pivot_m = T * c.scales->source.centre_m;
+    Pairs near;
+    pipeline.matcher().match(c, nullptr, T, wide, &near);
+    std::vector<std::uint32_t> overlap;
+    overlap.reserve(near.gated.size());
+    for (const GatedPair& g : near.gated) overlap.push_back(g.source_index);
+
+    const Points3& p = *c.source.positions;
+    std::vector<Vec6> out;
+    if (overlap.size() < 2 * o_.half_sample_min_landmarks) return out;
+    Vec3 centre = Vec3::Zero();
+    for (std::uint32_t i : overlap) centre += p[i];
+    centre /= static_cast<double>(overlap.size());
+    Mat3 scatter = Mat3::Zero();
+    for (std::uint32_t i : overlap) {
+      Vec3 q = p[i] - centre;
+      q -= up * up.dot(q);
+      scatter.noalias() += q * q.transpose();
+    }
+    const Eigen::SelfAdjointEigenSolver<Mat3> eig(scatter);
+    Vec3 widest = eig.eigenvectors().col(2);
+    widest -= up * up.dot(widest);
+    if (!(widest.norm() > 0.0)) widest = up.unitOrthogonal();
+    widest.normalize();
+    const int n = o_.half_sample_planes;
+    std::vector<Vec3> normals;
+    for (int k = 0; k < n; ++k) normals.push_back(Eigen::AngleAxisd(kPi * k / n, up) * widest);
+    normals.push_back(up);
+    const std::size_t slots = 2 * normals.size();
+    std::vector<std::optional<Vec6>> dev(slots);
+    Hypothesis from;
+    from.T_target_source = T;
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::ptrdiff_t s = 0; s < static_cast<std::ptrdiff_t>(slots); ++s) {
+      const Vec3& normal = normals[static_cast<std::size_t>(s) / 2];
+      const bool below = s % 2 == 0;
+      std::vector<std::uint32_t> half;
+      for (std::uint32_t i : overlap) {
+        if ((normal.dot(p[i] - centre) < 0.0) == below) half.push_back(i);
+      }
+      if (half.size() < o_.half_sample_min_landmarks) continue;
+      const Refinement r = pipeline.refine_part(c, half, from, Phase::kResample);
+      if (r.termination != TerminationReason::kTransform &&
+          r.termination != TerminationReason::kMaxIterations) {
+        continue;
+      }
+      dev[static_cast<std::size_t>(s)] = pose_error_twist(r.T, T);
+    }
+    for (const auto& d : dev) {
+      if (d && d->allFinite()) out.push_back(*d);
+    }
+    return out;
+  }
+
+  P2DStepOptions o_;
+};
+
+}  // namespace
+
+std::vector<SettingRow> estimate_p2d_step_settings() {
+  return {
+      bool_setting("estimate.four_dof", "AdaptiveOptions::four_dof", false,
+                   "estimate x, y, z and the yaw about the target's up axis only (4 DoF)"),
+      real_setting("estimate.covariance_block_factor", "AdaptiveOptions::covariance_block_factor",
+                   0.5, SettingBound::above(0.0), "1",
+                   "edge of the spatial blocks of the cluster-robust covariance, as a fraction of "
+                   "the source's radius"),
+      int_setting("estimate.half_sample_planes", "AdaptiveOptions::covariance_half_sample_planes",
+                  8, SettingBound::closed(0, 1000), "count",
+                  "vertical planes cutting the overlap in halves for the half-sample covariance "
+                  "(0: off); costs 2 (n + 1) refinements of half the overlap"),
+      int_setting("estimate.half_sample_min_landmarks", "AdaptiveOptions::min_inliers", 12,
+                  SettingBound::at_least(3), "count",
+                  "a half with fewer landmarks is left out of the half-sample covariance"),
+  };
+}
+
+std::unique_ptr<Stage> make_estimate_p2d_step(const Settings& s) {
+  P2DStepOptions o;
+  o.four_dof = s.boolean("estimate.four_dof");
+  o.block_factor = s.real("estimate.covariance_block_factor");
+  o.half_sample_planes = static_cast<int>(s.integer("estimate.half_sample_planes"));
+  o.half_sample_min_landmarks =
+      static_cast<std::size_t>(s.integer("estimate.half_sample_min_landmarks"));
+  return std::make_unique<P2DStepEstimator>(o);
+}
+
+}  // namespace lmalign::stages

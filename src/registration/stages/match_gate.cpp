@@ -1,0 +1,62 @@
+// Matcher "mahalanobis_gate": of the k Euclidean nearest target landmarks, the one of smallest
+// Mahalanobis distance under both landmarks' covariances, the floor and the loop's pose
+// uncertainty, kept when it passes a chi-square test (stages/mahalanobis_gate.hpp).
+#include "lmalign/registration/stages/mahalanobis_gate.hpp"
+
+#include "stage.hpp"
+
+LMALIGN_STAGE_FUNCTIONS(match_gate)
+
+namespace lmalign::stages {
+
+namespace {
+
+class GateMatcher : public Matcher {
+ public:
+  explicit GateMatcher(MahalanobisGateOptions o) : options_(o) {}
+
+  struct State : StageState {
+    GateNeighbourCache cache;  // seeds each iteration's searches with the last ones
+  };
+
+  bool needs_scales() const override { return true; }
+  Pairs::Kind kind() const override { return Pairs::Kind::kDistributions; }
+
+  std::unique_ptr<StageState> begin(const RefineContext&) const override {
+    return std::make_unique<State>();
+  }
+
+  void match(const RefineContext& c, StageState* state, const Isometry3& T, const LoopState& loop,
+             Pairs* pairs) const override {
+    GateSide side;
+    side.points = c.source.positions;
+    side.covariances_m2 = c.source.covariances_m2;
+    pairs->kind = Pairs::Kind::kDistributions;
+    pairs->chi2_threshold = options_.chi2_threshold;
+    gate_correspondences(side, *c.target, T, c.scales->floor_m, loop.sigma, options_, nullptr,
+                         &pairs->gated,
+                         state != nullptr ? &static_cast<State*>(state)->cache : nullptr);
+  }
+
+ private:
+  MahalanobisGateOptions options_;
+};
+
+}  // namespace
+
+std::vector<SettingRow> match_gate_settings() {
+  return {int_setting("match.k", "MahalanobisGateOptions::k", 5, SettingBound::closed(1, 64),
+                      "count", "Euclidean nearest target landmarks examined per source landmark"),
+          real_setting("match.chi2_threshold", "MahalanobisGateOptions::chi2_threshold",
+                       kChi2Dof3P99, SettingBound::above(0.0), "1",
+                       "gate on the Mahalanobis d^2 (chi-square, 3 dof, 0.99)")};
+}
+
+std::unique_ptr<Stage> make_match_gate(const Settings& s) {
+  MahalanobisGateOptions o;
+  o.k = static_cast<int>(s.integer("match.k"));
+  o.chi2_threshold = s.real("match.chi2_threshold");
+  return std::make_unique<GateMatcher>(o);
+}
+
+}  // namespace lmalign::stages

@@ -1,0 +1,134 @@
+// Schedule "distance_levels": a maximum correspondence distance per level, non-increasing (the
+// first may be unlimited: the paper's basin). The run moves to the next level when the estimate
+// settles (an increment below settle_translation_m and settle_rotation_rad) or after
+// max_iterations_per_level, and ends when it settles at the last level or after max_iterations
+// in all. Hypotheses of a search are refined on their own shorter schedule
+// (hypothesis_levels_m, hypothesis_iterations). The covariance and the diagnostics come from the
+// last level's pairs at the estimate.
+#include <algorithm>
+#include <cmath>
+
+#include "stage.hpp"
+
+LMALIGN_STAGE_FUNCTIONS(schedule_distance)
+
+namespace lmalign::stages {
+
+namespace {
+
+struct Levels {
+  std::vector<double> distances_m;
+  int max_iterations = 300;
+  int max_iterations_per_level = 60;
+};
+
+class DistanceSchedule : public Schedule {
+ public:
+  DistanceSchedule(Levels final, Levels hypothesis, double settle_t, double settle_r,
+                   std::size_t min_pairs)
+      : final_(std::move(final)),
+        hypothesis_(std::move(hypothesis)),
+        settle_t_(settle_t),
+        settle_r_(settle_r),
+        min_pairs_(min_pairs) {}
+
+  EndPass end_pass() const override { return EndPass::kAtEstimate; }
+  std::size_t min_pairs() const override { return min_pairs_; }
+
+  std::unique_ptr<StageState> begin(const RefineContext&, const Hypothesis&,
+                                    LoopState* loop) const override {
+    loop->level = 0;
+    loop->level_iterations = 0;
+    loop->max_distance_m = levels(*loop).distances_m.front();
+    return nullptr;
+  }
+
+  TerminationReason after_step(const RefineContext&, StageState*, const Step& step, const Pairs&,
+                               LoopState* loop) const override {
+    const Levels& l = levels(*loop);
+    const bool settled = step.increment.translation().norm() < settle_t_ &&
+                         Eigen::AngleAxisd(step.increment.linear()).angle() < settle_r_;
+    if (settled || loop->level_iterations >= l.max_iterations_per_level) {
+      if (loop->level + 1 == l.distances_m.size()) {
+        if (settled) {
+          return step.degenerate ? TerminationReason::kDegenerate : TerminationReason::kTransform;
+        }
+        // not settled at the last level: go on until the budget ends
+      } else {
+        ++loop->level;
+        loop->level_iterations = 0;
+        loop->max_distance_m = l.distances_m[loop->level];
+      }
+    }
+    if (loop->iterations >= l.max_iterations) return TerminationReason::kMaxIterations;
+    return TerminationReason::kNotTerminated;
+  }
+
+ private:
+  const Levels& levels(const LoopState& loop) const {
+    return loop.phase == Phase::kHypothesis ? hypothesis_ : final_;
+  }
+  Levels final_;
+  Levels hypothesis_;
+  double settle_t_;
+  double settle_r_;
+  std::size_t min_pairs_;
+};
+
+SettingBound schedule_bound() {
+  SettingBound b = SettingBound::above_or_inf(0.0);
+  b.min_size = 1;
+  b.max_size = 1000;
+  b.non_increasing = true;
+  return b;
+}
+
+}  // namespace
+
+std::vector<SettingRow> schedule_distance_settings() {
+  const double inf = std::numeric_limits<double>::infinity();
+  return {
+      reals_setting("schedule.levels_m", "RobustRegistrationOptions::max_distance_schedule_m",
+                    {inf, 1.0, 0.5, 0.25, 0.1, 0.05}, schedule_bound(), "m",
+                    "maximum correspondence distance per level (inf = unlimited)"),
+      int_setting("schedule.max_iterations", "RobustRegistrationOptions::max_iterations", 300,
+                  SettingBound::closed(1, 2147483647), "count", "iterations over all levels"),
+      int_setting("schedule.max_iterations_per_level",
+                  "RobustRegistrationOptions::max_iterations_per_level", 60,
+                  SettingBound::closed(1, 2147483647), "count",
+                  "iterations at one level before the next applies anyway"),
+      real_setting("schedule.settle_translation_m",
+                   "RobustRegistrationOptions::settle_translation_m", 1e-5,
+                   SettingBound::at_least(0.0), "m",
+                   "an increment below this translation (and rotation) has settled"),
+      real_setting("schedule.settle_rotation_rad", "RobustRegistrationOptions::settle_rotation_rad",
+                   1e-6, SettingBound::at_least(0.0), "rad",
+                   "an increment below this rotation (and translation) has settled"),
+      int_setting("schedule.min_correspondences", "RobustRegistrationOptions::min_correspondences",
+                  3, SettingBound::closed(3, 2147483647), "count",
+                  "fewer pairs end the run (no_correspondences)"),
+      reals_setting("schedule.hypothesis_levels_m", "RobustRegistrationOptions::global_schedule_m",
+                    {inf, 0.5, 0.2}, schedule_bound(), "m",
+                    "levels of the short runs that refine a search's hypotheses"),
+      int_setting("schedule.hypothesis_iterations", "RobustRegistrationOptions::global_iterations",
+                  45, SettingBound::closed(1, 2147483647), "count",
+                  "iterations of each hypothesis' short run, over all its levels"),
+  };
+}
+
+std::unique_ptr<Stage> make_schedule_distance(const Settings& s) {
+  Levels final;
+  final.distances_m = s.reals("schedule.levels_m");
+  final.max_iterations = static_cast<int>(s.integer("schedule.max_iterations"));
+  final.max_iterations_per_level = static_cast<int>(s.integer("schedule.max_iterations_per_level"));
+  Levels hyp;
+  hyp.distances_m = s.reals("schedule.hypothesis_levels_m");
+  hyp.max_iterations = static_cast<int>(s.integer("schedule.hypothesis_iterations"));
+  hyp.max_iterations_per_level =
+      std::max(1, hyp.max_iterations / static_cast<int>(hyp.distances_m.size()));
+  return std::make_unique<DistanceSchedule>(
+      final, hyp, s.real("schedule.settle_translation_m"), s.real("schedule.settle_rotation_rad"),
+      static_cast<std::size_t>(s.integer("schedule.min_correspondences")));
+}
+
+}  // namespace lmalign::stages

@@ -1,0 +1,112 @@
+// Schedule "sigma_anneal": the gate's pose uncertainty starts at the hypothesis' (a fraction of
+// the search's resolution, or of the prior) and is multiplied by sigma_decay each time the
+// estimate settles (or after max_iterations_per_level), down to zero once below the covariance
+// floor: the gate is never unbounded. The run ends when a step settles at zero uncertainty (a
+// step below settle_ratio x the floor, and that over the source's radius in rotation), or after
+// max_iterations. Final and resampled refinements start at zero. The covariance comes from the
+// last step's normal equations.
+#include <algorithm>
+
+#include "stage.hpp"
+
+LMALIGN_STAGE_FUNCTIONS(schedule_sigma)
+
+namespace lmalign::stages {
+
+namespace {
+
+struct SigmaOptions {
+  int max_iterations = 120;
+  int max_iterations_per_level = 15;
+  double sigma_decay = 0.5;
+  double settle_ratio = 1e-3;
+  double level_settle_ratio = 0.0;
+};
+
+class SigmaSchedule : public Schedule {
+ public:
+  explicit SigmaSchedule(SigmaOptions o) : o_(o) {}
+  bool needs_scales() const override { return true; }
+  EndPass end_pass() const override { return EndPass::kLastStep; }
+
+  std::unique_ptr<StageState> begin(const RefineContext&, const Hypothesis& start,
+                                    LoopState* loop) const override {
+    loop->sigma = PoseSigma{};
+    if (loop->phase == Phase::kHypothesis) {
+      loop->sigma.translation_m = start.start_sigma_m;
+      loop->sigma.rotation_rad = start.start_sigma_rad;
+    }
+    loop->level_iterations = 0;
+    return nullptr;
+  }
+
+  bool may_iterate(const LoopState& loop) const override {
+    return loop.iterations < o_.max_iterations;
+  }
+
+  TerminationReason after_step(const RefineContext& c, StageState*, const Step& step, const Pairs&,
+                               LoopState* loop) const override {
+    const double floor = c.scales->floor_m;
+    const double settle_t = o_.settle_ratio * floor;
+    const double settle_r = settle_t / c.scales->source.radius_m;
+    Vec6 xi = step.xi;
+    if (!step.has_xi) xi = pose_error_twist(step.increment, Isometry3::Identity());
+    PoseSigma& sigma = loop->sigma;
+    const bool at_zero = sigma.translation_m == 0.0 && sigma.rotation_rad == 0.0;
+    // While the gate is wider than the floor, a step well below its width is settled enough.
+    const bool settled =
+        xi.head<3>().norm() < std::max(settle_t, o_.level_settle_ratio * sigma.translation_m) &&
+        xi.tail<3>().norm() < std::max(settle_r, o_.level_settle_ratio * sigma.rotation_rad);
+    if (settled && at_zero) return TerminationReason::kTransform;
+    if ((settled || loop->level_iterations >= o_.max_iterations_per_level) && !at_zero) {
+      sigma.translation_m *= o_.sigma_decay;
+      sigma.rotation_rad *= o_.sigma_decay;
+      if (sigma.translation_m < floor && sigma.rotation_rad * c.scales->source.radius_m < floor) {
+        sigma.translation_m = 0.0;
+        sigma.rotation_rad = 0.0;
+      }
+      loop->level_iterations = 0;
+      ++loop->level;
+    }
+    return TerminationReason::kNotTerminated;
+  }
+
+ private:
+  SigmaOptions o_;
+};
+
+}  // namespace
+
+std::vector<SettingRow> schedule_sigma_settings() {
+  return {
+      int_setting("schedule.max_iterations", "AdaptiveOptions::max_iterations", 120,
+                  SettingBound::closed(1, 2147483647), "count", "iterations per refinement"),
+      int_setting("schedule.max_iterations_per_level", "AdaptiveOptions::max_iterations_per_level",
+                  15, SettingBound::closed(1, 2147483647), "count",
+                  "iterations before the pose uncertainty shrinks anyway"),
+      real_setting("schedule.sigma_decay", "AdaptiveOptions::sigma_decay", 0.5,
+                   SettingBound::open(0.0, 1.0), "1",
+                   "each time the estimate settles the gate's pose uncertainty is multiplied by "
+                   "this"),
+      real_setting("schedule.settle_ratio", "AdaptiveOptions::settle_ratio", 1e-3,
+                   SettingBound::open_closed(0.0, 1.0), "1",
+                   "settled: a step below this times the floor (and that over the source's radius "
+                   "in rotation)"),
+      real_setting("schedule.level_settle_ratio", "AdaptiveOptions::level_settle_ratio", 0.0,
+                   SettingBound::closed_open(0.0, 1.0), "1",
+                   "at a level whose pose uncertainty is above zero, a step below this fraction of "
+                   "it also counts as settled"),
+  };
+}
+
+std::unique_ptr<Stage> make_schedule_sigma(const Settings& s) {
+  SigmaOptions o;
+  o.max_iterations = static_cast<int>(s.integer("schedule.max_iterations"));
+  o.max_iterations_per_level = static_cast<int>(s.integer("schedule.max_iterations_per_level"));
+  o.sigma_decay = s.real("schedule.sigma_decay");
+  o.settle_ratio = s.real("schedule.settle_ratio");
+  o.level_settle_ratio = s.real("schedule.level_settle_ratio");
+  return std::make_unique<SigmaSchedule>(o);
+}
+
+}  // namespace lmalign::stages

@@ -1,0 +1,54 @@
+// Scorer "consensus": a hypothesis' score is the number of source landmarks (every
+// score.stride-th) within score.inlier_distance_m of a target landmark at its estimate.
+#include "stage.hpp"
+
+LMALIGN_STAGE_FUNCTIONS(score_consensus)
+
+namespace lmalign::stages {
+
+namespace {
+
+class ConsensusScorer : public Scorer {
+ public:
+  ConsensusScorer(std::size_t stride, double distance_m)
+      : stride_(stride), distance_m_(distance_m) {}
+
+  std::vector<std::uint32_t> samples(std::size_t n) const override {
+    std::vector<std::uint32_t> out;
+    for (std::size_t i = 0; i < n; i += stride_) out.push_back(static_cast<std::uint32_t>(i));
+    return out;
+  }
+
+  double score(const RefineContext& c, const Pipeline&, const Isometry3& T) const override {
+    std::size_t n = 0;
+    const double d2max = distance_m_ * distance_m_;
+    for (const Vec3& p : *c.source.positions) {
+      PointIndex idx = 0;
+      double d2 = 0.0;
+      if (c.target->tree().nearest(T * p, &idx, &d2) && d2 <= d2max) ++n;
+    }
+    return static_cast<double>(n);
+  }
+
+ private:
+  std::size_t stride_;
+  double distance_m_;
+};
+
+}  // namespace
+
+std::vector<SettingRow> score_consensus_settings() {
+  return {int_setting("score.stride", "RobustRegistrationOptions::global_subsample", 4,
+                      SettingBound::closed(1, 2147483647), "count",
+                      "every n-th source landmark refines and scores the hypotheses"),
+          real_setting(
+              "score.inlier_distance_m", "RobustRegistrationOptions::global_inlier_distance_m", 0.1,
+              SettingBound::above(0.0), "m", "a landmark this close to a target landmark counts")};
+}
+
+std::unique_ptr<Stage> make_score_consensus(const Settings& s) {
+  return std::make_unique<ConsensusScorer>(static_cast<std::size_t>(s.integer("score.stride")),
+                                           s.real("score.inlier_distance_m"));
+}
+
+}  // namespace lmalign::stages

@@ -1,0 +1,27 @@
+// What every stage file includes: the seams, the settings, and the declaration of its two
+// registry functions (registry.cpp lists the rows).
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/registration/pipeline.hpp"
+#include "lmalign/registration/seams.hpp"
+#include "lmalign/registration/settings.hpp"
+
+namespace lmalign::stages {
+
+/// The landmark confidences a setting may name (weights.hpp): "uniform", "covariance",
+/// "observations", "distance".
+std::vector<std::string> confidence_names();
+
+}  // namespace lmalign::stages
+
+/// Declares a stage's registry functions: `IDENT_settings()` (its rows) and `make_IDENT()`.
+#define LMALIGN_STAGE_FUNCTIONS(IDENT)                           \
+  namespace lmalign::stages {                                    \
+  std::vector<SettingRow> IDENT##_settings();                    \
+  std::unique_ptr<Stage> make_##IDENT(const Settings& settings); \
+  }

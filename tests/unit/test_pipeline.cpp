@@ -1,0 +1,264 @@
+// The registration engine (registration/pipeline.hpp, seams.hpp, settings.hpp): the stage
+// registry and its refusals (unknown stages, stages that do not fit, unknown settings, values
+// out of bounds), the settings table's text forms, and pipelines composed from stages that no
+// preset combines, against a known transform on a seeded synthetic room; determinism over
+// thread counts.
+#include <omp.h>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/pipeline.hpp"
+#include "support/synthetic_scene.hpp"
+
+namespace lmalign {
+namespace {
+
+std::string message_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InvalidArgument& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+// ------------------------------------------------------------------------------------------
+// The settings table
+// ------------------------------------------------------------------------------------------
+
+Settings small_table() {
+  return Settings(
+      {int_setting("match.k", "k", 5, SettingBound::closed(1, 4096), "count", "k"),
+       real_setting("schedule.max_distance_m", "d", std::numeric_limits<double>::infinity(),
+                    SettingBound::above_or_inf(0.0), "m", "d"),
+       real_setting("kernel.scale_ratio", "r", 0.5, SettingBound::at_least(0.0), "1", "r"),
+       choice_setting("kernel.confidence", "c", "uniform", {"uniform", "observations"}, "c"),
+       reals_setting(
+           "schedule.levels_m", "l", {1.0, 0.5},
+           [] {
+             SettingBound b = SettingBound::above_or_inf(0.0);
+             b.min_size = 1;
+             b.non_increasing = true;
+             return b;
+           }(),
+           "m", "l"),
+       bool_setting("match.reuse_neighbours", "u", true, "u")});
+}
+
+TEST(Settings, ValuesAreParsedCheckedAndPrintedBack) {
+  Settings s = small_table();
+  s.set_assignment("match.k=7");
+  s.set_text("schedule.max_distance_m", "inf");
+  s.set_text("kernel.confidence", "observations");
+  s.set_text("schedule.levels_m", "[inf, 0.25,0.1]");
+  s.set_text("match.reuse_neighbours", "false");
+  EXPECT_EQ(s.integer("match.k"), 7);
+  EXPECT_TRUE(std::isinf(s.real("schedule.max_distance_m")));
+  EXPECT_EQ(s.choice("kernel.confidence"), "observations");
+  EXPECT_EQ(s.reals("schedule.levels_m").size(), 3u);
+  EXPECT_FALSE(s.boolean("match.reuse_neighbours"));
+  EXPECT_TRUE(s.is_set("match.k"));
+  EXPECT_FALSE(s.is_set("kernel.scale_ratio"));
+  // An integer is accepted for a real setting.
+  s.set("kernel.scale_ratio", 2LL);
+  EXPECT_EQ(s.real("kernel.scale_ratio"), 2.0);
+  EXPECT_EQ(s.canonical_text(),
+            "match.k=7\nschedule.max_distance_m=inf\nkernel.scale_ratio=2\n"
+            "kernel.confidence=observations\nschedule.levels_m=[inf, 0.25, 0.1]\n"
+            "match.reuse_neighbours=false\n");
+}
+
+TEST(Settings, AValueOutsideItsBoundNamesTheKeyTheValueAndTheBound) {
+  Settings s = small_table();
+  EXPECT_EQ(message_of([&] { s.set_text("match.k", "0"); }),
+            "match.k = 0 is outside its bound [1, 4096]");
+  EXPECT_EQ(message_of([&] { s.set_text("schedule.max_distance_m", "-1"); }),
+            "schedule.max_distance_m = -1 is outside its bound > 0 or inf");
+  EXPECT_EQ(message_of([&] { s.set_text("kernel.scale_ratio", "inf"); }),
+            "kernel.scale_ratio = inf is outside its bound >= 0");
+  EXPECT_EQ(message_of([&] { s.set_text("kernel.confidence", "weights"); }),
+            "kernel.confidence = 'weights' is not one of uniform, observations");
+  const std::string order = message_of([&] { s.set_text("schedule.levels_m", "0.1, 0.5"); });
+  EXPECT_TRUE(contains(order, "schedule.levels_m = [0.1, 0.5] is outside its bound")) << order;
+  EXPECT_TRUE(contains(order, "non-increasing")) << order;
+  EXPECT_TRUE(contains(message_of([&] { s.set_text("match.k", "five"); }), "match.k = 'five'"));
+  // Nothing changed.
+  EXPECT_EQ(s.integer("match.k"), 5);
+}
+
+TEST(Settings, AnUnknownKeyNamesTheNearestKnownOne) {
+  Settings s = small_table();
+  EXPECT_EQ(message_of([&] { s.set_text("match.kk", "3"); }),
+            "unknown setting 'match.kk' (nearest: 'match.k')");
+  EXPECT_EQ(message_of([&] { s.set_text("k", "3"); }), "unknown setting 'k' (nearest: 'match.k')");
+  EXPECT_EQ(message_of([&] { s.set_text("schedule.levels", "1"); }),
+            "unknown setting 'schedule.levels' (nearest: 'schedule.levels_m')");
+  EXPECT_EQ(message_of([&] { s.set_text("completely.different", "1"); }),
+            "unknown setting 'completely.different'");
+  EXPECT_TRUE(contains(message_of([&] { s.set_assignment("match.k"); }), "expected KEY=VALUE"));
+}
+
+// ------------------------------------------------------------------------------------------
+// Building pipelines
+// ------------------------------------------------------------------------------------------
+
+TEST(Pipeline, AnUnknownStageIsRefusedNamingTheSeamAndTheKnownStages) {
+  PipelineSpec spec;
+  spec.matcher = "nearst";
+  const std::string m = message_of([&] { Pipeline p(spec); });
+  EXPECT_TRUE(contains(m, "unknown matcher stage 'nearst'")) << m;
+  EXPECT_TRUE(contains(m, "nearest, weighted_knn, mahalanobis_gate")) << m;
+}
+
+TEST(Pipeline, StagesThatDoNotFitTogetherAreRefused) {
+  PipelineSpec spec;
+  spec.estimator = "p2d_step";  // needs pairs with covariances; "nearest" gives points
+  EXPECT_TRUE(
+      contains(message_of([&] { Pipeline p(spec); }), "needs pairs with their covariances"));
+  PipelineSpec gated;
+  gated.matcher = "mahalanobis_gate";
+  gated.estimator = "p2d_step";
+  gated.schedule = "sigma_anneal";
+  gated.rejectors = {"mutual"};
+  EXPECT_TRUE(contains(message_of([&] { Pipeline p(gated); }),
+                       "the rejectors stage 'mutual' does not take the pairs with their "
+                       "covariances of the matcher 'mahalanobis_gate'"));
+  PipelineSpec twice;
+  twice.rejectors = {"trim", "trim"};
+  EXPECT_TRUE(contains(message_of([&] { Pipeline p(twice); }), "'trim' is listed twice"));
+}
+
+TEST(Pipeline, SettingsAreTheStagesOwnAndRefusedOtherwise) {
+  PipelineSpec spec;
+  spec.schedule = "distance_levels";
+  spec.settings = {{"schedule.levels_m", std::vector<double>{0.5, 0.1}}};
+  const Pipeline p(spec);
+  EXPECT_EQ(p.settings().reals("schedule.levels_m").size(), 2u);
+  EXPECT_FALSE(p.settings().has("match.k"));  // nearest has no k
+  EXPECT_FALSE(p.needs_scales());
+  EXPECT_FALSE(p.settings().has("scales.floor_m"));
+  spec.settings = {{"schedule.max_distance_m", 1.0}};  // the "pcl" schedule's, not this one's
+  EXPECT_TRUE(contains(message_of([&] { Pipeline q(spec); }),
+                       "unknown setting 'schedule.max_distance_m' for 'custom'"));
+  spec.settings = {{"schedule.max_iterations", 0LL}};
+  EXPECT_EQ(message_of([&] { Pipeline q(spec); }),
+            "schedule.max_iterations = 0 is outside its bound [1, 2147483647]");
+}
+
+// ------------------------------------------------------------------------------------------
+// Pipelines no preset has, against a known transform
+// ------------------------------------------------------------------------------------------
+
+class ComposedPipelines : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const Points3 room = test::room_points(1500, 7);
+    map_ = test::map_from_points(room, 8);
+    target_.emplace(map_);
+    // The source: the same room moved by a known transform (and its covariances with it).
+    T_true_ = pose_from_xyz_rpy_deg(0.3, -0.2, 0.05, 1.0, -2.0, 25.0);
+    source_.positions = transform_points(T_true_.inverse(), map_.positions());
+    source_.covariances_m2 = transform_covariances(T_true_.inverse(), map_.covariances_m2());
+    source_.up = Vec3::UnitZ();
+  }
+  TransformError error_of(const Summary& s) const {
+    return transform_error(s.registration.T_target_source, T_true_);
+  }
+  Map map_;
+  std::optional<PreparedTarget> target_;
+  SourceLandmarks source_;
+  Isometry3 T_true_;
+};
+
+TEST_F(ComposedPipelines, TheAdaptiveSearchThenARobustPointToPointLoop) {
+  // The adaptive default's yaw-vote search (it needs the scales), each hypothesis refined by the
+  // robust presets' loop (nearest, Cauchy, Umeyama, shrinking distances) on every 4th landmark
+  // and scored by consensus.
+  PipelineSpec spec;
+  spec.initialiser = "yaw_vote";
+  spec.kernel = "cauchy";
+  spec.schedule = "distance_levels";
+  spec.scorer = "consensus";
+  spec.trust = "inliers";
+  target_->set_up_axis(Vec3::UnitZ());
+  const Pipeline p(spec);
+  EXPECT_TRUE(p.needs_scales());
+  EXPECT_TRUE(p.settings().has("scales.floor_m"));
+  const Summary s = p.run(source_.view(), *target_);
+  EXPECT_EQ(s.initialisation.initialisation, "global");
+  EXPECT_GT(s.initialisation.resolution_m, 0.0);
+  ASSERT_GE(s.hypotheses.size(), 2u);
+  EXPECT_EQ(s.registration.termination, TerminationReason::kTransform);
+  EXPECT_LT(error_of(s).rotation_deg, 0.05);
+  EXPECT_LT(error_of(s).translation_m, 1e-3);
+  EXPECT_TRUE(s.verdict.trustworthy) << s.verdict.reason;
+  EXPECT_TRUE(s.covariance.valid);
+}
+
+TEST_F(ComposedPipelines, TheRobustSearchWithTheFourDofEstimatorAndTrimming) {
+  PipelineSpec spec;
+  spec.initialiser = "yaw_centroid";
+  spec.rejectors = {"trim"};
+  spec.kernel = "cauchy";
+  spec.estimator = "four_dof";
+  spec.schedule = "distance_levels";
+  spec.scorer = "consensus";
+  spec.trust = "inliers";
+  spec.settings = {{"reject.trim_ratio", 0.9}, {"init.yaw_hypotheses", 24LL}};
+  // Yaw only: the 4-DoF estimator keeps roll and pitch.
+  T_true_ = pose_from_xyz_rpy_deg(0.3, -0.2, 0.05, 0.0, 0.0, 100.0);
+  source_.positions = transform_points(T_true_.inverse(), map_.positions());
+  const Summary s = Pipeline(spec).run(source_.view(), *target_);
+  ASSERT_EQ(s.hypotheses.size(), 25u);  // the guess and 24 yaws
+  EXPECT_GE(s.hypotheses.front().score, s.hypotheses.back().score);
+  EXPECT_LT(error_of(s).rotation_deg, 0.05);
+  EXPECT_LT(error_of(s).translation_m, 1e-3);
+  EXPECT_TRUE(s.at_estimate.computed);
+  EXPECT_LT(s.at_estimate.overlap_ratio, 1.0);  // the trim acted
+  EXPECT_TRUE(s.verdict.trustworthy) << s.verdict.reason;
+}
+
+TEST_F(ComposedPipelines, ResultsDoNotDependOnTheThreadCount) {
+  PipelineSpec spec;
+  spec.initialiser = "yaw_vote";
+  spec.matcher = "mahalanobis_gate";
+  spec.kernel = "cauchy_mahalanobis";
+  spec.estimator = "p2d_step";
+  spec.schedule = "sigma_anneal";
+  spec.scorer = "gated_inliers";
+  spec.trust = "gated";
+  spec.settings = {{"score.samples", 256LL}};
+  const Pipeline p(spec);
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const Summary one = p.run(source_.view(), *target_);
+  omp_set_num_threads(3);
+  const Summary three = p.run(source_.view(), *target_);
+  omp_set_num_threads(saved);
+  EXPECT_TRUE(one.registration.T_target_source.matrix() ==
+              three.registration.T_target_source.matrix());
+  EXPECT_TRUE(one.covariance.covariance == three.covariance.covariance);
+  EXPECT_EQ(one.verdict.reason, three.verdict.reason);
+  EXPECT_EQ(one.registration.iterations, three.registration.iterations);
+  EXPECT_LT(error_of(one).rotation_deg, 0.05);
+}
+
+TEST_F(ComposedPipelines, APriorIsRefusedByAnInitialiserThatUsesNone) {
+  PipelineSpec spec;
+  PipelineRequest r;
+  r.prior = PriorSigma{2.0, 0.1};
+  EXPECT_TRUE(contains(message_of([&] { Pipeline(spec).run(source_.view(), *target_, r); }),
+                       "the initialiser 'guess' of 'custom' uses no prior"));
+}
+
+}  // namespace
+}  // namespace lmalign
