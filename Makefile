@@ -149,15 +149,18 @@ bench-merge: build
 	$(PYTHON) bench/merge_prefilter_recall.py $(BUILD_DIR)/bench-merge/fleet_no_priors \
 	  $(BUILD_DIR)/bench-merge/plan_no_priors
 
-# `make bench-merge-real`: configs/merge_desk.yaml and configs/merge_kitti.yaml through
-# bench/merge_real.py (real maps cut with `lmalign split`, moved by seeded poses, merged without
-# and with priors; data from LMALIGN_DATA). Writes $(BUILD_DIR)/bench-merge/{desk,kitti}_*/.
+# `make bench-merge-real`: configs/merge_desk.yaml, merge_kitti.yaml, merge_kitti_retri.yaml and
+# merge_streets.yaml through bench/merge_real.py (real maps cut with `lmalign split`, or windows
+# of a simulated street, moved by seeded poses, merged without and with priors; data from
+# LMALIGN_DATA). Writes $(BUILD_DIR)/bench-merge/{desk,kitti,kitti_retri,streets}_*/.
 .PHONY: bench-merge-real
 bench-merge-real: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign bench-merge-real: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
 	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_desk.yaml --build-dir $(BUILD_DIR)
 	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_kitti.yaml --build-dir $(BUILD_DIR)
+	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_kitti_retri.yaml --build-dir $(BUILD_DIR)
+	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_streets.yaml --build-dir $(BUILD_DIR)
 
 demo: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \

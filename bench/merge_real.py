@@ -1,16 +1,24 @@
 #!/usr/bin/env python3
-"""Merge benchmark on real maps cut into windows (configs/merge_desk.yaml, merge_kitti.yaml).
+"""Merge benchmark on maps cut into windows (configs/merge_desk.yaml, merge_kitti.yaml,
+merge_kitti_retri.yaml, merge_streets.yaml).
 
     merge_real.py CONFIG.yaml [--build-dir build] [--case NAME]
 
-For each case of the config: cuts the map into windows with `lmalign split --frames A-B`, moves
-each window by a seeded random pose (a yaw uniform in [-180, 180) deg about the map's up axis --
-the mean of its frames' -y axes, the camera convention of docs/map-format.md -- and a translation
-uniform in the ball of max_translation_m), writes manifest.yaml (with noisy priors when the case
-has prior_sigma: [rot_deg, trans_m], left perturbation in the world frame as manifest.hpp) and
-ground_truth.yaml, then runs `lmalign merge --ground-truth` and prints its report. The map is read
-from $LMALIGN_DATA (default ../shared/data beside the repository); nothing is copied into the
-repository. Every file is written to a temporary name and renamed. Needs numpy and PyYAML.
+For each case of the config: makes the windows, either
+  - `map:` cut with `lmalign split --frames A-B` (`windows: {first, length, step, count}`; with
+    `split: {retriangulate: true, min_parallax_deg, intrinsics}` each window's landmarks are
+    re-estimated from its own pixels), or
+  - `simulate:` `lmalign simulate --scene street --windows N` (`{windows, frames, overlap,
+    landmarks, seed}`: consecutive windows of one simulated drive, each in its own first
+    keyframe's frame, with the simulator's truth),
+then moves each window by a seeded random pose (a yaw uniform in [-180, 180) deg about the maps'
+up axis -- the mean of the frames' -y axes, the camera convention of docs/map-format.md -- and a
+translation uniform in the ball of max_translation_m), writes manifest.yaml (with noisy priors
+when the case has prior_sigma: [rot_deg, trans_m], left perturbation in the world frame as
+manifest.hpp) and ground_truth.yaml, then runs `lmalign merge --ground-truth` and prints its
+report. Real maps are read from $LMALIGN_DATA (default ../shared/data beside the repository);
+nothing is copied into the repository. Every file is written to a temporary name and renamed.
+Needs numpy and PyYAML.
 """
 
 import argparse
@@ -95,29 +103,64 @@ def rows(M):
     return "[" + ", ".join("[" + ", ".join("%.17g" % v for v in r) + "]" for r in M) + "]"
 
 
-def run_case(cfg, case, lmalign, out_root, name):
-    rng = np.random.default_rng(cfg["seed"])
+def read_truth(path):
+    """T_world_map per name of a ground_truth.yaml (as lmalign simulate writes it)."""
+    with open(path) as f:
+        return {n: np.array(T, dtype=float) for n, T in yaml.safe_load(f)["maps"].items()}
+
+
+def make_windows(cfg, lmalign, folder):
+    """(name, path of the window in its own frame, its true T_world_map) per window."""
+    if "simulate" in cfg:
+        s = cfg["simulate"]
+        sim = os.path.join(folder, "simulated")
+        if not os.path.isfile(os.path.join(sim, "manifest.yaml")):
+            subprocess.run([lmalign, "simulate", "--scene", s.get("scene", "street"),
+                            "--windows", str(s["windows"]), "--frames", str(s.get("frames", 30)),
+                            "--overlap", str(s.get("overlap", 0.25)),
+                            "--landmarks", str(s.get("landmarks", 3000)),
+                            "--seed", str(s.get("seed", 1)), "-o", sim],
+                           check=True, stdout=subprocess.DEVNULL)
+        truth = read_truth(os.path.join(sim, "ground_truth.yaml"))
+        return [(n, os.path.join(sim, "maps", n + ".txt"), truth[n]) for n in sorted(
+            truth, key=lambda n: int(n[1:]))]
     path = cfg["map"].replace("${LMALIGN_DATA}", data_dir())
     if not os.path.exists(path):
         sys.exit("merge_real.py: real data not found: %s (set LMALIGN_DATA)" % path)
-    up = up_axis(read_lines(path))
-    folder = os.path.join(out_root, "%s_%s" % (name, case["name"]))
-    os.makedirs(os.path.join(folder, "maps"), exist_ok=True)
-    w = cfg["windows"]
-    truth = {}
+    w, sp = cfg["windows"], cfg.get("split", {})
+    out = []
     for k in range(w["count"]):
         a = w["first"] + k * w["step"]
         cut = os.path.join(folder, "maps", "cut%d.txt" % k)
-        subprocess.run([lmalign, "split", path, "--frames", "%d-%d" % (a, a + w["length"] - 1),
-                        "-o", cut], check=True, stdout=subprocess.DEVNULL)
+        cmd = [lmalign, "split", path, "--frames", "%d-%d" % (a, a + w["length"] - 1)]
+        if sp.get("retriangulate"):
+            cmd += ["--retriangulate", "--min-parallax", str(sp.get("min_parallax_deg", 2))]
+            if "intrinsics" in sp:
+                cmd += ["--intrinsics", str(sp["intrinsics"])]
+        subprocess.run(cmd + ["-o", cut], check=True, stdout=subprocess.DEVNULL)
+        out.append(("w%d" % k, cut, np.eye(4)))  # split keeps the map's frame: the truth's
+    return out
+
+
+def run_case(cfg, case, lmalign, out_root, name):
+    rng = np.random.default_rng(cfg["seed"])
+    folder = os.path.join(out_root, "%s_%s" % (name, case["name"]))
+    os.makedirs(os.path.join(folder, "maps"), exist_ok=True)
+    windows = make_windows(cfg, lmalign, folder)
+    up = up_axis(read_lines(windows[0][1]))
+    if "map" in cfg:  # the whole map's frames (as before: the same seeded poses)
+        up = up_axis(read_lines(cfg["map"].replace("${LMALIGN_DATA}", data_dir())))
+    truth = {}
+    for n, path, T_world_window in windows:
         T_map_world = np.eye(4)
         T_map_world[:3, :3] = axis_angle(up, rng.uniform(-np.pi, np.pi))
         v = rng.uniform(-1, 1, 3)
         T_map_world[:3, 3] = cfg["max_translation_m"] * v / max(1.0, np.linalg.norm(v))
-        write_atomic(os.path.join(folder, "maps", "w%d.txt" % k),
-                     transform_map(read_lines(cut), T_map_world))
-        os.remove(cut)
-        truth["w%d" % k] = np.linalg.inv(T_map_world)
+        write_atomic(os.path.join(folder, "maps", n + ".txt"),
+                     transform_map(read_lines(path), T_map_world))
+        if "map" in cfg:
+            os.remove(path)
+        truth[n] = T_world_window @ np.linalg.inv(T_map_world)
     write_atomic(os.path.join(folder, "ground_truth.yaml"),
                  "maps:\n" + "".join("  %s: %s\n" % (n, rows(T)) for n, T in truth.items()))
     manifest = "maps:\n"

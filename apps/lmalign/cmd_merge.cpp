@@ -2,6 +2,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -226,15 +227,34 @@ int run_merge_command(const MergeArgs& a) {
     t.rotation_deg = thr[0];
     t.translation_m = thr[1];
     const MergeEvaluation ev = evaluate_merge(run.result, run.edges, truth, t);
-    std::printf("ground truth (within %g deg / %g m):\n", t.rotation_deg, t.translation_m);
+    std::printf(
+        "ground truth (within %g deg / %g m): %zu part(s), the largest of %zu map(s); the kept "
+        "edges join the maps into %zu piece(s)\n",
+        t.rotation_deg, t.translation_m, ev.num_parts, ev.largest_part, ev.num_edge_parts);
     for (std::size_t i = 0; i < maps.size(); ++i) {
+      const MapError& e = ev.maps[i];
+      if (std::isnan(e.rotation_deg)) {
+        std::printf("  %-20s component %zu  not placed: alone in its part\n", names[i].c_str(),
+                    run.result.maps[i].component);
+        continue;
+      }
       std::printf("  %-20s component %zu  rotation %.3f deg  translation %.4f m%s\n",
-                  names[i].c_str(), run.result.maps[i].component, ev.maps[i].rotation_deg,
-                  ev.maps[i].translation_m, ev.maps[i].within ? "" : "  (outside)");
+                  names[i].c_str(), run.result.maps[i].component, e.rotation_deg, e.translation_m,
+                  !e.placed  ? "  (not placed: in a part apart from the others)"
+                  : e.within ? ""
+                             : "  (outside)");
     }
-    std::printf("  within: %.1f%%  edges kept %zu, false kept %zu, precision %.3f, recall %.3f\n",
-                100.0 * ev.fraction_within, ev.kept_edges, ev.false_kept_edges, ev.edge_precision,
-                ev.edge_recall);
+    const std::size_t pairs = maps.size() * (maps.size() - 1) / 2;
+    char pair_text[96] = "not computed (over 2000 maps)";
+    if (!std::isnan(ev.pair_fraction_within)) {
+      std::snprintf(pair_text, sizeof pair_text, "%zu of %zu (%.1f%%)", ev.pairs_within, pairs,
+                    100.0 * ev.pair_fraction_within);
+    }
+    std::printf(
+        "  within: %.1f%% of the maps (placed: %zu of %zu); pairs within: %s; edges kept %zu, "
+        "false kept %zu, precision %.3f, recall %.3f\n",
+        100.0 * ev.fraction_within, ev.placed, maps.size(), pair_text, ev.kept_edges,
+        ev.false_kept_edges, ev.edge_precision, ev.edge_recall);
   }
   const bool plotted = !a.no_plots && plot_merge(a.out_dir);
   std::printf(

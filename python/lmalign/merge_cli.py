@@ -70,14 +70,28 @@ def main(argv=None):
             print("rejected edge: %s -> %s (%s)" % (run.names[e.source], run.names[e.target], why))
     if run.evaluation is not None:
         ev = run.evaluation
-        print("ground truth (within %g deg / %g m):" % thresholds)
+        print("ground truth (within %g deg / %g m): %d part(s), the largest of %d map(s); the "
+              "kept edges join the maps into %d piece(s)"
+              % (thresholds + (ev["num_parts"], ev["largest_part"], ev["num_edge_parts"])))
         for i, name in enumerate(run.names):
+            if ev["rotation_deg"][i] != ev["rotation_deg"][i]:  # NaN: alone without priors
+                print("  %-20s component %d  not placed: alone in its part"
+                      % (name, run.components[i]))
+                continue
+            note = ("  (not placed: in a part apart from the others)" if not ev["placed"][i]
+                    else "" if ev["within"][i] else "  (outside)")
             print("  %-20s component %d  rotation %.3f deg  translation %.4f m%s"
                   % (name, run.components[i], ev["rotation_deg"][i], ev["translation_m"][i],
-                     "" if ev["within"][i] else "  (outside)"))
-        print("  within: %.1f%%  edges kept %d, false kept %d, precision %.3f, recall %.3f"
-              % (100.0 * ev["fraction_within"], ev["kept_edges"], ev["false_kept_edges"],
-                 ev["edge_precision"], ev["edge_recall"]))
+                     note))
+        n = len(run.names)
+        pairs = ("not computed (over 2000 maps)"
+                 if ev["pair_fraction_within"] != ev["pair_fraction_within"] else
+                 "%d of %d (%.1f%%)" % (ev["pairs_within"], n * (n - 1) // 2,
+                                        100.0 * ev["pair_fraction_within"]))
+        print("  within: %.1f%% of the maps (placed: %d of %d); pairs within: %s; edges kept %d, "
+              "false kept %d, precision %.3f, recall %.3f"
+              % (100.0 * ev["fraction_within"], ev["num_placed"], n, pairs, ev["kept_edges"],
+                 ev["false_kept_edges"], ev["edge_precision"], ev["edge_recall"]))
     print("wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map, edges/)"
           % args.output)
     return 0

@@ -481,17 +481,27 @@ void bind_merge(py::module_& m) {
         const MergeEvaluation ev = evaluate_merge(result, edges, t, th);
         const auto n = static_cast<py::ssize_t>(ev.maps.size());
         py::array_t<double> rot(n), trans(n);
-        py::array_t<bool> within(n);
+        py::array_t<bool> within(n), placed(n), connected(n);
         for (py::ssize_t i = 0; i < n; ++i) {
           rot.mutable_data()[i] = ev.maps[i].rotation_deg;
           trans.mutable_data()[i] = ev.maps[i].translation_m;
           within.mutable_data()[i] = ev.maps[i].within;
+          placed.mutable_data()[i] = ev.maps[i].placed;
+          connected.mutable_data()[i] = ev.maps[i].connected;
         }
         py::dict d;
         d["rotation_deg"] = rot;
         d["translation_m"] = trans;
         d["within"] = within;
+        d["placed"] = placed;
+        d["connected"] = connected;
+        d["num_parts"] = ev.num_parts;
+        d["num_edge_parts"] = ev.num_edge_parts;
+        d["largest_part"] = ev.largest_part;
+        d["num_placed"] = ev.placed;
         d["fraction_within"] = ev.fraction_within;
+        d["pair_fraction_within"] = ev.pair_fraction_within;
+        d["pairs_within"] = ev.pairs_within;
         d["max_rotation_deg"] = ev.max_rotation_deg;
         d["max_translation_m"] = ev.max_translation_m;
         d["edge_precision"] = ev.edge_precision;
@@ -503,11 +513,17 @@ void bind_merge(py::module_& m) {
       },
       py::arg("result"), py::arg("edges"), py::arg("truth"), py::arg("rotation_deg") = 5.0,
       py::arg("translation_m") = 0.10,
-      "Ground-truth evaluation (docs/merge.md): each component's frame fitted to the truth, "
-      "then per map the rotation (deg) and translation (m) error. truth: (N, 4, 4) "
-      "T_world_map_true. Returns a dict: rotation_deg (N,), translation_m (N,), within (N,) "
-      "bool, fraction_within, max_rotation_deg, max_translation_m, edge_precision, edge_recall, "
-      "kept_edges, false_kept_edges, edge_true (list of bool per edge). Raises InvalidArgument.");
+      "Ground-truth evaluation (docs/merge.md): each part's frame fitted to the truth, then per "
+      "map the rotation (deg) and translation (m) error (NaN: alone in a part without priors). "
+      "A map is placed when in a part held by priors or, without priors, in the largest part of "
+      ">= 2 maps. truth: (N, 4, 4) T_world_map_true. Returns a dict: rotation_deg (N,), "
+      "translation_m (N,), within (N,) bool (placed and within the thresholds), placed (N,), "
+      "connected (N,) (a kept edge joins it to another map), num_parts (the graph's components), "
+      "num_edge_parts (those of the kept edges alone), largest_part, num_placed, "
+      "fraction_within (of all maps), pair_fraction_within (of all pairs, relative poses; NaN "
+      "above 2000 maps), pairs_within, max_rotation_deg, max_translation_m, edge_precision, "
+      "edge_recall, kept_edges, false_kept_edges, edge_true (list of bool per edge). Raises "
+      "InvalidArgument.");
 
   // ------------------------------------------------------------ in process
   m.def(

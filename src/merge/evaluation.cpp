@@ -2,6 +2,8 @@
 #include "lmalign/merge/evaluation.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 #include <yaml-cpp/yaml.h>
 
@@ -63,8 +65,8 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
   }
   MergeEvaluation ev;
   ev.maps.resize(n);
-  // Per component without priors: G fitted to the maps that agree with the truth (docs/merge.md,
-  // "Ground truth"): each map's own G_k = T_true_k T_est_k^-1 is a candidate; the one that puts the
+  // Per group (the maps held by priors, or a part without priors): G fitted to the maps that agree
+  // with the truth: each map's own G_k = T_true_k T_est_k^-1 is a candidate; the one that puts the
   // most maps within the thresholds wins (ties: the lowest map), then G is refitted to those maps
   // (chordal rotation mean of R_true R_est^T, then mean translation) when that keeps as many.
   auto fit = [&](const std::vector<std::size_t>& members) {
@@ -95,45 +97,119 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
     }
     return in;
   };
-  for (std::size_t c = 0; c < result.num_components; ++c) {
-    std::vector<std::size_t> members;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (result.maps[i].component == c) members.push_back(i);
-    }
-    if (members.empty()) continue;
-    // Held by priors (no gauge map): G fitted to all its maps, whose priors place them all.
-    const bool held_by_priors = std::none_of(
-        members.begin(), members.end(), [&](std::size_t i) { return result.maps[i].is_gauge; });
-    Isometry3 G = fit(members);
-    if (!held_by_priors) {
-      std::vector<std::size_t> best = agreeing(G, members);
-      for (const std::size_t k : members) {
-        const Isometry3 G_k = truth[k] * result.maps[k].T_world_map.inverse();
-        std::vector<std::size_t> in = agreeing(G_k, members);
-        if (in.size() > best.size()) {
-          best = std::move(in);
-          G = G_k;
-        }
-      }
-      if (!best.empty()) {
-        const Isometry3 G_fit = fit(best);
-        if (agreeing(G_fit, members).size() >= best.size()) G = G_fit;
-      }
-    }
+  auto within_thresholds = [&](const TransformError& err) {
+    return err.rotation_deg <= thresholds.rotation_deg &&
+           err.translation_m <= thresholds.translation_m;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  // The parts, and which are held by priors (no gauge map: their frame is the priors').
+  ev.num_parts = result.num_components;
+  std::vector<std::vector<std::size_t>> parts(result.num_components);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (result.maps[i].component >= parts.size()) parts.resize(result.maps[i].component + 1);
+    parts[result.maps[i].component].push_back(i);
+  }
+  std::vector<bool> by_priors(parts.size(), false);
+  std::vector<std::size_t> prior_maps;
+  for (std::size_t c = 0; c < parts.size(); ++c) {
+    by_priors[c] =
+        !parts[c].empty() && std::none_of(parts[c].begin(), parts[c].end(),
+                                          [&](std::size_t i) { return result.maps[i].is_gauge; });
+    if (by_priors[c]) prior_maps.insert(prior_maps.end(), parts[c].begin(), parts[c].end());
+  }
+  // The reference frame: the priors' when any part has them, else the largest part's.
+  std::size_t largest = 0;
+  for (std::size_t c = 0; c < parts.size(); ++c) {
+    ev.largest_part = std::max(ev.largest_part, parts[c].size());
+    if (parts[c].size() > parts[largest].size()) largest = c;
+  }
+  auto placed_part = [&](std::size_t c) {
+    return prior_maps.empty() ? c == largest && parts[c].size() >= 2 : bool(by_priors[c]);
+  };
+  auto set_errors = [&](const Isometry3& G, const std::vector<std::size_t>& members) {
     for (const std::size_t i : members) {
       const TransformError err = transform_error(G * result.maps[i].T_world_map, truth[i]);
-      ev.maps[i] = {err.rotation_deg, err.translation_m,
-                    err.rotation_deg <= thresholds.rotation_deg &&
-                        err.translation_m <= thresholds.translation_m};
+      ev.maps[i].rotation_deg = err.rotation_deg;
+      ev.maps[i].translation_m = err.translation_m;
+      ev.maps[i].within = within_thresholds(err);  // cleared below unless placed
+    }
+  };
+  // G fitted to the maps of a group that agree with the truth (docs/merge.md, "Ground truth").
+  auto robust_fit = [&](const std::vector<std::size_t>& members) {
+    Isometry3 G = fit(members);
+    std::vector<std::size_t> best = agreeing(G, members);
+    for (const std::size_t k : members) {
+      const Isometry3 G_k = truth[k] * result.maps[k].T_world_map.inverse();
+      std::vector<std::size_t> in = agreeing(G_k, members);
+      if (in.size() > best.size()) {
+        best = std::move(in);
+        G = G_k;
+      }
+    }
+    if (!best.empty()) {
+      const Isometry3 G_fit = fit(best);
+      if (agreeing(G_fit, members).size() >= best.size()) G = G_fit;
+    }
+    return G;
+  };
+  // The maps held by priors share one frame: one G for all of them.
+  if (!prior_maps.empty()) set_errors(robust_fit(prior_maps), prior_maps);
+  for (std::size_t c = 0; c < parts.size(); ++c) {
+    const std::vector<std::size_t>& members = parts[c];
+    if (members.empty() || by_priors[c]) continue;
+    if (members.size() == 1) {  // alone without priors: its frame is its own, nothing to measure
+      ev.maps[members[0]].rotation_deg = nan;
+      ev.maps[members[0]].translation_m = nan;
+      continue;
+    }
+    set_errors(robust_fit(members), members);
+  }
+  // The kept edges' own components (union-find), and who has a kept edge.
+  std::vector<std::size_t> root(n);
+  for (std::size_t i = 0; i < n; ++i) root[i] = i;
+  auto find = [&](std::size_t i) {
+    while (root[i] != i) i = root[i] = root[root[i]];
+    return i;
+  };
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (!result.edges[e].used || result.edges[e].rejected) continue;
+    ev.maps[edges[e].source].connected = ev.maps[edges[e].target].connected = true;
+    root[find(edges[e].source)] = find(edges[e].target);
+  }
+  for (std::size_t i = 0; i < n; ++i) ev.num_edge_parts += find(i) == i ? 1 : 0;
+  std::size_t within = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    MapError& e = ev.maps[i];
+    const std::size_t c = result.maps[i].component;
+    e.placed = placed_part(c);
+    e.within = e.within && e.placed;
+    ev.placed += e.placed ? 1 : 0;
+    within += e.within ? 1 : 0;
+    if (!std::isnan(e.rotation_deg)) {
+      ev.max_rotation_deg = std::max(ev.max_rotation_deg, e.rotation_deg);
+      ev.max_translation_m = std::max(ev.max_translation_m, e.translation_m);
     }
   }
-  std::size_t within = 0;
-  for (const MapError& e : ev.maps) {
-    within += e.within ? 1 : 0;
-    ev.max_rotation_deg = std::max(ev.max_rotation_deg, e.rotation_deg);
-    ev.max_translation_m = std::max(ev.max_translation_m, e.translation_m);
-  }
   ev.fraction_within = n ? static_cast<double>(within) / static_cast<double>(n) : 1.0;
+  // Pairs: relative poses need no gauge; two maps share a frame in one part, or both by priors.
+  if (n > 2000) {
+    ev.pair_fraction_within = nan;
+  } else {
+    std::size_t pairs = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      for (std::size_t j = i + 1; j < n; ++j) {
+        ++pairs;
+        const std::size_t ci = result.maps[i].component, cj = result.maps[j].component;
+        if (ci != cj && !(by_priors[ci] && by_priors[cj])) continue;
+        const TransformError err =
+            transform_error(result.maps[i].T_world_map.inverse() * result.maps[j].T_world_map,
+                            truth[i].inverse() * truth[j]);
+        ev.pairs_within += within_thresholds(err) ? 1 : 0;
+      }
+    }
+    ev.pair_fraction_within =
+        pairs ? static_cast<double>(ev.pairs_within) / static_cast<double>(pairs) : 1.0;
+  }
   std::size_t kept_true = 0, all_true = 0;
   ev.edge_true.resize(edges.size());
   for (std::size_t e = 0; e < edges.size(); ++e) {

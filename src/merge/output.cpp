@@ -1,6 +1,7 @@
 // Outputs of a merge (include/lmalign/merge/output.hpp).
 #include "lmalign/merge/output.hpp"
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -53,14 +54,32 @@ std::string yaml_row(const Eigen::MatrixXd& m, int r) {
   return os.str();
 }
 
+// The coordinate-wise median of a map's landmarks moved by T (m): a centre that far landmarks
+// do not drag; null without landmarks.
+json landmark_centre(const Map& map, const Isometry3& T) {
+  if (map.landmarks.empty()) return json();
+  std::vector<double> axis[3];
+  for (const Landmark& l : map.landmarks) {
+    const Vec3 p = T * l.p_world;
+    for (int k = 0; k < 3; ++k) axis[k].push_back(p[k]);
+  }
+  json out = json::array();
+  for (std::vector<double>& v : axis) {
+    std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+    out.push_back(v[v.size() / 2]);
+  }
+  return out;
+}
+
 }  // namespace
 
 Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& sessions,
-               const MergeResult& result, std::size_t component,
-               const MergeOutputOptions& options) {
+               const MergeResult& result, std::size_t component, const MergeOutputOptions& options,
+               std::vector<std::pair<std::size_t, std::size_t>>* landmark_ranges) {
   if (sessions.size() != maps.size() || result.maps.size() != maps.size()) {
     throw InvalidArgument("merge_maps: maps, sessions and poses differ in number");
   }
+  if (landmark_ranges != nullptr) landmark_ranges->assign(maps.size(), {0, 0});
   Map out;
   Id next_frame = 0;
   // (session, landmark id) -> index in out.landmarks, and the fused information sums.
@@ -70,6 +89,7 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
   for (std::size_t m = 0; m < maps.size(); ++m) {
     if (result.maps[m].component != component) continue;
     const Map moved = transform_map(maps[m], result.maps[m].T_world_map);
+    const std::size_t first_landmark = out.landmarks.size();
     std::map<Id, Id> frame_id;
     for (const Frame& f : moved.frames) {
       Frame g = f;
@@ -104,6 +124,7 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
                                          : Vec3::Zero());
       out.landmarks.push_back(std::move(k));
     }
+    if (landmark_ranges != nullptr) (*landmark_ranges)[m] = {first_landmark, out.landmarks.size()};
   }
   return out;
 }
@@ -120,6 +141,16 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
   fs::create_directories(out_dir, ec);
   if (ec) throw IoError("cannot create '" + out_dir + "': " + ec.message());
   const fs::path dir(out_dir);
+  // The merged maps first: which of their landmarks each map added (for the plots).
+  std::vector<Map> merged(result.num_components);
+  std::vector<std::pair<std::size_t, std::size_t>> ranges(maps.size(), {0, 0});
+  for (std::size_t c = 0; c < result.num_components; ++c) {
+    std::vector<std::pair<std::size_t, std::size_t>> r;
+    merged[c] = merge_maps(maps, sessions, result, c, options, &r);
+    for (std::size_t i = 0; i < maps.size(); ++i) {
+      if (result.maps[i].component == c) ranges[i] = r[i];
+    }
+  }
   json poses = json::array();
   for (std::size_t i = 0; i < maps.size(); ++i) {
     const MapPose& p = result.maps[i];
@@ -128,7 +159,9 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                      {"gauge", p.is_gauge},
                      {"T_world_map", matrix_json(p.T_world_map.matrix())},
                      {"covariance", matrix_json(p.covariance)},
-                     {"covariance_valid", p.covariance_valid}});
+                     {"covariance_valid", p.covariance_valid},
+                     {"landmark_centre_world", landmark_centre(maps[i], p.T_world_map)},
+                     {"merged_landmarks", {ranges[i].first, ranges[i].second}}});
   }
   json doc = {{"convention",
                "T_world_map: p_world = T * p_map (m); covariance: 6x6 of xi = (rho m, phi rad), "
@@ -189,11 +222,10 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
   write_file_atomically((dir / "summary.json").string(),
                         [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
   for (std::size_t c = 0; c < result.num_components; ++c) {
-    const Map merged = merge_maps(maps, sessions, result, c, options);
     const std::string file = result.num_components == 1
                                  ? "merged_map.txt"
                                  : "merged_map_component" + std::to_string(c) + ".txt";
-    write_map((dir / file).string(), merged);
+    write_map((dir / file).string(), merged[c]);
   }
 }
 

@@ -44,7 +44,10 @@ TEST_F(CliMerge, SimulatedFleetMergesEndToEndAndResumeReusesEveryEdge) {
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   // 5 maps: every pair, all placed within 1 deg / 10 cm, no false edge kept.
   EXPECT_NE(r.out.find("merged 5 maps: 10 candidate pairs (0 reused)"), std::string::npos) << r.out;
-  EXPECT_NE(r.out.find("within: 100.0%"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("within: 100.0% of the maps (placed: 5 of 5); pairs within: 10 of 10"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("1 part(s), the largest of 5 map(s)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("false kept 0"), std::string::npos) << r.out;
   for (const char* f :
        {"poses.yaml", "poses.json", "edges.csv", "summary.json", "merged_map.txt"}) {
@@ -72,6 +75,37 @@ TEST_F(CliMerge, SimulatedFleetMergesEndToEndAndResumeReusesEveryEdge) {
   EXPECT_NE(resumed.out.find("10 candidate pairs (10 reused)"), std::string::npos) << resumed.out;
   EXPECT_NE(resumed.out.find("within: 100.0%"), std::string::npos) << resumed.out;
   for (const auto& [file, text] : edge_files) EXPECT_EQ(read_text(file), text) << file;
+}
+
+// Maps that no kept edge joins (here: two fleet maps whose only edge cannot be trusted, their
+// landmarks moved far apart) are reported alone in their parts, not placed, 0% within.
+TEST_F(CliMerge, MapsAloneInTheirPartsAreReportedNotPlaced) {
+  const std::string scene = path("fleet"), out = path("out");
+  ASSERT_EQ(run("simulate --scene fleet --maps 2 --twins 0 --prior-sigma none --out " +
+                shell_quote(scene))
+                .exit_code,
+            0);
+  // Map 1 replaced by a map that shares nothing with map 0: 30 landmarks on a line far away.
+  std::string far = "FRAME 0 0 0 0 1 0 0 0\n";
+  for (int k = 0; k < 30; ++k) {
+    far += "LANDMARK " + std::to_string(k) + " " + std::to_string(500 + k) +
+           " 0 0 0.01 0 0 0 0.01 0 0 0 0.01 2 0 1 1 0 2 2\n";
+  }
+  {
+    std::ofstream f(scene + "/maps/map_001.txt");
+    f << far;
+  }
+  const test::CliRun r =
+      run("merge " + shell_quote(scene + "/manifest.yaml") + " -o " + shell_quote(out) +
+          " --no-plots --ground-truth " + shell_quote(scene + "/ground_truth.yaml"));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("2 part(s), the largest of 1 map(s)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("map_000              component 0  not placed: alone in its part"),
+            std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("within: 0.0% of the maps (placed: 0 of 2); pairs within: 0 of 1"),
+            std::string::npos)
+      << r.out;
 }
 
 TEST_F(CliMerge, WithoutMatplotlibThePlotsAreSkippedWithAWarning) {

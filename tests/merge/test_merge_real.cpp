@@ -75,9 +75,14 @@ void expect_placed(const Windows& w, const MergeRun& run, double max_deg, double
   const MergeEvaluation edges = evaluate_merge(run.result, run.edges, w.truth, {5.0, edge_m});
   if (one_component) EXPECT_EQ(run.result.num_components, 1u);
   for (std::size_t i = 0; i < w.maps.size(); ++i) {
-    EXPECT_TRUE(ev.maps[i].within) << w.names[i] << ": " << ev.maps[i].rotation_deg << " deg, "
-                                   << ev.maps[i].translation_m << " m";
+    // In several parts, only the largest is placed; each is checked in its own frame.
+    const MapError& e = ev.maps[i];
+    EXPECT_TRUE(one_component
+                    ? e.within
+                    : e.connected && e.rotation_deg <= max_deg && e.translation_m <= max_m)
+        << w.names[i] << ": " << e.rotation_deg << " deg, " << e.translation_m << " m";
   }
+  EXPECT_EQ(ev.num_parts, run.result.num_components);
   if (check_edges) EXPECT_EQ(edges.false_kept_edges, 0u);
   std::size_t used = 0;
   for (const EdgeReport& e : run.result.edges) used += e.used ? 1 : 0;
@@ -99,9 +104,15 @@ TEST(MergeReal, DeskWindowsWithoutPriors) {
   const MergeRun run =
       run_merge(w.maps, w.names, std::vector<std::optional<MapPrior>>(w.maps.size()), {});
   // Known gap (docs/merge.md): the trust verdict keeps too few of these pairs to connect all
-  // four windows, and the kept edges miss 5 deg / 10 cm at the moved frame origins (lever arm
-  // up to 3 m) although every window is placed within 2 deg / 5 cm. Checked: placement per part.
+  // four windows (measured: two parts of two), and the kept edges miss 5 deg / 10 cm at the
+  // moved frame origins (lever arm up to 3 m) although every window is placed within 2 deg /
+  // 5 cm in its part. Checked: placement per part, and that the evaluation says only the
+  // largest part is placed.
   expect_placed(w, run, 2.0, 0.05, 0.1, /*one_component=*/false, /*check_edges=*/false);
+  const MergeEvaluation ev = evaluate_merge(run.result, run.edges, w.truth, {2.0, 0.05});
+  EXPECT_EQ(ev.placed, ev.largest_part);
+  EXPECT_DOUBLE_EQ(ev.fraction_within,
+                   static_cast<double>(ev.largest_part) / static_cast<double>(w.maps.size()));
 }
 
 TEST(MergeReal, DeskEightWindowsWithOdometryPriors) {

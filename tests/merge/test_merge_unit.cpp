@@ -2,9 +2,13 @@
 // edges, a planted false edge, disconnected parts, gauge), outputs and the edge cache.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <filesystem>
 #include <fstream>
 #include <random>
+
+#include <nlohmann/json.hpp>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
@@ -237,6 +241,84 @@ TEST(MergePoseGraph, DisconnectedPartsAreReportedEachInItsOwnFrame) {
   EXPECT_NE(r.edges.back().skip_reason.find("ambiguous"), std::string::npos);
   const TransformError e5 = transform_error(r.maps[5].T_world_map, truth[3].inverse() * truth[5]);
   EXPECT_LT(e5.translation_m, 0.05);
+  // Each part is right in its own frame, but only the first of the two largest is placed: the
+  // other three maps are not in its frame. Pairs: the 3 + 3 within each part, of 15.
+  const MergeEvaluation ev = evaluate_merge(r, edges, truth, {1.0, 0.1});
+  EXPECT_EQ(ev.num_parts, 2u);
+  EXPECT_EQ(ev.num_edge_parts, 2u);
+  EXPECT_EQ(ev.largest_part, 3u);
+  EXPECT_EQ(ev.placed, 3u);
+  for (int i = 0; i < 6; ++i) {
+    EXPECT_TRUE(ev.maps[i].connected) << i;
+    EXPECT_EQ(ev.maps[i].placed, i < 3) << i;
+    EXPECT_EQ(ev.maps[i].within, i < 3) << i;
+    EXPECT_LT(ev.maps[i].rotation_deg, 1.0) << i;  // measured in its own part's frame
+  }
+  EXPECT_DOUBLE_EQ(ev.fraction_within, 0.5);
+  EXPECT_EQ(ev.pairs_within, 6u);
+  EXPECT_DOUBLE_EQ(ev.pair_fraction_within, 6.0 / 15.0);
+}
+
+// A map that no kept edge reaches is alone in its part: its pose is arbitrary (the gauge of its
+// own part), so it is neither placed nor within, and it has no error (it used to count as within).
+TEST(MergeEvaluation, MapAloneInItsPartIsNotPlaced) {
+  Ring ring = make_ring(5, 15);
+  std::mt19937_64 rng(15);
+  ring.truth.push_back(random_pose(rng, 5.0, 180.0));
+  ring.edges.push_back(make_edge(4, 5, ring.truth, rng, 0.01, 0.003));
+  ring.edges.back().trusted = false;
+  const MergeResult r = solve_pose_graph(6, std::vector<std::optional<MapPrior>>(6), ring.edges);
+  ASSERT_EQ(r.num_components, 2u);
+  const MergeEvaluation ev = evaluate_merge(r, ring.edges, ring.truth, {2.0, 0.2});
+  EXPECT_EQ(ev.num_parts, 2u);
+  EXPECT_EQ(ev.largest_part, 5u);
+  for (std::size_t i = 0; i < 5; ++i) EXPECT_TRUE(ev.maps[i].within) << i;
+  EXPECT_FALSE(ev.maps[5].connected);
+  EXPECT_FALSE(ev.maps[5].placed);
+  EXPECT_FALSE(ev.maps[5].within);
+  EXPECT_TRUE(std::isnan(ev.maps[5].rotation_deg));
+  EXPECT_NEAR(ev.fraction_within, 5.0 / 6.0, 1e-12);
+  EXPECT_EQ(ev.pairs_within, 10u);      // the ring's own pairs; none with the lone map
+  EXPECT_LT(ev.max_rotation_deg, 2.0);  // the lone map's NaN left out
+  // Every map alone: nothing placed at all.
+  std::vector<Edge> none = ring.edges;
+  for (Edge& e : none) e.trusted = false;
+  const MergeResult apart = solve_pose_graph(6, std::vector<std::optional<MapPrior>>(6), none);
+  const MergeEvaluation ev0 = evaluate_merge(apart, none, ring.truth, {2.0, 0.2});
+  EXPECT_EQ(ev0.num_parts, 6u);
+  EXPECT_EQ(ev0.num_edge_parts, 6u);
+  EXPECT_EQ(ev0.placed, 0u);
+  EXPECT_DOUBLE_EQ(ev0.fraction_within, 0.0);
+  EXPECT_DOUBLE_EQ(ev0.pair_fraction_within, 0.0);
+}
+
+// Parts held by priors share the priors' frame: one fit for all of them. A map alone with a
+// wrong prior is placed (by its prior) and reported outside; alone with a good prior, within.
+TEST(MergeEvaluation, PartsHeldByPriorsShareOneFrame) {
+  Ring ring = make_ring(5, 16);
+  std::mt19937_64 rng(16);
+  ring.truth.push_back(random_pose(rng, 5.0, 180.0));
+  ring.truth.push_back(random_pose(rng, 5.0, 180.0));
+  std::vector<std::optional<MapPrior>> priors(7);
+  for (std::size_t i = 0; i < 7; ++i) {
+    MapPrior p;
+    p.T_world_map = ring.truth[i];
+    p.covariance = Mat6::Identity() * 1e-4;
+    priors[i] = p;
+  }
+  priors[6]->T_world_map = pose_from_xyz_rpy_deg(0.5, 0, 0, 0, 0, 30) * ring.truth[6];
+  const MergeResult r = solve_pose_graph(7, priors, ring.edges);  // maps 5 and 6: no edge
+  ASSERT_EQ(r.num_components, 1u);  // the priors' frame holds them all
+  const MergeEvaluation ev = evaluate_merge(r, ring.edges, ring.truth, {2.0, 0.2});
+  EXPECT_EQ(ev.num_parts, 1u);
+  EXPECT_EQ(ev.num_edge_parts, 3u);  // the ring, and each lone map
+  for (std::size_t i = 0; i < 7; ++i) EXPECT_TRUE(ev.maps[i].placed) << i;
+  EXPECT_FALSE(ev.maps[5].connected);
+  EXPECT_TRUE(ev.maps[5].within);
+  EXPECT_FALSE(ev.maps[6].within);
+  EXPECT_NEAR(ev.maps[6].rotation_deg, 30.0, 1.0);
+  EXPECT_NEAR(ev.fraction_within, 6.0 / 7.0, 1e-12);
+  EXPECT_EQ(ev.pairs_within, 15u);  // the 6 right maps' pairs, across parts too
 }
 
 TEST(MergePoseGraph, PriorsHoldTheGaugeAndInvalidCovarianceIsSkipped) {
@@ -313,6 +395,8 @@ TEST(MergeEvaluation, OneMisplacedMapDoesNotMoveTheOthersErrors) {
   EXPECT_FALSE(ev.maps[5].within);
   EXPECT_GT(ev.maps[5].rotation_deg, 100.0);
   EXPECT_NEAR(ev.fraction_within, 5.0 / 6.0, 1e-12);
+  EXPECT_TRUE(ev.maps[5].placed);   // placed by the merge, wrongly
+  EXPECT_EQ(ev.pairs_within, 10u);  // of 15: none of the 5 with the misplaced map
 }
 
 TEST(MergePoseGraph, Chi2QuantileMatchesTables) {
@@ -395,8 +479,24 @@ TEST(MergeOutput, WritesPosesEdgesAndFusedMergedMap) {
     EXPECT_LT((merged.landmarks[k].p_world - world[k]).norm(), 1e-3);
     EXPECT_NEAR(merged.landmarks[k].cov_world_m2(0, 0), 0.5e-4, 1e-6);  // information summed
   }
+  // Fused: map b added nothing; its centre (the median of its landmarks, in the world) is a's.
+  auto poses_json = [&]() {
+    std::ifstream in(dir.file("poses.json"));
+    return nlohmann::json::parse(in);
+  };
+  nlohmann::json poses = poses_json();
+  EXPECT_EQ(poses["maps"][0]["merged_landmarks"], nlohmann::json({0, 50}));
+  EXPECT_EQ(poses["maps"][1]["merged_landmarks"], nlohmann::json({50, 50}));
   write_merge_outputs(dir.path(), {"a", "b"}, {"", ""}, maps, edges, r);
   EXPECT_EQ(read_map(dir.file("merged_map.txt"), MapReadOptions{0}).landmarks.size(), 100u);
+  poses = poses_json();
+  EXPECT_EQ(poses["maps"][1]["merged_landmarks"], nlohmann::json({50, 100}));
+  std::vector<double> xs;
+  for (const Vec3& p : world) xs.push_back(p.x());
+  std::nth_element(xs.begin(), xs.begin() + 25, xs.end());
+  for (int m = 0; m < 2; ++m) {  // each map's centre: the world's median, whatever its frame
+    EXPECT_NEAR(poses["maps"][m]["landmark_centre_world"][0].get<double>(), xs[25], 1e-3) << m;
+  }
   // No temporary file is left behind.
   for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
     EXPECT_EQ(entry.path().filename().string().find(".tmp"), std::string::npos) << entry.path();

@@ -1,14 +1,19 @@
 // Ground-truth evaluation of a merge (docs/merge.md, "Ground truth").
 //
-// A component held by priors is aligned to the truth frame by the rigid transform G that best
-// fits all its maps (chordal rotation mean of R_true R_est^T, then mean translation). Any other
-// component's frame is arbitrary: it is aligned by a G fitted to the maps that agree with the
-// truth. Of the fit to all its maps and each map's own G_k = T_true_k T_est_k^-1, the one that
-// puts the most maps within the thresholds wins, refitted to those maps when that keeps as many;
-// so one misplaced map does not move the others' errors. Per map, the error of
-// G * T_world_map_est against T_world_map_true (transform_error, core/geometry.hpp). An edge is
-// true when its T_target_source agrees with T_world_target_true^-1 * T_world_source_true within
-// the thresholds.
+// The merge's parts are the pose graph's connected components. The maps held by priors (every
+// part without a gauge map) share the priors' frame; any other part has a frame of its own. Each
+// such frame is aligned to the truth by a rigid transform G fitted to its maps that agree with
+// the truth: of the fit to all its maps (chordal rotation mean of R_true R_est^T, then mean
+// translation) and each map's own G_k = T_true_k T_est_k^-1, the one that puts the most maps
+// within the thresholds wins, refitted to those maps when that keeps as many; so one misplaced
+// map (or one wrong prior) does not move the others' errors. A map alone in a part without
+// priors has no error to measure (NaN). Per map, the error of G * T_world_map_est against
+// T_world_map_true (transform_error, core/geometry.hpp).
+// A map is placed when the merge puts it in the frame of the others: in a part held by priors,
+// or, without priors, in the largest part (the first of equal ones) when that part joins at
+// least two maps. A map alone in its part, or in a smaller part, is not placed, whatever its
+// error within that part. An edge is true when its T_target_source agrees with
+// T_world_target_true^-1 * T_world_source_true within the thresholds.
 #pragma once
 
 #include <optional>
@@ -27,14 +32,31 @@ struct GroundTruthThresholds {
 };
 
 struct MapError {
+  /// Error of the map's pose, its part aligned to the truth (NaN: alone in a part without
+  /// priors, so nothing to measure).
   double rotation_deg = 0.0;
   double translation_m = 0.0;
-  bool within = false;
+  bool connected = false;  ///< a kept edge joins it to at least one other map
+  bool placed = false;     ///< in the frame of the others (see the file comment)
+  bool within = false;     ///< placed and its error within the thresholds
 };
 
 struct MergeEvaluation {
   std::vector<MapError> maps;
+  /// The pose graph's components (maps in one frame; priors join every map that has one).
+  std::size_t num_parts = 0;
+  /// Connected components of the kept edges alone (what the alignments joined).
+  std::size_t num_edge_parts = 0;
+  std::size_t largest_part = 0;  ///< maps in the largest part
+  std::size_t placed = 0;        ///< maps placed
+  /// Maps placed and within the thresholds / all maps.
   double fraction_within = 0.0;
+  /// Of all pairs of maps, those whose estimated relative pose T_world_i^-1 T_world_j agrees
+  /// with the truth's within the thresholds; a pair in two parts without a common frame (not
+  /// both held by priors) does not. NaN above 2,000 maps (not computed: 2 million pairs).
+  double pair_fraction_within = 0.0;
+  std::size_t pairs_within = 0;
+  /// Largest errors over the maps with an error (NaN ones left out).
   double max_rotation_deg = 0.0;
   double max_translation_m = 0.0;
   /// Edges kept by the graph (used, not rejected) that are true / all kept; 1 when none kept.

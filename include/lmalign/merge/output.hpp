@@ -1,7 +1,11 @@
 // Outputs of a merge (docs/merge.md, "Outputs"), every file written atomically
 // (io/atomic_file.hpp):
 //   poses.yaml, poses.json   per map: name, component, gauge flag, T_world_map (4x4 rows),
-//                            6x6 covariance (uncertainty.hpp's convention, world frame)
+//                            6x6 covariance (uncertainty.hpp's convention, world frame);
+//                            poses.json also the map's landmark centre in the world frame
+//                            (coordinate-wise median, m; null without landmarks) and the range
+//                            [begin, end) of the landmark ids its component's merged map gives
+//                            the landmarks it added (for the plots, scripts/plot_merge.py)
 //   edges.csv                one row per candidate edge
 //   summary.json             counts, final chi^2, the edge covariance scale, rejected edges
 //   merged_map.txt           (one component) or merged_map_component<k>.txt (one per
@@ -17,6 +21,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lmalign/map/map.hpp"
@@ -32,11 +37,15 @@ struct MergeOutputOptions {
 
 /// The merged map of component `component`: maps of that component moved by their T_world_map
 /// (transform_map), renumbered (frame ids 0.., landmark ids 0.. in map order; fused landmarks
-/// keep the first occurrence's place). `sessions[i]` is map i's session ("" = none).
+/// keep the first occurrence's place). `sessions[i]` is map i's session ("" = none). If
+/// `landmark_ranges` is given, it is resized to maps.size() and (*landmark_ranges)[i] is the range
+/// [begin, end) of the merged landmark ids that map i added ({0, 0} for a map of another
+/// component; a fused landmark belongs to the map that added it first).
 /// Throws InvalidArgument if sizes do not match.
 Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& sessions,
                const MergeResult& result, std::size_t component,
-               const MergeOutputOptions& options = {});
+               const MergeOutputOptions& options = {},
+               std::vector<std::pair<std::size_t, std::size_t>>* landmark_ranges = nullptr);
 
 /// Writes poses.yaml, poses.json, edges.csv, summary.json and the merged map(s) into `out_dir`
 /// (created if missing). `names[i]` names map i. Throws IoError / InvalidArgument.
