@@ -99,8 +99,6 @@ class CentreLine {
     }
   }
 
-  double length() const { return kPathStepM * static_cast<double>(x_.size() - 1); }
-
   const Segment& segment_at(double s) const {
     auto it = std::upper_bound(segments_.begin(), segments_.end(), s,
                                [](double v, const Segment& g) { return v < g.start_s; });
@@ -533,11 +531,6 @@ Map map_window(const StreetSimOptions& o, const World& world,
   }
   return map;
 }
-
-// The drive of num_windows windows: keyframe poses per window (world frame) and the world.
-struct Drive {
-  std::vector<std::vector<Isometry3>> windows;
-};
 
 std::size_t window_stride(const StreetSimOptions& o) {
   const auto shared =

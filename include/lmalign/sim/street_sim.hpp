@@ -12,14 +12,14 @@
 //     straight if neither way stays), so the road never comes back across its own view;
 //   - per side, a sequence of lots: 80% buildings (width 6-30 m, facade 9-18 m from the centre
 //     line, 6-22 m high, each with its own window grid: column spacing 2.2-4 m, storey height
-//     2.8-3.6 m, window size, fill ratio 50-95%; window corners, facade texture at 0.3-1.5 per
+//     2.8-3.6 m, window size, fill ratio 50-95%; window corners, facade texture at 3-10 per
 //     m^2, the facade's vertical edges and roof line, and side walls where neighbouring setbacks
 //     differ), 20% gaps (4-20 m: side streets, empty lots);
 //   - trees (in 50 m blocks that have them with probability 0.5, about every 12 m; a trunk and a
-//     crown of 25-60 points 1.5-3 m in radius), poles every 25-45 m (6-9 m high, with a lamp arm),
-//     parked cars (in 40 m blocks that have them with probability 0.6; boxes 3.8-5 m long, gaps
-//     0.5-8 m) and the ground (lane-centre dashes whose phase changes per road segment, edge lines,
-//     kerbs and random road texture whose density changes per 10 m);
+//     crown of 100-250 points 1.5-3 m in radius), poles every 25-45 m (6-9 m high, with a lamp
+//     arm), parked cars (in 40 m blocks that have them with probability 0.6; boxes 3.8-5 m long
+//     with 80-160 points, gaps 0.5-8 m) and the ground (lane-centre dashes whose phase changes per
+//     road segment, edge lines, kerbs and random road texture at 0.5-3 per m^2, drawn per 10 m);
 //   - on the inside of a curve, nothing closer to the curve's centre than 0.6 of its radius (so a
 //     turn is a crossing, with no building in it); facades and side walls are seen only from the
 //     side they face.
@@ -31,8 +31,10 @@
 // Each window maps num_landmarks of the world's features that at least two of its consecutive
 // keyframes see with both cameras (KITTI's 1242 x 375 px, fx = fy = fx_px, the principal point at
 // the image centre) at a depth in [min_range_m, max_range_m]. A feature seen from the depth z of
-// its last observation is kept with weight 1 / (1 + (z / 25 m)^2) (Efraimidis-Spirakis weighted
-// sampling without replacement: far features are detected less often). Each landmark has
+// its last observation is kept with weight min(1, (10 m / z)^2) (Efraimidis-Spirakis weighted
+// sampling without replacement: a detector keeps a few features per image area, and a far
+// surface packs many features into little area; at 3,000 landmarks per 30 keyframes the median
+// depth is 22-29 m, KITTI's maps 16-23 m). Each landmark has
 //   - 2..max_observations observations from consecutive keyframes: left-image pixels (u, v) and
 //     right-image column u_R, each with Gaussian noise pixel_sigma_px (the track ends before an
 //     observation whose noisy disparity is below 1 px, and a landmark needs two);
