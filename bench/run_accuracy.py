@@ -559,7 +559,8 @@ def default_report(lmalign, d, source, target, truth, rows, folder, log, spec, a
     try:
         out = {}
         if not a.no_regret:
-            out = accuracy_default.regret_report(aligner, rows, spec["truth_prior_sigma"])
+            out = accuracy_default.regret_report(
+                aligner, rows, [spec["truth_prior_sigma"], d["basin_prior_sigma"]])
         if not a.no_basin:
             out["basin"] = accuracy_default.basin_report(
                 aligner, d, source, target, d["basin_prior_sigma"], 2 if a.quick else 4,

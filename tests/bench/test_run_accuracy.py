@@ -244,13 +244,26 @@ class DefaultMeasures(unittest.TestCase):
         self.assertLess(amount, 8.6)
         self.assertGreater(amount, 8.0)
 
+    def test_truth_refined_is_the_best_right_basin_run(self):
+        class Priors(StubAligner):
+            def given(self, guess, prior):  # score and basin by the prior's rotation sigma
+                table = {0.05: (100.0, True), 1.0: (110.0, True), 3.0: (150.0, False)}
+                score, ok = table[prior[0]]
+                return {"gated_score": score, "right_basin": ok,
+                        "initialisation": "given"}, prior
+        run, used, tried = accuracy_default.truth_refined(
+            Priors(), [[0.05, 0.005], [1.0, 0.3], [3.0, 1.0]])
+        self.assertEqual(run["gated_score"], 110.0)  # the wrong-basin 150 does not count
+        self.assertEqual(used, [1.0, 0.3])
+        self.assertEqual([t["gated_score"] for t in tried], [100.0, 110.0, 150.0])
+
     def test_regret_classifies_search_and_score_failures(self):
         rows = [{"experiment": "p", "case": str(i), "value": "0", "x_m": str(float(i)),
                  "y_m": "0", "z_m": "0", "roll_deg": "0", "pitch_deg": "0", "yaw_deg": "0",
                  "strategy": s} for i in range(4) for s in ("a", "b")]  # 4 starts, 2 strategies
         a = StubAligner(scores={0.0: (10.0, True), 1.0: (5.0, False), 2.0: (10.05, False),
                                 3.0: (12.0, False)})
-        rep = accuracy_default.regret_report(a, rows, [0.05, 0.005])
+        rep = accuracy_default.regret_report(a, rows, [[0.05, 0.005]])
         self.assertEqual(rep["starts"], 4)
         g = rep["regret"]
         self.assertEqual(g["search_failures"], 1)  # 5 < 10 by 50%
@@ -389,6 +402,7 @@ class Driver(unittest.TestCase):
         self.assertEqual(dflt["starts"], 8 + 10)
         self.assertEqual(dflt["truth_refined"]["gated_score"], 100.0)
         self.assertEqual(dflt["truth_refined"]["prior_sigma"], [0.05, 0.005])
+        self.assertEqual(len(dflt["truth_refined"]["tried"]), 2)  # the truth and basin priors
         # Quick protocol (every 5th): x = 0, 0, 0.5, -0.9, 1.25, 0.5, -0.5, 0.5: one x >= 1, one
         # x <= -0.8; random x = 3 (i + 0.5) / 10 >= 1: i = 3..9.
         self.assertEqual(dflt["regret"]["search_failures"], 1 + 7)
