@@ -1,9 +1,11 @@
 #include "cli_main.hpp"
 
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <iostream>
 #include <map>
+#include <new>
 #include <string>
 
 #include <CLI/CLI.hpp>
@@ -38,6 +40,31 @@ std::string one_line(const char* message) {
   return out;
 }
 
+// What the exception in flight says (its what(); out of memory in words).
+std::string current_exception_message() {
+  try {
+    throw;
+  } catch (const lmalign::Error& e) {
+    return e.what();
+  } catch (const std::bad_alloc&) {
+    return "out of memory (an allocation failed; the input may be too large for this machine)";
+  } catch (const std::exception& e) {
+    return e.what();
+  } catch (...) {
+    return "an unknown exception";
+  }
+}
+
+// The last resort (an exception that escaped where it cannot be caught, e.g. a thread): one
+// line and exit code 2 rather than an abort. Should not happen: please report it.
+[[noreturn]] void on_terminate() {
+  std::string what = "terminated";
+  if (std::current_exception()) what = current_exception_message();
+  std::cerr << "lmalign: error: internal error: " << one_line(what.c_str()) << "\n";
+  std::cerr.flush();
+  std::_Exit(2);
+}
+
 // Output that could not be written (a full disk, a closed pipe) is an error, not a success.
 int check_stdout(int code) {
   std::cout.flush();
@@ -48,6 +75,8 @@ int check_stdout(int code) {
   return code;
 }
 }  // namespace
+
+void install_terminate_handler() { std::set_terminate(on_terminate); }
 
 int run_cli(int argc, char** argv, const std::vector<CommandAdder>& commands) {
   CLI::App app{
@@ -79,6 +108,9 @@ int run_cli(int argc, char** argv, const std::vector<CommandAdder>& commands) {
     // Usage errors are bad input like any other: one line, exit code 2.
     std::cerr << "lmalign: error: " << one_line(e.what()) << " (see lmalign --help)\n";
     return 2;
+  } catch (...) {
+    std::cerr << "lmalign: error: " << one_line(current_exception_message().c_str()) << "\n";
+    return 2;
   }
 
   try {
@@ -87,12 +119,11 @@ int run_cli(int argc, char** argv, const std::vector<CommandAdder>& commands) {
     }
     std::cerr << "lmalign: error: no command given (see lmalign --help)\n";
     return 2;
-  } catch (const lmalign::Error& e) {
-    std::cerr << "lmalign: error: " << one_line(e.what()) << "\n";
+  } catch (...) {
+    // Every exception, lmalign's or a library's (std::filesystem, yaml-cpp, nlohmann::json,
+    // an allocation), is one line and exit code 2.
+    std::cerr << "lmalign: error: " << one_line(current_exception_message().c_str()) << "\n";
     return 2;
-  } catch (const std::exception& e) {
-    std::cerr << "lmalign: internal error: " << one_line(e.what()) << "\n";
-    return 3;
   }
 }
 

@@ -1,5 +1,5 @@
 // The skeleton both CLI executables share: the root app (its description, --version), parsing,
-// and one policy for errors and exit codes (0 success, 2 bad input, 3 internal error).
+// and one policy for errors and exit codes (0 success, 2 any error).
 #pragma once
 
 #include <vector>
@@ -12,8 +12,13 @@ namespace lmalign::cli {
 using CommandAdder = CommandRunner (*)(CLI::App&);
 
 /// Builds the `lmalign` root app with `commands`, parses argv and runs the chosen command.
-/// Returns the process exit code: usage errors and lmalign::Error give one line on stderr and 2,
-/// other exceptions 3, unwritable standard output 2.
+/// Returns the process exit code: every error (a usage error, lmalign::Error, any other
+/// exception, out of memory, an unwritable standard output) gives one line on stderr and 2.
 int run_cli(int argc, char** argv, const std::vector<CommandAdder>& commands);
+
+/// The executables' last resort (main() installs it): an exception that escapes where it cannot
+/// be caught (std::terminate) is one line, "lmalign: error: internal error: ...", and exit code 2
+/// rather than an abort. Not installed by run_cli(), so that a fuzzer sees such an abort.
+void install_terminate_handler();
 
 }  // namespace lmalign::cli

@@ -16,6 +16,7 @@
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/io/ply.hpp"
 #include "lmalign/io/transform_io.hpp"
@@ -133,6 +134,10 @@ int run_align(const AlignArgs& a) {
   if (!a.displace.empty()) {
     disp = parse_number_list("--displace", a.displace, 6,
                              "x,y,z,roll,pitch,yaw (m, m, m, deg, deg, deg)");
+    check_supported_translation("--displace " + a.displace, Vec3(disp[0], disp[1], disp[2]));
+    for (int i = 3; i < 6; ++i) {
+      check_supported_magnitude("--displace " + a.displace, disp[i], kMaxAngleDeg, "degrees");
+    }
     T_displace = pose_from_xyz_rpy_deg(disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
   }
   if (!(a.success_rotation_deg > 0) || !(a.success_translation_m > 0)) {
@@ -178,6 +183,7 @@ int run_align(const AlignArgs& a) {
                             ": not a rigid transform (expected [R t; 0 0 0 1] with R orthonormal "
                             "and det R = +1)");
     }
+    check_supported_translation("--initial-guess " + a.initial_guess, initial_guess->translation());
   }
 
   std::optional<Isometry3> T_gt;  // ground truth for the undisplaced source
@@ -185,6 +191,7 @@ int run_align(const AlignArgs& a) {
     T_gt = Isometry3::Identity();
   } else if (!a.ground_truth.empty()) {
     T_gt = read_transform(a.ground_truth);
+    check_supported_translation("--ground-truth " + a.ground_truth, T_gt->translation());
   }
 
   MapReadOptions ropt;
@@ -300,6 +307,9 @@ int run_align(const AlignArgs& a) {
     if (!r.outcome.trustworthy) {
       std::printf("  %-13s not trusted: %s\n", to_string(r.strategy).c_str(),
                   r.outcome.trust_reason.c_str());
+    } else if (r.outcome.source_left_out + r.outcome.target_left_out > 0) {
+      std::printf("  %-13s trusted: %s\n", to_string(r.strategy).c_str(),
+                  r.outcome.trust_reason.c_str());
     }
   }
   std::printf(
@@ -362,6 +372,8 @@ int run_align(const AlignArgs& a) {
       e["wall_time_s"] = r.result.wall_time_s;
       e["trustworthy"] = r.outcome.trustworthy;
       e["trust_reason"] = r.outcome.trust_reason;
+      e["source_landmarks_left_out"] = r.outcome.source_left_out;
+      e["target_landmarks_left_out"] = r.outcome.target_left_out;
       if (r.outcome.verdict) {
         e["inlier_fraction"] = r.outcome.verdict->inlier_fraction;
         e["overlap_fraction"] = r.outcome.verdict->overlap_fraction;

@@ -25,6 +25,7 @@
 #include "cli_util.hpp"
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/experiment/cases.hpp"
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/experiment/report.hpp"
@@ -288,6 +289,9 @@ int run_experiment(ExperimentArgs a) {
   std::printf("  source %s (%zu landmarks), target %s (%zu landmarks)\n",
               config.source.path.c_str(), in.source.landmarks.size(), config.target.path.c_str(),
               in.target.landmarks.size());
+  if (in.source_left_out + in.target_left_out > 0) {
+    std::printf("  %s\n", left_out_message(in.source_left_out, in.target_left_out).c_str());
+  }
   if (config.has_ground_truth()) {
     std::printf(
         "  ground truth: %s; success = rotation error < %g deg and translation error < %g m\n",

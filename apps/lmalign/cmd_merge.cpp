@@ -14,6 +14,7 @@
 #include "cli_util.hpp"
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/merge/evaluation.hpp"
 #include "lmalign/merge/merge.hpp"
@@ -170,6 +171,18 @@ int run_merge_command(const MergeArgs& a) {
   std::vector<Isometry3> truth;
   std::fprintf(stderr, "lmalign merge: reading %zu maps\n", manifest.maps.size());
   const std::vector<Map> maps = load_manifest_maps(manifest);
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    // The supported range (core/supported_range.hpp): such landmarks are left out of every edge
+    // (each edge's trust reason counts them) and of the merged map (summary.json).
+    std::size_t far = 0;
+    for (const Landmark& l : maps[i].landmarks) far += within_supported_range(l.p_world) ? 0 : 1;
+    if (far > 0) {
+      std::fprintf(stderr,
+                   "lmalign merge: map '%s': %zu landmark(s) beyond the supported range "
+                   "(|coordinate| > %g m) left out\n",
+                   names[i].c_str(), far, kMaxCoordinateM);
+    }
+  }
   if (!a.ground_truth.empty()) {
     if (a.ground_truth == "identity") {
       truth.assign(maps.size(), Isometry3::Identity());

@@ -52,6 +52,7 @@ lmalign::cli::CommandRunner add_build_map_stub(CLI::App& root) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  lmalign::cli::install_terminate_handler();
 #ifdef LMALIGN_BUILD_MAP_HELPER
   g_argv = argv;
   if (argc >= 2 && std::strcmp(argv[1], "build-map") == 0) return run_build_map_helper(argv);

@@ -4,5 +4,6 @@
 #include "cli_main.hpp"
 
 int main(int argc, char** argv) {
+  lmalign::cli::install_terminate_handler();
   return lmalign::cli::run_cli(argc, argv, {&lmalign::cli::add_build_map_command});
 }

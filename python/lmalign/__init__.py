@@ -118,9 +118,14 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
     initial_score_m2, final_score_m2, wall_time_s, started_s, finished_s (time.monotonic()
     clock), trustworthy, trust_reason, inlier_fraction and overlap_fraction (None for
     'adaptive'), gated_inlier_ratio and ambiguity ('adaptive' only, else None),
-    translation_sd_m, rotation_sd_deg, covariance (6, 6) or None.
+    translation_sd_m, rotation_sd_deg, covariance (6, 6) or None, source_landmarks_left_out and
+    target_landmarks_left_out.
+    Supported range (docs/robustness.md): landmarks with a coordinate beyond 1e15 m are left out
+    of the alignment, counted in *_landmarks_left_out and named at the end of trust_reason; an
+    initial_guess translation or a prior_sigma beyond it raises InvalidArgument.
     Raises InvalidArgument (unknown strategy or option, empty or non-finite input, a weight or
-    covariance the strategy needs is missing), ValueError (wrong shape or dtype).
+    covariance the strategy needs is missing, a value beyond the supported range), ValueError
+    (wrong shape or dtype).
     """
     unknown = sorted(set(options) - set(_ALIGN_OPTIONS))
     if unknown:

@@ -175,11 +175,13 @@ void bind_merge(py::module_& m) {
              MapPrior p;
              p.T_world_map = transform_from(T, "T_world_map");
              p.covariance = covariance_from(covariance, "covariance");
+             check_prior_in_supported_range(p, "MapPrior");
              return p;
            }),
            py::arg("T_world_map"), py::arg("covariance"),
-           "Raises InvalidArgument if T_world_map is not rigid or the covariance is not "
-           "symmetric positive definite, ValueError on a wrong shape.")
+           "Raises InvalidArgument if T_world_map is not rigid, the covariance is not "
+           "symmetric positive definite, or the translation or a standard deviation is beyond "
+           "the supported range (1e15 m; docs/robustness.md), ValueError on a wrong shape.")
       .def_property_readonly(
           "T_world_map", [](const MapPrior& p) { return matrix_out<4, 4>(p.T_world_map.matrix()); },
           "(4, 4) float64, metres.")

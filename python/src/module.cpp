@@ -308,7 +308,17 @@ PYBIND11_MODULE(_lmalign, m) {
           "The verdict without ground truth (docs/accuracy.md).")
       .def_property_readonly(
           "trust_reason", [](const python::AlignOutcome& o) { return o.outcome.trust_reason; },
-          "'ok', or why the estimate is not trusted.")
+          "'ok', or why the estimate is not trusted; either followed by '; N source landmarks "
+          "... left out' when landmarks beyond the supported range were left out.")
+      .def_property_readonly(
+          "source_landmarks_left_out",
+          [](const python::AlignOutcome& o) { return o.outcome.source_left_out; },
+          "Source landmarks left out of the alignment for a coordinate beyond the supported range "
+          "(|x| > 1e15 m; docs/robustness.md).")
+      .def_property_readonly(
+          "target_landmarks_left_out",
+          [](const python::AlignOutcome& o) { return o.outcome.target_left_out; },
+          "Target landmarks left out likewise.")
       .def_property_readonly(
           "inlier_fraction",
           [](const python::AlignOutcome& o) -> py::object {

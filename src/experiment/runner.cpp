@@ -13,6 +13,7 @@
 #include <string>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
@@ -44,7 +45,7 @@ SuccessDecision decide_success(const SuccessCriteria& criteria,
 
 namespace {
 
-Map load_map(const MapSpec& spec, const std::string& role) {
+Map load_map(const MapSpec& spec, const std::string& role, std::size_t* left_out) {
   Map map;
   if (spec.split) {
     MapReadOptions ro;
@@ -61,6 +62,20 @@ Map load_map(const MapSpec& spec, const std::string& role) {
     MapReadOptions ro;
     ro.min_observations = spec.min_observations;
     map = read_any_map(spec.path, {ro});
+  }
+  // The supported range (core/supported_range.hpp): landmarks beyond it are left out on load, for
+  // the paper's strategies and lmalign's alike, and counted (ExperimentInputs).
+  const std::size_t before = map.landmarks.size();
+  map.landmarks.erase(
+      std::remove_if(map.landmarks.begin(), map.landmarks.end(),
+                     [](const Landmark& l) { return !within_supported_range(l.p_world); }),
+      map.landmarks.end());
+  if (left_out != nullptr) *left_out = before - map.landmarks.size();
+  if (before > 0 && map.landmarks.empty()) {
+    throw InvalidArgument(
+        role + " map '" + spec.path + "': every landmark (" + std::to_string(before) +
+        ") is beyond the supported range (|coordinate| <= " + message_number(kMaxCoordinateM) +
+        " m)");
   }
   if (map.landmarks.empty()) {
     throw InvalidArgument(role + " map '" + spec.path + "' has no landmarks" +
@@ -95,8 +110,8 @@ class SingleLevelParallelism {
 
 ExperimentInputs load_experiment_inputs(const ExperimentConfig& config) {
   ExperimentInputs in;
-  in.source = load_map(config.source, "source");
-  in.target = load_map(config.target, "target");
+  in.source = load_map(config.source, "source", &in.source_left_out);
+  in.target = load_map(config.target, "target", &in.target_left_out);
   switch (config.ground_truth.kind) {
     case GroundTruthSpec::Kind::kNone:
       break;

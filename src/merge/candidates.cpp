@@ -10,6 +10,8 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/supported_range.hpp"
+#include "lmalign/merge/manifest.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 
 namespace lmalign {
@@ -53,7 +55,11 @@ bool CandidateOptions::is_valid(std::string* why) const {
 
 MapSummary summarise_map(const Map& map, const CandidateOptions& options, std::uint64_t seed) {
   MapSummary s;
-  const Points3 p = map.positions();
+  // The landmarks the edges align (core/supported_range.hpp: those beyond it are left out).
+  Points3 p;
+  for (const Landmark& l : map.landmarks) {
+    if (within_supported_range(l.p_world)) p.push_back(l.p_world);
+  }
   s.num_landmarks = p.size();
   if (p.empty()) return s;
   for (const Vec3& x : p) s.centroid += x;
@@ -112,6 +118,9 @@ std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summar
     throw InvalidArgument("plan_candidates: " + std::to_string(priors.size()) + " priors for " +
                           std::to_string(n) + " maps");
   }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (priors[i]) check_prior_in_supported_range(*priors[i], "prior of map " + std::to_string(i));
+  }
   std::vector<CandidatePair> with_prior;
   std::vector<std::pair<std::size_t, std::size_t>> without;
   for (std::size_t i = 0; i < n; ++i) {
@@ -128,12 +137,16 @@ std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summar
         const double gap = (ci - summaries[j].centroid).norm();
         const double reach = summaries[i].radius_m + summaries[j].radius_m +
                              options.prior_sigmas * (sd_t + sd_r * summaries[i].radius_m);
-        if (gap > reach) continue;
+        if (!(gap <= reach)) continue;
+        // Priors that put the maps beyond the supported range of each other: not a candidate.
+        if (!within_supported_range(T_ji.translation())) continue;
         c.rank = gap / std::max(reach, 1e-12);
         c.initial_guess = T_ji;
+        // Sigmas beyond the supported range say no more than those at its edge (3 sigma then
+        // covers every rotation and the whole range).
         PriorSigma ps;
-        ps.rotation_deg = std::max(sd_r / kRadPerDeg, 1e-3);
-        ps.translation_m = std::max(sd_t, 1e-4);
+        ps.rotation_deg = std::clamp(sd_r / kRadPerDeg, 1e-3, kMaxAngleDeg);
+        ps.translation_m = std::clamp(sd_t, 1e-4, kMaxCoordinateM);
         c.prior = ps;
         with_prior.push_back(c);
       } else {

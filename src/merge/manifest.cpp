@@ -13,6 +13,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/registration/adaptive.hpp"
 
 namespace lmalign {
@@ -64,6 +65,28 @@ Eigen::MatrixXd matrix(const std::string& file, const YAML::Node& node, const st
   return m;
 }
 
+// The standard deviations of a prior covariance (rows 0-2 m, 3-5 rad) within the supported
+// range, and its smallest eigenvalue at least the smallest variance (a correlation of nearly 1
+// is as degenerate as a tiny sigma).
+void check_covariance_in_supported_range(const Mat6& C, const std::string& what) {
+  for (int i = 0; i < 6; ++i) {
+    const bool rotation = i >= 3;
+    const double to_unit = rotation ? kRadPerDeg : 1.0;
+    check_supported_sigma(
+        what + "[" + std::to_string(i) + "][" + std::to_string(i) + "]: standard deviation",
+        std::sqrt(C(i, i)), kMinSigma * to_unit,
+        (rotation ? kMaxAngleDeg : kMaxCoordinateM) * to_unit, rotation ? "rad" : "m");
+  }
+  const double smallest =
+      Eigen::SelfAdjointEigenSolver<Mat6>(C, Eigen::EigenvaluesOnly).eigenvalues().minCoeff();
+  const double floor = std::pow(kMinSigma * kRadPerDeg, 2);
+  if (!(smallest >= floor)) {
+    throw InvalidArgument(
+        what + ": smallest eigenvalue " + message_number(smallest) +
+        " is below the supported range of a variance (>= " + message_number(floor) + ")");
+  }
+}
+
 MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std::string& where) {
   MapPrior prior;
   const YAML::Node tn = entry["T_world_map"];
@@ -78,6 +101,17 @@ MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std
              ".T_world_map: not a rigid transform (rotation block must be orthonormal to "
              "1e-6 with determinant +1)");
   }
+  // The supported range (core/supported_range.hpp): one line naming the field and the value.
+  auto in_range = [&](const YAML::Node& node, auto&& check) {
+    try {
+      check();
+    } catch (const InvalidArgument& e) {
+      fail(file, node, e.what());
+    }
+  };
+  in_range(tn, [&] {
+    check_supported_translation(where + ".T_world_map", prior.T_world_map.translation());
+  });
   const YAML::Node sn = entry["prior_sigma"];
   const YAML::Node cn = entry["prior_covariance"];
   if (sn && cn) fail(file, cn, where + ": give prior_sigma or prior_covariance, not both");
@@ -90,6 +124,14 @@ MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std
     if (rot_deg <= 0.0 || trans_m <= 0.0) {
       fail(file, sn, where + ".prior_sigma: both sigmas must be > 0");
     }
+    in_range(sn[0], [&] {
+      check_supported_sigma(where + ".prior_sigma[0] (rotation_deg)", rot_deg, kMinSigma,
+                            kMaxAngleDeg, "degrees");
+    });
+    in_range(sn[1], [&] {
+      check_supported_sigma(where + ".prior_sigma[1] (translation_m)", trans_m, kMinSigma,
+                            kMaxCoordinateM, "m");
+    });
     const double r = rot_deg * kRadPerDeg;
     prior.covariance.setZero();
     prior.covariance.diagonal() << trans_m * trans_m, trans_m * trans_m, trans_m * trans_m, r * r,
@@ -107,6 +149,8 @@ MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std
            where + ".prior_covariance: not positive definite (smallest eigenvalue " +
                std::to_string(eig.eigenvalues().minCoeff()) + ")");
     }
+    // Standard deviations within the supported range: rows 0-2 in metres, 3-5 in radians.
+    in_range(cn, [&] { check_covariance_in_supported_range(C6, where + ".prior_covariance"); });
     prior.covariance = C;
   } else {
     fail(file, tn, where + ": T_world_map needs prior_sigma or prior_covariance");
@@ -115,6 +159,11 @@ MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std
 }
 
 }  // namespace
+
+void check_prior_in_supported_range(const MapPrior& prior, const std::string& what) {
+  check_supported_translation(what + ".T_world_map", prior.T_world_map.translation());
+  check_covariance_in_supported_range(prior.covariance, what + ".covariance");
+}
 
 Manifest parse_manifest(const std::string& yaml_text, const std::string& name,
                         const std::string& base_dir) {

@@ -12,6 +12,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/map/map_io.hpp"
 
@@ -75,11 +76,13 @@ json landmark_centre(const Map& map, const Isometry3& T) {
 
 Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& sessions,
                const MergeResult& result, std::size_t component, const MergeOutputOptions& options,
-               std::vector<std::pair<std::size_t, std::size_t>>* landmark_ranges) {
+               std::vector<std::pair<std::size_t, std::size_t>>* landmark_ranges,
+               std::size_t* left_out) {
   if (sessions.size() != maps.size() || result.maps.size() != maps.size()) {
     throw InvalidArgument("merge_maps: maps, sessions and poses differ in number");
   }
   if (landmark_ranges != nullptr) landmark_ranges->assign(maps.size(), {0, 0});
+  if (left_out != nullptr) *left_out = 0;
   Map out;
   Id next_frame = 0;
   // (session, landmark id) -> index in out.landmarks, and the fused information sums.
@@ -97,7 +100,12 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
       frame_id[f.id] = g.id;
       out.frames.push_back(g);
     }
-    for (const Landmark& l : moved.landmarks) {
+    for (std::size_t li = 0; li < moved.landmarks.size(); ++li) {
+      const Landmark& l = moved.landmarks[li];
+      if (!within_supported_range(maps[m].landmarks[li].p_world)) {
+        if (left_out != nullptr) ++*left_out;
+        continue;
+      }
       Landmark k = l;
       for (Observation& o : k.observations) o.frame_id = frame_id.at(o.frame_id);
       const bool fusable = options.fuse_landmarks && !sessions[m].empty();
@@ -141,12 +149,16 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
   fs::create_directories(out_dir, ec);
   if (ec) throw IoError("cannot create '" + out_dir + "': " + ec.message());
   const fs::path dir(out_dir);
-  // The merged maps first: which of their landmarks each map added (for the plots).
+  // The merged maps first: which of their landmarks each map added (for the plots), and how many
+  // they leave out (summary.json).
   std::vector<Map> merged(result.num_components);
   std::vector<std::pair<std::size_t, std::size_t>> ranges(maps.size(), {0, 0});
+  std::size_t left_out = 0;
   for (std::size_t c = 0; c < result.num_components; ++c) {
     std::vector<std::pair<std::size_t, std::size_t>> r;
-    merged[c] = merge_maps(maps, sessions, result, c, options, &r);
+    std::size_t n = 0;
+    merged[c] = merge_maps(maps, sessions, result, c, options, &r, &n);
+    left_out += n;
     for (std::size_t i = 0; i < maps.size(); ++i) {
       if (result.maps[i].component == c) ranges[i] = r[i];
     }
@@ -218,7 +230,8 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                         {"final_chi2", result.final_chi2},
                         {"edge_covariance_scale", result.edge_covariance_scale},
                         {"rounds", result.rounds},
-                        {"converged", result.converged}};
+                        {"converged", result.converged},
+                        {"landmarks_left_out", left_out}};
   write_file_atomically((dir / "summary.json").string(),
                         [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
   for (std::size_t c = 0; c < result.num_components; ++c) {

@@ -14,6 +14,8 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/supported_range.hpp"
+#include "lmalign/merge/manifest.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -411,6 +413,20 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     throw InvalidArgument("solve_pose_graph: " + std::to_string(priors.size()) + " priors for " +
                           std::to_string(num_maps) + " maps");
   }
+  // The supported range (core/supported_range.hpp): priors and edges beyond it are refused
+  // before Ceres sees them (its dense SVD does not return on a non-finite Jacobian).
+  for (std::size_t i = 0; i < num_maps; ++i) {
+    if (priors[i]) check_prior_in_supported_range(*priors[i], "prior of map " + std::to_string(i));
+  }
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    const std::string what = "solve_pose_graph: edge " + std::to_string(e) + " (map " +
+                             std::to_string(edges[e].source) + " -> map " +
+                             std::to_string(edges[e].target) + ")";
+    if (!edges[e].T_target_source.matrix().allFinite()) {
+      throw InvalidArgument(what + ": T_target_source is not finite");
+    }
+    check_supported_translation(what, edges[e].T_target_source.translation());
+  }
   MergeResult out;
   out.maps.resize(num_maps);
   out.edges.resize(edges.size());
@@ -650,7 +666,13 @@ MergeResult solve_pose_graph(std::size_t num_maps,
           total += chi2_of(*prior_w[i], prior_twist(pose[i], to_block(priors[i]->T_world_map)));
       }
       out.final_chi2 = total;
-      if (options.compute_covariances) {
+      // Ceres' dense SVD must not see a non-finite Jacobian (Eigen's SVD does not return on
+      // one); a solve that left the finite numbers has no covariance to report.
+      bool finite = std::isfinite(total);
+      for (std::size_t i = 0; i < num_maps; ++i) {
+        for (double v : pose[i]) finite = finite && std::isfinite(v);
+      }
+      if (options.compute_covariances && finite) {
         ceres::Covariance::Options co;
         co.algorithm_type = ceres::DENSE_SVD;
         co.null_space_rank = -1;

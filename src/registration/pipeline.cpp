@@ -7,7 +7,9 @@
 #include <cstdint>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/registration/score.hpp"
 
 namespace lmalign {
@@ -81,13 +83,15 @@ bool PriorSigma::is_valid(std::string* why) const {
     if (why != nullptr) *why = m;
     return false;
   };
-  if (!(rotation_deg > 0.0) || !std::isfinite(rotation_deg)) {
-    return fail("prior rotation sigma must be > 0 and finite (degrees), got " +
-                message_number(rotation_deg));
+  if (!(rotation_deg >= kMinSigma && rotation_deg <= kMaxAngleDeg)) {
+    return fail("prior rotation sigma must be within the supported range [" +
+                message_number(kMinSigma) + ", " + message_number(kMaxAngleDeg) +
+                "] degrees, got " + message_number(rotation_deg));
   }
-  if (!(translation_m > 0.0) || !std::isfinite(translation_m)) {
-    return fail("prior translation sigma must be > 0 and finite (metres), got " +
-                message_number(translation_m));
+  if (!(translation_m >= kMinSigma && translation_m <= kMaxCoordinateM)) {
+    return fail("prior translation sigma must be within the supported range [" +
+                message_number(kMinSigma) + ", " + message_number(kMaxCoordinateM) +
+                "] metres, got " + message_number(translation_m));
   }
   return true;
 }
@@ -352,10 +356,15 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   }
   if (target.size() == 0) throw InvalidArgument("registration: the target has no landmarks");
   const Points3& sp = *source.positions;
-  for (std::size_t i = 0; i < sp.size(); ++i) {
-    if (!sp[i].allFinite() || !(sp[i].cwiseAbs().maxCoeff() <= kMaxCoordinateM)) {
-      throw InvalidArgument("registration: source landmark " + std::to_string(i) +
-                            " is not finite or beyond " + message_number(kMaxCoordinateM) + " m");
+  // The supported range (core/supported_range.hpp; run_strategy() leaves such landmarks out).
+  for (const auto& [side, points] :
+       {std::pair<const char*, const Points3*>{"source", &sp}, {"target", &target.points()}}) {
+    for (std::size_t i = 0; i < points->size(); ++i) {
+      if (!within_supported_range((*points)[i])) {
+        throw InvalidArgument(std::string("registration: ") + side + " landmark " +
+                              std::to_string(i) + " is not finite or beyond " +
+                              message_number(kMaxCoordinateM) + " m");
+      }
     }
   }
   if (source.has_covariances() && source.covariances_m2->size() != sp.size()) {
@@ -368,11 +377,11 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     throw InvalidArgument("prior sigma: the initialiser '" + spec_.initialiser + "' of '" +
                           spec_.name + "' uses no prior");
   }
-  if (request.initial_guess &&
-      (!is_finite(*request.initial_guess) ||
-       !(request.initial_guess->translation().cwiseAbs().maxCoeff() <= kMaxCoordinateM))) {
-    throw InvalidArgument("initial guess: not finite, or its translation beyond " +
-                          message_number(kMaxCoordinateM) + " m");
+  if (request.initial_guess && !is_finite(*request.initial_guess)) {
+    throw InvalidArgument("initial guess: not finite");
+  }
+  if (request.initial_guess) {
+    check_supported_translation("initial guess", request.initial_guess->translation());
   }
 
   Summary s;
@@ -437,17 +446,21 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     RefineContext sub = all;
     sub.source = part.view(source);
     std::vector<RefinedHypothesis> refined(hypotheses.size());
+    FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for schedule(dynamic, 1)
     for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(hypotheses.size()); ++i) {
-      const Hypothesis& h = hypotheses[static_cast<std::size_t>(i)];
-      const Refinement r = refine(sub, h, Phase::kHypothesis);
-      RefinedHypothesis& out = refined[static_cast<std::size_t>(i)];
-      out.start = h;
-      out.T_refined = r.T;
-      out.iterations = r.iterations;
-      out.termination = r.termination;
-      out.score = scorer_->score(sub, *this, r.T);
+      error.capture([&] {
+        const Hypothesis& h = hypotheses[static_cast<std::size_t>(i)];
+        const Refinement r = refine(sub, h, Phase::kHypothesis);
+        RefinedHypothesis& out = refined[static_cast<std::size_t>(i)];
+        out.start = h;
+        out.T_refined = r.T;
+        out.iterations = r.iterations;
+        out.termination = r.termination;
+        out.score = scorer_->score(sub, *this, r.T);
+      });
     }
+    error.rethrow();
     for (const RefinedHypothesis& r : refined) total_iterations += r.iterations;
     std::stable_sort(
         refined.begin(), refined.end(),

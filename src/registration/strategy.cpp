@@ -3,21 +3,16 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/supported_landmarks.hpp"
 
 namespace lmalign {
 
-StrategyOutcome run_strategy(const StrategySource& source, const PreparedTarget& target,
+namespace {
+
+StrategyOutcome run_in_range(const StrategySource& source, const PreparedTarget& target,
                              const StrategyRequest& request) {
-  if (request.initial_guess && !is_rigid_transform(*request.initial_guess)) {
-    throw InvalidArgument(
-        "initial guess: not a rigid transform (expected a finite 4x4 [R t; 0 0 0 1] with R "
-        "orthonormal and det R = +1)");
-  }
-  if (request.prior && request.strategy != PaperStrategy::kAdaptive) {
-    throw InvalidArgument("prior sigma: only the adaptive strategy uses a prior (got '" +
-                          to_string(request.strategy) + "')");
-  }
   const Isometry3 init = request.initial_guess.value_or(Isometry3::Identity());
   StrategyOutcome out;
   if (request.strategy == PaperStrategy::kAdaptive) {
@@ -59,6 +54,40 @@ StrategyOutcome run_strategy(const StrategySource& source, const PreparedTarget&
   out.trust_reason = v.reason;
   out.covariance = cov;
   out.verdict = v;
+  return out;
+}
+
+}  // namespace
+
+StrategyOutcome run_strategy(const StrategySource& source, const PreparedTarget& target,
+                             const StrategyRequest& request) {
+  if (request.initial_guess && !is_rigid_transform(*request.initial_guess)) {
+    throw InvalidArgument(
+        "initial guess: not a rigid transform (expected a finite 4x4 [R t; 0 0 0 1] with R "
+        "orthonormal and det R = +1)");
+  }
+  if (request.initial_guess) {
+    check_supported_translation("initial guess", request.initial_guess->translation());
+  }
+  if (request.prior && request.strategy != PaperStrategy::kAdaptive) {
+    throw InvalidArgument("prior sigma: only the adaptive strategy uses a prior (got '" +
+                          to_string(request.strategy) + "')");
+  }
+  std::string why;
+  if (request.prior && !request.prior->is_valid(&why)) throw InvalidArgument("prior sigma: " + why);
+  // The supported range (core/supported_range.hpp): landmarks beyond it are left out, counted,
+  // and named in the trust reason.
+  const SupportedLandmarks kept = keep_supported_landmarks(source, target);
+  StrategyOutcome out = run_in_range(kept.source ? *kept.source : source,
+                                     kept.target ? *kept.target : target, request);
+  out.source_left_out = kept.source_left_out;
+  out.target_left_out = kept.target_left_out;
+  const std::string note = left_out_message(kept.source_left_out, kept.target_left_out);
+  if (!note.empty()) {
+    out.trust_reason += "; " + note;
+    if (out.adaptive) out.adaptive->trust_reason = out.trust_reason;
+    if (out.verdict) out.verdict->reason = out.trust_reason;
+  }
   return out;
 }
 

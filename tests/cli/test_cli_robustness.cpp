@@ -22,17 +22,8 @@ namespace lmalign {
 namespace {
 
 namespace fs = std::filesystem;
+using test::expect_one_line_error;
 using test::shell_quote;
-
-/// exit 2 with exactly one line on stderr, "lmalign: error: ...", that contains `expect`.
-void expect_one_line_error(const test::CliRun& r, const std::string& expect,
-                           const std::string& what) {
-  EXPECT_EQ(r.exit_code, 2) << what << "\nstderr: " << r.err;
-  EXPECT_EQ(r.err.rfind("lmalign: error: ", 0), 0u) << what << "\nstderr: " << r.err;
-  EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << what << " not one line: " << r.err;
-  EXPECT_NE(r.err.find(expect), std::string::npos)
-      << what << ": expected '" << expect << "' in: " << r.err;
-}
 
 nlohmann::json read_json(const std::string& path) {
   return nlohmann::json::parse(test::read_text(path));

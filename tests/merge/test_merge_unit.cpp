@@ -503,6 +503,86 @@ TEST(MergeOutput, WritesPosesEdgesAndFusedMergedMap) {
   }
 }
 
+TEST(MergeManifest, ValuesBeyondTheSupportedRangeNameTheLineAndField) {
+  // docs/robustness.md, "Supported range": translations within 1e15 m, standard deviations in
+  // [1e-9, 1e15] (m; degrees), as for `lmalign align`'s options. Before, a prior 1e308 m away
+  // reached the pose graph and ended in SIGSEGV.
+  const std::string rigid = "[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]";
+  struct Case {
+    std::string yaml, expected;
+  } cases[] = {
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: [[1,0,0,1e308],[0,1,0,0],[0,0,1,0],"
+       "[0,0,0,1]], prior_sigma: [2, 0.5]}\n",
+       "m.yaml:2: maps[0].T_world_map: translation (1e+308, 0, 0) m is beyond the supported range "
+       "(|coordinate| <= 1e+15 m)"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: " + rigid + ", prior_sigma: [2, 1e-300]}\n",
+       "m.yaml:2: maps[0].prior_sigma[1] (translation_m): 1e-300 m is outside the supported range "
+       "of a standard deviation ([1e-09, 1e+15] m)"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: " + rigid + ", prior_sigma: [1e20, 1]}\n",
+       "maps[0].prior_sigma[0] (rotation_deg): 1e+20 degrees is outside"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: " + rigid +
+           ", prior_covariance: [[1e-20,0,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],"
+           "[0,0,0,0,1,0],[0,0,0,0,0,1]]}\n",
+       "maps[0].prior_covariance[0][0]: standard deviation: 1e-10 m is outside"},
+      {"maps:\n  - {name: a, path: a.txt, T_world_map: " + rigid +
+           ", prior_covariance: [[1,0,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],"
+           "[0,0,0,0,1,0],[0,0,0,0,0,1e300]]}\n",
+       "maps[0].prior_covariance[5][5]: standard deviation: 1e+150 rad is outside"},
+  };
+  for (const Case& c : cases) {
+    const std::string what = error_of(c.yaml);
+    EXPECT_NE(what.find(c.expected), std::string::npos) << c.yaml << " -> " << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+  }
+  // At the range's edges: accepted.
+  EXPECT_EQ(error_of("maps:\n  - {name: a, path: a.txt, T_world_map: [[1,0,0,1e15],[0,1,0,-1e15],"
+                     "[0,0,1,0],[0,0,0,1]], prior_sigma: [1e-9, 1e15]}\n"),
+            "");
+}
+
+TEST(MergeCandidates, PriorsBeyondTheRangeAreRefusedAndPriorsBeyondItOfEachOtherPlanNoPair) {
+  std::vector<MapSummary> s(2);
+  for (MapSummary& m : s) m.radius_m = 2.0;
+  MapPrior far;
+  far.T_world_map.translation() = Vec3(0, 1e308, 0);
+  MapPrior near;
+  EXPECT_THROW(plan_candidates(s, {far, near}), InvalidArgument);
+  EXPECT_THROW(solve_pose_graph(2, {far, near}, {}), InvalidArgument);
+  Edge e;
+  e.source = 0;
+  e.target = 1;
+  e.T_target_source.translation() = Vec3(-1e300, 0, 0);
+  e.covariance = Mat6::Identity();
+  e.covariance_valid = e.trusted = true;
+  EXPECT_THROW(solve_pose_graph(2, {near, near}, {e}), InvalidArgument);
+  // Both within the range, 2e15 m apart, sigmas wide enough to overlap: no candidate (the guess
+  // would be beyond the range) rather than an edge that cannot be aligned.
+  MapPrior a, b;
+  a.T_world_map.translation() = Vec3(1e15, 0, 0);
+  b.T_world_map.translation() = Vec3(-1e15, 0, 0);
+  a.covariance.diagonal() << 1e30, 1e30, 1e30, 1.0, 1.0, 1.0;  // sigmas 1e15 m, 57 degrees
+  b.covariance = a.covariance;
+  EXPECT_TRUE(plan_candidates(s, {a, b}).empty());
+  // The graph of such priors alone is finite.
+  const MergeResult r = solve_pose_graph(2, {a, b}, {});
+  for (const MapPose& p : r.maps) EXPECT_TRUE(p.T_world_map.matrix().allFinite());
+}
+
+TEST(MergeOutput, LandmarksBeyondTheRangeAreLeftOutOfTheMergedMapAndCounted) {
+  std::mt19937_64 rng(11);
+  Points3 world;
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  for (int k = 0; k < 20; ++k) world.emplace_back(u(rng), u(rng), u(rng));
+  std::vector<Map> maps{scene_map(world, Vec3::Zero(), 10.0, Isometry3::Identity())};
+  maps[0].landmarks[4].p_world = Vec3(1e300, 0, 0);
+  const MergeResult r = solve_pose_graph(1, std::vector<std::optional<MapPrior>>(1), {});
+  std::size_t left_out = 0;
+  const Map merged = merge_maps(maps, {""}, r, 0, {}, nullptr, &left_out);
+  EXPECT_EQ(left_out, 1u);
+  EXPECT_EQ(merged.landmarks.size(), 19u);
+  for (const Landmark& l : merged.landmarks) EXPECT_TRUE(l.p_world.allFinite());
+}
+
 TEST(MergeOutput, EdgeFileRoundTripsExactly) {
   test::ScratchDir dir("merge_edge");
   std::mt19937_64 rng(10);

@@ -35,6 +35,16 @@ inline std::string shell_quote(const std::string& s) {
   return q + "'";
 }
 
+/// exit 2 with exactly one line on stderr, "lmalign: error: ...", that contains `expect`.
+inline void expect_one_line_error(const CliRun& r, const std::string& expect,
+                                  const std::string& what) {
+  EXPECT_EQ(r.exit_code, 2) << what << "\nstderr: " << r.err;
+  EXPECT_EQ(r.err.rfind("lmalign: error: ", 0), 0u) << what << "\nstderr: " << r.err;
+  EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << what << " not one line: " << r.err;
+  EXPECT_NE(r.err.find(expect), std::string::npos)
+      << what << ": expected '" << expect << "' in: " << r.err;
+}
+
 /// A test fixture with a private temporary directory and a way to run the CLI.
 class CliTest : public ::testing::Test {
  protected:

@@ -78,11 +78,15 @@ struct ExperimentInputs {
   Map target;
   /// True T_target_source of the undisplaced source, if the config gives one.
   std::optional<Isometry3> ground_truth;
+  /// Landmarks left out on load for a coordinate beyond the supported range
+  /// (core/supported_range.hpp), as run_strategy() leaves them out of `lmalign align`.
+  std::size_t source_left_out = 0;
+  std::size_t target_left_out = 0;
 };
 
-/// Reads (and, for split specs, cuts) the source and target maps and the ground truth.
-/// Throws what read_map(), split_map() and read_transform() throw, and InvalidArgument if a map
-/// has no landmarks.
+/// Reads (and, for split specs, cuts) the source and target maps and the ground truth. Leaves out
+/// the landmarks beyond the supported range, counted. Throws what read_map(), split_map() and
+/// read_transform() throw, and InvalidArgument if a map has no landmarks (left).
 ExperimentInputs load_experiment_inputs(const ExperimentConfig& config);
 
 struct RunnerProgress {

@@ -49,6 +49,14 @@ struct Manifest {
   std::vector<ManifestEntry> maps;
 };
 
+/// Throws InvalidArgument("<what>.T_world_map: translation ... beyond the supported range", or
+/// "<what>.covariance[i][i]: standard deviation ... beyond the supported range") unless the
+/// prior's translation and standard deviations are within the supported range
+/// (core/supported_range.hpp: 1e15 m; rotation 1e15 degrees) and finite. parse_manifest() checks
+/// each field so (naming its line); plan_candidates() and solve_pose_graph() check every prior
+/// they are given.
+void check_prior_in_supported_range(const MapPrior& prior, const std::string& what);
+
 /// Parses manifest text. `name` is used in messages; relative map paths are joined to
 /// `base_dir`. Throws ParseError("<name>:<line>: <field>: <what was expected>") for a YAML
 /// syntax error, a missing or mistyped field, an unknown key, a duplicate map name, a prior

@@ -40,12 +40,15 @@ struct MergeOutputOptions {
 /// keep the first occurrence's place). `sessions[i]` is map i's session ("" = none). If
 /// `landmark_ranges` is given, it is resized to maps.size() and (*landmark_ranges)[i] is the range
 /// [begin, end) of the merged landmark ids that map i added ({0, 0} for a map of another
-/// component; a fused landmark belongs to the map that added it first).
+/// component; a fused landmark belongs to the map that added it first). Landmarks beyond the
+/// supported range (core/supported_range.hpp), which no edge aligned, are left out; `left_out`,
+/// if given, receives their number.
 /// Throws InvalidArgument if sizes do not match.
 Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& sessions,
                const MergeResult& result, std::size_t component,
                const MergeOutputOptions& options = {},
-               std::vector<std::pair<std::size_t, std::size_t>>* landmark_ranges = nullptr);
+               std::vector<std::pair<std::size_t, std::size_t>>* landmark_ranges = nullptr,
+               std::size_t* left_out = nullptr);
 
 /// Writes poses.yaml, poses.json, edges.csv, summary.json and the merged map(s) into `out_dir`
 /// (created if missing). `names[i]` names map i. Throws IoError / InvalidArgument.

@@ -33,7 +33,8 @@ namespace lmalign {
 
 /// A prior on the transform: standard deviations of the rotation (degrees, about any axis) and
 /// of the translation (metres) of the initial guess, of the left perturbation about the target
-/// origin (uncertainty.hpp). Both finite and > 0.
+/// origin (uncertainty.hpp). Both within the supported range of a standard deviation,
+/// [1e-9, 1e15] (core/supported_range.hpp).
 struct PriorSigma {
   double rotation_deg = 0.0;
   double translation_m = 0.0;
@@ -125,9 +126,11 @@ class Pipeline {
   Pipeline& operator=(Pipeline&&) noexcept;
 
   /// Aligns the source onto the target. Throws InvalidArgument on an empty source or target, a
-  /// non-finite landmark, covariance counts that do not match, a non-rigid initial guess, an
-  /// invalid prior or one for an initialiser that does not use it, or what a stage needs and
-  /// does not get (weights, covariances).
+  /// landmark that is not finite or beyond the supported range (core/supported_range.hpp;
+  /// run_strategy() leaves those out first), covariance counts that do not match, a non-rigid
+  /// initial guess or one whose translation is beyond the range, an invalid prior or one for an
+  /// initialiser that does not use it, or what a stage needs and does not get (weights,
+  /// covariances).
   Summary run(const SourceView& source, const PreparedTarget& target,
               const PipelineRequest& request = {}) const;
 

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/supported_range.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/map/map.hpp"
 #include "lmalign/registration/convergence.hpp"
@@ -168,10 +169,6 @@ class PreparedTarget {
   std::optional<Vec3> up_axis_;
 };
 
-/// Largest accepted |coordinate| of a source or target point, metres: beyond it a double cannot
-/// resolve 0.1 m, and squared distances head for overflow. align() refuses larger ones.
-inline constexpr double kMaxCoordinateM = 1e15;
-
 /// Aligns `source_points` (metres, source frame) to the prepared target, starting from
 /// T_target_source_init. Mirrors PCL ICP's loop: transform the source by the current estimate,
 /// find correspondences, estimate the increment by SVD, compose it, test convergence (see
@@ -179,7 +176,8 @@ inline constexpr double kMaxCoordinateM = 1e15;
 /// estimate each iteration (PCL transforms incrementally; see docs/conventions.md).
 /// Deterministic for any thread count. Throws InvalidArgument on invalid options, a non-finite
 /// initial guess, non-finite source points, an empty source or target, or a coordinate beyond
-/// kMaxCoordinateM. Degenerate geometry (fewer than 3 correspondences, identical or collinear
+/// kMaxCoordinateM (core/supported_range.hpp; run_strategy() leaves such landmarks out instead).
+/// Degenerate geometry (fewer than 3 correspondences, identical or collinear
 /// points) gives a finite result with termination kNoCorrespondences or kDegenerate.
 RegistrationResult align(const Points3& source_points, const PreparedTarget& target,
                          const RegistrationOptions& options,

@@ -60,10 +60,22 @@ struct StrategyOutcome {
   std::optional<TrustVerdict> verdict;
   /// The adaptive pipeline's full result (adaptive only).
   std::optional<AdaptiveResult> adaptive;
+  /// Landmarks of each side left out of the alignment for being beyond the supported range
+  /// (core/supported_range.hpp); when any were, trust_reason ends with "; " and
+  /// left_out_message() (e.g. "ok; 1 source landmark beyond the supported range (|coordinate| >
+  /// 1e+15 m) left out"), and the verdict is that of the alignment of the others.
+  std::size_t source_left_out = 0;
+  std::size_t target_left_out = 0;
 };
 
-/// Runs one strategy. Throws InvalidArgument on invalid settings (naming the field), a prior
-/// for a strategy other than adaptive, a non-rigid initial guess, or what the driver throws.
+/// Runs one strategy: the one entry of every alignment (the CLI's `align`, the Python package,
+/// the merge's edges, the experiment runner's own strategies). Applies the supported range
+/// (core/supported_range.hpp): landmarks of either side beyond it are left out and counted
+/// (StrategyOutcome::source_left_out, target_left_out); an initial guess or prior beyond it is
+/// refused. Throws InvalidArgument on invalid settings (naming the field), a prior for a strategy
+/// other than adaptive or beyond the supported range, a non-rigid initial guess or one whose
+/// translation is beyond the range, a side whose every landmark is beyond it, or what the driver
+/// throws.
 StrategyOutcome run_strategy(const StrategySource& source, const PreparedTarget& target,
                              const StrategyRequest& request);
 

@@ -8,6 +8,7 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/stages/p2d_step.hpp"
 #include "stage.hpp"
@@ -130,22 +131,26 @@ class P2DStepEstimator : public Estimator {
     std::vector<std::optional<Vec6>> dev(slots);
     Hypothesis from;
     from.T_target_source = T;
+    FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for schedule(dynamic, 1)
     for (std::ptrdiff_t s = 0; s < static_cast<std::ptrdiff_t>(slots); ++s) {
-      const Vec3& normal = normals[static_cast<std::size_t>(s) / 2];
-      const bool below = s % 2 == 0;
-      std::vector<std::uint32_t> half;
-      for (std::uint32_t i : overlap) {
-        if ((normal.dot(p[i] - centre) < 0.0) == below) half.push_back(i);
-      }
-      if (half.size() < o_.half_sample_min_landmarks) continue;
-      const Refinement r = pipeline.refine_part(c, half, from, Phase::kResample);
-      if (r.termination != TerminationReason::kTransform &&
-          r.termination != TerminationReason::kMaxIterations) {
-        continue;
-      }
-      dev[static_cast<std::size_t>(s)] = pose_error_twist(r.T, T);
+      error.capture([&] {
+        const Vec3& normal = normals[static_cast<std::size_t>(s) / 2];
+        const bool below = s % 2 == 0;
+        std::vector<std::uint32_t> half;
+        for (std::uint32_t i : overlap) {
+          if ((normal.dot(p[i] - centre) < 0.0) == below) half.push_back(i);
+        }
+        if (half.size() < o_.half_sample_min_landmarks) return;
+        const Refinement r = pipeline.refine_part(c, half, from, Phase::kResample);
+        if (r.termination != TerminationReason::kTransform &&
+            r.termination != TerminationReason::kMaxIterations) {
+          return;
+        }
+        dev[static_cast<std::size_t>(s)] = pose_error_twist(r.T, T);
+      });
     }
+    error.rethrow();
     for (const auto& d : dev) {
       if (d && d->allFinite()) out.push_back(*d);
     }

@@ -6,6 +6,7 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
 
 namespace lmalign {
@@ -20,6 +21,19 @@ Points3 strided(const Points3& points, std::size_t want) {
   Points3 out;
   out.reserve(want);
   for (std::size_t i = 0; i < want; ++i) out.push_back(points[i * points.size() / want]);
+  return out;
+}
+
+// The coordinate-wise median of `points` (not empty): a centre that one far landmark cannot move.
+Vec3 median_point(const Points3& points) {
+  Vec3 out;
+  std::vector<double> v(points.size());
+  for (int d = 0; d < 3; ++d) {
+    for (std::size_t i = 0; i < points.size(); ++i) v[i] = points[i][d];
+    const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+    std::nth_element(v.begin(), mid, v.end());
+    out[d] = *mid;
+  }
   return out;
 }
 
@@ -115,7 +129,7 @@ struct Peak {
   Vec3 t = Vec3::Zero();
 };
 
-// Where a prior lets the source centroid's image be: within radius_h of `centre` across the up
+// Where a prior lets the source centre's image be: within radius_h of `centre` across the up
 // axis and within radius_v along it (infinite: anywhere).
 struct VoteWindow {
   Vec3 centre = Vec3::Zero();
@@ -241,6 +255,7 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
       vote_of(x, target[it->second], in_peak);
     }
   }
+  if (heights.empty()) return Peak{};  // not reached: the peak's own votes are among them
   const std::size_t mid = heights.size() / 2;
   std::nth_element(heights.begin(), heights.begin() + static_cast<std::ptrdiff_t>(mid),
                    heights.end());
@@ -317,10 +332,29 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     }
   }
   const Points3 src = strided(source_points, options.source_samples);
-  const Points3 tgt = strided(target_points, options.target_samples);
-  Vec3 centroid = Vec3::Zero();
-  for (const Vec3& p : src) centroid += p;
-  centroid /= static_cast<double>(src.size());
+  Points3 tgt = strided(target_points, options.target_samples);
+  // The source samples turn about their centroid, and vote for t = q - R (p - centre). Every
+  // vote must fit the grid's +-kCellLimit cells per axis; a vote beyond it is dropped. For maps
+  // near their origins they do. When they do not (maps whose coordinates are far from their
+  // origin, or a few far landmarks that pull the centroid away from the others), both sides are
+  // centred on the coordinate-wise medians of their samples instead: the votes then span the
+  // maps' sizes, whatever their coordinates (up to the supported 1e15 m) and whatever a few far
+  // landmarks do (theirs are dropped).
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& p : src) centre += p;
+  centre /= static_cast<double>(src.size());
+  Vec3 target_centre = Vec3::Zero();  // subtracted from the target samples
+  {
+    double reach_m = 0.0;
+    for (const Vec3& p : src) reach_m = std::max(reach_m, (p - centre).norm());
+    double target_reach_m = 0.0;
+    for (const Vec3& q : tgt) target_reach_m = std::max(target_reach_m, q.norm());
+    if (!((reach_m + target_reach_m) / cell_m < 0.25 * static_cast<double>(kCellLimit))) {
+      centre = median_point(src);
+      target_centre = median_point(tgt);
+      for (Vec3& q : tgt) q -= target_centre;
+    }
+  }
   const Vec3 up = up_target.normalized();
 
   // The base rotation and the yaw grid.
@@ -347,41 +381,56 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
       n_yaw = 2 * per_side + 1;
       yaw_from = -per_side * step;
     }
-    // Where the guess puts the source centroid; the votes are for that point's image. The
+    // Where the guess puts the source centre; the votes are for that point's image. The
     // sigmas are of the left perturbation about the target origin (uncertainty.hpp): a yaw
     // about the up axis through the origin moves that image along a circle (each yaw's window
     // is centred on it, below), a tilt moves it by the rotation's sigma times its lever arm:
     // across the up axis by its height, along it by its horizontal distance.
-    t_centre = window->T_target_source_guess * centroid;
-    const double height = std::abs(t_centre.dot(up));
-    const double across = (t_centre - t_centre.dot(up) * up).norm();
+    const Vec3 image = window->T_target_source_guess * centre;
+    const double height = std::abs(image.dot(up));
+    const double across = (image - image.dot(up) * up).norm();
+    // The vote window's centre relative to the target's centre (the votes are), turned by each
+    // yaw about the target origin below: R_yaw image - target_centre.
+    t_centre = image;
     radius_h = 3.0 * (window->translation_sd_m + window->rotation_sd_rad * height) + 2.0 * cell_m;
     radius_v = 3.0 * (window->translation_sd_m + window->rotation_sd_rad * across) + 2.0 * cell_m;
   }
 
   std::vector<YawHypothesis> all(static_cast<std::size_t>(n_yaw));
+  FirstException error;
 #pragma omp parallel
   {
+    // Every thread reaches the worksharing loop (an exception may not skip it, nor leave an
+    // iteration): allocations and iterations are captured one by one.
     VoteGrid grid;
     std::vector<double> heights;
     std::vector<std::pair<double, std::size_t>> by_e1;
-    Points3 rotated(src.size());
+    Points3 rotated;
+    bool ready = false;
+    error.capture([&] {
+      rotated.resize(src.size());
+      ready = true;
+    });
 #pragma omp for schedule(dynamic, 1)
     for (int i = 0; i < n_yaw; ++i) {
-      const double yaw = yaw_from + step * i;
-      const Mat3 R_yaw = Eigen::AngleAxisd(yaw, up).toRotationMatrix();
-      const Mat3 R = R_yaw * base;
-      for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * (src[j] - centroid);
-      const VoteWindow w{R_yaw * t_centre, radius_h, radius_v};
-      const Peak peak = vote(rotated, tgt, cell_m, up, w, grid, heights, by_e1);
-      YawHypothesis& h = all[static_cast<std::size_t>(i)];
-      h.yaw_rad = yaw;
-      h.votes = peak.votes;
-      h.T_target_source.linear() = R;
-      // p -> R (p - centroid) + t_peak
-      h.T_target_source.translation() = peak.t - R * centroid;
+      if (!ready) continue;
+      error.capture([&] {
+        const double yaw = yaw_from + step * i;
+        const Mat3 R_yaw = Eigen::AngleAxisd(yaw, up).toRotationMatrix();
+        const Mat3 R = R_yaw * base;
+        for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * (src[j] - centre);
+        const VoteWindow w{R_yaw * t_centre - target_centre, radius_h, radius_v};
+        const Peak peak = vote(rotated, tgt, cell_m, up, w, grid, heights, by_e1);
+        YawHypothesis& h = all[static_cast<std::size_t>(i)];
+        h.yaw_rad = yaw;
+        h.votes = peak.votes;
+        h.T_target_source.linear() = R;
+        // p -> R (p - centre) + t_peak + target_centre
+        h.T_target_source.translation() = (peak.t + target_centre) - R * centre;
+      });
     }
   }
+  error.rethrow();
   // Local maxima over yaw (circular without a window), best first.
   std::vector<YawHypothesis> out;
   for (int i = 0; i < n_yaw; ++i) {

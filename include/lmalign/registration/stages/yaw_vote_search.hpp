@@ -4,17 +4,19 @@
 // SLAM and SfM maps are nearly gravity-aligned in their own frames, so the unknown rotation
 // between two of them is a rotation taking the source's up axis onto the target's, then a yaw
 // about the target's up axis. For every yaw on a grid the sampled source landmarks, rotated about
-// their centroid, vote for the translations q - R p towards every sampled target landmark in a
-// sparse grid of `cell_m` cells; landmarks present in both maps vote for the same cell, the rest
-// spread out, so partial overlap lowers the peak but does not move it. The peak (3x3x3 cells)
-// gives each yaw a translation and a vote count; the yaws whose counts are local maxima over yaw,
-// best first, are the hypotheses. With a prior (an initial guess and its sigmas) the yaws stay
-// within 3 sigma of the guess's rotation, and the votes within 3 sigma of where the guess puts
-// the source centroid. The sigmas are of the left perturbation about the target origin
-// (uncertainty.hpp): each yaw's window is centred where that yaw about the up axis through the
-// origin takes the guess's centroid image, with radius 3 (sd_t + sd_r h) + 2 cells across the up
-// axis and 3 (sd_t + sd_r d) + 2 cells along it (h, d: the image's height and horizontal
-// distance from the origin, the lever arms of a tilt).
+// their centre (the coordinate-wise median of the samples, which a few far landmarks cannot
+// move), vote for the translations q - R p towards every sampled target landmark (taken relative
+// to the target samples' median, so that the votes span the maps' sizes, not their coordinates)
+// in a grid of `cell_m` cells, clamped to 2^20 cells from the centre per axis; landmarks present in
+// both maps vote for the same cell, the rest spread out, so partial overlap lowers the peak but
+// does not move it. The peak (3x3x3 cells) gives each yaw a translation and a vote count; the yaws
+// whose counts are local maxima over yaw, best first, are the hypotheses. With a prior (an initial
+// guess and its sigmas) the yaws stay within 3 sigma of the guess's rotation, and the votes within
+// 3 sigma of where the guess puts the source centre. The sigmas are of the left perturbation about
+// the target origin (uncertainty.hpp): each yaw's window is centred where that yaw about the up
+// axis through the origin takes the guess's image of that centre, with radius 3 (sd_t + sd_r h) + 2
+// cells across the up axis and 3 (sd_t + sd_r d) + 2 cells along it (h, d: the image's height and
+// horizontal distance from the origin, the lever arms of a tilt).
 //
 // Frames: T_target_source, p_target = T_target_source * p_source. Deterministic: strided
 // samples, no random draws, one slot per yaw.
