@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/experiment/cases.hpp"
 #include "lmalign/experiment/config.hpp"
@@ -62,43 +63,48 @@ int run(int argc, char** argv) {
   const TrustOptions trust;
   constexpr int kMethods = 4;
   std::vector<Row> rows(cases.size() * kMethods);
+  FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(cases.size()); ++i) {
-    const Case& c = cases[static_cast<std::size_t>(i)];
-    const Points3 displaced = transform_points(c.D, source);
-    std::vector<Mat3> displaced_cov = source_cov;
-    for (Mat3& C : displaced_cov) C = c.D.linear() * C * c.D.linear().transpose();
-    const RobustRegistrationResult ro =
-        align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustObs));
-    const RobustRegistrationResult rp =
-        align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustP2D),
-                     Isometry3::Identity(), &displaced_cov);
-    const Isometry3 est[kMethods] = {
-        align(displaced, target, RegistrationOptions::paper(PaperStrategy::kBase)).T_target_source,
-        global_align(displaced, target).T_target_source, ro.T_target_source, rp.T_target_source};
-    const char* names[kMethods] = {"base", "global", "robust_obs", "robust_p2d"};
-    for (int m = 0; m < kMethods; ++m) {
-      const Isometry3 T_map = est[m] * c.D;  // the recovered map-to-map transform
-      const TransformError e = transform_error(T_map, Isometry3::Identity());
-      PoseCovariance cov;
-      const TrustVerdict v = judge_alignment(source, target.tree(), T_map, trust, &cov);
-      if (m >= 2) {
-        // The result's own covariance: a left perturbation of T, hence of T * D too.
-        cov.covariance = (m == 2 ? ro : rp).covariance;
-        cov.valid = !cov.covariance.isZero();
+    error.capture([&] {
+      const Case& c = cases[static_cast<std::size_t>(i)];
+      const Points3 displaced = transform_points(c.D, source);
+      std::vector<Mat3> displaced_cov = source_cov;
+      for (Mat3& C : displaced_cov) C = c.D.linear() * C * c.D.linear().transpose();
+      const RobustRegistrationResult ro =
+          align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustObs));
+      const RobustRegistrationResult rp =
+          align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustP2D),
+                       Isometry3::Identity(), &displaced_cov);
+      const Isometry3 est[kMethods] = {
+          align(displaced, target, RegistrationOptions::paper(PaperStrategy::kBase))
+              .T_target_source,
+          global_align(displaced, target).T_target_source, ro.T_target_source, rp.T_target_source};
+      const char* names[kMethods] = {"base", "global", "robust_obs", "robust_p2d"};
+      for (int m = 0; m < kMethods; ++m) {
+        const Isometry3 T_map = est[m] * c.D;  // the recovered map-to-map transform
+        const TransformError e = transform_error(T_map, Isometry3::Identity());
+        PoseCovariance cov;
+        const TrustVerdict v = judge_alignment(source, target.tree(), T_map, trust, &cov);
+        if (m >= 2) {
+          // The result's own covariance: a left perturbation of T, hence of T * D too.
+          cov.covariance = (m == 2 ? ro : rp).covariance;
+          cov.valid = !cov.covariance.isZero();
+        }
+        Row& r = rows[static_cast<std::size_t>(i) * kMethods + m];
+        r.method = names[m];
+        const Vec3 xyz = c.D.translation();
+        r.yaw_deg = xyz_rpy_deg_from_pose(c.D)[5];
+        r.translation_m = xyz.head<2>().norm();
+        r.right_basin = e.rotation_deg < 5.0 && e.translation_m < 0.10;
+        r.trustworthy = v.trustworthy;
+        r.nees = nees(pose_error_twist(T_map, Isometry3::Identity()), cov);
+        r.inlier_fraction = v.inlier_fraction;
+        r.near_fraction = v.overlap_fraction;
       }
-      Row& r = rows[static_cast<std::size_t>(i) * kMethods + m];
-      r.method = names[m];
-      const Vec3 xyz = c.D.translation();
-      r.yaw_deg = xyz_rpy_deg_from_pose(c.D)[5];
-      r.translation_m = xyz.head<2>().norm();
-      r.right_basin = e.rotation_deg < 5.0 && e.translation_m < 0.10;
-      r.trustworthy = v.trustworthy;
-      r.nees = nees(pose_error_twist(T_map, Isometry3::Identity()), cov);
-      r.inlier_fraction = v.inlier_fraction;
-      r.near_fraction = v.overlap_fraction;
-    }
+    });
   }
+  error.rethrow();
   std::printf("{\"config\": \"%s\", \"runs\": [", config_path.c_str());
   for (std::size_t i = 0; i < rows.size(); ++i) {
     const Row& r = rows[i];

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/formats.hpp"
@@ -228,8 +229,9 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
 
   RunnerOutcome outcome;
   std::mutex mutex;
-  std::exception_ptr failure;
-  std::atomic<bool> failed{false};
+  // An exception may not leave the parallel loop: the first one stops the remaining runs and is
+  // rethrown after it.
+  FirstException error;
   auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
 
   auto run_one = [&](const Task& t) {
@@ -373,12 +375,12 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       omp_set_num_threads(1);
 #pragma omp for schedule(dynamic, 1)
       for (std::ptrdiff_t i = 0; i < n; ++i) {
-        if (failed.load() || cancelled()) continue;
+        if (error.failed() || cancelled()) continue;
         const Task& t = runs[static_cast<std::size_t>(i)];
-        try {
+        error.capture([&] {
           RunRecord rec = run_one(t);
           std::lock_guard<std::mutex> lock(mutex);
-          if (failed.load()) continue;
+          if (error.failed()) return;
           for (const Task& u : copies[static_cast<std::size_t>(i)]) {
             // Same D, hence the same error and decision; only the labels differ.
             RunRecord copy = rec;
@@ -389,16 +391,10 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
             ++outcome.runs_shared;
           }
           store(t, std::move(rec));
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(mutex);
-          if (!failed.load()) {
-            failure = std::current_exception();
-            failed.store(true);
-          }
-        }
+        });
       }
     }
-    if (failure) std::rethrow_exception(failure);
+    error.rethrow();
   };
 
   auto add_case = [&](std::vector<Task>& tasks, std::size_t ci) {

@@ -7,8 +7,10 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <new>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/merge/output.hpp"
 
 namespace lmalign {
@@ -87,19 +89,17 @@ MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>&
   std::size_t done = run.edges_reused;
   if (progress) progress("edges", done, m);
   std::mutex mutex;
-  bool failed = false;
-  std::string failure;
+  // An exception may not leave the parallel loop: the first one stops the remaining edges and is
+  // reported after it (the progress callback's included).
+  FirstException error;
   const int threads = options.threads > 0 ? options.threads : omp_get_max_threads();
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
   for (std::ptrdiff_t kk = 0; kk < static_cast<std::ptrdiff_t>(m); ++kk) {
     const std::size_t k = static_cast<std::size_t>(kk);
     if (slots[k]) continue;
     if (cancel != nullptr && cancel->load()) continue;
-    {
-      std::lock_guard<std::mutex> lock(mutex);
-      if (failed) continue;
-    }
-    try {
+    if (error.failed()) continue;
+    error.capture([&] {
       const CandidatePair& c = run.candidates[k];
       Edge e = align_edge(*sources[c.source], *prepared[c.target], c, options.edges);
       e.key = keys[k];
@@ -111,13 +111,15 @@ MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>&
       slots[k] = std::move(e);
       ++done;
       if (progress) progress("edges", done, m);
-    } catch (const std::exception& ex) {
-      std::lock_guard<std::mutex> lock(mutex);
-      if (!failed) failure = ex.what();
-      failed = true;
-    }
+    });
   }
-  if (failed) throw InvalidArgument("merge: an edge failed: " + failure);
+  try {
+    error.rethrow();
+  } catch (const std::bad_alloc&) {
+    throw;  // out of memory stays what it is
+  } catch (const std::exception& ex) {
+    throw InvalidArgument(std::string("merge: an edge failed: ") + ex.what());
+  }
   const auto t1 = Clock::now();
   run.seconds_edges = std::chrono::duration<double>(t1 - t0).count();
   for (auto& s : slots) {

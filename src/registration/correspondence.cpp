@@ -10,6 +10,7 @@
 #include <omp.h>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 
 namespace lmalign {
 
@@ -599,18 +600,31 @@ void CorrespondenceFinder::find(const Points3& source_points, Correspondences& o
 
   // One slot per source point, filled in parallel, then compacted in source order: the result
   // does not depend on the thread count or schedule.
+  // An exception may not leave the region nor skip its worksharing loop: the allocations and
+  // the iterations are captured one by one.
+  FirstException error;
 #pragma omp parallel
   {
-    std::vector<PointIndex> idx(k);
-    std::vector<double> dist(k);
+    std::vector<PointIndex> idx;
+    std::vector<double> dist;
+    bool ready = false;
+    error.capture([&] {
+      idx.resize(k);
+      dist.resize(k);
+      ready = true;
+    });
 #pragma omp for schedule(static)
     for (std::ptrdiff_t s = 0; s < static_cast<std::ptrdiff_t>(n); ++s) {
-      const auto si = static_cast<std::size_t>(s);
-      const std::size_t found = target_->knn(source_points[si], k, idx.data(), dist.data());
-      out[si] = select_match<true>(static_cast<PointIndex>(si), idx.data(), dist.data(), found,
-                                   weighted, w, max_distance_sq_m2_);
+      if (!ready) continue;
+      error.capture([&] {
+        const auto si = static_cast<std::size_t>(s);
+        const std::size_t found = target_->knn(source_points[si], k, idx.data(), dist.data());
+        out[si] = select_match<true>(static_cast<PointIndex>(si), idx.data(), dist.data(), found,
+                                     weighted, w, max_distance_sq_m2_);
+      });
     }
   }
+  error.rethrow();
   compact(out);
 }
 
@@ -691,7 +705,9 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   std::size_t searched = 0, reused = 0, fast = 0, unmatched = 0;
 
   // proc_bind(close): threads that migrate between cores lose their caches (measured on the
-  // benchmark machine: docs/performance.md).
+  // benchmark machine: docs/performance.md). An exception may not leave the region: each
+  // iteration is captured.
+  FirstException error;
 #pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast, unmatched)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
@@ -701,42 +717,45 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
     // In Morton order: queries that follow each other touch the same parts of the tree.
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
-      const auto e = static_cast<std::size_t>(j);
-      const PointIndex s = order[e];
-      const Vec3 q = R * source_points[s] + t;
-      std::size_t found = 0;
-      bool sorted = true;   // the fast path leaves its candidates in the entry's order
-      bool chosen = false;  // the fast path chose the match (idx[0])
-      if (!q.allFinite()) {
-        if (reuse) st.reach[e] = -1.0f;
-        if (lender == j) lender = -1;
-      } else if (reuse && (found = kernel.fast(e, s, q, idx, d2, &chosen)) > 0) {
-        ++reused;
-        ++fast;
-        lender = j;
-        sorted = false;
-      } else if (reuse) {
-        bool did_search = false;
-        found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender, marks);
-        if (did_search) {
-          ++searched;
-        } else {
+      error.capture([&] {
+        const auto e = static_cast<std::size_t>(j);
+        const PointIndex s = order[e];
+        const Vec3 q = R * source_points[s] + t;
+        std::size_t found = 0;
+        bool sorted = true;   // the fast path leaves its candidates in the entry's order
+        bool chosen = false;  // the fast path chose the match (idx[0])
+        if (!q.allFinite()) {
+          if (reuse) st.reach[e] = -1.0f;
+          if (lender == j) lender = -1;
+        } else if (reuse && (found = kernel.fast(e, s, q, idx, d2, &chosen)) > 0) {
           ++reused;
+          ++fast;
+          lender = j;
+          sorted = false;
+        } else if (reuse) {
+          bool did_search = false;
+          found = kernel.neighbours(e, s, q, k, idx, d2, &did_search, &lender, marks);
+          if (did_search) {
+            ++searched;
+          } else {
+            ++reused;
+          }
+        } else {
+          found = target_->knn(q, k, idx, d2);
+          ++searched;
         }
-      } else {
-        found = target_->knn(q, k, idx, d2);
-        ++searched;
-      }
-      // Straight into source order: Morton neighbours are mostly index neighbours in a SLAM
-      // map (landmarks numbered along the trajectory), so the threads' writes rarely share a
-      // cache line, and no staging buffer is needed.
-      moved[s] = q;
-      out[s] = chosen   ? Correspondence{static_cast<PointIndex>(s), idx[0], d2[0]}
-               : sorted ? select_match<true>(s, idx, d2, found, weighted, w, max_sq)
-                        : select_match<false>(s, idx, d2, found, weighted, w, max_sq);
-      unmatched += out[s].target_index == kNoMatch ? 1 : 0;
+        // Straight into source order: Morton neighbours are mostly index neighbours in a SLAM
+        // map (landmarks numbered along the trajectory), so the threads' writes rarely share a
+        // cache line, and no staging buffer is needed.
+        moved[s] = q;
+        out[s] = chosen   ? Correspondence{static_cast<PointIndex>(s), idx[0], d2[0]}
+                 : sorted ? select_match<true>(s, idx, d2, found, weighted, w, max_sq)
+                          : select_match<false>(s, idx, d2, found, weighted, w, max_sq);
+        unmatched += out[s].target_index == kNoMatch ? 1 : 0;
+      });
     }
   }
+  error.rethrow();
   // No entry refers to this pose unless a point was searched or re-based (not all took the fast
   // path).
   if (pushed && searched + reused == fast) st.poses.pop_back();
@@ -768,6 +787,7 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
   const Vec3 t = T_target_source.translation();
   std::size_t searched = 0, reused = 0, fast = 0;
 
+  FirstException error;  // an exception may not leave the region: each iteration is captured
 #pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
@@ -777,34 +797,37 @@ void CorrespondenceFinder::nearest_sq_distances(const Points3& source_points,
 #pragma omp for schedule(static)
     for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(begin);
          i < static_cast<std::ptrdiff_t>(end); ++i) {
-      const auto s = static_cast<std::size_t>(i);
-      const Vec3 q = R * source_points[s] + t;
-      double value = std::numeric_limits<double>::infinity();
-      const std::size_t e = st.inv[s];
-      // The fast path serves any want <= k: the nearest is among an unchanged k nearest.
-      const std::size_t fast_found = q.allFinite() ? kernel.fast(e, s, q, idx, d2) : 0;
-      if (fast_found >= 1) {
-        value = *std::min_element(d2, d2 + fast_found);
-        ++reused;
-        ++fast;
-        lender = static_cast<std::ptrdiff_t>(e);
-      } else if (q.allFinite()) {
-        bool did_search = false;
-        if (kernel.neighbours(e, s, q, 1, idx, d2, &did_search, &lender, marks) == 1) {
-          value = d2[0];
-        }
-        if (did_search) {
-          ++searched;
-        } else {
+      error.capture([&] {
+        const auto s = static_cast<std::size_t>(i);
+        const Vec3 q = R * source_points[s] + t;
+        double value = std::numeric_limits<double>::infinity();
+        const std::size_t e = st.inv[s];
+        // The fast path serves any want <= k: the nearest is among an unchanged k nearest.
+        const std::size_t fast_found = q.allFinite() ? kernel.fast(e, s, q, idx, d2) : 0;
+        if (fast_found >= 1) {
+          value = *std::min_element(d2, d2 + fast_found);
           ++reused;
+          ++fast;
+          lender = static_cast<std::ptrdiff_t>(e);
+        } else if (q.allFinite()) {
+          bool did_search = false;
+          if (kernel.neighbours(e, s, q, 1, idx, d2, &did_search, &lender, marks) == 1) {
+            value = d2[0];
+          }
+          if (did_search) {
+            ++searched;
+          } else {
+            ++reused;
+          }
+        } else {
+          st.reach[e] = -1.0f;
+          if (lender == static_cast<std::ptrdiff_t>(e)) lender = -1;
         }
-      } else {
-        st.reach[e] = -1.0f;
-        if (lender == static_cast<std::ptrdiff_t>(e)) lender = -1;
-      }
-      d2_out[s - begin] = value;
+        d2_out[s - begin] = value;
+      });
     }
   }
+  error.rethrow();
   if (pushed && searched + reused == fast) st.poses.pop_back();
   st.searched = searched;
   st.reused = reused;

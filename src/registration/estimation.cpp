@@ -11,6 +11,7 @@
 #include <Eigen/SVD>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 
 namespace lmalign {
 
@@ -51,25 +52,30 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   std::array<Partial, kMaxBlocks> partial;
   const bool parallel = n >= kParallelMin && blocks > 1 && !omp_in_parallel();
 
-  // Pass 1: weighted centroids.
+  // Pass 1: weighted centroids. (No body here throws; FirstException keeps it so if one ever
+  // does: an exception may not leave an OpenMP region.)
+  FirstException error;
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(blocks); ++b) {
-    // Local accumulators (kept in registers), stored once per block.
-    double ws = 0.0;
-    Vec3 ss = Vec3::Zero(), ts = Vec3::Zero();
-    const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
-    for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
-      const Correspondence& c = correspondences[i];
-      const double wi = w(i);
-      ws += wi;
-      ss += wi * source_points[c.source_index];
-      ts += wi * target_points[c.target_index];
-    }
-    Partial& p = partial[static_cast<std::size_t>(b)];
-    p.w_sum = ws;
-    p.s = ss;
-    p.t = ts;
+    error.capture([&] {
+      // Local accumulators (kept in registers), stored once per block.
+      double ws = 0.0;
+      Vec3 ss = Vec3::Zero(), ts = Vec3::Zero();
+      const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
+      for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
+        const Correspondence& c = correspondences[i];
+        const double wi = w(i);
+        ws += wi;
+        ss += wi * source_points[c.source_index];
+        ts += wi * target_points[c.target_index];
+      }
+      Partial& p = partial[static_cast<std::size_t>(b)];
+      p.w_sum = ws;
+      p.s = ss;
+      p.t = ts;
+    });
   }
+  error.rethrow();
   double w_sum = 0.0;
   Vec3 mu_s = Vec3::Zero();
   Vec3 mu_t = Vec3::Zero();
@@ -89,15 +95,18 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   // Pass 2: cross-covariance of the demeaned points, H = sum w (s - mu_s)(t - mu_t)^T.
 #pragma omp parallel for schedule(static) if (parallel)
   for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(blocks); ++b) {
-    Mat3 Hb = Mat3::Zero();
-    const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
-    for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
-      const Correspondence& c = correspondences[i];
-      Hb.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
-                      (target_points[c.target_index] - mu_t).transpose();
-    }
-    partial[static_cast<std::size_t>(b)].H = Hb;
+    error.capture([&] {
+      Mat3 Hb = Mat3::Zero();
+      const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
+      for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
+        const Correspondence& c = correspondences[i];
+        Hb.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
+                        (target_points[c.target_index] - mu_t).transpose();
+      }
+      partial[static_cast<std::size_t>(b)].H = Hb;
+    });
   }
+  error.rethrow();
   Mat3 H = Mat3::Zero();
   for (std::size_t b = 0; b < blocks; ++b) H += partial[b].H;
 

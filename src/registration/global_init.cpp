@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/score.hpp"
 
@@ -158,24 +159,36 @@ GlobalInitResult global_align(const Points3& source_points, const PreparedTarget
   // 1-2. Vote for the translation at every yaw (one grid per thread; one slot per yaw).
   const int n_yaw = static_cast<int>(std::ceil(360.0 / options.yaw_step_deg - 1e-9));
   std::vector<GlobalHypothesis> all(static_cast<std::size_t>(n_yaw));
+  // An exception may not leave the region nor skip its worksharing loop: the allocation and the
+  // iterations are captured one by one.
+  FirstException error;
 #pragma omp parallel proc_bind(close)
   {
     std::vector<std::uint32_t> grid, tmp;
-    Points3 rotated(src.size());
+    Points3 rotated;
+    bool ready = false;
+    error.capture([&] {
+      rotated.resize(src.size());
+      ready = true;
+    });
 #pragma omp for schedule(dynamic, 1)
     for (int i = 0; i < n_yaw; ++i) {
-      const double yaw_deg = -180.0 + options.yaw_step_deg * i;
-      const Mat3 R = Eigen::AngleAxisd(yaw_deg * kPi / 180.0, up).toRotationMatrix();
-      for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * src[j];
-      const Peak peak =
-          vote_translation(rotated, tgt, options.vote_cell_m, options.max_vote_cells, grid, tmp);
-      GlobalHypothesis& h = all[static_cast<std::size_t>(i)];
-      h.yaw_deg = yaw_deg;
-      h.votes = peak.votes;
-      h.T_coarse.linear() = R;
-      h.T_coarse.translation() = peak.t;
+      if (!ready) continue;
+      error.capture([&] {
+        const double yaw_deg = -180.0 + options.yaw_step_deg * i;
+        const Mat3 R = Eigen::AngleAxisd(yaw_deg * kPi / 180.0, up).toRotationMatrix();
+        for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * src[j];
+        const Peak peak =
+            vote_translation(rotated, tgt, options.vote_cell_m, options.max_vote_cells, grid, tmp);
+        GlobalHypothesis& h = all[static_cast<std::size_t>(i)];
+        h.yaw_deg = yaw_deg;
+        h.votes = peak.votes;
+        h.T_coarse.linear() = R;
+        h.T_coarse.translation() = peak.t;
+      });
     }
   }
+  error.rethrow();
 
   // 3. Refine the yaws whose votes are a local maximum over yaw (circularly), best first.
   std::vector<std::size_t> order;
@@ -195,22 +208,27 @@ GlobalInitResult global_align(const Points3& source_points, const PreparedTarget
   const std::size_t n = source_points.size();
   // One hypothesis per thread (each ICP then runs single-threaded inside: fewer barriers than
   // one parallel loop per ICP iteration). Each writes its own slot: deterministic.
+  // Each thread sets the distance of its own copy of the options.
 #pragma omp parallel for schedule(dynamic, 1)
   for (std::ptrdiff_t oi = 0; oi < static_cast<std::ptrdiff_t>(order.size()); ++oi) {
-    GlobalHypothesis& h = all[order[static_cast<std::size_t>(oi)]];
-    Isometry3 T = h.T_coarse;
-    for (double d : options.refine_schedule_m) {
-      ro.max_correspondence_distance_m = d;
-      const RegistrationResult r = align(source_points, target, ro, T);
-      if (r.termination != TerminationReason::kNoCorrespondences) T = r.T_target_source;
-    }
-    const FitnessScore s =
-        fitness_score(source_points, target.tree(), T, options.inlier_distance_m);
-    h.refined = true;
-    h.T_refined = T;
-    h.inlier_fraction = static_cast<double>(s.num_scored) / static_cast<double>(n);
-    h.inlier_rms_m = s.num_scored > 0 ? std::sqrt(s.mean_sq_m2) : 0.0;
+    error.capture([&] {
+      GlobalHypothesis& h = all[order[static_cast<std::size_t>(oi)]];
+      RegistrationOptions stage = ro;
+      Isometry3 T = h.T_coarse;
+      for (double d : options.refine_schedule_m) {
+        stage.max_correspondence_distance_m = d;
+        const RegistrationResult r = align(source_points, target, stage, T);
+        if (r.termination != TerminationReason::kNoCorrespondences) T = r.T_target_source;
+      }
+      const FitnessScore s =
+          fitness_score(source_points, target.tree(), T, options.inlier_distance_m);
+      h.refined = true;
+      h.T_refined = T;
+      h.inlier_fraction = static_cast<double>(s.num_scored) / static_cast<double>(n);
+      h.inlier_rms_m = s.num_scored > 0 ? std::sqrt(s.mean_sq_m2) : 0.0;
+    });
   }
+  error.rethrow();
 
   // 4. The refined hypothesis with the most inliers (ties: the smaller RMS, then more votes).
   GlobalInitResult result;

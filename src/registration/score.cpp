@@ -6,6 +6,8 @@
 
 #include <omp.h>
 
+#include "lmalign/core/first_exception.hpp"
+
 namespace lmalign {
 
 namespace {
@@ -47,15 +49,20 @@ FitnessScore fitness_score(const Points3& source_points, const KdTree& target,
   const Vec3 t = T_target_source.translation();
   return blocked_score(
       source_points.size(), max_range_m, [&](std::size_t begin, std::size_t end, double* d2) {
+        FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for proc_bind(close) schedule(static)
         for (std::ptrdiff_t i = static_cast<std::ptrdiff_t>(begin);
              i < static_cast<std::ptrdiff_t>(end); ++i) {
-          const Vec3 p = R * source_points[static_cast<std::size_t>(i)] + t;
-          PointIndex idx = 0;
-          double dist_sq = 0.0;
-          d2[static_cast<std::size_t>(i) - begin] =
-              target.nearest(p, &idx, &dist_sq) ? dist_sq : std::numeric_limits<double>::infinity();
+          error.capture([&] {
+            const Vec3 p = R * source_points[static_cast<std::size_t>(i)] + t;
+            PointIndex idx = 0;
+            double dist_sq = 0.0;
+            d2[static_cast<std::size_t>(i) - begin] = target.nearest(p, &idx, &dist_sq)
+                                                          ? dist_sq
+                                                          : std::numeric_limits<double>::infinity();
+          });
         }
+        error.rethrow();
       });
 }
 

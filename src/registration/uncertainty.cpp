@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 
 namespace lmalign {
 
@@ -154,12 +155,18 @@ TrustVerdict judge_alignment(const Points3& source_points, const KdTree& target,
   Points3 moved(n);
   std::vector<PointIndex> nn(n, 0);
   std::vector<double> d2(n, std::numeric_limits<double>::infinity());
+  FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
-    const auto s = static_cast<std::size_t>(i);
-    moved[s] = T_target_source * source_points[s];
-    if (!target.nearest(moved[s], &nn[s], &d2[s])) d2[s] = std::numeric_limits<double>::infinity();
+    error.capture([&] {
+      const auto s = static_cast<std::size_t>(i);
+      moved[s] = T_target_source * source_points[s];
+      if (!target.nearest(moved[s], &nn[s], &d2[s])) {
+        d2[s] = std::numeric_limits<double>::infinity();
+      }
+    });
   }
+  error.rethrow();
   const double in2 = options.inlier_distance_m * options.inlier_distance_m;
   const double ov2 = options.overlap_distance_m * options.overlap_distance_m;
   Correspondences inliers;

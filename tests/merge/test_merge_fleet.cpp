@@ -4,7 +4,12 @@
 // docs/merge.md, measured with the CLI.)
 #include <gtest/gtest.h>
 
+#include <cstdint>
+#include <optional>
 #include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
@@ -59,19 +64,27 @@ TEST(FleetSim, DeterministicWithKnownFramesOverlapsAndDisjointTwins) {
   EXPECT_THROW(sim::simulate_fleet(bad), InvalidArgument);
 }
 
-TEST(MergeFleet, TwelveMapsWithPriorsPlacedAndAPlantedLookAlikeEdgeIsRejected) {
+// A fleet with GPS-like priors (3 degrees, 0.5 m), and those priors as run_merge() takes them.
+sim::FleetScene fleet_with_priors(std::size_t num_maps, std::uint64_t seed, std::size_t num_twins,
+                                  std::vector<std::optional<MapPrior>>* priors) {
   sim::FleetSimOptions o;
-  o.num_maps = 12;
-  o.seed = 7;
-  o.num_twins = 1;
+  o.num_maps = num_maps;
+  o.seed = seed;
+  o.num_twins = num_twins;
   o.prior_sigma_deg = 3.0;
   o.prior_sigma_m = 0.5;
-  const sim::FleetScene scene = sim::simulate_fleet(o);
-  ASSERT_EQ(scene.twins.size(), 1u);
-  std::vector<std::optional<MapPrior>> priors(scene.maps.size());
+  sim::FleetScene scene = sim::simulate_fleet(o);
+  priors->assign(scene.maps.size(), std::nullopt);
   for (std::size_t i = 0; i < scene.maps.size(); ++i) {
-    priors[i] = MapPrior{scene.prior_T_world_map[i], scene.prior_covariance[i]};
+    (*priors)[i] = MapPrior{scene.prior_T_world_map[i], scene.prior_covariance[i]};
   }
+  return scene;
+}
+
+TEST(MergeFleet, TwelveMapsWithPriorsPlacedAndAPlantedLookAlikeEdgeIsRejected) {
+  std::vector<std::optional<MapPrior>> priors;
+  const sim::FleetScene scene = fleet_with_priors(12, 7, 1, &priors);
+  ASSERT_EQ(scene.twins.size(), 1u);
   const MergeRun run = run_merge(scene.maps, scene.names, priors, MergeOptions{});
   ASSERT_FALSE(run.cancelled);
   EXPECT_EQ(run.result.num_components, 1u);
@@ -102,6 +115,34 @@ TEST(MergeFleet, TwelveMapsWithPriorsPlacedAndAPlantedLookAlikeEdgeIsRejected) {
   EXPECT_TRUE(r.edges.back().rejected);
   EXPECT_EQ(ev2.false_kept_edges, 0u);
   EXPECT_DOUBLE_EQ(ev2.fraction_within, 1.0);
+}
+
+// The edges are aligned in an OpenMP loop: an exception thrown there (here by the progress
+// callback, called from inside it) must reach the caller, not end the process. Before the loop
+// forwarded every exception, one not derived from std::exception ended it with std::terminate.
+TEST(MergeFleet, AnExceptionInTheParallelEdgeLoopReachesTheCaller) {
+  std::vector<std::optional<MapPrior>> priors;
+  const sim::FleetScene scene = fleet_with_priors(4, 5, 0, &priors);
+  MergeOptions options;
+  options.threads = 2;
+  struct NotAStdException {};
+  std::size_t calls = 0;
+  auto throw_when = [&](auto thrown) {
+    return [&calls, thrown](const std::string& stage, std::size_t done, std::size_t) {
+      ++calls;
+      if (stage == "edges" && done >= 1) throw thrown;
+    };
+  };
+  try {
+    run_merge(scene.maps, scene.names, priors, options,
+              throw_when(std::runtime_error("progress stopped")));
+    ADD_FAILURE() << "no exception";
+  } catch (const InvalidArgument& e) {
+    EXPECT_EQ(std::string(e.what()), "merge: an edge failed: progress stopped");
+  }
+  EXPECT_THROW(run_merge(scene.maps, scene.names, priors, options, throw_when(NotAStdException{})),
+               NotAStdException);
+  EXPECT_GE(calls, 4u);  // the callback ran (once before the loop, then in it)
 }
 
 }  // namespace

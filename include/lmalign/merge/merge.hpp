@@ -47,7 +47,10 @@ struct MergeRun {
 
 /// Runs the merge of `maps` (priors from `priors`, one per map). With `cancel` set (e.g. by a
 /// SIGINT handler), no new edge is started; finished edges are in the cache; returns cancelled.
-/// Throws InvalidArgument on invalid options or sizes, IoError on the cache.
+/// Throws InvalidArgument on invalid options or sizes, IoError on the cache. An exception thrown
+/// while the edges are aligned in parallel (by an edge or by `progress`) stops the remaining
+/// edges and reaches the caller: std::bad_alloc as itself, other std::exceptions as
+/// InvalidArgument("merge: an edge failed: <what>"), any other type as itself.
 MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>& names,
                    const std::vector<std::optional<MapPrior>>& priors, const MergeOptions& options,
                    const MergeProgress& progress = {}, const std::atomic<bool>* cancel = nullptr);

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
 
 namespace lmalign {
@@ -148,22 +149,26 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
   const double iso_base = floor_m * floor_m + pose_sigma.translation_m * pose_sigma.translation_m;
   std::vector<GatedPair> slot(n);
   std::vector<unsigned char> kept(n, 0);
+  FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(n); ++j) {
-    const std::size_t i =
-        subset != nullptr ? (*subset)[static_cast<std::size_t>(j)] : static_cast<std::size_t>(j);
-    GatedPair g;
-    g.source_index = static_cast<std::uint32_t>(i);
-    PointIndex* seeds =
-        cache != nullptr ? &cache->indices[i * static_cast<std::size_t>(options.k)] : nullptr;
-    std::uint8_t* num_seeds = cache != nullptr ? &cache->counts[i] : nullptr;
-    if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
-                 tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, &g, seeds,
-                 num_seeds)) {
-      slot[static_cast<std::size_t>(j)] = g;
-      kept[static_cast<std::size_t>(j)] = 1;
-    }
+    error.capture([&] {
+      const std::size_t i =
+          subset != nullptr ? (*subset)[static_cast<std::size_t>(j)] : static_cast<std::size_t>(j);
+      GatedPair g;
+      g.source_index = static_cast<std::uint32_t>(i);
+      PointIndex* seeds =
+          cache != nullptr ? &cache->indices[i * static_cast<std::size_t>(options.k)] : nullptr;
+      std::uint8_t* num_seeds = cache != nullptr ? &cache->counts[i] : nullptr;
+      if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
+                   tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, &g, seeds,
+                   num_seeds)) {
+        slot[static_cast<std::size_t>(j)] = g;
+        kept[static_cast<std::size_t>(j)] = 1;
+      }
+    });
   }
+  error.rethrow();
   pairs->clear();
   for (std::size_t j = 0; j < n; ++j) {
     if (kept[j] != 0) pairs->push_back(slot[j]);
