@@ -2,7 +2,7 @@
 """Merge benchmark on maps cut into windows (configs/merge_desk.yaml, merge_kitti.yaml,
 merge_kitti_retri.yaml, merge_streets.yaml).
 
-    merge_real.py CONFIG.yaml [--build-dir build] [--case NAME]
+    merge_real.py CONFIG.yaml [--build-dir build] [--case NAME] [--resume]
 
 For each case of the config: makes the windows, either
   - `map:` cut with `lmalign split --frames A-B` (`windows: {first, length, step, count}`; with
@@ -11,20 +11,29 @@ For each case of the config: makes the windows, either
   - `simulate:` `lmalign simulate --scene street --windows N` (`{windows, frames, overlap,
     landmarks, seed}`: consecutive windows of one simulated drive, each in its own first
     keyframe's frame, with the simulator's truth),
+(a case may replace keys of `simulate`, `windows` and `split`, and the poses' seed with
+`poses: {seed: S}`),
 then moves each window by a seeded random pose (a yaw uniform in [-180, 180) deg about the maps'
 up axis -- the mean of the frames' -y axes, the camera convention of docs/map-format.md -- and a
 translation uniform in the ball of max_translation_m), writes manifest.yaml (with noisy priors
 when the case has prior_sigma: [rot_deg, trans_m], left perturbation in the world frame as
-manifest.hpp) and ground_truth.yaml, then runs `lmalign merge --ground-truth` and prints its
-report. Real maps are read from $LMALIGN_DATA (default ../shared/data beside the repository);
+manifest.hpp) and ground_truth.yaml, then runs `lmalign merge --ground-truth` (every edge
+aligned afresh unless --resume), prints its report and a summary line, and writes the summary to
+bench.json beside the manifest: the parts, the neighbouring windows' edges (found = kept by the
+graph and true; else why not), false edges kept, the pairs of maps whose relative pose is within
+the thresholds, and the times. Real maps are read from $LMALIGN_DATA (default ../shared/data beside the repository);
 nothing is copied into the repository. Every file is written to a temporary name and renamed.
 Needs numpy and PyYAML.
 """
 
 import argparse
+import csv
+import json
 import os
+import re
 import subprocess
 import sys
+import time
 
 import numpy as np
 import yaml
@@ -142,7 +151,20 @@ def make_windows(cfg, lmalign, folder):
     return out
 
 
-def run_case(cfg, case, lmalign, out_root, name):
+def case_config(cfg, case):
+    """The config as a case sees it: the case's own `simulate`, `windows`, `split` (merged key
+    by key) and `seed` replace the config's."""
+    out = dict(cfg)
+    for key in ("simulate", "windows", "split"):
+        if key in case:
+            out[key] = {**cfg.get(key, {}), **case[key]}
+    if "seed" in case.get("poses", {}):
+        out["seed"] = case["poses"]["seed"]
+    return out
+
+
+def run_case(cfg, case, lmalign, out_root, name, resume):
+    cfg = case_config(cfg, case)
     rng = np.random.default_rng(cfg["seed"])
     folder = os.path.join(out_root, "%s_%s" % (name, case["name"]))
     os.makedirs(os.path.join(folder, "maps"), exist_ok=True)
@@ -180,9 +202,87 @@ def run_case(cfg, case, lmalign, out_root, name):
     th = cfg["thresholds"]
     cmd = [lmalign, "merge", os.path.join(folder, "manifest.yaml"), "-o",
            os.path.join(folder, "out"), "--ground-truth", os.path.join(folder, "ground_truth.yaml"),
-           "--thresholds", "%g,%g" % (th["rotation_deg"], th["translation_m"]), "--resume"]
+           "--thresholds", "%g,%g" % (th["rotation_deg"], th["translation_m"])]
+    if resume:
+        cmd.append("--resume")
     print("$ " + " ".join(cmd), flush=True)
-    return subprocess.run(cmd, stderr=subprocess.DEVNULL).returncode
+    t0 = time.monotonic()
+    run = subprocess.run(cmd, stderr=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
+    wall_s = time.monotonic() - t0
+    sys.stdout.write(run.stdout)
+    if run.returncode != 0:
+        return run.returncode
+    summary = summarise(os.path.join(folder, "out"), [w[0] for w in windows], truth, th)
+    m = re.search(r"time: edges ([0-9.]+) s, graph ([0-9.]+) s", run.stdout)
+    summary.update(edge_seconds=float(m.group(1)) if m else None,
+                   graph_seconds=float(m.group(2)) if m else None, wall_seconds=wall_s,
+                   resumed=resume, config=name, case=case["name"])
+    write_atomic(os.path.join(folder, "bench.json"), json.dumps(summary, indent=1) + "\n")
+    print("summary: %d part(s); neighbouring edges %d of %d (%s); pairs within %d of %d; "
+          "false edges kept %d; edges %.1f s, wall %.1f s -> %s" % (
+              summary["parts"], summary["neighbour_edges_found"], summary["neighbour_pairs"],
+              ", ".join("%s-%s %s" % (e["source"], e["target"], e["status"])
+                        for e in summary["neighbour_edges"]),
+              summary["pairs_within"], summary["pairs"], summary["false_edges_kept"],
+              summary["edge_seconds"] or float("nan"), wall_s,
+              os.path.join(folder, "bench.json")), flush=True)
+    return 0
+
+
+def rotation_deg(R):
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))))
+
+
+def within(T_est, T_true, th):
+    D = T_est @ np.linalg.inv(T_true)
+    return (rotation_deg(D[:3, :3]) <= th["rotation_deg"] and
+            float(np.linalg.norm(D[:3, 3])) <= th["translation_m"])
+
+
+def summarise(out, names, truth, th):
+    """What the issue's target asks of a merge of consecutive windows: its parts, which
+    neighbouring pairs (windows k and k+1) got an edge that the graph kept and that agrees with
+    the truth (at the frame origins, the thresholds of the config, as `lmalign merge
+    --ground-truth`), and every pair's relative pose within the thresholds."""
+    with open(os.path.join(out, "poses.json")) as f:
+        poses = {m["name"]: m for m in json.load(f)["maps"]}
+    with open(os.path.join(out, "edges.csv")) as f:
+        rows_ = list(csv.DictReader(f))
+    edges = {(r["source"], r["target"]): r for r in rows_}
+    est = {n: np.array(poses[n]["T_world_map"]) for n in names}
+    comp = {n: poses[n]["component"] for n in names}
+
+    def edge_true(s, t):
+        with open(os.path.join(out, "edges", "%s__%s.json" % (s, t))) as f:
+            T = np.array(json.load(f)["T_target_source"])
+        return within(T, np.linalg.inv(truth[t]) @ truth[s], th)
+
+    neighbours = []
+    for s, t in zip(names, names[1:]):
+        r = edges.get((s, t))
+        if r is None:
+            status = "not a candidate"
+        else:
+            true = edge_true(s, t)
+            kept = r["used"] == "1" and r["rejected"] == "0"
+            status = ("found" if kept and true else "kept but false" if kept else
+                      ("right, refused: " if true else "wrong, refused: ") + r["reason"])
+        neighbours.append({"source": s, "target": t, "status": status})
+    false_kept = sum(1 for (s, t), r in edges.items()
+                     if r["used"] == "1" and r["rejected"] == "0" and not edge_true(s, t))
+    pairs = pairs_within = 0
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            pairs += 1
+            if comp[a] == comp[b] and within(np.linalg.inv(est[a]) @ est[b],
+                                             np.linalg.inv(truth[a]) @ truth[b], th):
+                pairs_within += 1
+    return {"maps": len(names), "parts": len(set(comp.values())), "candidates": len(rows_),
+            "trusted": sum(r["trusted"] == "1" for r in rows_),
+            "neighbour_pairs": len(neighbours),
+            "neighbour_edges_found": sum(e["status"] == "found" for e in neighbours),
+            "neighbour_edges": neighbours, "false_edges_kept": false_kept, "pairs": pairs,
+            "pairs_within": pairs_within}
 
 
 def main():
@@ -190,6 +290,9 @@ def main():
     p.add_argument("config")
     p.add_argument("--build-dir", default=os.path.join(HERE, "..", "build"))
     p.add_argument("--case", default=None)
+    p.add_argument("--resume", action="store_true",
+                   help="reuse the edges of an earlier run (their cache key does not know the "
+                        "library's code: only after an interruption of the same build)")
     a = p.parse_args()
     with open(a.config) as f:
         cfg = yaml.safe_load(f)
@@ -199,7 +302,7 @@ def main():
     rc = 0
     for case in cfg["cases"]:
         if a.case is None or case["name"] == a.case:
-            rc |= run_case(cfg, case, lmalign, out_root, name)
+            rc |= run_case(cfg, case, lmalign, out_root, name, a.resume)
     sys.exit(rc)
 
 
