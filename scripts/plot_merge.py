@@ -220,8 +220,13 @@ def main():
     save(fig, os.path.join(out, "merge_graph.png"))
     plt.close(fig)
 
-    # The merged landmarks, top-down, one colour per map.
-    colours = plt.get_cmap("tab20")
+    # The merged landmarks, top-down, one colour per map: ten distinct hues, then their light
+    # shades (tab20 in its own order pairs a hue with its shade, and neighbouring windows of a
+    # drive came out as two blues).
+    tab10, tab20 = plt.get_cmap("tab10"), plt.get_cmap("tab20")
+
+    def colours(n):
+        return tab10(n % 10) if n < 10 else tab20((2 * n) % 20 + 1)
     fig, axes = plt.subplots(1, ncol, figsize=size, squeeze=False)
     for k, c in enumerate(components):
         ax = axes[0][k]
