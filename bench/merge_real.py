@@ -31,6 +31,7 @@ import csv
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 import time
@@ -205,12 +206,15 @@ def run_case(cfg, case, lmalign, out_root, name, resume):
            "--thresholds", "%g,%g" % (th["rotation_deg"], th["translation_m"])]
     if resume:
         cmd.append("--resume")
+    else:  # the folder is this script's own: an earlier run's edges would be refused
+        shutil.rmtree(os.path.join(folder, "out"), ignore_errors=True)
     print("$ " + " ".join(cmd), flush=True)
     t0 = time.monotonic()
-    run = subprocess.run(cmd, stderr=subprocess.DEVNULL, stdout=subprocess.PIPE, text=True)
+    run = subprocess.run(cmd, stderr=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     wall_s = time.monotonic() - t0
     sys.stdout.write(run.stdout)
     if run.returncode != 0:
+        sys.stdout.write("".join(run.stderr.splitlines(True)[-3:]))
         return run.returncode
     summary = summarise(os.path.join(folder, "out"), [w[0] for w in windows], truth, th)
     m = re.search(r"time: edges ([0-9.]+) s, graph ([0-9.]+) s", run.stdout)
