@@ -17,8 +17,8 @@
 namespace lmalign::bench {
 namespace {
 
-RegistrationOptions forced(PaperStrategy strategy, int k, int iterations) {
-  RegistrationOptions o = RegistrationOptions::paper(strategy, k);
+RegistrationOptions forced(WeightKind weight, int k, int iterations) {
+  RegistrationOptions o = RegistrationOptions::paper(weight, k);
   o.convergence.max_iterations = iterations;
   o.convergence.absolute_mse_epsilon_m2 = -1.0;               // never fires
   o.convergence.max_iterations_similar_transforms = 1 << 30;  // nor does the transform test
@@ -28,15 +28,15 @@ RegistrationOptions forced(PaperStrategy strategy, int k, int iterations) {
 int run(const Args& args) {
   const RealPair pair = load_real_pair();
   const std::string& c = args.config;
-  PaperStrategy strategy = PaperStrategy::kObservations;
+  WeightKind strategy = WeightKind::kObservations;
   bool reuse = true, scored = false;
   int threads = 0;
   std::string description;
   if (c == "lmalign_base") {
-    strategy = PaperStrategy::kBase;
+    strategy = WeightKind::kUniform;
     description = "lmalign base (nearest), exact neighbour reuse";
   } else if (c == "lmalign_base_plain") {
-    strategy = PaperStrategy::kBase;
+    strategy = WeightKind::kUniform;
     reuse = false;
     description = "lmalign base, no neighbour reuse (plain search every iteration)";
   } else if (c == "lmalign_weighted_k5") {

@@ -92,7 +92,7 @@ namespace lmalign::bench {
 namespace {
 
 RegistrationOptions forced(int iterations, bool reuse) {
-  RegistrationOptions o = RegistrationOptions::paper(PaperStrategy::kObservations, 5);
+  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kObservations, 5);
   o.convergence.max_iterations = iterations;
   o.convergence.absolute_mse_epsilon_m2 = -1.0;
   o.convergence.max_iterations_similar_transforms = 1 << 30;

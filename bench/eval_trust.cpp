@@ -1,10 +1,11 @@
 // Accuracy study of the uncertainty and the trust verdict (docs/accuracy.md): over the basin
 // sweep of configs/basin.yaml (desk_gt_a displaced onto desk_gt_b, true transform identity),
-// run the paper's base ICP and the global initialisation, and for every result
+// run the paper's base ICP and three robust presets (global_robust_obs, robust_obs, mutual), and
+// for every result
 //   - the 6x6 covariance on its inliers (nearest target within 5 cm) and its NEES against the
 //     truth (for right-basin results: is the covariance calibrated?);
-//   - and for robust_obs and robust_p2d (point-to-distribution, with both maps' covariances) the
-//     NEES of the covariance the result itself carries (RobustRegistrationResult::covariance);
+//   - and for the presets the NEES of the covariance the result itself carries (the estimator's,
+//     Summary::estimator_covariance);
 //   - the trust verdict, against the truth (right basin: < 5 deg and < 10 cm): precision and
 //     recall of "trustworthy".
 // Prints one JSON object. Usage: lmalign_eval_trust [--samples S] (default: the config's)
@@ -23,9 +24,8 @@
 #include "lmalign/experiment/cases.hpp"
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/map/map_io.hpp"
-#include "lmalign/registration/global_init.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/registration.hpp"
-#include "lmalign/registration/robust.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -71,25 +71,29 @@ int run(int argc, char** argv) {
       const Points3 displaced = transform_points(c.D, source);
       std::vector<Mat3> displaced_cov = source_cov;
       for (Mat3& C : displaced_cov) C = c.D.linear() * C * c.D.linear().transpose();
-      const RobustRegistrationResult ro =
-          align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustObs));
-      const RobustRegistrationResult rp =
-          align_robust(displaced, target, robust_strategy_options(PaperStrategy::kRobustP2D),
-                       Isometry3::Identity(), &displaced_cov);
-      const Isometry3 est[kMethods] = {
-          align(displaced, target, RegistrationOptions::paper(PaperStrategy::kBase))
-              .T_target_source,
-          global_align(displaced, target).T_target_source, ro.T_target_source, rp.T_target_source};
-      const char* names[kMethods] = {"base", "global", "robust_obs", "robust_p2d"};
+      // The paper's base ICP, and three presets that report their own covariance.
+      static const char* const kPresets[kMethods] = {"base", "global_robust_obs", "robust_obs",
+                                                     "mutual"};
+      Isometry3 est[kMethods];
+      PoseCovariance own[kMethods];
+      SourceView view;
+      view.positions = &displaced;
+      view.covariances_m2 = &displaced_cov;
+      for (int m = 0; m < kMethods; ++m) {
+        const Summary s = align(find_preset(kPresets[m]), view, target);
+        est[m] = s.registration.T_target_source;
+        own[m] = s.estimator_covariance;
+      }
+      const char* const* names = kPresets;
       for (int m = 0; m < kMethods; ++m) {
         const Isometry3 T_map = est[m] * c.D;  // the recovered map-to-map transform
         const TransformError e = transform_error(T_map, Isometry3::Identity());
         PoseCovariance cov;
         const TrustVerdict v = judge_alignment(source, target.tree(), T_map, trust, &cov);
-        if (m >= 2) {
+        if (m >= 1) {
           // The result's own covariance: a left perturbation of T, hence of T * D too.
-          cov.covariance = (m == 2 ? ro : rp).covariance;
-          cov.valid = !cov.covariance.isZero();
+          cov.covariance = own[m].covariance;
+          cov.valid = own[m].valid;
         }
         Row& r = rows[static_cast<std::size_t>(i) * kMethods + m];
         r.method = names[m];

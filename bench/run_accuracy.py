@@ -246,7 +246,6 @@ def experiment_config(d, source, target, truth, strategies, k, random_spec, prot
                             "pivot": "centroid", "up_axis": d["up_axis"]})
     return {"description": "accuracy benchmark: " + d["name"], "source": source, "target": target,
             "ground_truth": truth, "strategies": list(strategies), "k": int(k),
-            "max_iterations": 150, "max_distance_m": "inf",
             "success": {"rotation_deg": float(d["rotation_deg"]),
                         "translation_m": float(d["translation_m"])},
             "experiments": experiments}

@@ -101,8 +101,9 @@ inline void check_icp(const Map& map) {
   const Points3 points = map.positions();
   const PreparedTarget target(map);
   const bool in_range = within_coordinate_range(points);
-  for (const PaperStrategy strategy : all_paper_strategies()) {
-    RegistrationOptions options = RegistrationOptions::paper(strategy, 3);
+  for (const WeightKind weight : {WeightKind::kUniform, WeightKind::kCovariance,
+                                  WeightKind::kObservations, WeightKind::kMeanDistance}) {
+    RegistrationOptions options = RegistrationOptions::paper(weight, 3);
     options.convergence.max_iterations = 10;
     try {
       const RegistrationResult r =

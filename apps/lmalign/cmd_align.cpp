@@ -1,6 +1,6 @@
-// `lmalign align`: align a source map onto a target map with the recommended strategy, the
-// paper's strategies or lmalign's own, and print a table (and optionally JSON / PLY). See
-// docs/cli.md.
+// `lmalign align`: align a source map onto a target map with one or more strategies (presets of
+// the registration engine, configs/presets/), and print a table (and optionally JSON / PLY). See
+// docs/cli.md. Parses, calls align() per strategy, prints: nothing else.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -22,11 +22,8 @@
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
-#include "lmalign/registration/registration.hpp"
-#include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
-#include "lmalign/registration/strategy.hpp"
-#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign::cli {
 
@@ -40,6 +37,7 @@ struct AlignArgs {
   int k = 5;
   int max_iterations = 150;
   double max_distance_m = std::numeric_limits<double>::infinity();
+  std::vector<std::string> settings;  // --set KEY=VALUE
   std::string covariance_norm = "spectral";
   std::size_t min_observations = 2;
   std::string displace;
@@ -53,23 +51,15 @@ struct AlignArgs {
   std::string initial_guess;  // 4x4 file; empty: none
   std::string prior_sigma;    // ROT_DEG,TRANS_M; empty: none
   std::string image_size;     // W,H px (Bundler); empty: none
-  // Given explicitly on the command line: then they also limit lmalign's own strategies.
   bool max_iterations_given = false;
   bool max_distance_given = false;
 };
 
-/// Whether --k matters to a strategy (the weighted-kNN selections).
-bool uses_k(PaperStrategy s) {
-  return s == PaperStrategy::kCovariance || s == PaperStrategy::kObservations ||
-         s == PaperStrategy::kMeanDistance || s == PaperStrategy::kRobustObsKnn;
-}
-
-struct StrategyRun {
-  PaperStrategy strategy = kRecommendedStrategy;
-  RegistrationResult result;
+struct Run {
+  Preset preset;
+  Summary summary;
   std::optional<TransformError> error;
   bool right_basin = false;
-  StrategyOutcome outcome;  // the trust verdict (no ground truth involved) and the covariance
 };
 
 std::string ply_path_for(const std::string& base, const std::string& strategy, bool several) {
@@ -91,42 +81,101 @@ std::string fmt_score(double v) {
   return b;
 }
 
-int run_align(const AlignArgs& a) {
-  // --- validate everything before any work, so bad input fails fast with one line.
-  std::vector<PaperStrategy> strategies;
+std::string join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const std::string& x : v) s += (s.empty() ? "" : ", ") + x;
+  return s;
+}
+
+/// The strategies named by --weight / --strategy, in order, each once.
+std::vector<Preset> strategies_of(const AlignArgs& a) {
   if (!a.weight.empty() && !a.strategy.empty()) {
     throw InvalidArgument("give --weight or --strategy, not both");
   }
+  std::vector<Preset> out;
+  auto add = [&](const Preset& p) {
+    for (const Preset& q : out) {
+      if (q.name == p.name) throw InvalidArgument("--strategy: '" + p.name + "' is listed twice");
+    }
+    out.push_back(p);
+  };
   if (a.weight == "all") {
-    strategies = all_paper_strategies();
+    for (const std::string& n : preset_names("paper")) add(find_preset(n));
   } else if (!a.weight.empty()) {
-    strategies = {parse_paper_strategy(a.weight)};
+    Preset p;
+    try {
+      p = find_preset(a.weight);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(std::string("--weight: ") + e.what());
+    }
+    if (p.group != "paper") {
+      throw InvalidArgument("--weight '" + a.weight + "': not one of the paper's strategies (" +
+                            join(preset_names("paper")) + ")");
+    }
+    add(p);
   } else if (!a.strategy.empty()) {
     std::string item;
     std::stringstream list(a.strategy);
     while (std::getline(list, item, ',')) {
-      std::vector<PaperStrategy> add;
-      if (item == "paper") {
-        add = all_paper_strategies();
-      } else if (item == "beyond") {
-        add = beyond_paper_strategies();
-      } else if (item == "all") {
-        add = all_paper_strategies();
-        for (PaperStrategy s : beyond_paper_strategies()) add.push_back(s);
-      } else {
-        add = {parse_paper_strategy(item)};
+      if (item == "paper" || item == "all") {
+        for (const std::string& n : preset_names("paper")) add(find_preset(n));
       }
-      for (PaperStrategy s : add) {
-        if (std::find(strategies.begin(), strategies.end(), s) != strategies.end()) {
-          throw InvalidArgument("--strategy: '" + to_string(s) + "' is listed twice");
+      if (item == "beyond" || item == "lmalign" || item == "all") {
+        for (const std::string& n : preset_names("lmalign")) add(find_preset(n));
+      }
+      if (item != "paper" && item != "beyond" && item != "lmalign" && item != "all") {
+        Preset p;
+        try {
+          p = find_preset(item);
+        } catch (const InvalidArgument& e) {
+          throw InvalidArgument(std::string("--strategy: ") + e.what());
         }
-        strategies.push_back(s);
+        add(p);
       }
     }
-    if (strategies.empty()) throw InvalidArgument("--strategy: no strategy given");
+    if (out.empty()) throw InvalidArgument("--strategy: no strategy given");
   } else {
-    strategies = {kRecommendedStrategy};
+    add(recommended_preset());
   }
+  return out;
+}
+
+int run_align(const AlignArgs& a) {
+  // --- validate everything before any work, so bad input fails fast with one line.
+  const std::vector<Preset> strategies = strategies_of(a);
+  AlignRequest request;
+  if (a.max_iterations_given) request.max_iterations = a.max_iterations;
+  if (a.max_distance_given) {
+    if (std::isnan(a.max_distance_m) || !(a.max_distance_m > 0.0)) {
+      throw InvalidArgument("--max-distance " + std::to_string(a.max_distance_m) +
+                            ": must be > 0 metres (or inf)");
+    }
+    request.max_distance_m = a.max_distance_m;
+  }
+  request.k = a.k;
+  request.record_history = a.history;
+  for (const std::string& s : a.settings) {
+    const std::size_t eq = s.find('=');
+    if (eq == std::string::npos) throw InvalidArgument("--set '" + s + "': expected KEY=VALUE");
+    request.settings.emplace_back(s.substr(0, eq), SettingValue(s.substr(eq + 1)));
+  }
+  // --set values are text: each strategy reads them by its own table (and refuses unknown keys,
+  // or values outside their bounds, before any map is read).
+  std::vector<AlignRequest> requests;
+  for (const Preset& p : strategies) {
+    AlignRequest r = request;
+    const Pipeline base(p.spec);
+    for (auto& [key, value] : r.settings) {
+      try {
+        value = base.settings().row(key).parse(std::get<std::string>(value));
+      } catch (const InvalidArgument& e) {
+        throw InvalidArgument("--set " + key + ": " + e.what() + " (strategy '" + p.name + "')");
+      }
+    }
+    const Pipeline resolved(resolve_spec(p, r));  // validates the whole table
+    requests.push_back(r);
+  }
+
   WeightOptions wopt;
   wopt.covariance_norm = parse_covariance_norm(a.covariance_norm);
   Isometry3 T_displace = Isometry3::Identity();
@@ -147,43 +196,38 @@ int run_align(const AlignArgs& a) {
   if (!a.ply_path.empty()) {
     refuse_output_over_input("--aligned-out", a.ply_path, {a.source, a.target});
     // With several strategies the files are NAME_<strategy>.ply: none may be an input either.
-    for (PaperStrategy s : strategies) {
-      const std::string path = ply_path_for(a.ply_path, to_string(s), strategies.size() > 1);
+    for (const Preset& s : strategies) {
+      const std::string path = ply_path_for(a.ply_path, s.name, strategies.size() > 1);
       refuse_output_over_input("--aligned-out", path, {a.source, a.target});
       if (!a.json_path.empty() && same_file(path, a.json_path)) {
         throw InvalidArgument("--aligned-out '" + path + "' and --json name the same file");
       }
     }
   }
-  if (std::isnan(a.max_distance_m) || !(a.max_distance_m > 0.0)) {
-    throw InvalidArgument("--max-distance " + std::to_string(a.max_distance_m) +
-                          ": must be > 0 metres (or inf)");
-  }
 
-  std::optional<PriorSigma> prior;
   if (!a.prior_sigma.empty()) {
     const std::vector<double> v =
         parse_number_list("--prior-sigma", a.prior_sigma, 2, "ROT_DEG,TRANS_M");
-    prior = PriorSigma{v[0], v[1]};
+    const PriorSigma prior{v[0], v[1]};
     std::string why;
-    if (!prior->is_valid(&why))
-      throw InvalidArgument("--prior-sigma " + a.prior_sigma + ": " + why);
-    for (PaperStrategy s : strategies) {
-      if (s != PaperStrategy::kAdaptive) {
-        throw InvalidArgument("--prior-sigma: only the adaptive strategy uses a prior (got '" +
-                              to_string(s) + "')");
+    if (!prior.is_valid(&why)) throw InvalidArgument("--prior-sigma " + a.prior_sigma + ": " + why);
+    for (const Preset& s : strategies) {
+      if (!Pipeline(s.spec).initialiser().uses_prior()) {
+        throw InvalidArgument("--prior-sigma: the strategy '" + s.name + "' uses no prior (its " +
+                              "initialiser '" + s.spec.initialiser + "' does not search)");
       }
     }
+    for (AlignRequest& r : requests) r.prior = prior;
   }
-  std::optional<Isometry3> initial_guess;
   if (!a.initial_guess.empty()) {
-    initial_guess = read_transform(a.initial_guess);
-    if (!is_rigid_transform(*initial_guess)) {
+    const Isometry3 guess = read_transform(a.initial_guess);
+    if (!is_rigid_transform(guess)) {
       throw InvalidArgument("--initial-guess " + a.initial_guess +
                             ": not a rigid transform (expected [R t; 0 0 0 1] with R orthonormal "
                             "and det R = +1)");
     }
-    check_supported_translation("--initial-guess " + a.initial_guess, initial_guess->translation());
+    check_supported_translation("--initial-guess " + a.initial_guess, guess.translation());
+    for (AlignRequest& r : requests) r.initial_guess = guess;
   }
 
   std::optional<Isometry3> T_gt;  // ground truth for the undisplaced source
@@ -207,11 +251,12 @@ int run_align(const AlignArgs& a) {
     throw InvalidArgument("target map '" + a.target +
                           "' has no landmarks (after the --min-observations filter)");
 
-  // The paper displaces the source about the world origin, then starts ICP at the identity.
-  const Points3 source_points = transform_points(T_displace, source.positions());
-  // Their covariances move with them (C' = R C R^T), for the point-to-distribution strategies.
-  const std::vector<Mat3> source_covariances =
-      transform_covariances(T_displace, source.covariances_m2());
+  // The paper displaces the source about the world origin, then starts ICP at the identity. Its
+  // covariances and up axis move with it (C' = R C R^T).
+  SourceLandmarks src;
+  src.positions = transform_points(T_displace, source.positions());
+  src.covariances_m2 = transform_covariances(T_displace, source.covariances_m2());
+  if (const std::optional<Vec3> up = estimate_up_axis(source)) src.up = T_displace.linear() * *up;
   // Truth for the displaced source. Errors are measured on the recovered map-to-map transform
   // T_est * T_displace against T_gt, so they do not depend on the artificial displacement.
   std::optional<Isometry3> T_true;
@@ -227,19 +272,16 @@ int run_align(const AlignArgs& a) {
         "deg\n",
         disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
   }
-  std::printf("k=%d, max iterations=%d, max correspondence distance=%s m, covariance norm=%s\n",
-              a.k, a.max_iterations,
-              std::isinf(a.max_distance_m) ? "inf" : std::to_string(a.max_distance_m).c_str(),
-              a.covariance_norm.c_str());
-  const bool any_own = std::any_of(strategies.begin(), strategies.end(),
-                                   [](PaperStrategy s) { return !is_paper_strategy(s); });
-  if (any_own) {
-    std::printf("lmalign's own strategies: %s\n",
-                a.max_iterations_given || a.max_distance_given
-                    ? "preset distance schedule and budget, limited by the options above"
-                    : "preset distance schedule (inf .. 0.05 m) and budget (300 iterations); "
-                      "the limits above apply to the paper's strategies");
-  }
+  std::printf(
+      "k=%d (weighted kNN), covariance norm=%s; limits: %s; settings: %s\n", a.k,
+      a.covariance_norm.c_str(),
+      a.max_iterations_given || a.max_distance_given
+          ? ("max iterations " + (a.max_iterations_given ? std::to_string(a.max_iterations) : "-") +
+             ", max distance " +
+             (a.max_distance_given ? message_number(a.max_distance_m) + " m" : "-"))
+                .c_str()
+          : "the strategies' own",
+      a.settings.empty() ? "the strategies' own" : join(a.settings).c_str());
   if (T_true) {
     std::printf(
         "ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
@@ -247,92 +289,69 @@ int run_align(const AlignArgs& a) {
   }
   std::printf("\n");
 
-  StrategySource src;
-  src.positions = source_points;
-  src.covariances_m2 = source_covariances;
-  if (const std::optional<Vec3> up = estimate_up_axis(source)) src.up = T_displace.linear() * *up;
-  std::vector<StrategyRun> runs;
-  for (PaperStrategy s : strategies) {
-    StrategyRequest req;
-    req.strategy = s;
-    req.k = a.k;
-    req.initial_guess = initial_guess;
-    req.prior = prior;
-    if (is_paper_strategy(s)) {
-      req.max_iterations = a.max_iterations;
-      req.max_distance_m = a.max_distance_m;
-      req.record_history = a.history;
-    } else {
-      if (a.max_iterations_given) req.max_iterations = a.max_iterations;
-      if (a.max_distance_given && s != PaperStrategy::kAdaptive) {
-        req.max_distance_m = a.max_distance_m;
-      }
-    }
-    StrategyRun run;
-    run.strategy = s;
-    run.outcome = run_strategy(src, prepared, req);
-    run.result = run.outcome.result;
+  std::vector<Run> runs;
+  for (std::size_t i = 0; i < strategies.size(); ++i) {
+    Run run;
+    run.preset = strategies[i];
+    run.summary = align(strategies[i], src.view(), prepared, requests[i]);
     if (T_true) {
-      run.error = transform_error(run.result.T_target_source * T_displace, *T_gt);
+      run.error = transform_error(run.summary.registration.T_target_source * T_displace, *T_gt);
       run.right_basin = run.error->rotation_deg < a.success_rotation_deg &&
                         run.error->translation_m < a.success_translation_m;
     }
-    runs.push_back(run);
+    runs.push_back(std::move(run));
   }
 
   // --- human table
-  std::printf("%-13s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score",
+  std::printf("%-17s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score",
               "iters", "termination", "time ms");
   if (T_true) std::printf(" %8s %8s %6s", "rot deg", "trans m", "basin");
   std::printf(" %6s\n", "trust");
-  for (const StrategyRun& r : runs) {
-    const bool weighted = uses_k(r.strategy);
-    std::printf("%-13s %3s %12s %12s %6d %-19s %9.2f", to_string(r.strategy).c_str(),
-                weighted ? std::to_string(a.k).c_str() : "-",
-                fmt_score(r.result.initial_score_m2).c_str(),
-                fmt_score(r.result.final_score_m2).c_str(), r.result.iterations,
-                to_string(r.result.termination).c_str(), r.result.wall_time_s * 1e3);
+  for (const Run& r : runs) {
+    const RegistrationResult& g = r.summary.registration;
+    std::printf("%-17s %3s %12s %12s %6d %-19s %9.2f", r.preset.name.c_str(),
+                r.preset.uses_k() ? std::to_string(a.k).c_str() : "-",
+                fmt_score(g.initial_score_m2).c_str(), fmt_score(g.final_score_m2).c_str(),
+                g.iterations, to_string(g.termination).c_str(), g.wall_time_s * 1e3);
     if (r.error) {
       std::printf(" %8.3f %8.4f %6s", r.error->rotation_deg, r.error->translation_m,
                   r.right_basin ? "yes" : "NO");
     }
-    std::printf(" %6s\n", r.outcome.trustworthy ? "yes" : "NO");
+    std::printf(" %6s\n", r.summary.verdict.trustworthy ? "yes" : "NO");
   }
   std::printf("\nscores are PCL fitness scores (mean squared nearest-neighbour distance, m^2)\n");
   std::printf(
-      "trust: the verdict without ground truth (docs/accuracy.md): adaptive: covariance-gated "
-      "inliers and no distinct pose scoring nearly as well; the others: inliers within 5 cm, of "
-      "all source landmarks and of those within 20 cm, and the covariance on them\n");
-  for (const StrategyRun& r : runs) {
-    if (!r.outcome.trustworthy) {
-      std::printf("  %-13s not trusted: %s\n", to_string(r.strategy).c_str(),
-                  r.outcome.trust_reason.c_str());
-    } else if (r.outcome.source_left_out + r.outcome.target_left_out > 0) {
-      std::printf("  %-13s trusted: %s\n", to_string(r.strategy).c_str(),
-                  r.outcome.trust_reason.c_str());
+      "trust: the verdict without ground truth (docs/accuracy.md), by each strategy's trust "
+      "judge (lmalign options NAME)\n");
+  for (const Run& r : runs) {
+    if (!r.summary.verdict.trustworthy) {
+      std::printf("  %-17s not trusted: %s\n", r.preset.name.c_str(),
+                  r.summary.verdict.reason.c_str());
+    } else if (r.summary.source_left_out + r.summary.target_left_out > 0) {
+      std::printf("  %-17s trusted: %s\n", r.preset.name.c_str(), r.summary.verdict.reason.c_str());
     }
   }
   std::printf(
       "\nestimated T_target_source (p_target = T * p_source): x y z [m], roll pitch yaw [deg]\n");
-  for (const StrategyRun& r : runs) {
-    const auto v = xyz_rpy_deg_from_pose(r.result.T_target_source);
-    std::printf("  %-13s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", to_string(r.strategy).c_str(),
-                v[0], v[1], v[2], v[3], v[4], v[5]);
+  for (const Run& r : runs) {
+    const auto v = xyz_rpy_deg_from_pose(r.summary.registration.T_target_source);
+    std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", r.preset.name.c_str(), v[0],
+                v[1], v[2], v[3], v[4], v[5]);
   }
   if (T_true) {
     const auto v = xyz_rpy_deg_from_pose(*T_true);
-    std::printf("  %-13s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2],
+    std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2],
                 v[3], v[4], v[5]);
   }
 
   // --- machine-readable outputs
   if (!a.ply_path.empty()) {
-    for (const StrategyRun& r : runs) {
-      const std::string path = ply_path_for(a.ply_path, to_string(r.strategy), runs.size() > 1);
+    for (const Run& r : runs) {
+      const std::string path = ply_path_for(a.ply_path, r.preset.name, runs.size() > 1);
       // The writer by extension: .ply (with covariances), a folder (COLMAP text), else ours.
-      write_any_map(path, transform_map(source, r.result.T_target_source * T_displace));
-      std::printf("aligned source (%s) written to %s\n", to_string(r.strategy).c_str(),
-                  path.c_str());
+      write_any_map(path,
+                    transform_map(source, r.summary.registration.T_target_source * T_displace));
+      std::printf("aligned source (%s) written to %s\n", r.preset.name.c_str(), path.c_str());
     }
   }
   if (!a.json_path.empty()) {
@@ -348,8 +367,10 @@ int run_align(const AlignArgs& a) {
                            {"roll_deg", disp[3]}, {"pitch_deg", disp[4]}, {"yaw_deg", disp[5]}};
     }
     j["k"] = a.k;
-    j["max_iterations"] = a.max_iterations;
-    j["max_correspondence_distance_m"] = json_number(a.max_distance_m);
+    j["max_iterations"] = a.max_iterations_given ? nlohmann::json(a.max_iterations) : nullptr;
+    j["max_correspondence_distance_m"] =
+        a.max_distance_given ? json_number(a.max_distance_m) : nlohmann::json();
+    j["settings"] = a.settings;
     j["covariance_norm"] = a.covariance_norm;
     if (T_true) {
       j["ground_truth"] = a.ground_truth;
@@ -358,67 +379,14 @@ int run_align(const AlignArgs& a) {
       j["success_translation_m"] = a.success_translation_m;
     }
     nlohmann::json results = nlohmann::json::array();
-    for (const StrategyRun& r : runs) {
-      nlohmann::json e;
-      e["strategy"] = to_string(r.strategy);
-      e["k"] = uses_k(r.strategy) ? nlohmann::json(a.k) : nlohmann::json();
-      e["T_target_source"] = json_matrix(r.result.T_target_source);
-      e["converged"] = r.result.converged;
-      e["termination"] = to_string(r.result.termination);
-      e["iterations"] = r.result.iterations;
-      e["num_correspondences"] = r.result.num_correspondences;
-      e["initial_score_m2"] = json_number(r.result.initial_score_m2);
-      e["final_score_m2"] = json_number(r.result.final_score_m2);
-      e["wall_time_s"] = r.result.wall_time_s;
-      e["trustworthy"] = r.outcome.trustworthy;
-      e["trust_reason"] = r.outcome.trust_reason;
-      e["source_landmarks_left_out"] = r.outcome.source_left_out;
-      e["target_landmarks_left_out"] = r.outcome.target_left_out;
-      if (r.outcome.verdict) {
-        e["inlier_fraction"] = r.outcome.verdict->inlier_fraction;
-        e["overlap_fraction"] = r.outcome.verdict->overlap_fraction;
-      }
-      if (r.outcome.adaptive) {
-        const AdaptiveResult& ad = *r.outcome.adaptive;
-        e["initialisation"] = ad.initialisation;
-        e["gated_inliers"] = ad.num_inliers;
-        e["gated_score"] = ad.score;
-        e["gated_inlier_ratio"] = ad.inlier_ratio;
-        e["ambiguity"] = ad.ambiguity;
-        e["mean_nis"] = ad.mean_nis;
-        e["expected_nis"] = ad.expected_nis;
-        e["covariance_floor_m"] = ad.floor_m;
-        e["vote_cell_m"] = ad.vote_cell_m;
-        e["hypotheses"] = ad.hypotheses.size();
-      }
-      e["translation_sd_m"] = json_number(r.outcome.covariance.translation_sd_m());
-      e["rotation_sd_deg"] = json_number(r.outcome.covariance.rotation_sd_deg());
-      {
-        // Row-major 6x6, xi = (rho [m], phi [rad]) on the left in the target frame; null if the
-        // inliers do not determine the transform.
-        nlohmann::json c = nlohmann::json::array();
-        const PoseCovariance& cov = r.outcome.covariance;
-        if (cov.valid) {
-          for (int i = 0; i < 6; ++i) {
-            for (int k = 0; k < 6; ++k) c.push_back(cov.covariance(i, k));
-          }
-        }
-        e["covariance_6x6"] = cov.valid ? c : nlohmann::json();
-      }
+    for (const Run& r : runs) {
+      // The one serialisation of a result (to_json(Summary)), plus what only the CLI knows.
+      nlohmann::json e = nlohmann::json::parse(to_json(r.summary));
+      e["k"] = r.preset.uses_k() ? nlohmann::json(a.k) : nlohmann::json();
       if (r.error) {
         e["rotation_error_deg"] = r.error->rotation_deg;
         e["translation_error_m"] = r.error->translation_m;
         e["right_basin"] = r.right_basin;
-      }
-      if (a.history) {
-        nlohmann::json h = nlohmann::json::array();
-        for (const IterationRecord& it : r.result.history) {
-          h.push_back({{"iteration", it.iteration},
-                       {"num_correspondences", it.num_correspondences},
-                       {"mse_m2", json_number(it.mse_m2)},
-                       {"score_m2", json_number(it.score_m2)}});
-        }
-        e["history"] = h;
       }
       results.push_back(e);
     }
@@ -441,50 +409,52 @@ int run_align(const AlignArgs& a) {
   return 0;
 }
 
+std::string strategy_help() {
+  std::string s;
+  for (const Preset& p : presets()) {
+    s += "\n  " + p.name + (p.recommended ? " (the default)" : "") + ": " + p.doc;
+  }
+  return s;
+}
+
 }  // namespace
 
 CommandRunner add_align_command(CLI::App& root) {
   auto args = std::make_shared<AlignArgs>();
   CLI::App* cmd = root.add_subcommand(
       "align",
-      "Align SOURCE onto TARGET (map files, docs/map-format.md) with ICP and the paper's\n"
-      "confidence-weighted correspondences, or lmalign's own strategies (by default the\n"
-      "recommended one, adaptive: no initial guess needed). Prints one row per strategy.\n"
+      "Align SOURCE onto TARGET (map files, docs/map-format.md) with one or more strategies\n"
+      "(by default the recommended one: no initial guess needed). Prints one row per strategy.\n"
       "Result: T_target_source, with p_target = T_target_source * p_source (metres).");
   cmd->add_option("SOURCE", args->source, "source map file (moved onto the target)")->required();
   cmd->add_option("TARGET", args->target, "target map file (fixed)")->required();
+  std::string paper;
+  for (const std::string& n : preset_names("paper")) paper += n + ", ";
   cmd->add_option("--weight", args->weight,
-                  "one of the paper's strategies: none (base ICP, nearest neighbour), covariance, "
-                  "observations, distance (mean observation distance), or all four")
-      ->check(CLI::IsMember({"none", "base", "covariance", "observations", "distance", "all"}));
-  cmd->add_option(
-      "--strategy", args->strategy,
-      "comma-separated strategies by name: the paper's (base, covariance, "
-      "observations, distance) and lmalign's own (shrink, shrink_cauchy, trimmed, "
-      "mutual, robust_obs, robust_obs_knn, robust_obs_4dof, global, global_robust_obs, p2d, "
-      "robust_p2d, adaptive); 'paper', "
-      "'beyond' and "
-      "'all' name groups. Default (neither --weight nor --strategy): adaptive, the "
-      "recommended strategy (docs/accuracy.md): scales from the data, a global yaw search "
-      "(or one bounded by --prior-sigma), covariance-gated point-to-distribution ICP. "
-      "lmalign's robust presets run their preset "
-      "(a distance schedule inf, 1, 0.5, 0.25, 0.1, 0.05 m; 300 iterations) unless "
-      "--max-iterations or --max-distance is given: then the budget is replaced and the "
-      "schedule capped at that distance (adaptive: --max-iterations caps each refinement; "
-      "--max-distance does not apply)");
-  cmd->add_option("--k", args->k, "neighbourhood size of the weighted strategies, [1, 4096]")
+                  "one of the paper's strategies (" + paper + "or all four); also by the names " +
+                      "none (base) and mean_distance (distance)");
+  cmd->add_option("--strategy", args->strategy,
+                  "comma-separated strategies: names, preset files NAME.yaml, or the groups "
+                  "'paper', 'lmalign' and 'all'. Each is a preset of the registration engine "
+                  "(lmalign options NAME prints its stages and settings):" +
+                      strategy_help());
+  cmd->add_option("--k", args->k, "neighbourhood size of the weighted kNN strategies, [1, 4096]")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
   CLI::Option* max_iterations =
       cmd->add_option("--max-iterations", args->max_iterations,
-                      "ICP iteration budget, >= 1 (paper's strategies: 150 by default)")
-          ->check(CLI::PositiveNumber)
-          ->capture_default_str();
+                      "iteration budget, >= 1: replaces each strategy's own (the paper's: 150; "
+                      "the adaptive default's: per refinement)")
+          ->check(CLI::PositiveNumber);
   CLI::Option* max_distance =
       cmd->add_option("--max-distance", args->max_distance_m,
-                      "maximum correspondence distance, metres (paper's strategies: infinite by "
-                      "default, as the paper; lmalign's: caps the distance schedule)")
+                      "maximum correspondence distance, metres: the paper's strategies' (unlimited "
+                      "by default, as the paper), a cap on the shrinking schedules'; the "
+                      "covariance-gated default has none")
           ->check(CLI::PositiveNumber);
+  cmd->add_option("--set", args->settings,
+                  "KEY=VALUE: a setting of the strategies (repeatable; lmalign options NAME lists "
+                  "them with their bounds); it wins over --k and the limits");
   cmd->add_option("--covariance-norm", args->covariance_norm,
                   "matrix norm of the covariance weight: spectral (the paper's L2) or frobenius")
       ->check(CLI::IsMember({"spectral", "frobenius"}))
@@ -518,11 +488,11 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--initial-guess", args->initial_guess,
                   "a first estimate of T_target_source (of the displaced source, if --displace): "
                   "a 4x4 matrix file (p_target = T * p_source, metres). Every strategy starts "
-                  "from it; adaptive adds it to its hypotheses, or bounds its search around it "
-                  "with --prior-sigma");
+                  "from it; a searching one adds it to its hypotheses, or bounds its search "
+                  "around it with --prior-sigma");
   cmd->add_option("--prior-sigma", args->prior_sigma,
                   "ROT_DEG,TRANS_M: standard deviations of --initial-guess (identity if none), "
-                  "degrees and metres, each > 0: the adaptive search stays within 3 sigma of it");
+                  "degrees and metres, each > 0: a searching strategy stays within 3 sigma of it");
   cmd->add_flag("--history", args->history,
                 "record per-iteration correspondences, MSE and score (into --json)");
   return [args, max_iterations, max_distance]() {

@@ -158,7 +158,7 @@ std::string rate_cell(const StrategySummary& s) {
 }
 
 void print_summary(const ReportSummary& summary) {
-  std::vector<PaperStrategy> strategies;
+  std::vector<std::string> strategies;
   for (const StrategySummary& s : summary.overall) strategies.push_back(s.strategy);
   std::size_t name_width = 10;
   for (const ExperimentSummary& e : summary.experiments)
@@ -167,11 +167,11 @@ void print_summary(const ReportSummary& summary) {
                                                     ? "right basin against the ground truth"
                                                     : "score below the threshold");
   std::printf("  %-*s", static_cast<int>(name_width), "experiment");
-  for (PaperStrategy s : strategies) std::printf(" %13s", to_string(s).c_str());
+  for (const std::string& s : strategies) std::printf(" %13s", s.c_str());
   std::printf("\n");
   auto row = [&](const std::string& name, const std::vector<StrategySummary>& v, auto cell) {
     std::printf("  %-*s", static_cast<int>(name_width), name.c_str());
-    for (PaperStrategy s : strategies) {
+    for (const std::string& s : strategies) {
       std::string text = "-";
       for (const StrategySummary& x : v) {
         if (x.strategy == s) text = cell(x);

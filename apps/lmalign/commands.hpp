@@ -13,6 +13,7 @@ namespace lmalign::cli {
 using CommandRunner = std::function<int()>;
 
 CommandRunner add_align_command(CLI::App& root);
+CommandRunner add_options_command(CLI::App& root);
 CommandRunner add_split_command(CLI::App& root);
 CommandRunner add_experiment_command(CLI::App& root);
 CommandRunner add_eval_trajectory_command(CLI::App& root);

@@ -60,6 +60,7 @@ int main(int argc, char** argv) {
   return lmalign::cli::run_cli(argc, argv,
                                {
                                    &lmalign::cli::add_align_command,
+                                   &lmalign::cli::add_options_command,
                                    &lmalign::cli::add_split_command,
                                    &lmalign::cli::add_experiment_command,
                                    &lmalign::cli::add_eval_trajectory_command,

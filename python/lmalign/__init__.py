@@ -23,6 +23,7 @@ from ._lmalign import (  # noqa: F401  (re-exported)
     Map,
     ParseError,
     evaluate_trajectory,
+    options,
     pose_from_xyz_rpy_deg,
     read_map,
     read_tum_trajectory,
@@ -75,7 +76,8 @@ if HAVE_MERGE:
 
 __all__ = [
     "AlignmentResult", "Error", "InvalidArgument", "IoError", "Map", "ParseError",
-    "RECOMMENDED_STRATEGY", "align", "evaluate_trajectory", "experiment", "pose_from_xyz_rpy_deg",
+    "RECOMMENDED_STRATEGY", "align", "evaluate_trajectory", "experiment", "options",
+    "pose_from_xyz_rpy_deg",
     "read_map", "read_tum_trajectory", "split", "strategies", "transform_covariances",
     "transform_points", "write_map", "HAVE_MERGE", "MERGE_NAMES",
 ] + (list(MERGE_NAMES) if HAVE_MERGE else [])
@@ -85,47 +87,47 @@ _ALIGN_OPTIONS = ("k", "max_iterations", "max_distance_m", "covariance_norm")
 
 def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, threads=0, *,
           prior_sigma=None, source_covariances=None, target_covariances=None,
-          target_weights=None, **options):
+          target_weights=None, settings=None, **options):
     """Align `source` onto `target`; returns an AlignmentResult.
 
-    Equals `lmalign align SOURCE TARGET --strategy STRATEGY` bit for bit (same options, same
-    trust verdict). The GIL is released while it runs.
+    Equals `lmalign align SOURCE TARGET --strategy STRATEGY [--set KEY=VALUE ...]` bit for bit
+    (same options, same trust verdict). The GIL is released while it runs.
 
     source, target: a Map, or an (N, 3) array of landmark positions (metres; source frame and
-        target frame). With an array source, source_covariances (N, 3, 3) m^2 (needed by
-        'p2d' / 'robust_p2d'); with an array target, target_covariances (M, 3, 3) m^2 and
-        target_weights (M,) >= 0, the landmark confidence used by every weighted strategy (a
-        Map target computes its own weights and covariances). Bare arrays carry no confidence:
-        the weighted strategies (the paper's three weighted ones, and 'robust_obs') then raise
-        InvalidArgument unless target_weights is given; 'adaptive' (the default), 'base',
-        'shrink', 'shrink_cauchy', 'trimmed' and 'mutual' need none. 'adaptive' uses the
+        target frame). With an array source, source_covariances (N, 3, 3) m^2; with an array
+        target, target_covariances (M, 3, 3) m^2 and target_weights (M,) >= 0, the landmark
+        confidence every weighted stage uses (a Map target computes its own weights and
+        covariances). Bare arrays carry no confidence: a strategy whose stages weigh by one
+        raises InvalidArgument unless target_weights is given. The recommended strategy uses the
         covariances when given, and a Map's frames for its up axis (else +z).
-    strategy: one of lmalign.strategies(): the paper's 'base', 'covariance', 'observations',
-        'distance', or lmalign's own ('adaptive', the recommended default, 'robust_obs',
-        'shrink', 'p2d', ...; docs/accuracy.md).
-    initial_guess: (4, 4) rigid T_target_source to start from (default identity). Ignored by
-        'global'; for 'adaptive', one more hypothesis of its search, or with prior_sigma the
-        centre of the bounded search.
+    strategy: one of lmalign.strategies() (the presets, configs/presets/), or a preset file
+        NAME.yaml; lmalign.options(strategy) lists its settings.
+    initial_guess: (4, 4) rigid T_target_source to start from (default identity). For a
+        searching strategy, one more hypothesis of its search, or with prior_sigma the centre of
+        the bounded search.
     prior_sigma: (rot_deg, trans_m), each > 0: the standard deviations of initial_guess;
-        'adaptive' only (the CLI's --prior-sigma).
+        searching strategies only (the CLI's --prior-sigma).
     threads: OpenMP threads for this call (0: every core). The result does not depend on it.
-    options (as the CLI's): k (neighbourhood of the weighted strategies, default 5),
-        max_iterations (paper's strategies: 150; lmalign's: replaces the preset budget),
-        max_distance_m (paper's: unlimited; lmalign's: caps the distance schedule),
-        covariance_norm ('spectral' or 'frobenius', for a Map target's covariance weight).
+    settings: {key: value} of the strategy's settings (the CLI's --set; bool, int, float, a name
+        or a list of floats, or text as the CLI reads it). An unknown key raises InvalidArgument
+        naming the nearest known one; a value outside its bound names the key, value and bound.
+    options (as the CLI's): k (neighbourhood of the weighted kNN strategies, default 5),
+        max_iterations (replaces each strategy's budget), max_distance_m (the paper's maximum
+        distance, a cap on the shrinking schedules), covariance_norm ('spectral' or 'frobenius',
+        for a Map target's covariance weight).
 
     Result: T_target_source (4, 4), converged, termination, iterations, num_correspondences,
     initial_score_m2, final_score_m2, wall_time_s, started_s, finished_s (time.monotonic()
-    clock), trustworthy, trust_reason, inlier_fraction and overlap_fraction (None for
-    'adaptive'), gated_inlier_ratio and ambiguity ('adaptive' only, else None),
+    clock), usable, trustworthy, trust_reason, inlier_fraction and overlap_fraction (judge
+    'inliers', else None), gated_inlier_ratio, ambiguity and mean_nis (judge 'gated', else None),
     translation_sd_m, rotation_sd_deg, covariance (6, 6) or None, source_landmarks_left_out and
-    target_landmarks_left_out.
+    target_landmarks_left_out; brief_report(), full_report(), to_json() (the CLI's JSON entry).
     Supported range (docs/robustness.md): landmarks with a coordinate beyond 1e15 m are left out
     of the alignment, counted in *_landmarks_left_out and named at the end of trust_reason; an
     initial_guess translation or a prior_sigma beyond it raises InvalidArgument.
-    Raises InvalidArgument (unknown strategy or option, empty or non-finite input, a weight or
-    covariance the strategy needs is missing, a value beyond the supported range), ValueError
-    (wrong shape or dtype).
+    Raises InvalidArgument (unknown strategy, setting or option, empty or non-finite input, a
+    weight or covariance the strategy needs is missing, a value beyond the supported range),
+    ValueError (wrong shape or dtype).
     """
     unknown = sorted(set(options) - set(_ALIGN_OPTIONS))
     if unknown:
@@ -137,15 +139,15 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
             source_covariances,
             target_covariances, target_weights, int(options.get("k", 5)),
             options.get("max_iterations"), options.get("max_distance_m"),
-            options.get("covariance_norm", "spectral"))
+            options.get("covariance_norm", "spectral"), settings)
     except InvalidArgument as e:
         if "built from bare points" not in str(e):
             raise
         raise InvalidArgument(
             "%s: strategy '%s' needs landmark confidences (or covariances) of the target: pass "
             "target_weights (M,) (e.g. observation counts) or target_covariances (M, 3, 3), a Map "
-            "target, or a strategy without them ('base', 'shrink', 'shrink_cauchy', 'trimmed', "
-            "'mutual')" % (e, strategy)) from None
+            "target, or a strategy that weighs by none (lmalign.options(NAME) shows its "
+            "match.confidence and kernel.confidence)" % (e, strategy)) from None
 
 
 def _data_dir():

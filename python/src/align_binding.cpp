@@ -4,10 +4,7 @@
 
 #include <chrono>
 
-#include <limits>
 #include "lmalign/core/error.hpp"
-
-#include "lmalign/registration/robust.hpp"
 
 namespace lmalign::python {
 
@@ -35,8 +32,33 @@ class ThreadCount {
 AlignOutcome run_alignment(const Points3& source_points,
                            const std::vector<Mat3>& source_covariances_m2,
                            const PreparedTarget& target, const AlignRequest& request) {
-  const PaperStrategy s = parse_paper_strategy(request.strategy);
+  const Preset preset =
+      request.strategy.empty() ? recommended_preset() : find_preset(request.strategy);
   if (request.threads < 0) throw InvalidArgument("threads: must be >= 0 (0 = OpenMP's default)");
+  // As apps/lmalign/cmd_align.cpp: text values are read by the setting's own row; the rest is
+  // checked by the pipeline (key, value, bound).
+  lmalign::AlignRequest r;
+  r.k = request.k;
+  r.max_iterations = request.max_iterations;
+  r.max_distance_m = request.max_distance_m;
+  r.initial_guess = request.initial_guess;
+  r.prior = request.prior;
+  const Pipeline base(preset.spec);
+  for (const auto& [key, value] : request.settings) {
+    try {
+      const SettingRow& row = base.settings().row(key);
+      const std::string* text = std::get_if<std::string>(&value);
+      r.settings.emplace_back(
+          key, text != nullptr && row.type != SettingType::kChoice ? row.parse(*text) : value);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(std::string("settings: ") + e.what() + " (strategy '" + preset.name +
+                            "')");
+    }
+  }
+  if (request.prior && !base.initialiser().uses_prior()) {
+    throw InvalidArgument("prior_sigma: the strategy '" + preset.name + "' uses no prior (its " +
+                          "initialiser '" + preset.spec.initialiser + "' does not search)");
+  }
   const ThreadCount threads(request.threads);
   const auto now_s = [] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
@@ -44,26 +66,12 @@ AlignOutcome run_alignment(const Points3& source_points,
   };
   AlignOutcome out;
   out.started_s = now_s();
-  out.strategy = to_string(s);
-  // As apps/lmalign/cmd_align.cpp, run_align(): the paper's strategies always get the budget
-  // and distance (150 iterations and unlimited by default); lmalign's own only those given.
-  StrategyRequest req;
-  req.strategy = s;
-  req.k = request.k;
-  req.initial_guess = request.initial_guess;
-  req.prior = request.prior;
-  if (is_paper_strategy(s)) {
-    req.max_iterations = request.max_iterations.value_or(150);
-    req.max_distance_m = request.max_distance_m.value_or(std::numeric_limits<double>::infinity());
-  } else {
-    req.max_iterations = request.max_iterations;
-    if (s != PaperStrategy::kAdaptive) req.max_distance_m = request.max_distance_m;
-  }
-  StrategySource src;
-  src.positions = source_points;
-  src.covariances_m2 = source_covariances_m2;
-  src.up = request.source_up;
-  out.outcome = run_strategy(src, target, req);
+  out.strategy = preset.name;
+  SourceView view;
+  view.positions = &source_points;
+  view.covariances_m2 = &source_covariances_m2;
+  view.up = request.source_up;
+  out.summary = align(preset, view, target, r);
   out.finished_s = now_s();
   return out;
 }

@@ -93,11 +93,12 @@ EdgeOptions edge_options(std::optional<int> max_iterations) {
 py::tuple edge_state(const Edge& e) {
   return py::make_tuple(e.source, e.target, matrix_out<4, 4>(e.T_target_source.matrix()),
                         matrix_out<6, 6>(e.covariance), e.covariance_valid, e.trusted,
-                        e.trust_reason, e.num_inliers, e.inlier_ratio, e.initialisation, e.key);
+                        e.trust_reason, e.num_inliers, e.inlier_ratio, e.initialisation, e.key,
+                        e.summary_json);
 }
 
 Edge edge_from_state(const py::tuple& t) {
-  if (t.size() != 11) throw InvalidArgument("Edge: pickled state of a different version");
+  if (t.size() != 12) throw InvalidArgument("Edge: pickled state of a different version");
   Edge e;
   e.source = t[0].cast<std::size_t>();
   e.target = t[1].cast<std::size_t>();
@@ -110,6 +111,7 @@ Edge edge_from_state(const py::tuple& t) {
   e.inlier_ratio = t[8].cast<double>();
   e.initialisation = t[9].cast<std::string>();
   e.key = t[10].cast<std::string>();
+  e.summary_json = t[11].cast<std::string>();
   return e;
 }
 
@@ -328,11 +330,15 @@ void bind_merge(py::module_& m) {
           "covariance", [](const Edge& e) { return matrix_out<6, 6>(e.covariance); },
           "(6, 6) float64: xi = (rho m, phi rad), left perturbation in the target frame.")
       .def_readonly("covariance_valid", &Edge::covariance_valid)
-      .def_readonly("trusted", &Edge::trusted, "The adaptive trust verdict.")
+      .def_readonly("trusted", &Edge::trusted, "The strategy's trust verdict.")
       .def_readonly("trust_reason", &Edge::trust_reason, "'ok', or why not trusted.")
       .def_readonly("num_inliers", &Edge::num_inliers)
       .def_readonly("inlier_ratio", &Edge::inlier_ratio)
-      .def_readonly("initialisation", &Edge::initialisation, "'global', 'prior' or 'given'.")
+      .def_readonly("initialisation", &Edge::initialisation,
+                    "The initialiser's: 'global', 'prior', 'given', ...")
+      .def_readonly("summary_json", &Edge::summary_json,
+                    "The alignment's summary as JSON text (lmalign.AlignmentResult.to_json()'s "
+                    "serialisation); '' for an edge read from a file written without it.")
       .def_readonly("key", &Edge::key, "edge_key() of its inputs ('' if not set).")
       .def(
           "with_key",
@@ -372,7 +378,8 @@ void bind_merge(py::module_& m) {
       },
       py::arg("source"), py::arg("target"), py::arg("pair"), py::arg("max_iterations") = py::none(),
       "Aligns the map `source` (pair.source) onto `target` (pair.target) with the recommended "
-      "strategy ('adaptive'), the pair's initial guess and prior sigma bounding its search; "
+      "strategy (lmalign.RECOMMENDED_STRATEGY), the pair's initial guess and prior sigma bounding "
+      "its search; "
       "returns an Edge (key ''). Pure and deterministic (any thread count, any machine with the "
       "same build). The GIL is released. Raises InvalidArgument.");
   m.def(

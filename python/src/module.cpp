@@ -30,6 +30,7 @@
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 
@@ -268,33 +269,38 @@ PYBIND11_MODULE(_lmalign, m) {
       .def_property_readonly(
           "T_target_source",
           [](const python::AlignOutcome& o) {
-            return matrix_out<4, 4>(o.outcome.result.T_target_source.matrix());
+            return matrix_out<4, 4>(o.summary.registration.T_target_source.matrix());
           },
           "(4, 4) float64: the estimate, p_target = T_target_source @ p_source (metres).")
       .def_property_readonly("strategy", [](const python::AlignOutcome& o) { return o.strategy; })
       .def_property_readonly(
-          "converged", [](const python::AlignOutcome& o) { return o.outcome.result.converged; },
+          "converged",
+          [](const python::AlignOutcome& o) { return o.summary.registration.converged; },
           "True when a convergence criterion stopped the run (not the budget).")
       .def_property_readonly(
           "termination",
-          [](const python::AlignOutcome& o) { return to_string(o.outcome.result.termination); },
+          [](const python::AlignOutcome& o) {
+            return to_string(o.summary.registration.termination);
+          },
           "Why the run stopped: 'transform', 'max_iterations', 'no_correspondences', ...")
       .def_property_readonly(
-          "iterations", [](const python::AlignOutcome& o) { return o.outcome.result.iterations; })
+          "iterations",
+          [](const python::AlignOutcome& o) { return o.summary.registration.iterations; })
       .def_property_readonly(
           "num_correspondences",
-          [](const python::AlignOutcome& o) { return o.outcome.result.num_correspondences; })
+          [](const python::AlignOutcome& o) { return o.summary.registration.num_correspondences; })
       .def_property_readonly(
           "initial_score_m2",
-          [](const python::AlignOutcome& o) { return o.outcome.result.initial_score_m2; },
+          [](const python::AlignOutcome& o) { return o.summary.registration.initial_score_m2; },
           "PCL fitness score at the initial guess: mean squared nearest-neighbour distance, m^2.")
       .def_property_readonly(
           "final_score_m2",
-          [](const python::AlignOutcome& o) { return o.outcome.result.final_score_m2; },
+          [](const python::AlignOutcome& o) { return o.summary.registration.final_score_m2; },
           "PCL fitness score at the estimate, m^2.")
       .def_property_readonly(
-          "wall_time_s", [](const python::AlignOutcome& o) { return o.outcome.result.wall_time_s; },
-          "Wall time of the alignment (not of target preparation), seconds.")
+          "wall_time_s",
+          [](const python::AlignOutcome& o) { return o.summary.registration.wall_time_s; },
+          "Wall time of the alignment (not of target preparation nor of the verdict), seconds.")
       .def_property_readonly(
           "started_s", [](const python::AlignOutcome& o) { return o.started_s; },
           "When the alignment began (after the target preparation), seconds on the clock of "
@@ -304,80 +310,95 @@ PYBIND11_MODULE(_lmalign, m) {
           "When the alignment and its trust verdict ended, seconds on the clock of "
           "time.monotonic().")
       .def_property_readonly(
-          "trustworthy", [](const python::AlignOutcome& o) { return o.outcome.trustworthy; },
-          "The verdict without ground truth (docs/accuracy.md).")
+          "trustworthy",
+          [](const python::AlignOutcome& o) { return o.summary.verdict.trustworthy; },
+          "The verdict of the strategy's trust judge, without ground truth (docs/accuracy.md).")
       .def_property_readonly(
-          "trust_reason", [](const python::AlignOutcome& o) { return o.outcome.trust_reason; },
+          "trust_reason", [](const python::AlignOutcome& o) { return o.summary.verdict.reason; },
           "'ok', or why the estimate is not trusted; either followed by '; N source landmarks "
           "... left out' when landmarks beyond the supported range were left out.")
       .def_property_readonly(
           "source_landmarks_left_out",
-          [](const python::AlignOutcome& o) { return o.outcome.source_left_out; },
+          [](const python::AlignOutcome& o) { return o.summary.source_left_out; },
           "Source landmarks left out of the alignment for a coordinate beyond the supported range "
           "(|x| > 1e15 m; docs/robustness.md).")
       .def_property_readonly(
           "target_landmarks_left_out",
-          [](const python::AlignOutcome& o) { return o.outcome.target_left_out; },
+          [](const python::AlignOutcome& o) { return o.summary.target_left_out; },
           "Target landmarks left out likewise.")
+      .def_property_readonly(
+          "usable", [](const python::AlignOutcome& o) { return o.summary.IsSolutionUsable(); },
+          "True when the estimate is finite and determined (Summary::IsSolutionUsable; says "
+          "nothing of trust).")
       .def_property_readonly(
           "inlier_fraction",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.verdict) return py::none();
-            return py::float_(o.outcome.verdict->inlier_fraction);
+            if (std::isnan(o.summary.verdict.inlier_fraction)) return py::none();
+            return py::float_(o.summary.verdict.inlier_fraction);
           },
-          "Strategies other than 'adaptive': source landmarks within 5 cm of a target landmark, of "
-          "all (judge_alignment); None for 'adaptive' (see gated_inlier_ratio).")
+          "Judge 'inliers' (the paper's and the robust presets): source landmarks within 5 cm of "
+          "a target landmark, of all; else None (see gated_inlier_ratio).")
       .def_property_readonly(
           "overlap_fraction",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.verdict) return py::none();
-            return py::float_(o.outcome.verdict->overlap_fraction);
+            if (std::isnan(o.summary.verdict.overlap_fraction)) return py::none();
+            return py::float_(o.summary.verdict.overlap_fraction);
           },
-          "Strategies other than 'adaptive': source landmarks within 20 cm, of all; else None.")
+          "Judge 'inliers': source landmarks within 20 cm, of all; else None.")
       .def_property_readonly(
           "gated_inlier_ratio",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.adaptive) return py::none();
-            return py::float_(o.outcome.adaptive->inlier_ratio);
+            if (!(o.summary.verdict.expected_nis > 0.0)) return py::none();
+            return py::float_(o.summary.verdict.inlier_ratio);
           },
-          "'adaptive' only (else None): covariance-gated inliers over the landmarks near a "
-          "target landmark (registration/adaptive.hpp).")
+          "Judge 'gated' (the adaptive default) only, else None: covariance-gated inliers over the "
+          "landmarks near a target landmark.")
       .def_property_readonly(
           "ambiguity",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.adaptive) return py::none();
-            return py::float_(o.outcome.adaptive->ambiguity);
+            if (!(o.summary.verdict.expected_nis > 0.0)) return py::none();
+            return py::float_(o.summary.verdict.ambiguity);
           },
-          "'adaptive' only (else None): the best distinct pose's score over the best's.")
+          "Judge 'gated' only (else None): the best distinct pose's score over the best's.")
       .def_property_readonly(
           "mean_nis",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.adaptive) return py::none();
-            return py::float_(o.outcome.adaptive->mean_nis);
+            if (!(o.summary.verdict.expected_nis > 0.0)) return py::none();
+            return py::float_(o.summary.verdict.mean_nis);
           },
-          "'adaptive' only (else None): mean Mahalanobis d^2 of the gated inliers at the "
+          "Judge 'gated' only (else None): mean Mahalanobis d^2 of the gated inliers at the "
           "estimate (dimensionless; 2.89 expected when the landmark covariances hold).")
       .def_property_readonly(
           "translation_sd_m",
-          [](const python::AlignOutcome& o) { return o.outcome.covariance.translation_sd_m(); },
+          [](const python::AlignOutcome& o) { return o.summary.covariance.translation_sd_m(); },
           "Standard deviation of the translation along its worst axis, metres.")
       .def_property_readonly(
           "rotation_sd_deg",
-          [](const python::AlignOutcome& o) { return o.outcome.covariance.rotation_sd_deg(); },
+          [](const python::AlignOutcome& o) { return o.summary.covariance.rotation_sd_deg(); },
           "Standard deviation of the rotation about its worst axis, degrees.")
       .def_property_readonly(
           "covariance",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.covariance.valid) return py::none();
-            return matrix_out<6, 6>(o.outcome.covariance.covariance);
+            if (!o.summary.covariance.valid) return py::none();
+            return matrix_out<6, 6>(o.summary.covariance.covariance);
           },
           "(6, 6) float64 or None: covariance of xi = (tx, ty, tz [m], rx, ry, rz [rad]), a left "
-          "perturbation in the target frame (the CLI's covariance_6x6): 'adaptive''s "
-          "point-to-distribution covariance, else the point-to-point one on the inliers of the "
-          "estimate; None when it is not determined.")
+          "perturbation in the target frame (the CLI's covariance_6x6), as the strategy reports "
+          "it; None when it is not determined.")
+      .def(
+          "brief_report", [](const python::AlignOutcome& o) { return o.summary.BriefReport(); },
+          "One line: the strategy, termination, iterations, scores, time, the verdict.")
+      .def(
+          "full_report", [](const python::AlignOutcome& o) { return o.summary.FullReport(); },
+          "Every stage's report, one per line (Summary::FullReport).")
+      .def(
+          "to_json",
+          [](const python::AlignOutcome& o, int indent) { return to_json(o.summary, indent); },
+          py::arg("indent") = -1,
+          "The result as JSON text: the entry `lmalign align --json` writes for it (without the "
+          "ground-truth errors only the CLI computes).")
       .def("__repr__", [](const python::AlignOutcome& o) {
-        return "<lmalign.AlignmentResult " + o.strategy + ": " + o.outcome.result.brief_report() +
-               ", trustworthy=" + (o.outcome.trustworthy ? "True" : "False") + ">";
+        return "<lmalign.AlignmentResult " + o.summary.BriefReport() + ">";
       });
 
   m.def(
@@ -386,13 +407,39 @@ PYBIND11_MODULE(_lmalign, m) {
          const py::handle& initial_guess, const py::handle& prior_sigma, int threads,
          const py::handle& source_covariances, const py::handle& target_covariances,
          const py::handle& target_weights, int k, std::optional<int> max_iterations,
-         std::optional<double> max_distance_m, const std::string& covariance_norm) {
+         std::optional<double> max_distance_m, const std::string& covariance_norm,
+         const py::handle& settings) {
         python::AlignRequest req;
         req.strategy = strategy;
         req.k = k;
         req.max_iterations = max_iterations;
         req.max_distance_m = max_distance_m;
         req.threads = threads;
+        if (!settings.is_none()) {
+          if (!py::isinstance<py::dict>(settings)) {
+            throw InvalidArgument("settings: expected a dict {key: value}");
+          }
+          for (const auto& kv : settings.cast<py::dict>()) {
+            const std::string key = py::str(kv.first);
+            const py::handle v = kv.second;
+            SettingValue value;
+            if (py::isinstance<py::bool_>(v)) {
+              value = v.cast<bool>();
+            } else if (py::isinstance<py::int_>(v)) {
+              value = v.cast<long long>();
+            } else if (py::isinstance<py::float_>(v)) {
+              value = v.cast<double>();
+            } else if (py::isinstance<py::str>(v)) {
+              value = v.cast<std::string>();
+            } else if (py::isinstance<py::sequence>(v)) {
+              value = vector_from(v, ("settings['" + key + "']").c_str(), -1);
+            } else {
+              throw InvalidArgument("settings['" + key +
+                                    "']: expected a bool, a number, a name or a list of numbers");
+            }
+            req.settings.emplace_back(key, value);
+          }
+        }
         if (!initial_guess.is_none())
           req.initial_guess = transform_from(initial_guess, "initial_guess");
         if (!prior_sigma.is_none()) {
@@ -452,18 +499,34 @@ PYBIND11_MODULE(_lmalign, m) {
       py::arg("source"), py::arg("target"), py::arg("strategy"), py::arg("initial_guess"),
       py::arg("prior_sigma"), py::arg("threads"), py::arg("source_covariances"),
       py::arg("target_covariances"), py::arg("target_weights"), py::arg("k"),
-      py::arg("max_iterations"), py::arg("max_distance_m"), py::arg("covariance_norm"));
+      py::arg("max_iterations"), py::arg("max_distance_m"), py::arg("covariance_norm"),
+      py::arg("settings"));
 
   m.def(
-      "strategies",
-      []() {
-        std::vector<std::string> names;
-        for (PaperStrategy s : all_paper_strategies()) names.push_back(to_string(s));
-        for (PaperStrategy s : beyond_paper_strategies()) names.push_back(to_string(s));
-        return names;
+      "strategies", []() { return preset_names(); },
+      "Every strategy name align() accepts (the presets, configs/presets/): the paper's four, "
+      "then lmalign's own.");
+  m.def(
+      "options",
+      [](const std::string& strategy) {
+        const Preset preset = find_preset(strategy);
+        const Pipeline pipeline(preset.spec);
+        py::list rows;
+        for (const SettingRow& row : pipeline.settings().table()) {
+          py::dict d;
+          d["key"] = row.key;
+          d["value"] = row.text(pipeline.settings().value(row.key));
+          d["unit"] = row.unit;
+          d["bound"] = row.bound.text(row.type);
+          d["doc"] = row.doc;
+          rows.append(d);
+        }
+        return rows;
       },
-      "Every strategy name align() accepts: the paper's four, then lmalign's own.");
-  m.attr("RECOMMENDED_STRATEGY") = to_string(kRecommendedStrategy);
+      py::arg("strategy"),
+      "The strategy's settings, one dict per setting: key, value (as text), unit, bound, doc "
+      "(`lmalign options NAME`). Any of them can be given to align(..., settings={key: value}).");
+  m.attr("RECOMMENDED_STRATEGY") = recommended_preset().name;
 
   // ------------------------------------------------------------ split
   m.def(

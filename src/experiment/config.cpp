@@ -260,28 +260,69 @@ class Parser {
     }
   }
 
-  std::vector<PaperStrategy> strategies(const YAML::Node& n, const std::string& where) const {
-    const std::string expected = "a list of strategies (base, covariance, observations, distance)";
+  std::vector<std::string> strategies(const YAML::Node& n, const std::string& where) const {
+    const std::string expected = "a list of strategies (" + join(preset_names()) + ")";
     if (!n.IsSequence() || n.size() == 0) fail(n, where, "expected " + expected);
-    std::vector<PaperStrategy> out;
+    std::vector<std::string> out;
     std::size_t i = 0;
     for (auto it = n.begin(); it != n.end(); ++it, ++i) {
       const std::string w = where + "[" + std::to_string(i) + "]";
       const std::string name = scalar(*it, w, expected);
-      PaperStrategy s;
-      try {
-        s = parse_paper_strategy(name);
-      } catch (const InvalidArgument&) {
-        std::string names;
-        std::vector<PaperStrategy> every = all_paper_strategies();
-        for (PaperStrategy b : beyond_paper_strategies()) every.push_back(b);
-        for (PaperStrategy b : every) names += (names.empty() ? "" : ", ") + to_string(b);
-        fail(*it, w, "unknown strategy '" + name + "' (expected one of " + names + ")");
+      if (!is_preset_name(name)) {
+        std::string nearest;
+        try {
+          (void)find_preset(name);
+        } catch (const InvalidArgument& e) {
+          fail(*it, w, e.what());
+        }
       }
+      const std::string s = find_preset(name).name;  // aliases by their name
       if (std::find(out.begin(), out.end(), s) != out.end()) {
-        fail(*it, w, "strategy '" + to_string(s) + "' is listed twice");
+        fail(*it, w, "strategy '" + s + "' is listed twice");
       }
       out.push_back(s);
+    }
+    return out;
+  }
+
+  /// settings: {STRATEGY: {KEY: VALUE}}: each key and value checked against that strategy's table.
+  std::vector<std::pair<std::string, std::vector<std::pair<std::string, SettingValue>>>> settings(
+      const YAML::Node& n, const std::string& where) const {
+    std::vector<std::string> names = preset_names();
+    const MapView m(*this, n, where, names);
+    std::vector<std::pair<std::string, std::vector<std::pair<std::string, SettingValue>>>> out;
+    for (auto it = n.begin(); it != n.end(); ++it) {
+      const YAML::Node name = it->first;
+      const YAML::Node table = it->second;
+      const std::string strategy = name.Scalar();
+      const std::string w = m.path(strategy);
+      if (!table.IsMap()) fail(table, w, "expected a mapping of KEY: VALUE");
+      const Pipeline pipeline(find_preset(strategy).spec);
+      std::vector<std::pair<std::string, SettingValue>> values;
+      for (auto kv = table.begin(); kv != table.end(); ++kv) {
+        const YAML::Node k = kv->first;
+        const YAML::Node v = kv->second;
+        const std::string key = k.IsScalar() ? k.Scalar() : std::string();
+        std::string text;
+        if (v.IsScalar()) {
+          text = v.Scalar();
+        } else if (v.IsSequence()) {
+          for (std::size_t i = 0; i < v.size(); ++i) {
+            text += (i ? "," : "") + scalar(v[i], w + "." + key, "a number");
+          }
+        } else {
+          fail(v, w + "." + key, "expected a value or a list of numbers");
+        }
+        for (const auto& seen : values) {
+          if (seen.first == key) fail(k, w, "duplicate key '" + key + "'");
+        }
+        try {
+          values.emplace_back(key, pipeline.settings().row(key).parse(text));
+        } catch (const InvalidArgument& e) {
+          fail(k, w, e.what());
+        }
+      }
+      out.emplace_back(strategy, std::move(values));
     }
     return out;
   }
@@ -675,10 +716,10 @@ class Parser {
     if (!root.IsDefined() || root.IsNull()) {
       fail_line(0, "", "empty config (expected a mapping with source, target and experiments)");
     }
-    const MapView m(
-        *this, root, "",
-        {"description", "source", "target", "ground_truth", "strategies", "k", "max_iterations",
-         "max_distance_m", "covariance_norm", "success", "seed", "plot_case", "experiments"});
+    const MapView m(*this, root, "",
+                    {"description", "source", "target", "ground_truth", "strategies", "k",
+                     "max_iterations", "max_distance_m", "settings", "covariance_norm", "success",
+                     "seed", "plot_case", "experiments"});
     if (m.has("description")) scalar(m.get("description"), "description", "a text");
     m.require("source", "the source map: a path, or {map: PATH, frames: [FIRST, LAST]}");
     m.require("target", "the target map: a path, or {map: PATH, frames: [FIRST, LAST]}");
@@ -702,6 +743,7 @@ class Parser {
       }
     }
     if (m.has("strategies")) c.strategies = strategies(m.get("strategies"), "strategies");
+    if (m.has("settings")) c.settings = settings(m.get("settings"), "settings");
     if (m.has("k")) c.k = static_cast<int>(integer(m.get("k"), "k", 1, kMaxK));
     if (m.has("max_iterations")) {
       c.max_iterations =
@@ -775,9 +817,9 @@ void emit_numbers(YAML::Emitter& e, const std::vector<double>& values) {
   e << YAML::EndSeq;
 }
 
-void emit_strategies(YAML::Emitter& e, const std::vector<PaperStrategy>& s) {
+void emit_strategies(YAML::Emitter& e, const std::vector<std::string>& s) {
   e << YAML::Flow << YAML::BeginSeq;
-  for (PaperStrategy x : s) e << to_string(x);
+  for (const std::string& x : s) e << x;
   e << YAML::EndSeq;
 }
 
@@ -885,9 +927,31 @@ std::string resolved_config_yaml(const ExperimentConfig& c) {
   e << YAML::Key << "strategies" << YAML::Value;
   emit_strategies(e, c.strategies);
   e << YAML::Key << "k" << YAML::Value << c.k;
-  e << YAML::Key << "max_iterations" << YAML::Value << c.max_iterations;
-  e << YAML::Key << "max_distance_m" << YAML::Value;
-  emit_number(e, c.max_distance_m);
+  if (c.max_iterations) e << YAML::Key << "max_iterations" << YAML::Value << *c.max_iterations;
+  if (c.max_distance_m) {
+    e << YAML::Key << "max_distance_m" << YAML::Value;
+    emit_number(e, *c.max_distance_m);
+  }
+  if (!c.settings.empty()) {
+    e << YAML::Key << "settings" << YAML::Value << YAML::BeginMap;
+    for (const auto& [strategy, values] : c.settings) {
+      const Pipeline pipeline(find_preset(strategy).spec);
+      e << YAML::Key << strategy << YAML::Value << YAML::BeginMap;
+      for (const auto& [key, value] : values) {
+        const std::string text = pipeline.settings().row(key).text(value);
+        e << YAML::Key << key << YAML::Value;
+        if (std::holds_alternative<std::vector<double>>(value)) {
+          emit_numbers(e, std::get<std::vector<double>>(value));
+        } else if (std::holds_alternative<double>(value)) {
+          emit_number(e, std::get<double>(value));
+        } else {
+          e << text;
+        }
+      }
+      e << YAML::EndMap;
+    }
+    e << YAML::EndMap;
+  }
   e << YAML::Key << "covariance_norm" << YAML::Value << to_string(c.covariance_norm);
   e << YAML::Key << "success" << YAML::Value << YAML::BeginMap;
   e << YAML::Key << "rotation_deg" << YAML::Value;

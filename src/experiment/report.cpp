@@ -64,7 +64,7 @@ std::string fixed(double v, int decimals) {
 
 nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); }
 
-StrategySummary summarize_runs(PaperStrategy s, const std::vector<const RunRecord*>& runs) {
+StrategySummary summarize_runs(const std::string& s, const std::vector<const RunRecord*>& runs) {
   StrategySummary out;
   out.strategy = s;
   std::vector<double> rot, trans, score_ok, score, iters, times;
@@ -93,19 +93,19 @@ StrategySummary summarize_runs(PaperStrategy s, const std::vector<const RunRecor
 }
 
 /// Strategies in first-seen order over `order`, then any others found in `records`.
-std::vector<PaperStrategy> strategy_order(const std::vector<PaperStrategy>& order,
-                                          const std::vector<const RunRecord*>& records) {
-  std::vector<PaperStrategy> out = order;
+std::vector<std::string> strategy_order(const std::vector<std::string>& order,
+                                        const std::vector<const RunRecord*>& records) {
+  std::vector<std::string> out = order;
   for (const RunRecord* r : records) {
     if (std::find(out.begin(), out.end(), r->strategy) == out.end()) out.push_back(r->strategy);
   }
   return out;
 }
 
-std::vector<StrategySummary> summarize_by_strategy(const std::vector<PaperStrategy>& order,
+std::vector<StrategySummary> summarize_by_strategy(const std::vector<std::string>& order,
                                                    const std::vector<const RunRecord*>& records) {
   std::vector<StrategySummary> out;
-  for (PaperStrategy s : strategy_order(order, records)) {
+  for (const std::string& s : strategy_order(order, records)) {
     std::vector<const RunRecord*> mine;
     for (const RunRecord* r : records) {
       if (r->strategy == s) mine.push_back(r);
@@ -185,20 +185,9 @@ std::string rate_text(std::size_t successes, std::size_t runs) {
          fixed(100.0 * static_cast<double>(successes) / runs, 0) + "%)";
 }
 
-std::string strategy_header(PaperStrategy s) {
-  switch (s) {
-    case PaperStrategy::kBase:
-      return "Base";
-    case PaperStrategy::kCovariance:
-      return "Cov.";
-    case PaperStrategy::kObservations:
-      return "# Obs.";
-    case PaperStrategy::kMeanDistance:
-      return "Mean Dist.";
-    default:
-      return to_string(s);
-  }
-  return "?";
+// The preset's table header (configs/presets/NAME.yaml: header), else its name.
+std::string strategy_header(const std::string& s) {
+  return is_preset_name(s) ? find_preset(s).header : s;
 }
 
 std::string optional_number(const std::optional<double>& v) { return v ? shortest(*v) : ""; }
@@ -219,7 +208,7 @@ void write_results_csv(std::ostream& out, const std::vector<Case>& cases,
     out << c.experiment << ',' << c.index << ',' << c.label << ',' << c.group << ',' << c.variable
         << ',' << shortest(c.value) << ',' << shortest(p.x_m) << ',' << shortest(p.y_m) << ','
         << shortest(p.z_m) << ',' << shortest(p.roll_deg) << ',' << shortest(p.pitch_deg) << ','
-        << shortest(p.yaw_deg) << ',' << to_string(r.strategy) << ',' << r.k << ','
+        << shortest(p.yaw_deg) << ',' << r.strategy << ',' << r.k << ','
         << shortest(r.initial_score_m2) << ',' << shortest(r.final_score_m2) << ',' << r.iterations
         << ',' << to_string(r.termination) << ',' << fixed(r.time_s, 6) << ','
         << (r.error ? shortest(r.error->rotation_deg) : "") << ','
@@ -327,7 +316,7 @@ std::vector<RunRecord> read_results_csv(std::istream& in, const std::string& fil
       current = c.index;
       seen = 0;
     }
-    if (seen >= c.strategies.size() || to_string(c.strategies[seen]) != f[12])
+    if (seen >= c.strategies.size() || c.strategies[seen] != f[12])
       throw ParseError(file, line,
                        "strategy '" + f[12] + "' is not the next strategy of case " + c.id());
     RunRecord r;
@@ -395,7 +384,7 @@ double median(std::vector<double> values) {
 }
 
 ReportSummary summarize(const ExperimentConfig& config, const std::vector<Case>& cases,
-                  const RunnerOutcome& outcome) {
+                        const RunnerOutcome& outcome) {
   ReportSummary s;
   s.has_ground_truth = config.has_ground_truth();
   s.interrupted = outcome.cancelled;
@@ -444,7 +433,8 @@ ReportSummary summarize(const ExperimentConfig& config, const std::vector<Case>&
   return s;
 }
 
-void write_summary_json(std::ostream& out, const ExperimentConfig& config, const ReportSummary& summary) {
+void write_summary_json(std::ostream& out, const ExperimentConfig& config,
+                        const ReportSummary& summary) {
   nlohmann::ordered_json j;
   j["config"] = config.path;
   j["source"] = config.source.path;
@@ -460,8 +450,10 @@ void write_summary_json(std::ostream& out, const ExperimentConfig& config, const
   } else {
     j["success_score_m2"] = config.success.score_m2;
   }
-  j["max_iterations"] = config.max_iterations;
-  j["max_distance_m"] = num(config.max_distance_m);
+  // The limits given to every strategy (null: each keeps its own).
+  j["max_iterations"] =
+      config.max_iterations ? nlohmann::json(*config.max_iterations) : nlohmann::json();
+  j["max_distance_m"] = config.max_distance_m ? num(*config.max_distance_m) : nlohmann::json();
   j["covariance_norm"] = to_string(config.covariance_norm);
   j["interrupted"] = summary.interrupted;
   j["cases_planned"] = summary.cases_planned;
@@ -470,7 +462,7 @@ void write_summary_json(std::ostream& out, const ExperimentConfig& config, const
   j["runs"] = summary.runs;
   auto per_strategy = [](const std::vector<StrategySummary>& v, bool with_time) {
     nlohmann::ordered_json o = nlohmann::ordered_json::object();
-    for (const StrategySummary& s : v) o[to_string(s.strategy)] = strategy_json(s, with_time);
+    for (const StrategySummary& s : v) o[s.strategy] = strategy_json(s, with_time);
     return o;
   };
   j["per_strategy"] = per_strategy(summary.overall, true);
@@ -513,9 +505,13 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
                                     std::to_string(config.target.last_frame_id)
                               : std::string())
       << "\n";
-  out << "- ICP: max iterations " << config.max_iterations << ", max correspondence distance "
-      << (std::isinf(config.max_distance_m) ? std::string("infinite")
-                                            : shortest(config.max_distance_m) + " m")
+  out << "- limits: max iterations "
+      << (config.max_iterations ? std::to_string(*config.max_iterations)
+                                : std::string("each strategy's own"))
+      << ", max correspondence distance "
+      << (!config.max_distance_m               ? std::string("each strategy's own")
+          : std::isinf(*config.max_distance_m) ? std::string("infinite")
+                                               : shortest(*config.max_distance_m) + " m")
       << "\n";
   if (gt) {
     out << "- success = right basin: rotation error < " << shortest(config.success.rotation_deg)
@@ -533,16 +529,16 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
   out << "\n\n";
 
   // --- overview
-  std::vector<PaperStrategy> all_strategies;
+  std::vector<std::string> all_strategies;
   for (const StrategySummary& s : summary.overall) all_strategies.push_back(s.strategy);
   std::vector<std::string> header{"experiment"};
-  for (PaperStrategy s : all_strategies) header.push_back(strategy_header(s));
+  for (const std::string& s : all_strategies) header.push_back(strategy_header(s));
   out << "## Overview\n\n### Success rate\n\n" << md_row(header) << md_rule(header.size());
   auto overview_rows = [&](auto cell_value, auto cell_text, bool higher) {
     auto row_for = [&](const std::string& name, const std::vector<StrategySummary>& v) {
       std::vector<std::optional<double>> values;
       std::vector<std::string> texts, marks;
-      for (PaperStrategy s : all_strategies) {
+      for (const std::string& s : all_strategies) {
         const auto it = std::find_if(v.begin(), v.end(),
                                      [&](const StrategySummary& x) { return x.strategy == s; });
         if (it == v.end()) {
@@ -591,7 +587,7 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
     const ExperimentSummary& es = summary.experiments[ei];
     out << "## " << spec.name << " (" << to_string(spec.type) << ")\n\n";
     std::vector<std::string> h{spec.type == ExperimentType::kBasin ? "level" : "case"};
-    for (PaperStrategy s : spec.strategies) h.push_back(strategy_header(s));
+    for (const std::string& s : spec.strategies) h.push_back(strategy_header(s));
     if (es.cases == 0) {
       out << "No finished case.\n\n";
       continue;
@@ -605,7 +601,7 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
         std::vector<std::optional<double>> values;
         std::vector<std::string> texts, marks;
         bool any = false;
-        for (PaperStrategy s : spec.strategies) {
+        for (const std::string& s : spec.strategies) {
           const auto it = std::find_if(b.strategies.begin(), b.strategies.end(),
                                        [&](const StrategySummary& x) { return x.strategy == s; });
           if (it == b.strategies.end()) {
@@ -655,7 +651,7 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
       for (const auto& [ci, runs] : by_case) {
         std::vector<std::optional<double>> values;
         std::vector<std::string> texts, marks;
-        for (PaperStrategy s : spec.strategies) {
+        for (const std::string& s : spec.strategies) {
           const auto it = std::find_if(runs.begin(), runs.end(),
                                        [&](const RunRecord* r) { return r->strategy == s; });
           if (it == runs.end()) {
@@ -682,7 +678,7 @@ void write_history_csv(std::ostream& out, const Case& c, const std::vector<RunRe
   out << "case,experiment,label,strategy,iteration,num_correspondences,mse_m2,score_m2\n";
   for (const RunRecord& r : records) {
     for (const IterationRecord& it : r.history) {
-      out << c.index << ',' << c.experiment << ',' << c.label << ',' << to_string(r.strategy) << ','
+      out << c.index << ',' << c.experiment << ',' << c.label << ',' << r.strategy << ','
           << it.iteration << ',' << it.num_correspondences << ',' << shortest(it.mse_m2) << ','
           << (std::isnan(it.score_m2) ? std::string() : shortest(it.score_m2)) << '\n';
     }
@@ -702,8 +698,7 @@ void write_alignment_points_csv(std::ostream& out, const Case& c, const Points3&
   };
   write("target", Isometry3::Identity(), target_points);
   write("initial", c.D, source_points);
-  for (const RunRecord& r : records)
-    write(to_string(r.strategy), r.T_target_source * c.D, source_points);
+  for (const RunRecord& r : records) write(r.strategy, r.T_target_source * c.D, source_points);
 }
 
 }  // namespace lmalign

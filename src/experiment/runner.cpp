@@ -19,8 +19,7 @@
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
-#include "lmalign/registration/robust.hpp"
-#include "lmalign/registration/strategy.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -126,11 +125,15 @@ ExperimentInputs load_experiment_inputs(const ExperimentConfig& config) {
   return in;
 }
 
-RegistrationOptions run_options(const ExperimentConfig& config, PaperStrategy strategy, int k) {
-  RegistrationOptions o = RegistrationOptions::paper(strategy, k);
-  o.convergence.max_iterations = config.max_iterations;
-  o.max_correspondence_distance_m = config.max_distance_m;
-  return o;
+AlignRequest run_request(const ExperimentConfig& config, const std::string& strategy, int k) {
+  AlignRequest r;
+  r.k = k;
+  r.max_iterations = config.max_iterations;
+  r.max_distance_m = config.max_distance_m;
+  for (const auto& [name, values] : config.settings) {
+    if (name == strategy) r.settings = values;
+  }
+  return r;
 }
 
 RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>& cases,
@@ -145,31 +148,18 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       throw InvalidArgument("runner: cases must come from expand_cases() (index mismatch at " +
                             std::to_string(i) + ")");
     if (c.strategies.empty()) throw InvalidArgument("runner: case " + c.id() + " has no strategy");
-    for (PaperStrategy s : c.strategies) {
-      std::string why;
-      if (s == PaperStrategy::kAdaptive) {
-        if (options.source_covariances_m2 != nullptr &&
-            options.source_covariances_m2->size() != source_points.size()) {
-          throw InvalidArgument("runner: case " + c.id() +
-                                ", adaptive: one source covariance per source point expected");
-        }
-        continue;
+    for (const std::string& s : c.strategies) {
+      // Every setting within its bound before any run (the pipeline validates its table).
+      try {
+        const Pipeline check(resolve_spec(find_preset(s), run_request(config, s, c.k)));
+      } catch (const InvalidArgument& e) {
+        throw InvalidArgument("runner: case " + c.id() + ", " + s + ": " + e.what());
       }
-      const bool valid = is_paper_strategy(s) ? run_options(config, s, c.k).is_valid(&why)
-                                              : robust_strategy_options(s, c.k).is_valid(&why);
-      if (!valid) {
-        throw InvalidArgument("runner: case " + c.id() + ", " + to_string(s) + ": " + why);
-      }
-      if (!is_paper_strategy(s) &&
-          robust_strategy_options(s, c.k).cost == EstimationCost::kPointToDistribution) {
-        if (options.source_covariances_m2 == nullptr ||
-            options.source_covariances_m2->size() != source_points.size()) {
-          throw InvalidArgument("runner: case " + c.id() + ", " + to_string(s) +
-                                ": the point-to-distribution cost needs one source landmark "
-                                "covariance per source point (RunnerOptions)");
-        }
-        (void)target.covariances_m2();  // throws if the target has none
-      }
+    }
+    if (options.source_covariances_m2 != nullptr &&
+        options.source_covariances_m2->size() != source_points.size()) {
+      throw InvalidArgument("runner: case " + c.id() +
+                            ": one source covariance per source point expected");
     }
     if (!is_finite(c.D))
       throw InvalidArgument("runner: case " + c.id() + " has a non-finite displacement");
@@ -234,37 +224,31 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
   FirstException error;
   auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
 
+  // The presets, read once (find_preset copies).
+  std::map<std::string, Preset> preset_of;
+  for (const Case& c : cases) {
+    for (const std::string& s : c.strategies) {
+      if (preset_of.count(s) == 0) preset_of.emplace(s, find_preset(s));
+    }
+  }
+
   auto run_one = [&](const Task& t) {
     const Case& c = cases[t.case_index];
-    const PaperStrategy s = c.strategies[t.slot];
+    const std::string& s = c.strategies[t.slot];
     const bool history = options.history_case && *options.history_case == c.index;
-    RegistrationResult r;
-    std::optional<bool> trusted;  // the verdict run_strategy() gave, if it ran the strategy
-    PoseCovariance covariance;    // the covariance it reported
-    const Points3 displaced = transform_points(c.D, source_points);
-    if (is_paper_strategy(s)) {
-      RegistrationOptions ro = run_options(config, s, c.k);
-      ro.record_history = history;
-      ro.history_scores = history;
-      r = align(displaced, target, ro);
-    } else {
-      // lmalign's own strategies (run_strategy(), as `lmalign align`): the presets' distance
-      // schedules and budgets replace the config's max_distance_m and max_iterations. The
-      // covariances and the up axis move with the points: C' = R_D C R_D^T.
-      StrategySource moved;
-      moved.positions = displaced;
-      if (options.source_covariances_m2 != nullptr) {
-        moved.covariances_m2 = transform_covariances(c.D, *options.source_covariances_m2);
-      }
-      if (options.source_up) moved.up = c.D.linear() * *options.source_up;
-      StrategyRequest req;
-      req.strategy = s;
-      req.k = c.k;
-      const StrategyOutcome o = run_strategy(moved, target, req);
-      r = o.result;
-      trusted = o.trustworthy;
-      covariance = o.covariance;
+    // As `lmalign align` runs it: the source displaced by D, its covariances and up axis with
+    // it (C' = R_D C R_D^T), the config's k, limits and settings.
+    SourceLandmarks moved;
+    moved.positions = transform_points(c.D, source_points);
+    if (options.source_covariances_m2 != nullptr) {
+      moved.covariances_m2 = transform_covariances(c.D, *options.source_covariances_m2);
     }
+    if (options.source_up) moved.up = c.D.linear() * *options.source_up;
+    AlignRequest request = run_request(config, s, c.k);
+    request.record_history = history;
+    const Summary summary = align(preset_of.at(s), moved.view(), target, request);
+    const RegistrationResult& r = summary.registration;
+    const PoseCovariance& covariance = summary.covariance;
     RunRecord rec;
     rec.case_index = c.index;
     rec.strategy = s;
@@ -278,14 +262,8 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     // The recovered map-to-map transform T * D against the truth: independent of D.
     if (ground_truth) rec.error = transform_error(r.T_target_source * c.D, *ground_truth);
     rec.decision = decide_success(config.success, rec.error, rec.final_score_m2);
-    // Outside the timed alignment; a non-finite estimate is never trustworthy. lmalign's own
-    // strategies carry their verdict (adaptive: its own; the others: judge_alignment()).
-    if (is_finite(r.T_target_source)) {
-      rec.trustworthy =
-          trusted ? *trusted
-                  : judge_alignment(displaced, target.tree(), r.T_target_source, {}, &covariance)
-                        .trustworthy;
-    }
+    // A non-finite estimate is never trustworthy.
+    if (is_finite(r.T_target_source)) rec.trustworthy = summary.verdict.trustworthy;
     if (covariance.valid) {
       rec.covariance_translation_sd_m = covariance.translation_sd_m();
       rec.covariance_rotation_sd_deg = covariance.rotation_sd_deg();
@@ -317,19 +295,32 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
   // Empty: the run always executes.
   auto identity_key = [&](const Task& t) {
     const Case& c = cases[t.case_index];
-    const PaperStrategy s = c.strategies[t.slot];
+    const std::string& s = c.strategies[t.slot];
     std::string key;
-    if (!options.share_identical_runs || !is_paper_strategy(s) ||
+    if (!options.share_identical_runs ||
         (options.history_case && *options.history_case == c.index)) {
       return key;
     }
-    const RegistrationOptions ro = run_options(config, s, c.k);
     // The points: transform_points(D, source), a function of D's bits.
     key.assign(reinterpret_cast<const char*>(c.D.matrix().data()), 16 * sizeof(double));
-    // The rule: Eq. 6 with k = 1 keeps the nearest unless its weight is 0 (select_match).
-    const bool nearest =
-        ro.correspondence == CorrespondenceKind::kNearest || (ro.k == 1 && all_positive(ro.weight));
-    key += nearest ? std::string("|nearest") : "|" + to_string(s) + "|" + std::to_string(ro.k);
+    // The pipeline, stage by stage and setting by setting; Eq. 6 with k = 1 keeps the nearest
+    // unless its weight is 0 (select_match), so it counts as the nearest neighbour then.
+    PipelineSpec spec = resolve_spec(preset_of.at(s), run_request(config, s, c.k));
+    const Pipeline p(spec);
+    if (spec.matcher == "weighted_knn" && p.settings().integer("match.k") == 1 &&
+        all_positive(parse_weight_kind(p.settings().choice("match.confidence")))) {
+      spec.matcher = "nearest";
+      std::vector<std::pair<std::string, SettingValue>> kept;
+      for (const auto& kv : spec.settings) {
+        if (kv.first != "match.k" && kv.first != "match.confidence") kept.push_back(kv);
+      }
+      spec.settings = kept;
+    }
+    const Pipeline q(spec);
+    key += "|" + spec.initialiser + "|" + spec.matcher + "|" + spec.kernel + "|" + spec.estimator +
+           "|" + spec.schedule + "|" + spec.scorer + "|" + spec.trust;
+    for (const std::string& r : spec.rejectors) key += "|" + r;
+    key += "|" + q.settings().canonical_text();
     return key;
   };
 

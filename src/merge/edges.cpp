@@ -43,41 +43,47 @@ bool EdgeOptions::is_valid(std::string* why) const {
   return true;
 }
 
-StrategySource edge_source(const Map& map) {
-  const SourceLandmarks s = SourceLandmarks::from_map(map);
-  StrategySource out;
-  out.positions = s.positions;
-  out.covariances_m2 = s.covariances_m2;
-  out.up = s.up;
-  return out;
+SourceLandmarks edge_source(const Map& map) { return SourceLandmarks::from_map(map); }
+
+namespace {
+
+const Preset& edge_preset(const EdgeOptions& options, Preset* storage) {
+  if (options.strategy.empty()) return recommended_preset();
+  *storage = find_preset(options.strategy);
+  return *storage;
 }
 
-Edge align_edge(const StrategySource& source, const PreparedTarget& target,
+AlignRequest edge_request(const Preset& preset, const CandidatePair& pair,
+                          const EdgeOptions& options) {
+  AlignRequest request;
+  request.max_iterations = options.max_iterations;
+  request.settings = options.settings;
+  request.initial_guess = pair.initial_guess;
+  if (pair.prior && Pipeline(preset.spec).initialiser().uses_prior()) request.prior = pair.prior;
+  return request;
+}
+
+}  // namespace
+
+Edge align_edge(const SourceLandmarks& source, const PreparedTarget& target,
                 const CandidatePair& pair, const EdgeOptions& options) {
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("edge options: " + why);
-  StrategyRequest request;
-  request.strategy = options.strategy;
-  request.max_iterations = options.max_iterations;
-  request.initial_guess = pair.initial_guess;
-  if (options.strategy == PaperStrategy::kAdaptive) request.prior = pair.prior;
-  const StrategyOutcome r = run_strategy(source, target, request);
+  Preset storage;
+  const Preset& preset = edge_preset(options, &storage);
+  const Summary r = align(preset, source.view(), target, edge_request(preset, pair, options));
   Edge e;
   e.source = pair.source;
   e.target = pair.target;
-  e.T_target_source = r.result.T_target_source;
+  e.T_target_source = r.registration.T_target_source;
   e.covariance = r.covariance.covariance;
   e.covariance_valid = r.covariance.valid;
-  e.trusted = r.trustworthy;
-  e.trust_reason = r.trust_reason;
-  if (r.adaptive) {
-    e.num_inliers = r.adaptive->num_inliers;
-    e.inlier_ratio = r.adaptive->inlier_ratio;
-    e.initialisation = r.adaptive->initialisation;
-  } else {
-    e.num_inliers = r.covariance.num_correspondences;
-    e.initialisation = pair.initial_guess ? "given" : "identity";
-  }
+  e.trusted = r.verdict.trustworthy;
+  e.trust_reason = r.verdict.reason;
+  e.num_inliers = r.verdict.num_inliers;
+  e.inlier_ratio = r.verdict.inlier_ratio;
+  e.initialisation = r.initialisation.initialisation;
+  e.summary_json = to_json(r);
   return e;
 }
 
@@ -105,7 +111,7 @@ std::string map_fingerprint(const Map& map) {
 std::string edge_key(const std::string& source_fingerprint, const std::string& target_fingerprint,
                      const CandidatePair& pair, const EdgeOptions& options) {
   Fnv1a f;
-  f.text("lmalign-merge-edge-v2");  // v2: the half-sample covariance, the prior window
+  f.text("lmalign-merge-edge-v3");  // v3: the preset and every setting of its pipeline
   f.text(source_fingerprint);
   f.text(target_fingerprint);
   f.integer(pair.source);
@@ -117,8 +123,14 @@ std::string edge_key(const std::string& source_fingerprint, const std::string& t
     f.number(pair.prior->rotation_deg);
     f.number(pair.prior->translation_m);
   }
-  f.text(to_string(options.strategy));
-  f.integer(options.max_iterations ? static_cast<std::uint64_t>(*options.max_iterations) : 0);
+  Preset storage;
+  const Preset& preset = edge_preset(options, &storage);
+  const PipelineSpec spec = resolve_spec(preset, edge_request(preset, pair, options));
+  f.text(preset.name);
+  f.text(spec.initialiser + "|" + spec.matcher + "|" + spec.kernel + "|" + spec.estimator + "|" +
+         spec.schedule + "|" + spec.scorer + "|" + spec.trust);
+  for (const std::string& r : spec.rejectors) f.text(r);
+  f.text(Pipeline(spec).settings().canonical_text());
   return f.hex();
 }
 

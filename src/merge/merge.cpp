@@ -78,13 +78,13 @@ MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>&
   }
   // Targets prepared once (immutable, shared by the threads), only for the maps needed.
   std::vector<std::unique_ptr<PreparedTarget>> prepared(n);
-  std::vector<std::unique_ptr<StrategySource>> sources(n);
+  std::vector<std::unique_ptr<SourceLandmarks>> sources(n);
   for (std::size_t k = 0; k < m; ++k) {
     if (slots[k]) continue;
     const CandidatePair& c = run.candidates[k];
     if (!prepared[c.target]) prepared[c.target] = std::make_unique<PreparedTarget>(maps[c.target]);
     if (!sources[c.source])
-      sources[c.source] = std::make_unique<StrategySource>(edge_source(maps[c.source]));
+      sources[c.source] = std::make_unique<SourceLandmarks>(edge_source(maps[c.source]));
   }
   std::size_t done = run.edges_reused;
   if (progress) progress("edges", done, m);

@@ -265,7 +265,8 @@ void write_edge_file(const std::string& path, const Edge& e) {
                   {"trust_reason", e.trust_reason},
                   {"num_inliers", e.num_inliers},
                   {"inlier_ratio", e.inlier_ratio},
-                  {"initialisation", e.initialisation}};
+                  {"initialisation", e.initialisation},
+                  {"summary", e.summary_json.empty() ? json() : json::parse(e.summary_json)}};
   write_file_atomically(path, [&](std::ostream& os) { os << j.dump() << "\n"; });
 }
 
@@ -288,6 +289,8 @@ std::optional<Edge> read_edge_file(const std::string& path) {
     e.num_inliers = j.at("num_inliers").get<std::size_t>();
     e.inlier_ratio = j.at("inlier_ratio").get<double>();
     e.initialisation = j.at("initialisation").get<std::string>();
+    if (j.contains("summary") && !j.at("summary").is_null())
+      e.summary_json = j.at("summary").dump();
     return e;
   } catch (const json::exception& ex) {
     throw ParseError(path, 0, std::string("edge file: ") + ex.what());

@@ -79,15 +79,6 @@ bool AdaptiveOptions::is_valid(std::string* why) const {
   return true;
 }
 
-bool is_rigid_transform(const Isometry3& T) {
-  if (!T.matrix().allFinite()) return false;
-  const Mat3 R = T.linear();
-  if (!((R.transpose() * R - Mat3::Identity()).cwiseAbs().maxCoeff() < 1e-6)) return false;
-  if (!(std::abs(R.determinant() - 1.0) < 1e-6)) return false;
-  const Eigen::RowVector4d last = T.matrix().row(3);
-  return last.isApprox(Eigen::RowVector4d(0, 0, 0, 1), 1e-12);
-}
-
 AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarget& target,
                               const AdaptiveOptions& options, const Isometry3* initial_guess,
                               const PriorSigma* prior) {

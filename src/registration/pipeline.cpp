@@ -356,7 +356,8 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   }
   if (target.size() == 0) throw InvalidArgument("registration: the target has no landmarks");
   const Points3& sp = *source.positions;
-  // The supported range (core/supported_range.hpp; run_strategy() leaves such landmarks out).
+  // The supported range (core/supported_range.hpp; align() of presets.hpp leaves such landmarks
+  // out).
   for (const auto& [side, points] :
        {std::pair<const char*, const Points3*>{"source", &sp}, {"target", &target.points()}}) {
     for (std::size_t i = 0; i < points->size(); ++i) {
@@ -386,6 +387,10 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
 
   Summary s;
   s.preset = spec_.name;
+  s.stages = spec_;
+  for (const SettingRow& row : settings_.table()) {
+    s.settings.emplace_back(row.key, row.text(settings_.value(row.key)));
+  }
   const Isometry3 guess = request.initial_guess.value_or(Isometry3::Identity());
   RegistrationResult& reg = s.registration;
   reg.T_target_source = guess;
@@ -407,6 +412,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
       reg.termination = TerminationReason::kNoCorrespondences;
       s.verdict.reason = "fewer than 3 landmarks in a map";
       stamp();
+      s.total_time_s = reg.wall_time_s;
       return s;
     }
     scales.source = estimate_data_scales(sp, source.covariances_m2);
@@ -532,6 +538,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
                                                     &fin.last_step, &s.num_half_samples);
   }
   s.covariance = s.estimator_covariance;
+  stamp();  // the alignment's time; the verdict's is in total_time_s
 
   // --- trust
   if (trust_ != nullptr) {
@@ -545,7 +552,8 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     s.verdict = trust_->judge(jc);
     if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
   }
-  stamp();
+  s.total_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return s;
 }
 

@@ -12,101 +12,12 @@
 
 namespace lmalign {
 
-std::string to_string(PaperStrategy strategy) {
-  switch (strategy) {
-    case PaperStrategy::kBase:
-      return "base";
-    case PaperStrategy::kCovariance:
-      return "covariance";
-    case PaperStrategy::kObservations:
-      return "observations";
-    case PaperStrategy::kMeanDistance:
-      return "distance";
-    case PaperStrategy::kShrink:
-      return "shrink";
-    case PaperStrategy::kShrinkCauchy:
-      return "shrink_cauchy";
-    case PaperStrategy::kTrimmed:
-      return "trimmed";
-    case PaperStrategy::kMutual:
-      return "mutual";
-    case PaperStrategy::kRobustObs:
-      return "robust_obs";
-    case PaperStrategy::kRobustObsKnn:
-      return "robust_obs_knn";
-    case PaperStrategy::kRobustObs4Dof:
-      return "robust_obs_4dof";
-    case PaperStrategy::kGlobal:
-      return "global";
-    case PaperStrategy::kGlobalRobustObs:
-      return "global_robust_obs";
-    case PaperStrategy::kP2D:
-      return "p2d";
-    case PaperStrategy::kRobustP2D:
-      return "robust_p2d";
-    case PaperStrategy::kAdaptive:
-      return "adaptive";
-  }
-  return "?";
-}
-
-PaperStrategy parse_paper_strategy(const std::string& name) {
-  if (name == "base" || name == "none") return PaperStrategy::kBase;
-  if (name == "covariance") return PaperStrategy::kCovariance;
-  if (name == "observations") return PaperStrategy::kObservations;
-  if (name == "distance" || name == "mean_distance") return PaperStrategy::kMeanDistance;
-  for (PaperStrategy s : beyond_paper_strategies()) {
-    if (name == to_string(s)) return s;
-  }
-  throw InvalidArgument("unknown strategy '" + name +
-                        "' (expected base|none, covariance, observations, distance, shrink, "
-                        "shrink_cauchy, trimmed, mutual, robust_obs, robust_obs_knn, "
-                        "robust_obs_4dof, global, global_robust_obs, p2d, robust_p2d, adaptive)");
-}
-
-std::vector<PaperStrategy> all_paper_strategies() {
-  return {PaperStrategy::kBase, PaperStrategy::kCovariance, PaperStrategy::kObservations,
-          PaperStrategy::kMeanDistance};
-}
-
-std::vector<PaperStrategy> beyond_paper_strategies() {
-  return {
-      PaperStrategy::kShrink,        PaperStrategy::kShrinkCauchy, PaperStrategy::kTrimmed,
-      PaperStrategy::kMutual,        PaperStrategy::kRobustObs,    PaperStrategy::kRobustObsKnn,
-      PaperStrategy::kRobustObs4Dof, PaperStrategy::kGlobal,       PaperStrategy::kGlobalRobustObs,
-      PaperStrategy::kP2D,           PaperStrategy::kRobustP2D,    PaperStrategy::kAdaptive};
-}
-
-bool is_paper_strategy(PaperStrategy strategy) {
-  const auto paper = all_paper_strategies();
-  return std::find(paper.begin(), paper.end(), strategy) != paper.end();
-}
-
-RegistrationOptions RegistrationOptions::paper(PaperStrategy strategy, int k) {
+RegistrationOptions RegistrationOptions::paper(WeightKind weight, int k) {
   RegistrationOptions o;
   o.k = k;
-  switch (strategy) {
-    case PaperStrategy::kBase:
-      o.correspondence = CorrespondenceKind::kNearest;
-      o.weight = WeightKind::kUniform;
-      break;
-    case PaperStrategy::kCovariance:
-      o.correspondence = CorrespondenceKind::kWeightedKnn;
-      o.weight = WeightKind::kCovariance;
-      break;
-    case PaperStrategy::kObservations:
-      o.correspondence = CorrespondenceKind::kWeightedKnn;
-      o.weight = WeightKind::kObservations;
-      break;
-    case PaperStrategy::kMeanDistance:
-      o.correspondence = CorrespondenceKind::kWeightedKnn;
-      o.weight = WeightKind::kMeanDistance;
-      break;
-    default:
-      throw InvalidArgument("RegistrationOptions::paper: '" + to_string(strategy) +
-                            "' is not one of the paper's strategies (use align_robust)");
-      break;
-  }
+  o.weight = weight;
+  o.correspondence = weight == WeightKind::kUniform ? CorrespondenceKind::kNearest
+                                                    : CorrespondenceKind::kWeightedKnn;
   return o;
 }
 

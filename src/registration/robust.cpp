@@ -38,35 +38,6 @@ RobustKernel parse_robust_kernel(const std::string& name) {
                         "' (expected none, huber, cauchy or geman_mcclure)");
 }
 
-std::string to_string(EstimationCost cost) {
-  switch (cost) {
-    case EstimationCost::kPointToPoint:
-      return "point_to_point";
-    case EstimationCost::kPointToDistribution:
-      return "point_to_distribution";
-  }
-  return "?";
-}
-
-EstimationCost parse_estimation_cost(const std::string& name) {
-  if (name == "point_to_point" || name == "p2p") return EstimationCost::kPointToPoint;
-  if (name == "point_to_distribution" || name == "p2d") {
-    return EstimationCost::kPointToDistribution;
-  }
-  throw InvalidArgument("unknown estimation cost '" + name +
-                        "' (expected point_to_point|p2p or point_to_distribution|p2d)");
-}
-
-std::string to_string(KernelResidual residual) {
-  switch (residual) {
-    case KernelResidual::kEuclidean:
-      return "euclidean";
-    case KernelResidual::kMahalanobis:
-      return "mahalanobis";
-  }
-  return "?";
-}
-
 double robust_weight(RobustKernel kernel, double residual_m, double scale_m) {
   if (kernel == RobustKernel::kNone || std::isinf(scale_m)) return 1.0;
   const double r = std::abs(residual_m);
@@ -159,10 +130,6 @@ bool RobustRegistrationOptions::is_valid(std::string* why) const {
     return false;
   };
   if (k < 1 || k > 4096) return fail("k = " + std::to_string(k) + " (expected 1..4096)");
-  if (global_initialisation) {
-    std::string inner;
-    if (!global.is_valid(&inner)) return fail("global." + inner);
-  }
   if (max_distance_schedule_m.empty()) return fail("max_distance_schedule_m is empty");
   for (std::size_t i = 0; i < max_distance_schedule_m.size(); ++i) {
     const double d = max_distance_schedule_m[i];
@@ -188,23 +155,6 @@ bool RobustRegistrationOptions::is_valid(std::string* why) const {
   if (!(kernel_scale_ratio >= 0.0) || !std::isfinite(kernel_scale_ratio)) {
     return fail("kernel_scale_ratio = " + std::to_string(kernel_scale_ratio) +
                 " (expected finite >= 0)");
-  }
-  if (cost == EstimationCost::kPointToDistribution) {
-    if (dof != DegreesOfFreedom::k6) {
-      return fail(
-          "cost = point_to_distribution needs dof = 6 (the 4-DoF point-to-distribution "
-          "estimate is not implemented)");
-    }
-    std::string inner;
-    if (!p2d.is_valid(&inner)) return fail("p2d." + inner);
-    if (!(p2d_max_level_distance_m > 0.0)) {
-      return fail("p2d_max_level_distance_m = " + std::to_string(p2d_max_level_distance_m) +
-                  " (expected > 0)");
-    }
-    if (!(kernel_scale_sigma > 0.0) || !std::isfinite(kernel_scale_sigma)) {
-      return fail("kernel_scale_sigma = " + std::to_string(kernel_scale_sigma) +
-                  " (expected finite > 0)");
-    }
   }
   if (irls_iterations < 1) {
     return fail("irls_iterations = " + std::to_string(irls_iterations) + " (expected >= 1)");
@@ -252,91 +202,9 @@ bool RobustRegistrationOptions::is_valid(std::string* why) const {
   return true;
 }
 
-RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k) {
-  RobustRegistrationOptions o;
-  o.k = k;
-  switch (strategy) {
-    case PaperStrategy::kShrink:
-      break;
-    case PaperStrategy::kShrinkCauchy:
-      o.kernel = RobustKernel::kCauchy;
-      break;
-    case PaperStrategy::kTrimmed:
-      o.estimate_overlap = true;
-      break;
-    case PaperStrategy::kMutual:
-      o.mutual = true;
-      break;
-    case PaperStrategy::kRobustObs:
-      o.kernel = RobustKernel::kCauchy;
-      o.estimation_weight = WeightKind::kObservations;
-      break;
-    case PaperStrategy::kRobustObsKnn:
-      o.kernel = RobustKernel::kCauchy;
-      o.estimation_weight = WeightKind::kObservations;
-      o.selection = CorrespondenceKind::kWeightedKnn;
-      o.selection_weight = WeightKind::kObservations;
-      break;
-    case PaperStrategy::kRobustObs4Dof:
-      o.kernel = RobustKernel::kCauchy;
-      o.estimation_weight = WeightKind::kObservations;
-      o.dof = DegreesOfFreedom::k4;
-      break;
-    case PaperStrategy::kGlobal:
-      o.kernel = RobustKernel::kCauchy;
-      o.estimation_weight = WeightKind::kObservations;
-      o.global_initialisation = true;
-      break;
-    case PaperStrategy::kGlobalRobustObs:
-      o.kernel = RobustKernel::kCauchy;
-      o.estimation_weight = WeightKind::kObservations;
-      o.global_search = true;
-      break;
-    case PaperStrategy::kP2D:
-      o.cost = EstimationCost::kPointToDistribution;
-      break;
-    case PaperStrategy::kRobustP2D:
-      o.kernel = RobustKernel::kCauchy;
-      o.estimation_weight = WeightKind::kObservations;
-      o.cost = EstimationCost::kPointToDistribution;
-      break;
-    case PaperStrategy::kAdaptive:
-      throw InvalidArgument(
-          "robust_strategy_options: 'adaptive' is the adaptive pipeline (use align_adaptive(), "
-          "registration/adaptive.hpp, or run_strategy(), registration/strategy.hpp)");
-    default:
-      throw InvalidArgument("robust_strategy_options: '" + to_string(strategy) +
-                            "' is one of the paper's strategies (use align())");
-  }
-  return o;
-}
-
-RobustRegistrationOptions with_limits(RobustRegistrationOptions options, int max_iterations,
-                                      double max_distance_m) {
-  if (max_iterations < 1) {
-    throw InvalidArgument("with_limits: max_iterations = " + std::to_string(max_iterations) +
-                          " (expected >= 1)");
-  }
-  if (!(max_distance_m > 0.0)) {
-    throw InvalidArgument("with_limits: max_distance_m = " + std::to_string(max_distance_m) +
-                          " (expected > 0 metres, or inf)");
-  }
-  options.max_iterations = max_iterations;
-  options.max_iterations_per_level = std::min(options.max_iterations_per_level, max_iterations);
-  if (std::isfinite(max_distance_m)) {
-    std::vector<double> capped{max_distance_m};
-    for (double d : options.max_distance_schedule_m) {
-      if (d < max_distance_m) capped.push_back(d);
-    }
-    options.max_distance_schedule_m = capped;
-  }
-  return options;
-}
-
 RobustRegistrationResult align_robust(const Points3& source_points, const PreparedTarget& target,
                                       const RobustRegistrationOptions& options,
-                                      const Isometry3& T_target_source_init,
-                                      const std::vector<Mat3>* source_covariances_m2) {
+                                      const Isometry3& T_target_source_init) {
   const auto t_start = std::chrono::steady_clock::now();
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("robust registration options: " + why);
@@ -353,35 +221,10 @@ RobustRegistrationResult align_robust(const Points3& source_points, const Prepar
     }
   }
 
-  const bool p2d = options.cost == EstimationCost::kPointToDistribution;
-  if (p2d) {
-    if (source_covariances_m2 == nullptr) {
-      throw InvalidArgument(
-          "robust registration: the point-to-distribution cost needs the source landmark "
-          "covariances (none given)");
-    }
-    if (source_covariances_m2->size() != source_points.size()) {
-      throw InvalidArgument(
-          "robust registration: " + std::to_string(source_covariances_m2->size()) +
-          " source covariances for " + std::to_string(source_points.size()) + " source points");
-    }
-    for (std::size_t i = 0; i < source_covariances_m2->size(); ++i) {
-      if (!(*source_covariances_m2)[i].allFinite()) {
-        throw InvalidArgument("robust registration: source covariance " + std::to_string(i) +
-                              " is not finite");
-      }
-    }
-    (void)target.covariances_m2();  // throws if the target has none
-  }
-  if (options.global_search && options.global_initialisation) {
-    throw InvalidArgument(
-        "robust registration options: global_search and global_initialisation cannot be combined");
-  }
   // A preset of the engine (pipeline.hpp).
   const Pipeline pipeline(robust_pipeline_spec(options));
   SourceView view;
   view.positions = &source_points;
-  if (p2d) view.covariances_m2 = source_covariances_m2;
   PipelineRequest request;
   request.initial_guess = T_target_source_init;
   const Summary s = pipeline.run(view, target, request);
@@ -412,19 +255,6 @@ PipelineSpec robust_pipeline_spec(const RobustRegistrationOptions& o) {
     spec.scorer = "consensus";
     set("score.stride", integer(o.global_subsample));
     set("score.inlier_distance_m", o.global_inlier_distance_m);
-  } else if (o.global_initialisation) {
-    spec.initialiser = "global_vote";
-    const GlobalInitOptions& g = o.global;
-    set("init.up", std::vector<double>{g.up.x(), g.up.y(), g.up.z()});
-    set("init.yaw_step_deg", g.yaw_step_deg);
-    set("init.vote_cell_m", g.vote_cell_m);
-    set("init.max_vote_cells", static_cast<long long>(g.max_vote_cells));
-    set("init.source_samples", static_cast<long long>(g.vote_source_samples));
-    set("init.target_samples", static_cast<long long>(g.vote_target_samples));
-    set("init.hypotheses", static_cast<long long>(g.hypotheses));
-    set("init.refine_levels_m", g.refine_schedule_m);
-    set("init.refine_iterations", integer(g.refine_iterations));
-    set("init.inlier_distance_m", g.inlier_distance_m);
   }
   if (o.selection == CorrespondenceKind::kWeightedKnn) {
     spec.matcher = "weighted_knn";
@@ -444,17 +274,8 @@ PipelineSpec robust_pipeline_spec(const RobustRegistrationOptions& o) {
     set("kernel.scale_m", o.kernel_scale_m);
     set("kernel.scale_ratio", o.kernel_scale_ratio);
     set("kernel.irls_iterations", integer(o.irls_iterations));
-    set("kernel.residual", to_string(o.kernel_residual));
-    set("kernel.scale_sigma", o.kernel_scale_sigma);
-    set("kernel.floor_m", o.p2d.covariance_floor_m);
   }
-  if (o.cost == EstimationCost::kPointToDistribution) {
-    spec.estimator = "p2d_gn";
-    set("estimate.p2d_iterations", integer(o.p2d.max_iterations));
-    set("estimate.p2d_step_tolerance", o.p2d.step_tolerance);
-    set("estimate.p2d_floor_m", o.p2d.covariance_floor_m);
-    set("estimate.p2d_max_level_distance_m", o.p2d_max_level_distance_m);
-  } else if (o.dof == DegreesOfFreedom::k4) {
+  if (o.dof == DegreesOfFreedom::k4) {
     spec.estimator = "four_dof";
     set("estimate.up_axis", to_string(o.up_axis));
   }

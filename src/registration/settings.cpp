@@ -141,6 +141,11 @@ std::string SettingBound::text(SettingType type) const {
   std::string s;
   const bool low = std::isfinite(lo);
   const bool high = std::isfinite(hi);
+  auto number_text = [type](double v) {
+    return type == SettingType::kInt && std::abs(v) < 9.0e15
+               ? std::to_string(static_cast<long long>(v))
+               : lmalign::number_text(v);
+  };
   if (low && high) {
     s = std::string(lo_open ? "(" : "[") + number_text(lo) + ", " + number_text(hi) +
         (hi_open ? ")" : "]");

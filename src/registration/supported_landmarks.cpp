@@ -46,23 +46,27 @@ void refuse_if_all(const char* side, std::size_t total, std::size_t left_out) {
 
 }  // namespace
 
-SupportedLandmarks keep_supported_landmarks(const StrategySource& source,
+SupportedLandmarks keep_supported_landmarks(const SourceView& source,
                                             const PreparedTarget& target) {
   SupportedLandmarks out;
-  refuse_non_finite("source", source.positions);
+  static const Points3 kNone;
+  const Points3& positions = source.positions != nullptr ? *source.positions : kNone;
+  refuse_non_finite("source", positions);
   refuse_non_finite("target", target.points());
-  const std::vector<std::size_t> source_out = beyond_supported_range(source.positions);
+  const std::vector<std::size_t> source_out = beyond_supported_range(positions);
   const std::vector<std::size_t> target_out = beyond_supported_range(target.points());
-  refuse_if_all("source", source.positions.size(), source_out.size());
+  refuse_if_all("source", positions.size(), source_out.size());
   refuse_if_all("target", target.size(), target_out.size());
   out.source_left_out = source_out.size();
   out.target_left_out = target_out.size();
   if (!source_out.empty()) {
-    StrategySource s;
-    s.positions = without(source.positions, source_out);
-    s.covariances_m2 = source.covariances_m2.size() == source.positions.size()
-                           ? without(source.covariances_m2, source_out)
-                           : source.covariances_m2;  // a mismatch: the strategy reports it
+    SourceLandmarks s;
+    s.positions = without(positions, source_out);
+    if (source.has_covariances()) {
+      s.covariances_m2 = source.covariances_m2->size() == positions.size()
+                             ? without(*source.covariances_m2, source_out)
+                             : *source.covariances_m2;  // a mismatch: the pipeline reports it
+    }
     s.up = source.up;
     out.source = std::move(s);
   }

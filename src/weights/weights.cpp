@@ -62,6 +62,11 @@ std::vector<double> compute_weights(const Map& map, WeightKind kind, const Weigh
   return w;
 }
 
+std::vector<WeightKind> all_weight_kinds() {
+  return {WeightKind::kUniform, WeightKind::kCovariance, WeightKind::kObservations,
+          WeightKind::kMeanDistance};
+}
+
 std::string to_string(WeightKind kind) {
   switch (kind) {
     case WeightKind::kUniform:

@@ -1,6 +1,10 @@
 // `lmalign align`: the real binary on synthetic maps (and on the real pair when present).
 #include <nlohmann/json.hpp>
 
+#include <fstream>
+#include <sstream>
+#include <string>
+
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/map_io.hpp"
@@ -65,12 +69,12 @@ TEST_F(CliAlign, DefaultIsTheRecommendedStrategyAndStrategyListsSelectByName) {
   EXPECT_LT(j["results"][0]["translation_error_m"].get<double>(), 1e-3);
 
   const test::CliRun r2 = run("align " + source_ + " " + target_ +
-                              " --strategy paper,shrink,robust_obs_4dof --json " + path("s.json"));
+                              " --strategy paper,mutual,robust_obs_4dof --json " + path("s.json"));
   ASSERT_EQ(r2.exit_code, 0) << r2.err;
   j = nlohmann::json::parse(test::read_text(path("s.json")));
   ASSERT_EQ(j["results"].size(), 6u);
   EXPECT_EQ(j["results"][0]["strategy"], "base");
-  EXPECT_EQ(j["results"][4]["strategy"], "shrink");
+  EXPECT_EQ(j["results"][4]["strategy"], "mutual");
   EXPECT_EQ(j["results"][5]["strategy"], "robust_obs_4dof");
 
   for (const std::string& bad :
@@ -81,24 +85,83 @@ TEST_F(CliAlign, DefaultIsTheRecommendedStrategyAndStrategyListsSelectByName) {
   }
 }
 
-TEST_F(CliAlign, PointToDistributionStrategiesRunWithTheMapsCovariances) {
-  // p2d and robust_p2d use both maps' landmark covariances; the displacement rotates the
-  // source's with its points.
-  write_transform(path("gt.txt"), T_true_);
-  const test::CliRun r = run("align " + source_ + " " + target_ +
-                             " --strategy p2d,robust_p2d --displace 0.1,-0.05,0,0,0,8" +
-                             " --ground-truth " + path("gt.txt") + " --json " + path("p.json"));
+TEST_F(CliAlign, SettingsAreSetCheckedAndListed) {
+  // --set KEY=VALUE reaches any setting of the strategy; the JSON lists every setting.
+  const std::string base = "align " + source_ + " " + target_ +
+                           " --strategy robust_obs --displace 0.1,-0.05,0,0,0,8 --json ";
+  const test::CliRun r = run(base + path("set.json") + " --set schedule.max_iterations=2" +
+                             " --set kernel.scale_m=0.03");
   ASSERT_EQ(r.exit_code, 0) << r.err;
-  EXPECT_NE(r.out.find("robust_p2d"), std::string::npos) << r.out;
-  const auto j = nlohmann::json::parse(test::read_text(path("p.json")));
-  ASSERT_EQ(j["results"].size(), 2u);
-  EXPECT_EQ(j["results"][0]["strategy"], "p2d");
-  EXPECT_EQ(j["results"][1]["strategy"], "robust_p2d");
-  for (const auto& res : j["results"]) {
-    EXPECT_TRUE(res["right_basin"].get<bool>()) << res["strategy"];
-    EXPECT_LT(res["rotation_error_deg"].get<double>(), 1e-3) << res["strategy"];
-    EXPECT_LT(res["translation_error_m"].get<double>(), 1e-4) << res["strategy"];
+  const auto j = nlohmann::json::parse(test::read_text(path("set.json")));
+  EXPECT_EQ(j["results"][0]["iterations"].get<int>(), 2);
+  EXPECT_EQ(j["results"][0]["settings"]["schedule.max_iterations"], "2");
+  EXPECT_EQ(j["results"][0]["settings"]["kernel.scale_m"], "0.03");
+  EXPECT_EQ(j["results"][0]["settings"]["schedule.levels_m"], "[inf, 1, 0.5, 0.25, 0.1, 0.05]");
+  EXPECT_EQ(j["results"][0]["stages"]["schedule"], "distance_levels");
+
+  // An unknown key names the nearest known one; a value outside its bound names key, value and
+  // bound; both in one line, before any map is read.
+  struct Bad {
+    std::string set;
+    std::string expect;
+  };
+  for (const Bad& b :
+       {Bad{"schedule.max_iteration=2", "unknown setting 'schedule.max_iteration' (nearest: "
+                                        "'schedule.max_iterations')"},
+        Bad{"schedule.max_iterations=0", "schedule.max_iterations = 0 is outside its bound [1, "
+                                         "2147483647]"},
+        Bad{"kernel.confidence=weights", "kernel.confidence = 'weights' is not one of uniform"},
+        Bad{"kernel.scale_m", "expected KEY=VALUE"}}) {
+    const test::CliRun e = run("align " + path("missing.txt") + " " + target_ +
+                               " --strategy robust_obs --set " + test::shell_quote(b.set));
+    EXPECT_EQ(e.exit_code, 2) << b.set;
+    EXPECT_NE(e.err.find(b.expect), std::string::npos) << b.set << "\n" << e.err;
+    EXPECT_EQ(e.err.find('\n'), e.err.size() - 1) << "not one line: " << e.err;
   }
+
+  // lmalign options: one setting per line, key first, then value, unit, bound, doc.
+  const test::CliRun o = run("options robust_obs");
+  ASSERT_EQ(o.exit_code, 0) << o.err;
+  std::istringstream lines(o.out);
+  std::string line;
+  bool found = false;
+  while (std::getline(lines, line)) {
+    if (line.rfind("schedule.max_iterations ", 0) != 0) continue;
+    std::istringstream fields(line);
+    std::string key, value, unit, bound;
+    fields >> key >> value >> unit >> bound;
+    EXPECT_EQ(value, "300");
+    EXPECT_EQ(unit, "count");
+    EXPECT_EQ(bound, "[1,");
+    found = true;
+  }
+  EXPECT_TRUE(found) << o.out;
+  EXPECT_NE(run("options robus_obs").err.find("nearest: 'robust_obs'"), std::string::npos);
+
+  // A preset file: stages by name; an unknown one names the file, the line and the stage.
+  {
+    std::ofstream(path("mine.yaml")) << "doc: robust_obs with mutual pairs\ngroup: lmalign\n"
+                                        "initialiser: guess\nmatcher: nearest\n"
+                                        "rejectors: [mutual]\nkernel: cauchy\n"
+                                        "estimator: umeyama\nschedule: distance_levels\n"
+                                        "trust: inliers\nsettings:\n"
+                                        "  kernel.confidence: observations\n";
+  }
+  const test::CliRun mine = run("align " + source_ + " " + target_ + " --strategy " +
+                                path("mine.yaml") + " --json " + path("mine.json"));
+  ASSERT_EQ(mine.exit_code, 0) << mine.err;
+  EXPECT_EQ(nlohmann::json::parse(test::read_text(path("mine.json")))["results"][0]["strategy"],
+            "mine");
+  {
+    std::ofstream(path("bad.yaml")) << "doc: x\ninitialiser: guess\nmatcher: nearst\n"
+                                       "kernel: none\nestimator: umeyama\nschedule: pcl\n";
+  }
+  const test::CliRun bad = run("align " + source_ + " " + target_ + " --strategy " +
+                               path("bad.yaml"));
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find(path("bad.yaml") + ":3: unknown matcher stage 'nearst' (known: nearest"),
+            std::string::npos)
+      << bad.err;
 }
 
 TEST_F(CliAlign, IterationAndDistanceLimitsApplyToOwnStrategiesWhenGiven) {
@@ -106,16 +169,17 @@ TEST_F(CliAlign, IterationAndDistanceLimitsApplyToOwnStrategiesWhenGiven) {
   // with --max-iterations 2 it stops at 2. --max-distance caps the schedule: a cap below the
   // displacement's shift leaves no correspondence at the first level.
   const std::string base =
-      "align " + source_ + " " + target_ + " --strategy shrink --displace 0.1,-0.05,0,0,0,8";
+      "align " + source_ + " " + target_ + " --strategy robust_obs --displace 0.1,-0.05,0,0,0,8";
   const test::CliRun preset = run(base + " --json " + path("a.json"));
   ASSERT_EQ(preset.exit_code, 0) << preset.err;
-  EXPECT_NE(preset.out.find("preset distance schedule"), std::string::npos) << preset.out;
+  EXPECT_NE(preset.out.find("limits: the strategies' own"), std::string::npos) << preset.out;
   const auto a = nlohmann::json::parse(test::read_text(path("a.json")));
   EXPECT_GT(a["results"][0]["iterations"].get<int>(), 2);
 
   const test::CliRun limited = run(base + " --max-iterations 2 --json " + path("b.json"));
   ASSERT_EQ(limited.exit_code, 0) << limited.err;
-  EXPECT_NE(limited.out.find("limited by the options above"), std::string::npos) << limited.out;
+  EXPECT_NE(limited.out.find("limits: max iterations 2, max distance -"), std::string::npos)
+      << limited.out;
   const auto b = nlohmann::json::parse(test::read_text(path("b.json")));
   EXPECT_EQ(b["results"][0]["iterations"].get<int>(), 2);
   EXPECT_EQ(b["results"][0]["termination"], "max_iterations");

@@ -1,4 +1,4 @@
-// `lmalign align --strategy global` from a start no local method recovers (150 degrees, 2.5 m),
+// `lmalign align --strategy global_robust_obs` from a start no local method recovers (150 degrees, 2.5 m),
 // and the trust verdict of every result, on the real pair with a known truth (identity).
 #include <string>
 
@@ -20,7 +20,7 @@ TEST_F(CliGlobalTrust, GlobalRecoversAFarStartAndTheVerdictTellsRightFromWrong) 
   LMALIGN_REQUIRE_FILE(d + "/desk_gt_a.txt");
   const auto r =
       run("align " + shell_quote(d + "/desk_gt_a.txt") + " " + shell_quote(d + "/desk_gt_b.txt") +
-          " --strategy global,base --displace 1.5,-2,0,0,0,150 --ground-truth identity"
+          " --strategy global_robust_obs,base --displace 1.5,-2,0,0,0,150 --ground-truth identity"
           " --json " +
           shell_quote(path("a.json")));
   ASSERT_EQ(r.exit_code, 0) << r.err;
@@ -29,7 +29,7 @@ TEST_F(CliGlobalTrust, GlobalRecoversAFarStartAndTheVerdictTellsRightFromWrong) 
   ASSERT_EQ(j["results"].size(), 2u);
   const auto& global = j["results"][0];
   const auto& base = j["results"][1];
-  ASSERT_EQ(global["strategy"], "global");
+  ASSERT_EQ(global["strategy"], "global_robust_obs");
   EXPECT_TRUE(global["right_basin"].get<bool>());
   EXPECT_LT(global["rotation_error_deg"].get<double>(), 1.5);
   EXPECT_LT(global["translation_error_m"].get<double>(), 0.03);

@@ -159,7 +159,7 @@ TEST_F(CliHostileNumbers, AGuessAndPriorAtTheEdgeOfTheRangeGiveAResult) {
   for (const Case& c : std::vector<Case>{
            {"--initial-guess " + path("edge.txt") + " --prior-sigma 1e15,1e15", true},
            {"--initial-guess " + path("edge.txt") + " --prior-sigma 1e-9,1e-9", false},
-           {"--initial-guess " + path("edge.txt") + " --strategy paper,robust_obs,p2d", false},
+           {"--initial-guess " + path("edge.txt") + " --strategy paper,robust_obs,mutual", false},
        }) {
     const test::CliRun r = run("align " + st() + " " + c.args + " --json " + path("edge.json"));
     ASSERT_EQ(r.exit_code, 0) << c.args << ": " << r.err;

@@ -21,7 +21,7 @@ struct Case {
 class RealPair : public test::RealPairTest {
  protected:
   // Error of the recovered map-to-map transform (T_est * D) against the identity.
-  static TransformError run(PaperStrategy s, const Case& c, RegistrationResult* out = nullptr) {
+  static TransformError run(WeightKind s, const Case& c, RegistrationResult* out = nullptr) {
     const Isometry3 D = pose_from_xyz_rpy_deg(c.x, c.y, c.z, c.roll, c.pitch, c.yaw);
     const RegistrationResult r = align(transform_points(D, source_->positions()), *target_,
                                        RegistrationOptions::paper(s, 5));
@@ -36,18 +36,18 @@ TEST_F(RealPair, Table1DisplacementLandsInTheRightBasinWithTheMeasuredBias) {
   // method.md §6: a numpy ICP at the paper's settings ends 4.6 deg / 4.7 cm (base) and
   // 2.5 deg / 4.7 cm (observations) from the truth at this start.
   RegistrationResult r;
-  TransformError e = run(PaperStrategy::kBase, kTable1, &r);
+  TransformError e = run(WeightKind::kUniform, kTable1, &r);
   EXPECT_NEAR(e.rotation_deg, 4.6, 0.3);
   EXPECT_NEAR(e.translation_m, 0.047, 0.01);
   EXPECT_TRUE(r.converged);
   EXPECT_EQ(r.termination, TerminationReason::kAbsoluteMse);
   EXPECT_LT(r.final_score_m2, 0.1 * r.initial_score_m2);
 
-  e = run(PaperStrategy::kObservations, kTable1);
+  e = run(WeightKind::kObservations, kTable1);
   EXPECT_NEAR(e.rotation_deg, 2.5, 0.3);
   EXPECT_NEAR(e.translation_m, 0.047, 0.01);
 
-  e = run(PaperStrategy::kCovariance, kTable1);
+  e = run(WeightKind::kCovariance, kTable1);
   EXPECT_LT(e.rotation_deg, 5.0);
   EXPECT_LT(e.translation_m, 0.10);
 }
@@ -57,7 +57,7 @@ TEST_F(RealPair, BaseAndObservationsConvergeFromNearbyStarts) {
        {Case{"truth", 0, 0, 0, 0, 0, 0}, Case{"yaw10", 0, 0, 0, 0, 0, 10},
         Case{"yaw20", 0, 0, 0, 0, 0, 20}, Case{"+x+y0.25", 0.25, 0.25, 0, 0, 0, 0},
         Case{"+x-y0.5", 0.5, -0.5, 0, 0, 0, 0}, Case{"-x+y0.5yaw10", -0.5, 0.5, 0, 0, 0, 10}}) {
-    for (PaperStrategy s : {PaperStrategy::kBase, PaperStrategy::kObservations}) {
+    for (WeightKind s : {WeightKind::kUniform, WeightKind::kObservations}) {
       const TransformError e = run(s, c);
       EXPECT_LT(e.rotation_deg, 5.0) << c.name << " " << to_string(s);
       EXPECT_LT(e.translation_m, 0.10) << c.name << " " << to_string(s);
@@ -69,7 +69,7 @@ TEST_F(RealPair, BaseAndObservationsConvergeFromNearbyStarts) {
 
 TEST_F(RealPair, Yaw30IsOutsideTheBasinOfBaseIcp) {
   // method.md §6 measured "yaw 30: wrong basin" for base and observations; we reproduce it.
-  const TransformError e = run(PaperStrategy::kBase, Case{"yaw30", 0, 0, 0, 0, 0, 30});
+  const TransformError e = run(WeightKind::kUniform, Case{"yaw30", 0, 0, 0, 0, 0, 30});
   EXPECT_GT(e.rotation_deg, 20.0);
 }
 
@@ -77,9 +77,9 @@ TEST_F(RealPair, DeterministicAcrossThreadCounts) {
   const int saved = omp_get_max_threads();
   RegistrationResult one, two;
   omp_set_num_threads(1);
-  run(PaperStrategy::kCovariance, kTable1, &one);
+  run(WeightKind::kCovariance, kTable1, &one);
   omp_set_num_threads(2);
-  run(PaperStrategy::kCovariance, kTable1, &two);
+  run(WeightKind::kCovariance, kTable1, &two);
   omp_set_num_threads(saved);
   EXPECT_EQ(one.iterations, two.iterations);
   EXPECT_TRUE(one.T_target_source.matrix() == two.T_target_source.matrix());

@@ -4,7 +4,7 @@
 
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
-#include "lmalign/registration/robust.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "support/real_pair.hpp"
 
 namespace lmalign {
@@ -20,16 +20,14 @@ TEST(GlobalRealPair, YawSearchFindsTheTruthFromAFarStart) {
   // Yaw 150 deg about the world origin and 2 m in XY.
   const Isometry3 D = pose_from_xyz_rpy_deg(1.5, -1.3, 0, 0, 0, 150);
   const Points3 moved = transform_points(D, source);
+  SourceView view;
+  view.positions = &moved;
   const TransformError local = transform_error(
-      align_robust(moved, target, robust_strategy_options(PaperStrategy::kRobustObs))
-              .T_target_source *
-          D,
+      align(find_preset("robust_obs"), view, target).registration.T_target_source * D,
       Isometry3::Identity());
   EXPECT_GT(local.rotation_deg, 5.0);
   const TransformError e = transform_error(
-      align_robust(moved, target, robust_strategy_options(PaperStrategy::kGlobalRobustObs))
-              .T_target_source *
-          D,
+      align(find_preset("global_robust_obs"), view, target).registration.T_target_source * D,
       Isometry3::Identity());
   EXPECT_LT(e.rotation_deg, 1.0);
   EXPECT_LT(e.translation_m, 0.015);

@@ -134,13 +134,13 @@ TEST(PclDropIn, SameCorrespondencesAsLmalignOnTheRealPair) {
         pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 50), pose_from_xyz_rpy_deg(0.5, -0.5, 0, 0, 0, 0)}) {
     const Cloud::Ptr source = test::to_cloud(transform_points(D, a.positions()));
     const Points3 source_d = test::from_cloud(*source);
-    for (PaperStrategy st : all_paper_strategies()) {
+    for (WeightKind st : all_weight_kinds()) {
       const RegistrationOptions o = RegistrationOptions::paper(st, 5);
       const std::vector<double>& w = prepared.weights(
           o.correspondence == CorrespondenceKind::kWeightedKnn ? o.weight : WeightKind::kUniform);
       CorrespondenceOptions co;
       co.kind = CorrespondenceKind::kWeightedKnn;  // k = 5 everywhere; base: k = 1
-      co.k = st == PaperStrategy::kBase ? 1 : 5;
+      co.k = st == WeightKind::kUniform ? 1 : 5;
       Correspondences ours;
       CorrespondenceFinder(tree, w, co).find(source_d, ours);
       DropIn est(co.k, w);

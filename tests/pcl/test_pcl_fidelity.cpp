@@ -75,7 +75,7 @@ class RecordingIcp : public PclIcp {
 
 struct Row {
   std::string strategy;
-  PaperStrategy st = PaperStrategy::kBase;
+  WeightKind st = WeightKind::kUniform;
   int yaw = 0;
   bool replica_matches_align = false;
   TerminationReason lm_termination = TerminationReason::kNotTerminated;
@@ -97,7 +97,7 @@ struct Pair {
 
 // One Table 2 case: lmalign and PCL side by side. No gtest assertions here (it runs on worker
 // threads); the test checks the returned row.
-Row run_case(const Pair& p, PaperStrategy st, int yaw) {
+Row run_case(const Pair& p, WeightKind st, int yaw) {
   const PreparedTarget& prepared = *p.prepared;
   const Points3 source =
       transform_points(pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, yaw), p.a.positions());
@@ -227,8 +227,8 @@ TEST_F(PclFidelity, Table2AgainstPclIterativeClosestPoint) {
   p.prepared = std::make_unique<PreparedTarget>(p.b);
   p.target = test::to_cloud(p.b.positions());
   p.canon = test::canonical_indices(p.b.positions());
-  std::vector<std::pair<PaperStrategy, int>> cases;
-  for (PaperStrategy st : all_paper_strategies()) {
+  std::vector<std::pair<WeightKind, int>> cases;
+  for (WeightKind st : all_weight_kinds()) {
     for (int yaw = 0; yaw <= 70; yaw += 10) cases.emplace_back(st, yaw);
   }
   // The cases are independent: run them on all cores (PCL's ICP is serial; lmalign's inner
@@ -245,7 +245,7 @@ TEST_F(PclFidelity, Table2AgainstPclIterativeClosestPoint) {
     SCOPED_TRACE(row.strategy + " yaw " + std::to_string(row.yaw));
     EXPECT_TRUE(row.replica_matches_align);
     // 1. Scores.
-    EXPECT_LT(row.score_rel, row.st == PaperStrategy::kObservations && row.yaw == 50 ? 1e-5 : 1e-6);
+    EXPECT_LT(row.score_rel, row.st == WeightKind::kObservations && row.yaw == 50 ? 1e-5 : 1e-6);
     // 2. The first geometric divergence is a float near-tie.
     if (row.first_divergence > 0) {
       EXPECT_LT(row.near_tie_gap, 2.0 * row.near_tie_drift + 1e-7)

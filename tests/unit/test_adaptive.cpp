@@ -19,11 +19,11 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "lmalign/registration/stages/p2d_step.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
-#include "lmalign/registration/strategy.hpp"
 #include "support/synthetic_scene.hpp"
 
 namespace lmalign {
@@ -964,7 +964,7 @@ TEST(YawVote, RefusesBadInputs) {
 }
 
 // ------------------------------------------------------------------------------------------
-// align_adaptive, run_strategy
+// align_adaptive, align(preset)
 // ------------------------------------------------------------------------------------------
 
 /// A partial-overlap room (test::room_points): the target keeps x + y >= 1.2 m, the source
@@ -1380,61 +1380,55 @@ TEST(Adaptive, FewerThanThreeLandmarksGiveNoCorrespondencesUntrusted) {
   EXPECT_FALSE(t.trustworthy);
 }
 
-TEST(RunStrategy, AdaptiveCarriesItsResultOthersCarryAVerdict) {
+TEST(AlignPreset, TheDefaultIsAlignAdaptiveOthersCarryTheirJudgesVerdict) {
   const Room room = make_room(far_truth(), 50);
   const PreparedTarget target = room.target();
-  StrategySource s;
-  s.positions = room.source.positions;
-  s.covariances_m2 = room.source.covariances_m2;
-  s.up = room.source.up;
+  const SourceView s = room.source.view();
 
-  StrategyRequest req;
-  req.strategy = PaperStrategy::kRobustObs;
+  AlignRequest req;
   req.prior = PriorSigma{1.0, 0.1};
-  EXPECT_THROW(run_strategy(s, target, req), InvalidArgument);
-  req.strategy = PaperStrategy::kBase;
-  EXPECT_THROW(run_strategy(s, target, req), InvalidArgument);
+  EXPECT_THROW(align(find_preset("robust_obs"), s, target, req), InvalidArgument);
+  EXPECT_THROW(align(find_preset("base"), s, target, req), InvalidArgument);
   req.prior.reset();
   Isometry3 scaled = Isometry3::Identity();
   scaled.linear() *= 2.0;
   req.initial_guess = scaled;
-  req.strategy = PaperStrategy::kAdaptive;
-  EXPECT_THROW(run_strategy(s, target, req), InvalidArgument);
-  req.initial_guess.reset();
+  EXPECT_THROW(align(recommended_preset(), s, target, req), InvalidArgument);
 
-  // Adaptive (the default): its own result, the same as align_adaptive's, bit for bit.
-  StrategyRequest adaptive;
-  EXPECT_EQ(adaptive.strategy, PaperStrategy::kAdaptive);
-  const StrategyOutcome a = run_strategy(s, target, adaptive);
-  ASSERT_TRUE(a.adaptive.has_value());
-  EXPECT_FALSE(a.verdict.has_value());
+  // The recommended default: the same as align_adaptive's, bit for bit.
+  const Summary a = align(recommended_preset(), s, target);
   const AdaptiveResult direct = align_adaptive(room.source, target);
-  EXPECT_TRUE(a.result.T_target_source.matrix() == direct.registration.T_target_source.matrix());
-  EXPECT_TRUE(a.adaptive->registration.T_target_source.matrix() ==
+  EXPECT_TRUE(a.registration.T_target_source.matrix() ==
               direct.registration.T_target_source.matrix());
-  EXPECT_EQ(a.trustworthy, a.adaptive->trustworthy);
-  EXPECT_EQ(a.trust_reason, a.adaptive->trust_reason);
-  EXPECT_TRUE(a.trustworthy) << a.trust_reason;
-  EXPECT_LT(transform_error(a.result.T_target_source, room.T_true).rotation_deg, 0.5);
+  EXPECT_TRUE(a.covariance.covariance == direct.covariance.covariance);
+  EXPECT_EQ(a.verdict.trustworthy, direct.trustworthy);
+  EXPECT_EQ(a.verdict.reason, direct.trust_reason);
+  EXPECT_EQ(a.verdict.num_inliers, direct.num_inliers);
+  EXPECT_EQ(a.hypotheses.size(), direct.hypotheses.size());
+  EXPECT_TRUE(a.verdict.trustworthy) << a.verdict.reason;
+  EXPECT_TRUE(a.IsSolutionUsable());
+  EXPECT_LT(transform_error(a.registration.T_target_source, room.T_true).rotation_deg, 0.5);
   // With a prior it is bounded.
-  StrategyRequest bounded;
+  AlignRequest bounded;
   bounded.initial_guess = room.T_true;
   bounded.prior = PriorSigma{2.0, 0.1};
-  const StrategyOutcome b = run_strategy(s, target, bounded);
-  ASSERT_TRUE(b.adaptive.has_value());
-  EXPECT_EQ(b.adaptive->initialisation, "prior");
+  EXPECT_EQ(align(recommended_preset(), s, target, bounded).initialisation.initialisation, "prior");
 
-  // The others: judge_alignment's verdict, no adaptive result.
-  for (PaperStrategy st : {PaperStrategy::kBase, PaperStrategy::kShrinkCauchy}) {
-    StrategyRequest r;
-    r.strategy = st;
+  // The others: judge_alignment's verdict and its covariance.
+  // robust_obs without its observation weight (the room's target is bare points).
+  for (const char* name : {"base", "robust_obs"}) {
+    AlignRequest r;
     r.max_iterations = 20;
+    if (std::string(name) == "robust_obs") {
+      r.settings = {{"kernel.confidence", SettingValue(std::string("uniform"))}};
+    }
     r.initial_guess = pose_from_xyz_rpy_deg(0.02, 0, 0, 0, 0, 1.0) * room.T_true;
-    const StrategyOutcome o = run_strategy(s, target, r);
-    EXPECT_FALSE(o.adaptive.has_value()) << to_string(st);
-    ASSERT_TRUE(o.verdict.has_value()) << to_string(st);
-    EXPECT_EQ(o.trustworthy, o.verdict->trustworthy);
-    EXPECT_EQ(o.trust_reason, o.verdict->reason);
+    const Summary o = align(find_preset(name), s, target, r);
+    EXPECT_TRUE(o.hypotheses.empty()) << name;
+    EXPECT_FALSE(std::isnan(o.verdict.inlier_fraction)) << name;
+    ASSERT_TRUE(o.verdict.covariance.has_value()) << name;
+    EXPECT_TRUE(o.covariance.covariance == o.verdict.covariance->covariance) << name;
+    EXPECT_EQ(o.registration.iterations <= 20, true) << name;
   }
 }
 

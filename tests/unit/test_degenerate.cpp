@@ -31,7 +31,7 @@ void expect_proper_rigid(const Isometry3& T) {
   EXPECT_EQ(T.matrix().row(3), Eigen::RowVector4d(0, 0, 0, 1));
 }
 
-std::vector<PaperStrategy> strategies() { return all_paper_strategies(); }
+std::vector<WeightKind> strategies() { return all_weight_kinds(); }
 
 /// A target of bare points with every weight kind set to 1 (so all four strategies run).
 PreparedTarget bare_target(const Points3& points) {
@@ -79,7 +79,7 @@ TEST(DegenerateMaps, OneOrTwoSourceLandmarksStopWithNoCorrespondences) {
   const Isometry3 init = pose_from_xyz_rpy_deg(0.1, 0, 0, 0, 0, 5);
   for (std::size_t n : {1u, 2u}) {
     const Points3 source(target_points.begin(), target_points.begin() + n);
-    for (PaperStrategy s : strategies()) {
+    for (WeightKind s : strategies()) {
       SCOPED_TRACE(std::to_string(n) + " landmarks, " + to_string(s));
       const RegistrationResult r = align(source, target, RegistrationOptions::paper(s), init);
       EXPECT_EQ(r.termination, TerminationReason::kNoCorrespondences);
@@ -98,7 +98,7 @@ TEST(DegenerateMaps, ThreeLandmarksRecoverTheTransformExactly) {
   const Isometry3 T_true = pose_from_xyz_rpy_deg(0.01, -0.02, 0.005, 0.5, -0.3, 1.0);
   const Points3 source = transform_points(T_true.inverse(), target_points);
   const PreparedTarget target = bare_target(target_points);
-  for (PaperStrategy s : strategies()) {
+  for (WeightKind s : strategies()) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = align(source, target, RegistrationOptions::paper(s));
     expect_proper_rigid(r.T_target_source);
@@ -118,7 +118,7 @@ TEST(DegenerateMaps, OneOrTwoTargetLandmarksGiveADegenerateFiniteResult) {
   centroid /= static_cast<double>(source.size());
 
   const PreparedTarget one = bare_target({Vec3(10, -4, 2)});
-  for (PaperStrategy s : strategies()) {
+  for (WeightKind s : strategies()) {
     SCOPED_TRACE("one target landmark, " + to_string(s));
     const RegistrationResult r = align(source, one, RegistrationOptions::paper(s));
     expect_proper_rigid(r.T_target_source);
@@ -128,7 +128,7 @@ TEST(DegenerateMaps, OneOrTwoTargetLandmarksGiveADegenerateFiniteResult) {
     EXPECT_LT((r.T_target_source * centroid - Vec3(10, -4, 2)).norm(), 1e-12);
   }
   const PreparedTarget two = bare_target({Vec3(0, 0, 0), Vec3(1, 1, 0)});
-  for (PaperStrategy s : strategies()) {
+  for (WeightKind s : strategies()) {
     SCOPED_TRACE("two target landmarks, " + to_string(s));
     const RegistrationResult r = align(source, two, RegistrationOptions::paper(s));
     expect_proper_rigid(r.T_target_source);
@@ -148,7 +148,7 @@ TEST(DegenerateMaps, CollinearMapsGiveADegenerateResultOnTheTargetLine) {
   const Isometry3 T_true = pose_from_xyz_rpy_deg(0.02, 0.01, -0.01, 2, -1, 3);
   const Points3 source = transform_points(T_true.inverse(), target_points);
   const PreparedTarget target = bare_target(target_points);
-  for (PaperStrategy s : strategies()) {
+  for (WeightKind s : strategies()) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = align(source, target, RegistrationOptions::paper(s));
     expect_proper_rigid(r.T_target_source);
@@ -171,7 +171,7 @@ TEST(DegenerateMaps, CoplanarMapsAreWellDeterminedAndConverge) {
       transform_points(T_true.inverse(), Points3(floor.begin(), floor.begin() + 2000));
   const PreparedTarget target = bare_target(floor);
   const RegistrationResult r =
-      align(source, target, RegistrationOptions::paper(PaperStrategy::kBase));
+      align(source, target, RegistrationOptions::paper(WeightKind::kUniform));
   expect_proper_rigid(r.T_target_source);
   EXPECT_TRUE(r.converged) << to_string(r.termination);
   const TransformError e = transform_error(r.T_target_source, T_true);
@@ -182,7 +182,7 @@ TEST(DegenerateMaps, CoplanarMapsAreWellDeterminedAndConverge) {
 TEST(DegenerateMaps, AllPointsIdenticalGiveThePureTranslation) {
   const Points3 source(30, Vec3(1, 2, 3));
   const PreparedTarget target = bare_target(Points3(25, Vec3(-4, 0.5, 7)));
-  for (PaperStrategy s : strategies()) {
+  for (WeightKind s : strategies()) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = align(source, target, RegistrationOptions::paper(s));
     expect_proper_rigid(r.T_target_source);
@@ -259,7 +259,7 @@ TEST(DegenerateMaps, CoordinatesAroundOneBillionMetresStayAccurate) {
       about_map.inverse(), Points3(target_points.begin(), target_points.begin() + 2000));
   const PreparedTarget target = bare_target(target_points);
   const RegistrationResult r =
-      align(source, target, RegistrationOptions::paper(PaperStrategy::kBase));
+      align(source, target, RegistrationOptions::paper(WeightKind::kUniform));
   expect_proper_rigid(r.T_target_source);
   EXPECT_TRUE(r.converged) << to_string(r.termination);
   // Double precision at 1e9 m is 1.2e-7 m; the errors are of that order.
@@ -304,9 +304,9 @@ TEST(DegenerateMaps, KLargerThanTheTargetEqualsKEqualToTheTarget) {
       transform_points(pose_from_xyz_rpy_deg(0.02, 0, 0, 0, 0, 2),
                        Points3(target_points.begin(), target_points.begin() + 8));
   const RegistrationResult all =
-      align(source, target, RegistrationOptions::paper(PaperStrategy::kObservations, 12));
+      align(source, target, RegistrationOptions::paper(WeightKind::kObservations, 12));
   const RegistrationResult more =
-      align(source, target, RegistrationOptions::paper(PaperStrategy::kObservations, 4096));
+      align(source, target, RegistrationOptions::paper(WeightKind::kObservations, 4096));
   expect_proper_rigid(more.T_target_source);
   EXPECT_NE(more.termination, TerminationReason::kNotTerminated);
   EXPECT_TRUE(more.T_target_source.matrix() == all.T_target_source.matrix());
@@ -319,7 +319,7 @@ TEST(DegenerateMaps, AllTargetWeightsZeroMeansNoCorrespondences) {
   target.set_weights(WeightKind::kObservations, std::vector<double>(target_points.size(), 0.0));
   const Isometry3 init = pose_from_xyz_rpy_deg(0, 0.1, 0, 0, 0, 0);
   const RegistrationResult r =
-      align(target_points, target, RegistrationOptions::paper(PaperStrategy::kObservations), init);
+      align(target_points, target, RegistrationOptions::paper(WeightKind::kObservations), init);
   EXPECT_EQ(r.termination, TerminationReason::kNoCorrespondences);
   EXPECT_EQ(r.num_correspondences, 0u);
   EXPECT_EQ(r.iterations, 0);
@@ -329,13 +329,13 @@ TEST(DegenerateMaps, AllTargetWeightsZeroMeansNoCorrespondences) {
   Map map = test::map_from_points(target_points, 25);
   for (Landmark& l : map.landmarks) l.observations.clear();
   const PreparedTarget from_map(map);
-  for (PaperStrategy s : {PaperStrategy::kObservations, PaperStrategy::kMeanDistance}) {
+  for (WeightKind s : {WeightKind::kObservations, WeightKind::kMeanDistance}) {
     const RegistrationResult m = align(target_points, from_map, RegistrationOptions::paper(s));
     EXPECT_EQ(m.termination, TerminationReason::kNoCorrespondences) << to_string(s);
   }
   // Base ignores weights and still aligns.
   const RegistrationResult base =
-      align(target_points, from_map, RegistrationOptions::paper(PaperStrategy::kBase), init);
+      align(target_points, from_map, RegistrationOptions::paper(WeightKind::kUniform), init);
   EXPECT_TRUE(base.converged);
 }
 
@@ -344,7 +344,7 @@ TEST(DegenerateMaps, MaxDistanceSoSmallThatNothingCorresponds) {
   const PreparedTarget target = bare_target(target_points);
   const Isometry3 init = pose_from_xyz_rpy_deg(0.01, 0, 0, 0, 0, 0);
   for (double d : {1e-9, 1e-150, std::numeric_limits<double>::denorm_min()}) {
-    for (PaperStrategy s : strategies()) {
+    for (WeightKind s : strategies()) {
       RegistrationOptions o = RegistrationOptions::paper(s);
       o.max_correspondence_distance_m = d;
       const RegistrationResult r = align(target_points, target, o, init);
@@ -360,7 +360,7 @@ TEST(DegenerateMaps, SourceEqualToTargetConvergesToTheIdentity) {
   const PreparedTarget target(map);
   // Base ICP: every landmark pairs with itself, the identity, exactly.
   const RegistrationResult base =
-      align(map.positions(), target, RegistrationOptions::paper(PaperStrategy::kBase));
+      align(map.positions(), target, RegistrationOptions::paper(WeightKind::kUniform));
   EXPECT_TRUE(base.converged) << to_string(base.termination);
   const TransformError e = transform_error(base.T_target_source, Isometry3::Identity());
   EXPECT_LT(e.rotation_deg, 1e-9);
@@ -369,8 +369,8 @@ TEST(DegenerateMaps, SourceEqualToTargetConvergesToTheIdentity) {
   // Weighted-kNN (Eq. 6) pairs a landmark with its most trusted neighbour among the k nearest,
   // which is often another landmark: even a map aligned onto itself moves (docs/robustness.md).
   // The result is still a converged, finite transform near the identity.
-  for (PaperStrategy s :
-       {PaperStrategy::kCovariance, PaperStrategy::kObservations, PaperStrategy::kMeanDistance}) {
+  for (WeightKind s :
+       {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance}) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = align(map.positions(), target, RegistrationOptions::paper(s));
     expect_proper_rigid(r.T_target_source);
@@ -425,7 +425,7 @@ TEST(DegenerateOptions, NaNOrNegativeValuesAreRefusedNamingTheField) {
   const Points3 points = test::room_points(50, 29);
   const PreparedTarget target = bare_target(points);
   for (const Case& c : cases) {
-    RegistrationOptions o = RegistrationOptions::paper(PaperStrategy::kObservations);
+    RegistrationOptions o = RegistrationOptions::paper(WeightKind::kObservations);
     c.set(o);
     try {
       align(points, target, o);

@@ -41,7 +41,8 @@ TEST(ExperimentCases, PaperConfigIsExactlyTheProtocolOfMethodSection5) {
   EXPECT_EQ(c.target.path, "/data/tum_fr1_desk/ground_truth_pair/desk_gt_b.txt");
   EXPECT_EQ(c.ground_truth.kind, GroundTruthSpec::Kind::kIdentity);
   EXPECT_EQ(c.max_iterations, 150);
-  EXPECT_TRUE(std::isinf(c.max_distance_m));
+  ASSERT_TRUE(c.max_distance_m.has_value());
+  EXPECT_TRUE(std::isinf(*c.max_distance_m));
   EXPECT_EQ(c.success.rotation_deg, 5.0);
   EXPECT_EQ(c.success.translation_m, 0.10);
 
@@ -88,7 +89,7 @@ TEST(ExperimentCases, PaperConfigIsExactlyTheProtocolOfMethodSection5) {
         pose_from_xyz_rpy_deg(want[i].pose.x_m, want[i].pose.y_m, want[i].pose.z_m,
                               want[i].pose.roll_deg, want[i].pose.pitch_deg, want[i].pose.yaw_deg),
         0.0));
-    EXPECT_EQ(got.strategies, all_paper_strategies());
+    EXPECT_EQ(got.strategies, preset_names("paper"));
     EXPECT_EQ(got.escalation_group, -1);
     EXPECT_TRUE(ids.insert(got.id()).second) << "duplicate id";
   }

@@ -48,10 +48,11 @@ TEST(ExperimentConfig, MinimalConfigGetsThePapersDefaults) {
   EXPECT_EQ(c.source.min_observations, 2u);
   EXPECT_EQ(c.ground_truth.kind, GroundTruthSpec::Kind::kNone);
   EXPECT_FALSE(c.has_ground_truth());
-  EXPECT_EQ(c.strategies, all_paper_strategies());
+  EXPECT_EQ(c.strategies, preset_names("paper"));
   EXPECT_EQ(c.k, 5);
-  EXPECT_EQ(c.max_iterations, 150);
-  EXPECT_TRUE(std::isinf(c.max_distance_m));
+  // No limits given: every strategy keeps its own (the paper's: 150 iterations, no distance cap).
+  EXPECT_FALSE(c.max_iterations.has_value());
+  EXPECT_FALSE(c.max_distance_m.has_value());
   EXPECT_EQ(c.success.rotation_deg, 5.0);
   EXPECT_EQ(c.success.translation_m, 0.10);
   EXPECT_EQ(c.success.score_m2, 0.0037);

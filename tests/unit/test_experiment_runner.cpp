@@ -116,7 +116,7 @@ TEST(ExperimentRunner, ErrorsAreOfTheRecoveredMapTransformAndDecideSuccess) {
   std::size_t successes = 0, failures = 0;
   for (const RunRecord& r : o.records) {
     const Case& cs = cases[r.case_index];
-    SCOPED_TRACE(cs.id() + " " + to_string(r.strategy));
+    SCOPED_TRACE(cs.id() + " " + r.strategy);
     ASSERT_TRUE(r.error.has_value());
     EXPECT_EQ(r.decision.decided_by, SuccessCriterion::kGroundTruth);
     // The error is that of T_est * D against the truth, not of T_est against D^-1 T_true.
@@ -127,7 +127,7 @@ TEST(ExperimentRunner, ErrorsAreOfTheRecoveredMapTransformAndDecideSuccess) {
       // Small displacements of an exact subset: the right basin, and base finds the exact
       // answer (the weighted strategies may pick a farther, heavier candidate).
       EXPECT_TRUE(r.decision.success);
-      if (r.strategy == PaperStrategy::kBase) {
+      if (r.strategy == "base") {
         EXPECT_LT(r.error->rotation_deg, 1e-5);
         EXPECT_LT(r.error->translation_m, 1e-6);
       }
@@ -182,18 +182,18 @@ TEST(ExperimentRunner, IdenticalRunsRunOnceAndGiveTheRecordsOfRunningThemAll) {
   ASSERT_EQ(shared.records.size(), 6u);
   EXPECT_EQ(without_time(csv_of(cases, shared.records)), without_time(csv_of(cases, all.records)));
   // Not vacuous: observations at k = 5 is another run, with other results.
-  const auto record = [&](const RunnerOutcome& o, std::size_t ci, PaperStrategy s) {
+  const auto record = [&](const RunnerOutcome& o, std::size_t ci, std::string s) {
     for (const RunRecord& r : o.records) {
       if (r.case_index == ci && r.strategy == s) return r;
     }
     ADD_FAILURE() << "no record";
     return RunRecord{};
   };
-  EXPECT_NE(record(all, 1, PaperStrategy::kObservations).T_target_source.matrix(),
-            record(all, 1, PaperStrategy::kBase).T_target_source.matrix());
+  EXPECT_NE(record(all, 1, "observations").T_target_source.matrix(),
+            record(all, 1, "base").T_target_source.matrix());
   // A copy carries the time of the run it copies, and its own labels.
-  const RunRecord copy = record(shared, 2, PaperStrategy::kBase);
-  EXPECT_EQ(copy.time_s, record(shared, 0, PaperStrategy::kBase).time_s);
+  const RunRecord copy = record(shared, 2, "base");
+  EXPECT_EQ(copy.time_s, record(shared, 0, "base").time_s);
   EXPECT_EQ(copy.k, 7);
 
   // The history case always runs (it records what a copy would not have).
@@ -201,8 +201,8 @@ TEST(ExperimentRunner, IdenticalRunsRunOnceAndGiveTheRecordsOfRunningThemAll) {
   history.history_case = 1;
   const RunnerOutcome h = run_cases(c, cases, pair().source, target(), pair().T_true, history);
   EXPECT_EQ(h.runs_shared, 2u);
-  EXPECT_EQ(record(h, 1, PaperStrategy::kBase).history.size(),
-            static_cast<std::size_t>(record(h, 1, PaperStrategy::kBase).iterations));
+  EXPECT_EQ(record(h, 1, "base").history.size(),
+            static_cast<std::size_t>(record(h, 1, "base").iterations));
 
   // With a zero weight, Eq. 6 at k = 1 leaves that landmark unmatched: observations at k = 1 is
   // no longer base, and runs.
@@ -282,7 +282,7 @@ TEST(ExperimentRunner, EscalationStopsAQuadrantAtItsFirstFailure) {
     if (cs.experiment == "full") {
       all_ok[cs.group].emplace(cs.value, true).first->second &= r.decision.success;
       any_ok[cs.group].emplace(cs.value, false).first->second |= r.decision.success;
-    } else if (r.strategy == PaperStrategy::kBase) {
+    } else if (r.strategy == "base") {
       ran[cs.experiment + cs.group].push_back(cs.value);
     }
   }
@@ -442,12 +442,11 @@ TEST(ExperimentRunner, CallbackExceptionsAndBadSettingsPropagate) {
 namespace lmalign {
 namespace {
 
-TEST(ExperimentRunner, PointToDistributionStrategiesNeedAndUseSourceCovariances) {
-  const ExperimentConfig c = config(
-      "  - {name: yaws, type: yaw, yaw_deg: [0, 10], strategies: [robust_obs, robust_p2d]}\n");
+TEST(ExperimentRunner, PresetsRunWithTheSourceCovariancesAndTheConfigsSettingsAndLimits) {
+  ExperimentConfig c =
+      config("  - {name: yaws, type: yaw, yaw_deg: [0, 10], strategies: [robust_obs, adaptive]}\n");
+  c.settings = {{"adaptive", {{"score.samples", 256LL}}}};
   const std::vector<Case> cases = expand_cases(c, pair().source);
-  // Without the source covariances the P2D strategy is refused before any run.
-  EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true), InvalidArgument);
   // The source's covariances: the target map's first 800, in the source frame.
   std::vector<Mat3> cov;
   const Mat3 R = pair().T_true.linear();
@@ -461,10 +460,24 @@ TEST(ExperimentRunner, PointToDistributionStrategiesNeedAndUseSourceCovariances)
   ASSERT_EQ(o.records.size(), 4u);
   for (const RunRecord& r : o.records) {
     ASSERT_TRUE(r.error.has_value());
-    EXPECT_LT(r.error->rotation_deg, 0.01) << to_string(r.strategy);
-    EXPECT_LT(r.error->translation_m, 1e-3) << to_string(r.strategy);
+    EXPECT_LT(r.error->rotation_deg, 0.01) << r.strategy;
+    EXPECT_LT(r.error->translation_m, 1e-3) << r.strategy;
+    EXPECT_TRUE(r.covariance_translation_sd_m.has_value()) << r.strategy;
   }
+  // The request is the CLI's: the config's settings for that strategy, its limits when given.
+  EXPECT_EQ(run_request(c, "adaptive", 5).settings.size(), 1u);
+  EXPECT_TRUE(run_request(c, "robust_obs", 5).settings.empty());
+  EXPECT_FALSE(run_request(c, "robust_obs", 5).max_iterations.has_value());
+  c.max_iterations = 2;
+  const RunnerOutcome capped = run_cases(c, cases, pair().source, target(), pair().T_true, opt);
+  for (const RunRecord& r : capped.records) {
+    if (r.strategy == "robust_obs") EXPECT_LE(r.iterations, 2);
+  }
+  // A setting out of its bound is refused before any run.
+  c.settings = {{"adaptive", {{"score.samples", 3LL}}}};
+  EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true, opt), InvalidArgument);
   const std::vector<Mat3> few(3, Mat3::Identity());
+  c.settings.clear();
   opt.source_covariances_m2 = &few;
   EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true, opt), InvalidArgument);
 }

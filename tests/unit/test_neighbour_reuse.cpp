@@ -445,7 +445,7 @@ TEST(NeighbourReuse, AlignIsBitIdenticalWithReuseOnAndOff) {
   for (int trial = 0; trial < 4; ++trial) {
     const Isometry3 init = pose_from_xyz_rpy_deg(0.1 * g(rng), 0.1 * g(rng), 0.05 * g(rng),
                                                  2 * g(rng), 2 * g(rng), 8 * g(rng));
-    for (PaperStrategy st : all_paper_strategies()) {
+    for (WeightKind st : all_weight_kinds()) {
       for (int k : {1, 5}) {
         RegistrationOptions o = RegistrationOptions::paper(st, k);
         o.record_history = true;
@@ -498,7 +498,7 @@ TEST(SlamSimulator, SeededDeterministicAndValid) {
   const sim::SlamMapPair full = sim::simulate_map_pair(so);
   const PreparedTarget full_target(full.target);
   const RegistrationResult r =
-      align(full.source.positions(), full_target, RegistrationOptions::paper(PaperStrategy::kBase),
+      align(full.source.positions(), full_target, RegistrationOptions::paper(WeightKind::kUniform),
             so.T_target_source * pose_from_xyz_rpy_deg(0.03, 0.02, 0, 0, 0, 1.5));
   const TransformError e = transform_error(r.T_target_source, so.T_target_source);
   EXPECT_LT(e.rotation_deg, 0.5);

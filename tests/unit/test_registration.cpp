@@ -35,7 +35,7 @@ TEST(Registration, BaseIcpRecoversAKnownTransformExactly) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.10, -0.08, 0.03, 2, -1, 6));
   const PreparedTarget target(s.target);
   const RegistrationResult r =
-      align(s.source, target, RegistrationOptions::paper(PaperStrategy::kBase));
+      align(s.source, target, RegistrationOptions::paper(WeightKind::kUniform));
   const TransformError e = transform_error(r.T_target_source, s.T_true);
   EXPECT_LT(e.rotation_deg, 1e-6);
   EXPECT_LT(e.translation_m, 1e-8);
@@ -51,8 +51,8 @@ TEST(Registration, WeightedStrategiesReachTheRightBasin) {
   // this dense scene the bias is small.
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.10, -0.08, 0.03, 2, -1, 6));
   const PreparedTarget target(s.target);
-  for (PaperStrategy st :
-       {PaperStrategy::kCovariance, PaperStrategy::kObservations, PaperStrategy::kMeanDistance}) {
+  for (WeightKind st :
+       {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance}) {
     const RegistrationResult r = align(s.source, target, RegistrationOptions::paper(st, 5));
     const TransformError e = transform_error(r.T_target_source, s.T_true);
     EXPECT_LT(e.rotation_deg, 1.0) << to_string(st);
@@ -65,9 +65,9 @@ TEST(Registration, WeightedWithKOneEqualsBase) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.3, 0.2, -0.1, 5, 3, -20));
   const PreparedTarget target(s.target);
   const RegistrationResult base =
-      align(s.source, target, RegistrationOptions::paper(PaperStrategy::kBase));
-  for (PaperStrategy st :
-       {PaperStrategy::kCovariance, PaperStrategy::kObservations, PaperStrategy::kMeanDistance}) {
+      align(s.source, target, RegistrationOptions::paper(WeightKind::kUniform));
+  for (WeightKind st :
+       {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance}) {
     const RegistrationResult r = align(s.source, target, RegistrationOptions::paper(st, 1));
     EXPECT_EQ(r.iterations, base.iterations) << to_string(st);
     EXPECT_EQ(r.termination, base.termination) << to_string(st);
@@ -79,7 +79,7 @@ TEST(Registration, WeightedWithKOneEqualsBase) {
 TEST(Registration, SameResultForAnyThreadCount) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.3, 0.2, -0.1, 5, 3, -20));
   const PreparedTarget target(s.target);
-  const RegistrationOptions o = RegistrationOptions::paper(PaperStrategy::kObservations, 5);
+  const RegistrationOptions o = RegistrationOptions::paper(WeightKind::kObservations, 5);
   const int saved = omp_get_max_threads();
   omp_set_num_threads(1);
   const RegistrationResult one = align(s.source, target, o);
@@ -94,7 +94,7 @@ TEST(Registration, SameResultForAnyThreadCount) {
 TEST(Registration, HistoryMatchesTheScoreAndTheMse) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.1, 0.0, 0.0, 0, 0, 4));
   const PreparedTarget target(s.target);
-  RegistrationOptions o = RegistrationOptions::paper(PaperStrategy::kBase);
+  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kUniform);
   o.record_history = true;
   o.history_scores = true;
   const RegistrationResult r = align(s.source, target, o);
@@ -115,7 +115,7 @@ TEST(Registration, HistoryMatchesTheScoreAndTheMse) {
 TEST(Registration, MaxIterationsIsReportedAndNotConverged) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.3, 0.2, -0.1, 5, 3, -20));
   const PreparedTarget target(s.target);
-  RegistrationOptions o = RegistrationOptions::paper(PaperStrategy::kBase);
+  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kUniform);
   o.convergence.max_iterations = 2;
   const RegistrationResult r = align(s.source, target, o);
   EXPECT_EQ(r.iterations, 2);
@@ -126,7 +126,7 @@ TEST(Registration, MaxIterationsIsReportedAndNotConverged) {
 TEST(Registration, NoCorrespondencesKeepsTheInitialGuess) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 0));
   const PreparedTarget target(s.target);
-  RegistrationOptions o = RegistrationOptions::paper(PaperStrategy::kObservations);
+  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kObservations);
   o.max_correspondence_distance_m = 1e-9;
   const Isometry3 init = pose_from_xyz_rpy_deg(5, 5, 5, 0, 0, 0);
   const RegistrationResult r = align(s.source, target, o, init);
@@ -180,10 +180,10 @@ TEST(PreparedTarget, BarePointsHaveOnlyUniformWeights) {
   EXPECT_EQ(t.weights(WeightKind::kObservations)[3], 2.0);
 }
 
-TEST(PaperStrategy, Names) {
-  for (PaperStrategy s : all_paper_strategies()) EXPECT_EQ(parse_paper_strategy(to_string(s)), s);
-  EXPECT_EQ(parse_paper_strategy("none"), PaperStrategy::kBase);
-  EXPECT_THROW(parse_paper_strategy("cov"), InvalidArgument);
+TEST(WeightKind, Names) {
+  for (WeightKind s : all_weight_kinds()) EXPECT_EQ(parse_weight_kind(to_string(s)), s);
+  EXPECT_EQ(parse_weight_kind("none"), WeightKind::kUniform);
+  EXPECT_THROW(parse_weight_kind("cov"), InvalidArgument);
 }
 
 }  // namespace

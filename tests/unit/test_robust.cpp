@@ -15,6 +15,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/estimation_4dof.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/robust.hpp"
 #include "support/synthetic_scene.hpp"
 
@@ -145,25 +146,6 @@ TEST(RobustOptions, IsValidNamesTheBadField) {
   EXPECT_NE(why.find("kernel_scale_m"), std::string::npos) << why;
 }
 
-TEST(Strategies, NamesRoundTripAndPaperOptionsRefuseOwnStrategies) {
-  for (PaperStrategy s : all_paper_strategies()) {
-    EXPECT_TRUE(is_paper_strategy(s));
-    EXPECT_EQ(parse_paper_strategy(to_string(s)), s);
-    EXPECT_THROW(robust_strategy_options(s), InvalidArgument);
-  }
-  for (PaperStrategy s : beyond_paper_strategies()) {
-    EXPECT_FALSE(is_paper_strategy(s));
-    EXPECT_EQ(parse_paper_strategy(to_string(s)), s);
-    EXPECT_THROW(RegistrationOptions::paper(s), InvalidArgument);
-    if (s == PaperStrategy::kAdaptive) {  // the adaptive pipeline, not a robust preset
-      EXPECT_THROW(robust_strategy_options(s), InvalidArgument);
-      continue;
-    }
-    EXPECT_TRUE(robust_strategy_options(s).is_valid());
-  }
-  EXPECT_THROW(parse_paper_strategy("robust"), InvalidArgument);
-}
-
 class RobustScene : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -181,29 +163,34 @@ class RobustScene : public ::testing::Test {
 Scene* RobustScene::scene_ = nullptr;
 PreparedTarget* RobustScene::target_ = nullptr;
 
+/// A preset (configs/presets/NAME.yaml) on bare points.
+Summary run_preset(const std::string& name, const Points3& source, const PreparedTarget& target,
+                   const AlignRequest& request = {}) {
+  SourceView view;
+  view.positions = &source;
+  return align(find_preset(name), view, target, request);
+}
+
 TEST_F(RobustScene, PaperBaseIsBiasedAndEveryNamedStrategyIsAccurate) {
   const RegistrationResult base =
-      align(scene_->source, *target_, RegistrationOptions::paper(PaperStrategy::kBase));
+      align(scene_->source, *target_, RegistrationOptions::paper(WeightKind::kUniform));
   const TransformError eb = error_of(base.T_target_source);
   // The paper's objective: every source point pulls, including the half with no counterpart.
   EXPECT_GT(eb.translation_m, 0.02);
-  for (PaperStrategy s : beyond_paper_strategies()) {
-    if (s == PaperStrategy::kRobustObs4Dof) continue;    // the truth has roll and pitch
-    if (s == PaperStrategy::kGlobalRobustObs) continue;  // GlobalSearch below
-    if (s == PaperStrategy::kAdaptive) continue;         // test_adaptive.cpp
-    // The point-to-distribution strategies also get the source noise's covariance (3 mm);
-    // the target's are map_from_points' (not the noise's: a misspecified model).
-    const std::vector<Mat3> source_cov(scene_->source.size(), 9e-6 * Mat3::Identity());
-    const RobustRegistrationResult r = align_robust(
-        scene_->source, *target_, robust_strategy_options(s), Isometry3::Identity(), &source_cov);
-    const TransformError e = error_of(r.T_target_source);
-    EXPECT_LT(e.rotation_deg, 0.2) << to_string(s);
-    EXPECT_LT(e.translation_m, 0.005) << to_string(s);
-    EXPECT_TRUE(r.converged) << to_string(s);
-    EXPECT_EQ(r.final_max_distance_m, 0.05) << to_string(s);
+  // The robust presets that start from the guess with 6 DoF (robust_obs_4dof: the truth has
+  // roll and pitch; global_robust_obs: GlobalSearch below; adaptive: test_adaptive.cpp).
+  for (const char* s : {"robust_obs", "robust_obs_knn", "mutual"}) {
+    const Summary r = run_preset(s, scene_->source, *target_);
+    const TransformError e = error_of(r.registration.T_target_source);
+    EXPECT_LT(e.rotation_deg, 0.2) << s;
+    EXPECT_LT(e.translation_m, 0.005) << s;
+    EXPECT_TRUE(r.registration.converged) << s;
+    EXPECT_TRUE(r.IsSolutionUsable()) << s;
+    ASSERT_TRUE(r.at_estimate.computed) << s;
+    EXPECT_EQ(r.at_estimate.max_distance_m, 0.05) << s;
     // The inliers are the overlap (about half of the source), not every point.
-    EXPECT_GT(r.inlier_ratio, 0.3) << to_string(s);
-    EXPECT_LT(r.inlier_ratio, 0.75) << to_string(s);
+    EXPECT_GT(r.at_estimate.inlier_ratio, 0.3) << s;
+    EXPECT_LT(r.at_estimate.inlier_ratio, 0.75) << s;
   }
 }
 
@@ -246,7 +233,10 @@ TEST_F(RobustScene, FourDofKeepsRollAndPitchExactlyAndRecoversYaw) {
   Scene s = make_scene(5);
   s.source = transform_points(T_true.inverse() * s.T_true, s.source);
   const PreparedTarget target(s.target);
-  RobustRegistrationOptions o = robust_strategy_options(PaperStrategy::kRobustObs4Dof);
+  RobustRegistrationOptions o;  // robust_obs_4dof's settings
+  o.kernel = RobustKernel::kCauchy;
+  o.estimation_weight = WeightKind::kObservations;
+  o.dof = DegreesOfFreedom::k4;
   const Isometry3 init = pose_from_xyz_rpy_deg(0, 0, 0, 0.5, -0.3, 0);
   const RobustRegistrationResult r = align_robust(s.source, target, o, init);
   for (int c = 0; c < 3; ++c) EXPECT_EQ(r.T_target_source.linear()(2, c), init.linear()(2, c));
@@ -264,44 +254,50 @@ TEST_F(RobustScene, FourDofKeepsRollAndPitchExactlyAndRecoversYaw) {
 TEST_F(RobustScene, GlobalSearchFindsTheTruthFromAnyYawWithoutUsingIt) {
   // A far start (yaw -160 deg about the room centre, 1.3 m off): the local loop alone ends in a
   // wrong basin; the yaw search finds the right one by consensus.
-  RobustRegistrationOptions o = robust_strategy_options(PaperStrategy::kGlobalRobustObs);
   for (double yaw_deg : {-160.0}) {
     const Isometry3 D = pose_from_xyz_rpy_deg(2.0 + 1.2, 1.5 - 0.6, 0, 0, 0, yaw_deg) *
                         pose_from_xyz_rpy_deg(-2.0, -1.5, 0, 0, 0, 0);
     const Points3 moved = transform_points(D, scene_->source);
-    const RobustRegistrationResult local =
-        align_robust(moved, *target_, robust_strategy_options(PaperStrategy::kRobustObs));
-    EXPECT_GT(error_of(local.T_target_source * D).rotation_deg, 5.0) << yaw_deg;
-    const RobustRegistrationResult r = align_robust(moved, *target_, o);
-    const TransformError e = error_of(r.T_target_source * D);
+    const Summary local = run_preset("robust_obs", moved, *target_);
+    EXPECT_GT(error_of(local.registration.T_target_source * D).rotation_deg, 5.0) << yaw_deg;
+    const Summary r = run_preset("global_robust_obs", moved, *target_);
+    EXPECT_EQ(r.hypotheses.size(), 13u);  // the guess and 12 yaws, each scored
+    const TransformError e = error_of(r.registration.T_target_source * D);
     EXPECT_LT(e.rotation_deg, 0.2) << yaw_deg;
     EXPECT_LT(e.translation_m, 0.005) << yaw_deg << " " << e.rotation_deg;
+    // The same through the options struct of the robust loop.
+    RobustRegistrationOptions o;
+    o.kernel = RobustKernel::kCauchy;
+    o.estimation_weight = WeightKind::kObservations;
+    o.global_search = true;
+    EXPECT_TRUE(align_robust(moved, *target_, o).T_target_source.matrix() ==
+                r.registration.T_target_source.matrix());
   }
 }
 
 TEST_F(RobustScene, CovarianceIsSymmetricPositiveDefiniteAndSmall) {
-  const RobustRegistrationResult r =
-      align_robust(scene_->source, *target_, robust_strategy_options(PaperStrategy::kRobustObs));
-  const Mat6& C = r.covariance;
+  const Summary r = run_preset("robust_obs", scene_->source, *target_);
+  const Mat6& C = r.estimator_covariance.covariance;
+  ASSERT_TRUE(r.estimator_covariance.valid);
   EXPECT_LT((C - C.transpose()).cwiseAbs().maxCoeff(), 1e-18);
   Eigen::SelfAdjointEigenSolver<Mat6> eig(C);
   EXPECT_GT(eig.eigenvalues().minCoeff(), 0.0);
   // 3 mm noise over ~1000 inliers: translation sigma well under a millimetre.
   EXPECT_LT(std::sqrt(C.topLeftCorner<3, 3>().diagonal().maxCoeff()), 1e-3);
-  EXPECT_GT(r.inlier_rms_m, 0.002);
-  EXPECT_LT(r.inlier_rms_m, 0.02);
+  EXPECT_GT(r.at_estimate.inlier_rms_m, 0.002);
+  EXPECT_LT(r.at_estimate.inlier_rms_m, 0.02);
 }
 
 TEST_F(RobustScene, BitIdenticalForAnyThreadCount) {
-  const RobustRegistrationOptions o = robust_strategy_options(PaperStrategy::kMutual);
   const int saved = omp_get_max_threads();
   omp_set_num_threads(1);
-  const RobustRegistrationResult a = align_robust(scene_->source, *target_, o);
+  const Summary a = run_preset("mutual", scene_->source, *target_);
   omp_set_num_threads(3);
-  const RobustRegistrationResult b = align_robust(scene_->source, *target_, o);
+  const Summary b = run_preset("mutual", scene_->source, *target_);
   omp_set_num_threads(saved);
-  EXPECT_EQ(a.T_target_source.matrix(), b.T_target_source.matrix());
-  EXPECT_EQ(a.iterations, b.iterations);
+  EXPECT_EQ(a.registration.T_target_source.matrix(), b.registration.T_target_source.matrix());
+  EXPECT_EQ(a.registration.iterations, b.registration.iterations);
+  EXPECT_EQ(to_json(a).size(), to_json(b).size());
 }
 
 TEST_F(RobustScene, RefusesInvalidInput) {
@@ -325,21 +321,35 @@ namespace lmalign {
 namespace {
 
 TEST(RobustWithLimits, CapsTheScheduleAndReplacesTheBudget) {
-  const RobustRegistrationOptions preset = robust_strategy_options(PaperStrategy::kShrink);
-  const RobustRegistrationOptions capped = with_limits(preset, 40, 0.3);
-  EXPECT_EQ(capped.max_iterations, 40);
-  EXPECT_EQ(capped.max_iterations_per_level, 40);  // was 60: capped by the budget
-  EXPECT_EQ(capped.max_distance_schedule_m, (std::vector<double>{0.3, 0.25, 0.1, 0.05}));
-  EXPECT_TRUE(capped.is_valid());
+  // A user's limits (lmalign align --max-iterations / --max-distance) on a shrinking schedule.
+  const Preset preset = find_preset("robust_obs");
+  auto capped = [&](std::optional<int> iterations, std::optional<double> distance) {
+    AlignRequest r;
+    r.max_iterations = iterations;
+    r.max_distance_m = distance;
+    return Pipeline(resolve_spec(preset, r)).settings();
+  };
+  const Settings c = capped(40, 0.3);
+  EXPECT_EQ(c.integer("schedule.max_iterations"), 40);
+  EXPECT_EQ(c.integer("schedule.max_iterations_per_level"), 40);  // was 60: capped by the budget
+  EXPECT_EQ(c.reals("schedule.levels_m"), (std::vector<double>{0.3, 0.25, 0.1, 0.05}));
   // Below the finest level: one level at the cap.
-  EXPECT_EQ(with_limits(preset, 300, 0.01).max_distance_schedule_m, (std::vector<double>{0.01}));
-  // An infinite cap keeps the schedule.
-  EXPECT_EQ(
-      with_limits(preset, 300, std::numeric_limits<double>::infinity()).max_distance_schedule_m,
-      preset.max_distance_schedule_m);
-  EXPECT_THROW(with_limits(preset, 0, 1.0), InvalidArgument);
-  EXPECT_THROW(with_limits(preset, 10, 0.0), InvalidArgument);
-  EXPECT_THROW(with_limits(preset, 10, std::nan("")), InvalidArgument);
+  EXPECT_EQ(capped(300, 0.01).reals("schedule.levels_m"), (std::vector<double>{0.01}));
+  // An infinite cap keeps the schedule, as no cap does.
+  EXPECT_EQ(capped(300, std::numeric_limits<double>::infinity()).reals("schedule.levels_m"),
+            capped(std::nullopt, std::nullopt).reals("schedule.levels_m"));
+  EXPECT_THROW(capped(0, 1.0), InvalidArgument);
+  EXPECT_THROW(capped(10, 0.0), InvalidArgument);
+  EXPECT_THROW(capped(10, std::nan("")), InvalidArgument);
+  // The paper's schedule takes both as they are; the adaptive default's has no distance.
+  AlignRequest r;
+  r.max_iterations = 40;
+  r.max_distance_m = 0.3;
+  const Settings base = Pipeline(resolve_spec(find_preset("base"), r)).settings();
+  EXPECT_EQ(base.integer("schedule.max_iterations"), 40);
+  EXPECT_EQ(base.real("schedule.max_distance_m"), 0.3);
+  const Settings adaptive = Pipeline(resolve_spec(recommended_preset(), r)).settings();
+  EXPECT_EQ(adaptive.integer("schedule.max_iterations"), 40);
 }
 
 }  // namespace

@@ -18,9 +18,9 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/robust.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
-#include "lmalign/registration/strategy.hpp"
 #include "lmalign/registration/supported_landmarks.hpp"
 #include "support/synthetic_scene.hpp"
 
@@ -43,7 +43,7 @@ std::string message_of(const std::function<void()>& f) {
 /// source: the same landmarks moved by T_true^-1, so that p_target = T_true * p_source.
 struct Pair {
   Map target;
-  StrategySource source;
+  SourceLandmarks source;
   Isometry3 T_true;
 };
 
@@ -56,6 +56,13 @@ Pair make_pair(std::size_t n, std::uint32_t seed) {
   p.source.covariances_m2 = source.covariances_m2();
   p.source.up = p.T_true.linear().transpose() * Vec3::UnitZ();
   return p;
+}
+
+/// Runs the preset `strategy` (the recommended one if empty) as every front end does.
+Summary run(const SourceLandmarks& source, const PreparedTarget& target,
+            const std::string& strategy = "", const AlignRequest& request = {}) {
+  return align(strategy.empty() ? recommended_preset() : find_preset(strategy), source.view(),
+               target, request);
 }
 
 PreparedTarget prepared(const Map& map) {
@@ -93,12 +100,12 @@ TEST(SupportedRange, EveryStrategyLeavesOutLandmarksBeyondItAndAlignsTheRestAsWi
   // target, in otherwise good maps. Every strategy's result is bit for bit the one on the maps
   // without them, counted and named in the trust reason.
   const Pair p = make_pair(150, 51);
-  StrategySource far_source = p.source;
+  SourceLandmarks far_source = p.source;
   far_source.positions[7] = Vec3(1e300, 0.5, 0.5);
   Map far_target = p.target;
   far_target.landmarks[3].p_world = Vec3(0.5, -1e20, 0.5);
   far_target.landmarks[100].p_world.z() = 1e16;
-  StrategySource near_source = p.source;
+  SourceLandmarks near_source = p.source;
   near_source.positions.erase(near_source.positions.begin() + 7);
   near_source.covariances_m2.erase(near_source.covariances_m2.begin() + 7);
   Map near_target = p.target;
@@ -106,21 +113,16 @@ TEST(SupportedRange, EveryStrategyLeavesOutLandmarksBeyondItAndAlignsTheRestAsWi
   near_target.landmarks.erase(near_target.landmarks.begin() + 3);
   const PreparedTarget far_prepared = prepared(far_target);
   const PreparedTarget near_prepared = prepared(near_target);
-  std::vector<PaperStrategy> strategies = all_paper_strategies();
-  for (PaperStrategy s : beyond_paper_strategies()) strategies.push_back(s);
-  for (PaperStrategy s : strategies) {
-    StrategyRequest req;
-    req.strategy = s;
-    const StrategyOutcome far = run_strategy(far_source, far_prepared, req);
-    const StrategyOutcome near = run_strategy(near_source, near_prepared, req);
-    EXPECT_EQ(far.source_left_out, 1u) << to_string(s);
-    EXPECT_EQ(far.target_left_out, 2u) << to_string(s);
-    EXPECT_EQ(near.source_left_out + near.target_left_out, 0u) << to_string(s);
-    EXPECT_TRUE(far.result.T_target_source.isApprox(near.result.T_target_source, 0.0))
-        << to_string(s);
-    EXPECT_EQ(far.trustworthy, near.trustworthy) << to_string(s);
-    EXPECT_EQ(far.trust_reason, near.trust_reason + "; " + left_out_message(1, 2)) << to_string(s);
-    if (far.adaptive) EXPECT_EQ(far.adaptive->trust_reason, far.trust_reason);
+  for (const std::string& s : preset_names()) {
+    const Summary far = run(far_source, far_prepared, s);
+    const Summary near = run(near_source, near_prepared, s);
+    EXPECT_EQ(far.source_left_out, 1u) << s;
+    EXPECT_EQ(far.target_left_out, 2u) << s;
+    EXPECT_EQ(near.source_left_out + near.target_left_out, 0u) << s;
+    EXPECT_TRUE(far.registration.T_target_source.isApprox(near.registration.T_target_source, 0.0))
+        << s;
+    EXPECT_EQ(far.verdict.trustworthy, near.verdict.trustworthy) << s;
+    EXPECT_EQ(far.verdict.reason, near.verdict.reason + "; " + left_out_message(1, 2)) << s;
   }
 }
 
@@ -128,11 +130,11 @@ TEST(SupportedRange, KeptTargetCopiesWeightsCovariancesAndUpAxis) {
   Map map = test::map_from_points(test::room_points(50, 52), 53);
   map.landmarks[10].p_world.x() = -1e18;
   const PreparedTarget t = prepared(map);
-  StrategySource s;
+  SourceLandmarks s;
   s.positions = {Vec3(1, 2, 3), Vec3(1e99, 0, 0), Vec3(0, 1, 0)};
   s.covariances_m2 = {Mat3::Identity(), 2.0 * Mat3::Identity(), 3.0 * Mat3::Identity()};
   s.up = Vec3::UnitY();
-  const SupportedLandmarks kept = keep_supported_landmarks(s, t);
+  const SupportedLandmarks kept = keep_supported_landmarks(s.view(), t);
   ASSERT_TRUE(kept.source && kept.target);
   EXPECT_EQ(kept.source->positions, (Points3{Vec3(1, 2, 3), Vec3(0, 1, 0)}));
   EXPECT_EQ(kept.source->covariances_m2[1], 3.0 * Mat3::Identity());
@@ -147,45 +149,43 @@ TEST(SupportedRange, KeptTargetCopiesWeightsCovariancesAndUpAxis) {
   EXPECT_EQ(kept.target->covariances_m2()[10], t.covariances_m2()[11]);
   EXPECT_EQ(kept.target->up_axis(), t.up_axis());
   // Nothing beyond: no copies.
+  const SourceLandmarks near{{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)}, {}, {}};
   const SupportedLandmarks none = keep_supported_landmarks(
-      StrategySource{{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)}, {}, {}},
-      prepared(test::map_from_points(test::room_points(20, 54), 55)));
+      near.view(), prepared(test::map_from_points(test::room_points(20, 54), 55)));
   EXPECT_FALSE(none.source || none.target);
 }
 
 TEST(SupportedRange, GuessesPriorsAndMapsEntirelyBeyondItAreOneLineErrors) {
   const Pair p = make_pair(100, 56);
   const PreparedTarget t = prepared(p.target);
-  StrategyRequest req;
+  AlignRequest req;
   Isometry3 guess = Isometry3::Identity();
   guess.translation() = Vec3(0, 1e308, 0);
   req.initial_guess = guess;
   EXPECT_NE(message_of([&] {
-              run_strategy(p.source, t, req);
+              run(p.source, t, "", req);
             }).find("initial guess: translation (0, 1e+308, 0) m is beyond the supported range"),
             std::string::npos);
-  req.strategy = PaperStrategy::kBase;  // every strategy
-  EXPECT_THROW(run_strategy(p.source, t, req), InvalidArgument);
-  req = StrategyRequest{};
+  EXPECT_THROW(run(p.source, t, "base", req), InvalidArgument);  // every strategy
+  req = AlignRequest{};
   for (const PriorSigma& bad :
        {PriorSigma{1.0, 1e308}, PriorSigma{1e300, 1.0}, PriorSigma{1.0, kInf}, PriorSigma{0.0, 1.0},
         PriorSigma{1e-300, 1.0}, PriorSigma{1.0, 1e-10}}) {
     req.prior = bad;
-    EXPECT_NE(message_of([&] { run_strategy(p.source, t, req); }).find("prior sigma: prior"),
+    EXPECT_NE(message_of([&] { run(p.source, t, "", req); }).find("prior sigma: prior"),
               std::string::npos);
   }
-  StrategySource all_far = p.source;
+  SourceLandmarks all_far = p.source;
   for (Vec3& x : all_far.positions) x.x() += 1e300;
   EXPECT_NE(message_of([&] {
-              run_strategy(all_far, t, StrategyRequest{});
+              run(all_far, t);
             }).find("every source landmark (100) is beyond the supported range"),
             std::string::npos);
   // A non-finite landmark is corrupt input, not a far one: refused, naming it.
-  StrategySource nan = p.source;
+  SourceLandmarks nan = p.source;
   nan.positions[3].z() = kNaN;
-  EXPECT_EQ(message_of([&] { run_strategy(nan, t, StrategyRequest{}); }),
-            "source landmark 3 is not finite");
-  // The engines themselves refuse what run_strategy() leaves out (their precondition).
+  EXPECT_EQ(message_of([&] { run(nan, t); }), "source landmark 3 is not finite");
+  // The engines themselves refuse what align() leaves out (their precondition).
   SourceLandmarks s;
   s.positions = p.source.positions;
   s.positions[3].y() = -1e200;
@@ -204,26 +204,24 @@ TEST(SupportedRange, AtTheEdgeOfTheRangeTheDefaultGivesAResult) {
   // vote window). So wide a prior bounds nothing: the search is global and finds the truth.
   const Pair p = make_pair(200, 57);
   const PreparedTarget t = prepared(p.target);
-  StrategyRequest req;
+  AlignRequest req;
   Isometry3 guess = Isometry3::Identity();
   guess.translation() = Vec3(kMaxCoordinateM, -kMaxCoordinateM, kMaxCoordinateM);
   req.initial_guess = guess;
   req.prior = PriorSigma{kMaxAngleDeg, kMaxCoordinateM};
-  const StrategyOutcome wide = run_strategy(p.source, t, req);
-  EXPECT_LT(transform_error(wide.result.T_target_source, p.T_true).rotation_deg, 0.5);
-  EXPECT_TRUE(wide.trustworthy) << wide.trust_reason;
+  const Summary wide = run(p.source, t, "", req);
+  EXPECT_LT(transform_error(wide.registration.T_target_source, p.T_true).rotation_deg, 0.5);
+  EXPECT_TRUE(wide.verdict.trustworthy) << wide.verdict.reason;
   // The tightest prior about that far guess: a finite result, not trusted.
   req.prior = PriorSigma{kMinSigma, kMinSigma};
-  const StrategyOutcome tiny = run_strategy(p.source, t, req);
-  EXPECT_TRUE(tiny.result.T_target_source.matrix().allFinite());
-  EXPECT_FALSE(std::isnan(tiny.result.final_score_m2));
-  EXPECT_FALSE(tiny.trustworthy);
+  const Summary tiny = run(p.source, t, "", req);
+  EXPECT_TRUE(tiny.registration.T_target_source.matrix().allFinite());
+  EXPECT_FALSE(std::isnan(tiny.registration.final_score_m2));
+  EXPECT_FALSE(tiny.verdict.trustworthy);
   // Every other strategy starts there: a finite estimate.
   req.prior.reset();
-  for (PaperStrategy s : {PaperStrategy::kBase, PaperStrategy::kRobustObs, PaperStrategy::kP2D}) {
-    req.strategy = s;
-    EXPECT_TRUE(run_strategy(p.source, t, req).result.T_target_source.matrix().allFinite())
-        << to_string(s);
+  for (const char* s : {"base", "robust_obs", "mutual"}) {
+    EXPECT_TRUE(run(p.source, t, s, req).registration.T_target_source.matrix().allFinite()) << s;
   }
 }
 
@@ -234,21 +232,21 @@ TEST(SupportedRange, FarLandmarksWithinItDoNotDerailTheDefault) {
   const Pair p = make_pair(600, 58);
   const PreparedTarget t = prepared(p.target);
   for (double far : {1e9, 1e12, kMaxCoordinateM}) {
-    StrategySource s = p.source;
+    SourceLandmarks s = p.source;
     s.positions[0] = Vec3(far, 0, 0);
-    const StrategyOutcome o = run_strategy(s, t, StrategyRequest{});
-    const TransformError e = transform_error(o.result.T_target_source, p.T_true);
+    const Summary o = run(s, t);
+    const TransformError e = transform_error(o.registration.T_target_source, p.T_true);
     EXPECT_LT(e.rotation_deg, 0.5) << far;
     EXPECT_LT(e.translation_m, 0.02) << far;
-    EXPECT_TRUE(o.trustworthy) << far << ": " << o.trust_reason;
+    EXPECT_TRUE(o.verdict.trustworthy) << far << ": " << o.verdict.reason;
     EXPECT_EQ(o.source_left_out, 0u);
   }
   // The target too.
   Map far_target = p.target;
   far_target.landmarks[0].p_world = Vec3(0, 0, -1e11);
-  const StrategyOutcome o = run_strategy(p.source, prepared(far_target), StrategyRequest{});
-  EXPECT_LT(transform_error(o.result.T_target_source, p.T_true).rotation_deg, 0.5);
-  EXPECT_TRUE(o.trustworthy) << o.trust_reason;
+  const Summary o = run(p.source, prepared(far_target));
+  EXPECT_LT(transform_error(o.registration.T_target_source, p.T_true).rotation_deg, 0.5);
+  EXPECT_TRUE(o.verdict.trustworthy) << o.verdict.reason;
 }
 
 TEST(SupportedRange, MapsFarFromTheirOriginsAreSearchedRelativeToTheirCentres) {

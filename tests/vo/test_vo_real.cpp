@@ -62,7 +62,7 @@ TEST(VoReal, NineFramesOfFr1DeskAgainstGroundTruth) {
   ASSERT_GT(map.landmarks.size(), 100u);
   const Isometry3 D = pose_from_xyz_rpy_deg(0.05, -0.03, 0.02, 2.0, -1.0, 3.0);
   const Map displaced = transform_map(map, D);
-  const auto result = align_maps(displaced, map, RegistrationOptions::paper(PaperStrategy::kBase));
+  const auto result = align_maps(displaced, map, RegistrationOptions::paper(WeightKind::kUniform));
   const TransformError err = transform_error(result.T_target_source * D, Isometry3::Identity());
   EXPECT_LT(err.rotation_deg, 0.01);
   EXPECT_LT(err.translation_m, 1e-4);

@@ -52,6 +52,10 @@ std::vector<Mat3> transform_covariances(const Isometry3& T,
 /// True if every entry of the 4x4 matrix is finite.
 bool is_finite(const Isometry3& T);
 
+/// True when T's linear part is a rotation (orthonormal to 1e-6, determinant +1), its last row
+/// (0, 0, 0, 1) and T finite.
+bool is_rigid_transform(const Isometry3& T);
+
 /// The 6x6 adjoint of T in registration/uncertainty.hpp's (rho m, phi rad) ordering,
 /// Ad(T) = [[R, [t]x R], [0, R]]: a left perturbation xi_b in frame b becomes Ad(T_ab) xi_b in
 /// frame a (T_ab Exp(xi_b) = Exp(Ad(T_ab) xi_b) T_ab); covariances move as Ad C Ad^T.

@@ -1,7 +1,7 @@
 // The range of numbers lmalign supports (docs/robustness.md, "Supported range"), and the one
-// check of it that every alignment goes through: run_strategy() (the CLI's `align`, the Python
-// package, the merge's edges and the experiment runner's own strategies), the merge manifest, and
-// the options of the CLI and of Python.
+// check of it that every alignment goes through: align() of presets.hpp (the CLI's `align`, the
+// Python package, the merge's edges and the experiment runner's own strategies), the merge
+// manifest, and the options of the CLI and of Python.
 //
 // One bound for every magnitude: 1e15, in metres for landmark coordinates, translations (initial
 // guesses, prior poses, displacements) and translation standard deviations, in degrees for
@@ -13,12 +13,12 @@
 //
 // What happens beyond it:
 //   - a finite landmark (a stereo landmark triangulated at near-zero disparity lands at fx b / d,
-//     easily 1e9 m or more, in an otherwise good map) is left out of the alignment: run_strategy()
-//     counts the landmarks left out on each side (StrategyOutcome::source_left_out,
+//     easily 1e9 m or more, in an otherwise good map) is left out of the alignment: align() of
+//     presets.hpp counts the landmarks left out on each side (Summary::source_left_out,
 //     target_left_out) and appends left_out_message() to the trust reason. The rest of the map
 //     is aligned as usual. Landmarks that are far but within the range are kept: they simply find
 //     no partner. A non-finite one (NaN, inf) is corrupt input: refused like any bad input (the
-//     map readers refuse them; run_strategy() names the side and the landmark).
+//     map readers refuse them; align() of presets.hpp names the side and the landmark).
 //   - an option, an initial guess, a prior or a displacement is refused: InvalidArgument naming
 //     it and its value, one line (check_supported_translation(), check_supported_magnitude()).
 #pragma once

@@ -35,7 +35,7 @@ struct Case {
   Pose6 displacement;
   Isometry3 D = Isometry3::Identity();
   int k = 5;
-  std::vector<PaperStrategy> strategies;
+  std::vector<std::string> strategies;  ///< preset names (configs/presets/)
   /// Escalation (xy with escalate): the group (one per quadrant, numbered across the config) and
   /// the level within it, 0-based; -1 when the case is not part of an escalation.
   int escalation_group = -1;

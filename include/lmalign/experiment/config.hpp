@@ -6,12 +6,15 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/estimation_4dof.hpp"
-#include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/presets.hpp"
+#include "lmalign/registration/settings.hpp"
 #include "lmalign/weights/weights.hpp"
 
 namespace lmalign {
@@ -161,7 +164,7 @@ struct ExperimentSpec {
   ExperimentType type = ExperimentType::kPoses;
   /// Neighbourhood size for every type but kNeighbourhood (default: the config's k).
   int k = 5;
-  std::vector<PaperStrategy> strategies;
+  std::vector<std::string> strategies;  ///< preset names (configs/presets/)
   /// 1-based line of the entry in the config (0 if not from a file).
   std::size_t line = 0;
 
@@ -197,11 +200,17 @@ struct ExperimentConfig {
   MapSpec target;
   GroundTruthSpec ground_truth;
   /// Defaults of every experiment.
-  std::vector<PaperStrategy> strategies = all_paper_strategies();
+  /// Preset names (default: the paper's four).
+  std::vector<std::string> strategies = preset_names("paper");
   int k = 5;
-  /// ICP settings (the paper's: 150 iterations, infinite max correspondence distance).
-  int max_iterations = 150;
-  double max_distance_m = std::numeric_limits<double>::infinity();
+  /// Limits given to every strategy, as `lmalign align --max-iterations / --max-distance`
+  /// (AlignRequest): none given, each strategy keeps its own (the paper's: 150 iterations, an
+  /// unlimited distance).
+  std::optional<int> max_iterations;
+  std::optional<double> max_distance_m;
+  /// Settings per strategy (`settings: {STRATEGY: {KEY: VALUE}}`), checked against that
+  /// strategy's table when the config is read.
+  std::vector<std::pair<std::string, std::vector<std::pair<std::string, SettingValue>>>> settings;
   CovarianceNorm covariance_norm = CovarianceNorm::kSpectral;
   SuccessCriteria success;
   /// Default seed of basin experiments.

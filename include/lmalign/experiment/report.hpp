@@ -38,7 +38,7 @@ std::vector<RunRecord> read_results_csv(std::istream& in, const std::string& fil
 
 /// Success rate and medians of one strategy over a set of runs.
 struct StrategySummary {
-  PaperStrategy strategy = PaperStrategy::kBase;
+  std::string strategy;  ///< the preset's name
   std::size_t runs = 0;
   std::size_t successes = 0;
   double success_rate = 0.0;  ///< successes / runs (0 if no runs)
@@ -83,11 +83,12 @@ struct ReportSummary {
 double median(std::vector<double> values);
 
 ReportSummary summarize(const ExperimentConfig& config, const std::vector<Case>& cases,
-                  const RunnerOutcome& outcome);
+                        const RunnerOutcome& outcome);
 
 /// summary.json: the settings, and success rate and medians per strategy and per experiment
 /// (basin: per level). Non-finite numbers are null.
-void write_summary_json(std::ostream& out, const ExperimentConfig& config, const ReportSummary& summary);
+void write_summary_json(std::ostream& out, const ExperimentConfig& config,
+                        const ReportSummary& summary);
 
 /// tables.md: paper-style tables. Per experiment: the final score (x 10^-3 m^2) and, with ground
 /// truth, the rotation (deg) and translation (cm) errors, one row per case and one column per

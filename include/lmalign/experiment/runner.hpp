@@ -1,9 +1,10 @@
 // Running the cases of an experiment config (docs/experiments.md, "Running").
 //
 // Every (case, strategy) pair is one run: the source displaced by the case's D, aligned from the
-// identity onto one shared PreparedTarget. Runs execute in parallel (OpenMP, dynamic schedule);
-// the ICP's own parallel loops then run single-threaded inside each worker. Results are stored by
-// run index, so the outcome is identical for any thread count and schedule.
+// identity onto one shared PreparedTarget by align(preset, ...) (registration/presets.hpp), with
+// the config's k, limits and settings, as `lmalign align` would. Runs execute in parallel (OpenMP,
+// dynamic schedule); the ICP's own parallel loops then run single-threaded inside each worker.
+// Results are stored by run index, so the outcome is identical for any thread count and schedule.
 #pragma once
 
 #include <atomic>
@@ -17,6 +18,7 @@
 #include "lmalign/experiment/cases.hpp"
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/map/map.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/registration.hpp"
 
 namespace lmalign {
@@ -42,7 +44,7 @@ SuccessDecision decide_success(const SuccessCriteria& criteria,
 /// The outcome of one run.
 struct RunRecord {
   std::size_t case_index = 0;
-  PaperStrategy strategy = PaperStrategy::kBase;
+  std::string strategy;  ///< the preset's name
   int k = 5;
   double initial_score_m2 = 0.0;
   double final_score_m2 = 0.0;
@@ -55,13 +57,11 @@ struct RunRecord {
   /// Error of the recovered map-to-map transform T * D against the ground truth, if known.
   std::optional<TransformError> error;
   SuccessDecision decision;
-  /// The trust verdict on the estimate: judge_alignment() (registration/uncertainty.hpp) with
-  /// its default TrustOptions, on the displaced source and the target.
+  /// The trust verdict of the preset's trust judge on the estimate (false for a non-finite one).
   bool trustworthy = false;
-  /// The estimate's 6x6 covariance as the strategy reports it (registration/uncertainty.hpp's
-  /// convention: left perturbation, target frame): the adaptive pipeline's own, lmalign's other
-  /// strategies' judge_alignment() one on their inliers, and for the paper's four the same
-  /// judge_alignment() covariance. Its worst-axis standard deviations (metres, degrees), and the
+  /// The estimate's 6x6 covariance as the preset reports it (Summary::covariance;
+  /// registration/uncertainty.hpp's convention: left perturbation, target frame). Its worst-axis
+  /// standard deviations (metres, degrees), and the
   /// NEES of the recovered map-to-map transform T * D against the ground truth (6 dof: mean 6
   /// when the covariance is calibrated). Empty without a valid covariance (the NEES also without
   /// ground truth).
@@ -79,7 +79,7 @@ struct ExperimentInputs {
   /// True T_target_source of the undisplaced source, if the config gives one.
   std::optional<Isometry3> ground_truth;
   /// Landmarks left out on load for a coordinate beyond the supported range
-  /// (core/supported_range.hpp), as run_strategy() leaves them out of `lmalign align`.
+  /// (core/supported_range.hpp), as align() of presets.hpp leaves them out of `lmalign align`.
   std::size_t source_left_out = 0;
   std::size_t target_left_out = 0;
 };
@@ -116,9 +116,9 @@ struct RunnerOptions {
   /// strategies, in order. on_case_finished is not called for them.
   std::vector<RunRecord> already_finished;
   /// The undisplaced source landmarks' position covariances (m^2, one per source point, source
-  /// frame), for strategies with the point-to-distribution cost (p2d, robust_p2d); each run
+  /// frame), for the presets whose stages read them (the adaptive default's gate); each run
   /// rotates them by its displacement D (R_D C R_D^T) as it moves the points. Not owned; null =
-  /// none, and such strategies are then refused before any run.
+  /// none.
   const std::vector<Mat3>* source_covariances_m2 = nullptr;
   /// The undisplaced source map's up axis (source frame; estimate_up_axis()), for the adaptive
   /// strategy's yaw search; each run rotates it by its displacement. None: the pipeline's default.
@@ -127,7 +127,8 @@ struct RunnerOptions {
   /// take a copy of its record, time_s included (docs/experiments.md, "Running"): the same
   /// displacement D (bit for bit) and the same correspondence rule. Base ignores k, and the
   /// weighted kNN with k = 1 picks the nearest neighbour when every target weight of its kind is
-  /// positive. lmalign's own strategies and the history case always run. false: run everything.
+  /// positive, so runs whose pipelines then agree stage for stage and setting for setting share.
+  /// The history case always runs. false: run everything.
   bool share_identical_runs = true;
 };
 
@@ -154,10 +155,8 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
                         const std::optional<Isometry3>& ground_truth,
                         const RunnerOptions& options = {});
 
-/// The registration options of one run of a paper strategy: RegistrationOptions::paper(strategy,
-/// k) with the config's iterations and max distance. lmalign's own strategies run align_robust()
-/// with robust_strategy_options(strategy, k) instead (their preset schedule and budget); this
-/// throws InvalidArgument for them.
-RegistrationOptions run_options(const ExperimentConfig& config, PaperStrategy strategy, int k);
+/// The request of one run of `strategy` at neighbourhood size k: the config's limits (when it
+/// gives them) and its settings for that strategy, as `lmalign align` passes its options.
+AlignRequest run_request(const ExperimentConfig& config, const std::string& strategy, int k);
 
 }  // namespace lmalign

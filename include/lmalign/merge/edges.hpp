@@ -1,20 +1,21 @@
-// Edges of the merge (docs/merge.md, "Edges"): one alignment per candidate pair with
-// run_strategy() and the recommended default (adaptive), kept with its trust verdict and 6x6
+// Edges of the merge (docs/merge.md, "Edges"): one alignment per candidate pair with align()
+// (registration/presets.hpp) and the recommended default, kept with its trust verdict and 6x6
 // covariance. align_edge() is a pure, deterministic function of its inputs (any thread count:
-// the adaptive pipeline is), so that pairs can run anywhere (OpenMP here; a Dask worker later)
-// and their results be cached by edge_key().
+// the engine is), so that pairs can run anywhere (OpenMP here; a Dask worker) and their results
+// be cached by edge_key(), which hashes every setting of the pipeline that ran.
 #pragma once
 
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/map/map.hpp"
 #include "lmalign/merge/candidates.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/registration.hpp"
-#include "lmalign/registration/strategy.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -28,33 +29,37 @@ struct Edge {
   /// uncertainty.hpp's convention (left perturbation in the target frame, (rho m, phi rad)).
   Mat6 covariance = Mat6::Zero();
   bool covariance_valid = false;
-  /// The adaptive verdict.
+  /// The preset's verdict.
   bool trusted = false;
   std::string trust_reason;
   std::size_t num_inliers = 0;
   double inlier_ratio = 0.0;
-  std::string initialisation;  ///< "global", "prior", "given"
+  std::string initialisation;  ///< the initialiser's ("global", "prior", "given", ...)
+  /// The alignment's Summary as JSON (to_json, pipeline.hpp): what the edge file keeps of it.
+  std::string summary_json;
   /// edge_key() of its inputs (for the resume cache).
   std::string key;
 };
 
 struct EdgeOptions {
-  /// The strategy run by run_strategy() (strategy.hpp): the recommended default, adaptive. A
-  /// pair's prior is passed only to adaptive (the others refuse one; they get the guess).
-  PaperStrategy strategy = kRecommendedStrategy;
-  /// StrategyRequest::max_iterations (empty: the strategy's default).
+  /// The preset (a name, or a preset file); empty: the recommended default. A pair's prior is
+  /// passed only to presets whose initialiser uses one (the others get the guess alone).
+  std::string strategy;
+  /// AlignRequest::max_iterations (empty: the preset's own).
   std::optional<int> max_iterations;
+  /// Settings by key (AlignRequest::settings).
+  std::vector<std::pair<std::string, SettingValue>> settings;
   bool is_valid(std::string* why = nullptr) const;
 };
 
-/// Aligns source onto target for `pair` with run_strategy() (its relative prior, if any, bounds
-/// the adaptive search around its initial guess). `source` and `target` are the maps of
-/// pair.source and pair.target. Throws what run_strategy() throws (InvalidArgument).
-Edge align_edge(const StrategySource& source, const PreparedTarget& target,
+/// Aligns source onto target for `pair` with align() (its relative prior, if any, bounds the
+/// search around its initial guess). `source` and `target` are the maps of pair.source and
+/// pair.target. Throws what align() throws (InvalidArgument).
+Edge align_edge(const SourceLandmarks& source, const PreparedTarget& target,
                 const CandidatePair& pair, const EdgeOptions& options = {});
 
 /// The source of a map as align_edge() takes it (positions, covariances, up axis).
-StrategySource edge_source(const Map& map);
+SourceLandmarks edge_source(const Map& map);
 
 /// Same, from the two maps (builds the PreparedTarget; the overload above lets a caller prepare
 /// each target once).
@@ -66,7 +71,8 @@ Edge align_edge(const Map& source, const Map& target, const CandidatePair& pair,
 std::string map_fingerprint(const Map& map);
 
 /// The cache key of an edge: hex hash of both maps' fingerprints, the pair (indices, guess,
-/// prior) and the options' fields that change the result, plus a format version.
+/// prior), the preset and every setting of the pipeline that runs (Settings::canonical_text),
+/// plus a format version. Throws InvalidArgument for an unknown preset or setting.
 std::string edge_key(const std::string& source_fingerprint, const std::string& target_fingerprint,
                      const CandidatePair& pair, const EdgeOptions& options);
 

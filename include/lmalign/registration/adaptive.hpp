@@ -206,7 +206,4 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
 /// The engine's stages and settings that align_adaptive() runs (pipeline.hpp).
 PipelineSpec adaptive_pipeline_spec(const AdaptiveOptions& options);
 
-/// True when T's linear part is a rotation (orthonormal to 1e-6, determinant +1) and T is finite.
-bool is_rigid_transform(const Isometry3& T);
-
 }  // namespace lmalign

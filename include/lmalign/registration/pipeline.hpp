@@ -79,9 +79,13 @@ struct EstimateDiagnostics {
   double inlier_rms_m = 0.0;  ///< weighted RMS distance of the pairs, metres
 };
 
-/// What an alignment returns.
+/// What an alignment returns (after Ceres' Solver::Summary).
 struct Summary {
   std::string preset;
+  /// The stages that ran, and the settings that differed from their defaults.
+  PipelineSpec stages;
+  /// Every setting of the pipeline, key and value as text (settings.hpp), in table order.
+  std::vector<std::pair<std::string, std::string>> settings;
   /// The estimate, termination, iterations (every refinement's), pairs of the last iteration,
   /// PCL's fitness scores at the initial guess and at the estimate, the history, the wall time.
   RegistrationResult registration;
@@ -98,7 +102,39 @@ struct Summary {
   Verdict verdict;
   /// The covariance reported: the judge's own if it has one, else the estimator's.
   PoseCovariance covariance;
+  /// Wall time of the whole call, the verdict included (registration.wall_time_s stops before
+  /// the verdict), seconds.
+  double total_time_s = 0.0;
+  /// Landmarks of each side left out of the alignment for being beyond the supported range
+  /// (core/supported_range.hpp; align() of presets.hpp leaves them out). When any were, the
+  /// verdict's reason ends with "; " and left_out_message() (e.g. "ok; 1 source landmark beyond
+  /// the supported range (|coordinate| > 1e+15 m) left out"), and the verdict is that of the
+  /// alignment of the others.
+  std::size_t source_left_out = 0;
+  std::size_t target_left_out = 0;
+
+  /// One line: the preset, the termination, iterations, scores, time, the verdict.
+  std::string BriefReport() const;
+  /// Every stage's report, one per line: stages, changed settings, scales, the initialiser's
+  /// report, the hypotheses' scores, the refinement, the diagnostics at the estimate, the
+  /// covariances, the verdict.
+  std::string FullReport() const;
+  /// True when the estimate is finite and the last refinement ended with a step that determined
+  /// it (not without pairs, not degenerate). Says nothing of trust: see verdict.
+  bool IsSolutionUsable() const;
 };
+
+/// The one serialisation of a result, as JSON text (`indent` < 0: one line): the preset, its
+/// stages and every setting, T_target_source (4x4, row-major rows), termination, iterations,
+/// scores, time, usable, the verdict (trustworthy, trust_reason, source_landmarks_left_out and
+/// target_landmarks_left_out, and its evidence: inlier and
+/// overlap fractions, or the gated inliers, NIS and ambiguity), the initialiser's report, the
+/// refined hypotheses, the diagnostics at the estimate, covariance_6x6 (the reported one;
+/// row-major, xi = (rho [m], phi [rad]) on the left in the target frame; null when not
+/// determined), the estimator's, and the history if recorded. Non-finite numbers are null. The
+/// CLI's `align --json` results, Python's AlignmentResult.to_json(), the experiment and the
+/// merge all write this.
+std::string to_json(const Summary& summary, int indent = -1);
 
 /// The registry of stages (stages/registry.cpp): one row per stage.
 struct StageInfo {
@@ -127,9 +163,9 @@ class Pipeline {
 
   /// Aligns the source onto the target. Throws InvalidArgument on an empty source or target, a
   /// landmark that is not finite or beyond the supported range (core/supported_range.hpp;
-  /// run_strategy() leaves those out first), covariance counts that do not match, a non-rigid
-  /// initial guess or one whose translation is beyond the range, an invalid prior or one for an
-  /// initialiser that does not use it, or what a stage needs and does not get (weights,
+  /// align() of presets.hpp leaves those out first), covariance counts that do not match, a
+  /// non-rigid initial guess or one whose translation is beyond the range, an invalid prior or one
+  /// for an initialiser that does not use it, or what a stage needs and does not get (weights,
   /// covariances).
   Summary run(const SourceView& source, const PreparedTarget& target,
               const PipelineRequest& request = {}) const;

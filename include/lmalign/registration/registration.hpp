@@ -1,5 +1,7 @@
-// The registration driver: ICP with pluggable correspondence strategy (method.md §3), mirroring
-// PCL's IterativeClosestPoint<PointXYZ, PointXYZ, double>::computeTransformation.
+// The paper's registration driver: ICP with its correspondence strategies (method.md §3),
+// mirroring PCL's IterativeClosestPoint<PointXYZ, PointXYZ, double>::computeTransformation. It is
+// a preset of the registration engine (pipeline.hpp; configs/presets/base.yaml and the other
+// three); PreparedTarget, the target as every preset reads it, is declared here.
 //
 // Frames: the result is T_target_source, p_target = T_target_source * p_source.
 #pragma once
@@ -20,52 +22,6 @@
 #include "lmalign/weights/weights.hpp"
 
 namespace lmalign {
-
-/// The strategies selectable by name: first the paper's four (its table columns, run by
-/// align()), then lmalign's own (issue 7; run by align_robust() with the preset options of
-/// robust_strategy_options(), registration/robust.hpp). The type keeps its historical name;
-/// `Strategy` is the same type.
-enum class PaperStrategy {
-  kBase,          ///< nearest neighbour, no weights
-  kCovariance,    ///< weighted-kNN with w_cov (Eq. 1)
-  kObservations,  ///< weighted-kNN with w_obs (Eq. 2)
-  kMeanDistance,  ///< weighted-kNN with w_dist (Eqs. 3-4)
-  // --- beyond the paper (docs/accuracy.md) ---
-  kShrink,         ///< "shrink": nearest, max distance inf -> 1 -> 0.5 -> 0.25 -> 0.1 -> 0.05 m
-  kShrinkCauchy,   ///< "shrink_cauchy": shrink + Cauchy IRLS
-  kTrimmed,        ///< "trimmed": shrink + trimming to an estimated overlap (trimmed ICP)
-  kMutual,         ///< "mutual": shrink + mutual nearest neighbours
-  kRobustObs,      ///< "robust_obs": shrink_cauchy + w_obs in the estimation (the default
-                   ///< before adaptive)
-  kRobustObsKnn,   ///< "robust_obs_knn": robust_obs with the paper's weighted-kNN (w_obs) selection
-  kRobustObs4Dof,  ///< "robust_obs_4dof": robust_obs estimating x, y, z, yaw only (z up)
-  kGlobal,         ///< "global": global initialisation (any yaw, metres off; global_init.hpp), then
-                   ///< robust_obs from its estimate; the initial guess is ignored
-  kGlobalRobustObs,  ///< "global_robust_obs": robust_obs after a global yaw search (any start)
-  kP2D,        ///< "p2d": shrink with the point-to-distribution cost (landmark covariances of both
-               ///< maps; estimation_p2d.hpp)
-  kRobustP2D,  ///< "robust_p2d": robust_obs with the point-to-distribution cost
-  kAdaptive,   ///< "adaptive": the adaptive pipeline (registration/adaptive.hpp): data-derived
-               ///< scales, global yaw-vote search, Mahalanobis gating, point-to-distribution;
-               ///< the recommended default (issue 18)
-};
-using Strategy = PaperStrategy;
-/// "base", "covariance", "observations", "distance", then "shrink", "shrink_cauchy", "trimmed",
-/// "mutual", "robust_obs", "robust_obs_knn", "robust_obs_4dof", "global", "global_robust_obs",
-/// "p2d", "robust_p2d", "adaptive".
-std::string to_string(PaperStrategy strategy);
-/// Inverse of to_string (also "none" for base, "mean_distance" for distance). Throws
-/// InvalidArgument listing the names.
-PaperStrategy parse_paper_strategy(const std::string& name);
-/// The paper's four, in the paper's column order.
-std::vector<PaperStrategy> all_paper_strategies();
-/// lmalign's own strategies (issue 7), in declaration order.
-std::vector<PaperStrategy> beyond_paper_strategies();
-/// True for the paper's four (run by align()); false for lmalign's own (align_robust(), or
-/// align_adaptive() for kAdaptive).
-bool is_paper_strategy(PaperStrategy strategy);
-/// The strategy `lmalign align` uses by default, chosen by measurement (docs/accuracy.md).
-inline constexpr PaperStrategy kRecommendedStrategy = PaperStrategy::kAdaptive;
 
 /// Every setting of one registration. Plain struct; check with is_valid().
 struct RegistrationOptions {
@@ -89,9 +45,9 @@ struct RegistrationOptions {
   /// never changes a result: false searches the tree for every point, with bit-identical output.
   bool reuse_neighbours = true;
 
-  /// The paper's setting for a strategy: base = nearest; the others weighted-kNN with its weight.
-  /// Throws InvalidArgument for a strategy that is not one of the paper's four.
-  static RegistrationOptions paper(PaperStrategy strategy, int k = 5);
+  /// The paper's setting for a landmark confidence (method.md §3): kUniform = base ICP (the
+  /// nearest neighbour); any other = its weighted kNN (Eq. 6) with that weight and k.
+  static RegistrationOptions paper(WeightKind weight, int k = 5);
 
   /// Ceres-style validation: false, and *why names the bad field and its value.
   bool is_valid(std::string* why = nullptr) const;
@@ -176,9 +132,9 @@ class PreparedTarget {
 /// estimate each iteration (PCL transforms incrementally; see docs/conventions.md).
 /// Deterministic for any thread count. Throws InvalidArgument on invalid options, a non-finite
 /// initial guess, non-finite source points, an empty source or target, or a coordinate beyond
-/// kMaxCoordinateM (core/supported_range.hpp; run_strategy() leaves such landmarks out instead).
-/// Degenerate geometry (fewer than 3 correspondences, identical or collinear
-/// points) gives a finite result with termination kNoCorrespondences or kDegenerate.
+/// kMaxCoordinateM (core/supported_range.hpp; align() of presets.hpp leaves such landmarks out
+/// instead). Degenerate geometry (fewer than 3 correspondences, identical or collinear points)
+/// gives a finite result with termination kNoCorrespondences or kDegenerate.
 RegistrationResult align(const Points3& source_points, const PreparedTarget& target,
                          const RegistrationOptions& options,
                          const Isometry3& T_target_source_init = Isometry3::Identity());

@@ -1,10 +1,11 @@
-// Beyond the paper (issue 7): an accurate ICP for partial-overlap landmark maps. Correspondence
-// rejection (a maximum distance on a shrinking schedule, trimming to an overlap ratio given or
-// estimated, mutual nearest neighbours), each combinable with the paper's weighted-kNN
-// selection; weighted Umeyama with IRLS robust kernels times landmark confidences; optional
-// 4-DoF (x, y, z, yaw) estimation; an optional point-to-distribution cost with both maps'
-// landmark covariances (estimation_p2d.hpp); an optional global yaw search for far starts. The
-// paper's align() is untouched.
+// Beyond the paper: an accurate ICP for partial-overlap landmark maps, the robust presets' loop
+// (configs/presets/robust_*.yaml, mutual.yaml). Correspondence rejection (a maximum distance on a
+// shrinking schedule, trimming to an overlap ratio given or estimated, mutual nearest
+// neighbours), each combinable with the paper's weighted-kNN selection; weighted Umeyama with
+// IRLS robust kernels times landmark confidences; optional 4-DoF (x, y, z, yaw) estimation; an
+// optional global yaw search for far starts. RobustRegistrationOptions is the C++ convenience for
+// those stages' settings: align_robust() runs the engine (pipeline.hpp) with
+// robust_pipeline_spec().
 //
 // Frames: the result is T_target_source, p_target = T_target_source * p_source.
 #pragma once
@@ -17,8 +18,6 @@
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/correspondence.hpp"
 #include "lmalign/registration/estimation_4dof.hpp"
-#include "lmalign/registration/estimation_p2d.hpp"
-#include "lmalign/registration/global_init.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/weights/weights.hpp"
 
@@ -64,30 +63,6 @@ void trim_correspondences(Correspondences& correspondences, double ratio);
 void keep_mutual(const Points3& moved_source, const Points3& target_points,
                  Correspondences& correspondences);
 
-/// The cost the estimation step minimises on fixed correspondences.
-enum class EstimationCost {
-  /// sum w |q - T p|^2: weighted Umeyama (6-DoF) or the 4-DoF closed form. The default.
-  kPointToPoint,
-  /// sum w r^T (C_t + R C_s R^T + floor^2 I)^-1 r with the landmark covariances of both maps
-  /// (estimate_point_to_distribution, estimation_p2d.hpp; GICP-like). 6-DoF only.
-  kPointToDistribution,
-};
-std::string to_string(EstimationCost cost);  ///< "point_to_point", "point_to_distribution"
-/// Inverse of to_string (also "p2p", "p2d"). Throws InvalidArgument listing the names.
-EstimationCost parse_estimation_cost(const std::string& name);
-
-/// What the IRLS kernel is evaluated on with the point-to-distribution cost.
-enum class KernelResidual {
-  /// The Euclidean residual |r| in metres, as with point-to-point (the default: measured better
-  /// on the real pair, docs/accuracy.md).
-  kEuclidean,
-  /// The Mahalanobis residual sqrt(r^T Omega r), converted so that kernel_scale_sigma of it
-  /// count as kernel_scale_m: the kernel sees sqrt(r^T Omega r) * kernel_scale_m /
-  /// kernel_scale_sigma (so the schedule of kernel scales is kept).
-  kMahalanobis,
-};
-std::string to_string(KernelResidual residual);  ///< "euclidean", "mahalanobis"
-
 struct RobustRegistrationOptions {
   // --- selection (method.md §3) ---
   /// kNearest, or the paper's weighted-kNN with `selection_weight` and `k`.
@@ -125,29 +100,8 @@ struct RobustRegistrationOptions {
   WeightKind estimation_weight = WeightKind::kUniform;
   DegreesOfFreedom dof = DegreesOfFreedom::k6;
   UpAxis up_axis = UpAxis::kZ;
-  /// Point-to-point (default) or point-to-distribution. kPointToDistribution needs the landmark
-  /// covariances of both maps (the target's from its Map, the source's passed to align_robust)
-  /// and dof = k6 (is_valid refuses k4). Each IRLS re-weighting then runs p2d.max_iterations
-  /// Gauss-Newton steps (default 1: the ICP loop iterates anyway), warm-started from the last.
-  EstimationCost cost = EstimationCost::kPointToPoint;
-  /// Gauss-Newton steps per IRLS step (1), covariance floor (5 mm).
-  PointToDistributionOptions p2d = {/*max_iterations=*/1};
-  /// The point-to-distribution cost acts at levels whose maximum distance is <= this (metres,
-  /// > 0; +inf = every level, the unlimited one included); coarser levels estimate
-  /// point-to-point. While many pairs are wrong, the covariances' long axes let them slide: on
-  /// the real pair robust_p2d with P2D at every level lost robust_obs's basin at yaw 50 deg and
-  /// at -X+Y 0.5 m yaw 30 deg; from the 1 m level on, the latter; from 0.25 m on, yaw 30 deg;
-  /// from 0.1 m on (the default) it kept all 45 protocol starts (docs/accuracy.md).
-  double p2d_max_level_distance_m = 0.1;
-  KernelResidual kernel_residual = KernelResidual::kEuclidean;  ///< P2D only
-  double kernel_scale_sigma = 3.0;  ///< kMahalanobis only: finite > 0 (see KernelResidual)
 
-  // --- initialisation ---
-  /// Start from global_align() (any yaw, translation by voting; global_init.hpp) instead of
-  /// the initial guess, which is then ignored. The robust loop refines its estimate.
-  bool global_initialisation = false;
-  GlobalInitOptions global;
-  // --- global initialisation (issue 7; no ground truth used) ---
+  // --- global search (no ground truth used) ---
   /// Before the local loop, try yaw_hypotheses yaws about the up axis (evenly spaced from 0),
   /// each rotating the source about its centroid and moving the centroid onto the target's
   /// centroid, plus the initial guess itself. Each hypothesis gets a short coarse run (this
@@ -185,36 +139,15 @@ struct RobustRegistrationResult : RegistrationResult {
   double final_max_distance_m = std::numeric_limits<double>::infinity();
   /// Weighted RMS of the last iteration's kept residuals, metres.
   double inlier_rms_m = 0.0;
-  /// 6x6 covariance of the estimate. With EstimationCost::kPointToDistribution: the final
-  /// point-to-distribution normal equations at the estimate with the final weights (normalised
-  /// to mean 1), scaled by the variance factor: chi2 / (3n - 6) * H^-1 (same xi; see
-  /// estimation_p2d.hpp). With point-to-point, from the final normal equations of that
+  /// 6x6 covariance of the estimate from the final normal equations of the point-to-point
   /// cost: sigma^2 (J^T W J)^-1 with J_i = [I, -[p_i]x] for a left perturbation
   /// T = exp(xi) T_hat, xi = (tx, ty, tz, rx, ry, rz) in the target frame (m, rad), W the
   /// normalised final weights and sigma^2 = sum w r^2 / (3n - 6). It treats residuals as
-  /// independent, so it is a lower bound on the real error: on the real pair it understates it
-  /// about 25-fold in standard deviation (docs/accuracy.md, "Uncertainty and the trust verdict").
-  /// Zero if it could not be computed (fewer than 3 correspondences or singular).
+  /// independent, so it is a lower bound on the real error (docs/accuracy.md, "Uncertainty and
+  /// the trust verdict"). Zero if it could not be computed (fewer than 3 correspondences or
+  /// singular).
   Mat6 covariance = Mat6::Zero();
 };
-
-/// The preset options of one of lmalign's own named strategies (PaperStrategy after
-/// kMeanDistance; docs/accuracy.md): all use the default schedule (inf, 1, 0.5, 0.25, 0.1,
-/// 0.05 m); `k` is used only by kRobustObsKnn's selection. kP2D and kRobustP2D use the
-/// point-to-distribution cost (they need landmark covariances, see align_robust). Throws
-/// InvalidArgument for a paper strategy (those run through align() with
-/// RegistrationOptions::paper()).
-RobustRegistrationOptions robust_strategy_options(PaperStrategy strategy, int k = 5);
-
-/// A user's limits applied to a preset (what `lmalign align --max-iterations / --max-distance`
-/// do to lmalign's own strategies): the iteration budget becomes `max_iterations` (>= 1; also
-/// capping max_iterations_per_level), and the distance schedule is capped at `max_distance_m`
-/// (> 0, metres; +inf = no cap): levels above it are replaced by one level at max_distance_m,
-/// the finer ones are kept (e.g. inf, 1, 0.5, 0.25, 0.1, 0.05 capped at 0.3 gives 0.3, 0.25,
-/// 0.1, 0.05). The global initialisation, if any, keeps its own schedule. Throws
-/// InvalidArgument on a bad limit.
-RobustRegistrationOptions with_limits(RobustRegistrationOptions options, int max_iterations,
-                                      double max_distance_m);
 
 struct PipelineSpec;
 /// The engine's stages and settings that align_robust() runs (pipeline.hpp).
@@ -227,15 +160,11 @@ PipelineSpec robust_pipeline_spec(const RobustRegistrationOptions& options);
 /// form with IRLS re-weighting, compose T = dT * T. With global_search, first the yaw
 /// hypotheses' coarse runs pick the start (see global_search); `iterations` then counts theirs
 /// too. Deterministic for any thread count.
-/// `source_covariances_m2`: one 3x3 position covariance per source point (m^2, in the frame of
-/// `source_points`: rotate them with the points, C' = R C R^T), needed only by the
-/// point-to-distribution cost (ignored otherwise; the target's come from its Map).
 /// Throws InvalidArgument on invalid options, a non-finite guess or source point, an empty
-/// source or target, a missing weight kind in the target, or, with kPointToDistribution, no or
-/// mis-sized source covariances or a target without covariances.
-RobustRegistrationResult align_robust(const Points3& source_points, const PreparedTarget& target,
-                                      const RobustRegistrationOptions& options,
-                                      const Isometry3& T_target_source_init = Isometry3::Identity(),
-                                      const std::vector<Mat3>* source_covariances_m2 = nullptr);
+/// source or target, or a missing weight kind in the target.
+RobustRegistrationResult align_robust(
+    const Points3& source_points, const PreparedTarget& target,
+    const RobustRegistrationOptions& options,
+    const Isometry3& T_target_source_init = Isometry3::Identity());
 
 }  // namespace lmalign

@@ -36,13 +36,13 @@
 #include "lmalign/registration/correspondence.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/score.hpp"
+#include "lmalign/registration/settings.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 
-class Settings;
 class Pipeline;
 
 /// The source landmarks as the engine reads them (not owned): positions (metres, source frame),
@@ -330,6 +330,13 @@ class Schedule : public Stage {
   virtual TerminationReason after_step(const RefineContext& context, StageState* state,
                                        const Step& step, const Pairs& pairs,
                                        LoopState* loop) const = 0;
+  /// The settings that apply a user's limits to this schedule (`lmalign align --max-iterations /
+  /// --max-distance`): an iteration budget, and a cap on the correspondence distance where the
+  /// schedule has one (none: nothing to cap). `current` is the pipeline's table. Throws
+  /// InvalidArgument for a budget < 1 or a distance that is not > 0.
+  virtual std::vector<std::pair<std::string, SettingValue>> limits(
+      const Settings& current, std::optional<int> max_iterations,
+      std::optional<double> max_distance_m) const = 0;
   /// The reason reported once stopped (`last_degenerate`: the last step was a minimiser among
   /// many).
   virtual TerminationReason finish(TerminationReason reason, bool last_degenerate) const {
@@ -379,16 +386,17 @@ struct Verdict {
   /// overlap distance, of all (NaN otherwise).
   double inlier_fraction = std::numeric_limits<double>::quiet_NaN();
   double overlap_fraction = std::numeric_limits<double>::quiet_NaN();
-  /// Covariance-gated evidence (judge "gated"): the gated inliers at the estimate, their score
-  /// sum (1 - d^2 / chi2), their mean Mahalanobis d^2 (NIS) and its expectation, the landmarks
-  /// near a target landmark (the gate widened by the search's resolution), the inliers over
-  /// those, and the best distinct hypothesis' score over the best's.
+  /// Every judge: the inliers at the estimate, and the inliers over the landmarks in the overlap.
   std::size_t num_inliers = 0;
+  double inlier_ratio = 0.0;
+  /// Covariance-gated evidence (judge "gated"; 0 otherwise): the inliers' score sum
+  /// (1 - d^2 / chi2), their mean Mahalanobis d^2 (NIS) and its expectation, the landmarks near
+  /// a target landmark (the gate widened by the search's resolution), and the best distinct
+  /// hypothesis' score over the best's.
   double score = 0.0;
   double mean_nis = 0.0;
   double expected_nis = 0.0;
   std::size_t num_overlap = 0;
-  double inlier_ratio = 0.0;
   double ambiguity = 0.0;
   /// A covariance of the judge's own (judge "inliers": point-to-point on its inliers), reported
   /// instead of the estimator's.

@@ -1,19 +1,19 @@
 // The landmarks of an alignment within the supported range (core/supported_range.hpp): what
-// run_strategy() aligns when a map holds landmarks beyond it.
+// align() (presets.hpp) aligns when a map holds landmarks beyond it.
 #pragma once
 
 #include <cstddef>
 #include <optional>
 
 #include "lmalign/registration/registration.hpp"
-#include "lmalign/registration/strategy.hpp"
+#include "lmalign/registration/seams.hpp"
 
 namespace lmalign {
 
 /// Both sides of an alignment without their landmarks beyond the supported range.
 struct SupportedLandmarks {
   /// A copy of the source without them (positions and covariances); only when some were left out.
-  std::optional<StrategySource> source;
+  std::optional<SourceLandmarks> source;
   /// A copy of the target without them (points, every kind of weight it has, covariances and
   /// the up axis); only when some were left out.
   std::optional<PreparedTarget> target;
@@ -26,7 +26,6 @@ struct SupportedLandmarks {
 /// unchanged (the weights are per landmark). Throws InvalidArgument, naming the side and the
 /// landmark, for a non-finite landmark (corrupt input, not a far landmark), and when every
 /// landmark of a side is beyond the range (there is then nothing left to align).
-SupportedLandmarks keep_supported_landmarks(const StrategySource& source,
-                                            const PreparedTarget& target);
+SupportedLandmarks keep_supported_landmarks(const SourceView& source, const PreparedTarget& target);
 
 }  // namespace lmalign

@@ -40,6 +40,9 @@ double mean_distance_weight(double mean_distance_m);
 std::vector<double> compute_weights(const Map& map, WeightKind kind,
                                     const WeightOptions& options = {});
 
+/// Every kind, in the paper's column order (its four strategies: base = uniform, then Eqs. 1-4).
+std::vector<WeightKind> all_weight_kinds();
+
 /// "uniform", "covariance", "observations", "distance".
 std::string to_string(WeightKind kind);
 /// Inverse of to_string; also accepts "none" for kUniform and "mean_distance". Throws

@@ -1,13 +1,9 @@
 // Kernels "none", "huber", "cauchy", "geman_mcclure": each pair's weight is the target
 // landmark's confidence (weights.hpp) times the IRLS weight of its residual (robust_weight,
 // robust.hpp) at the scale max(kernel.scale_m, kernel.scale_ratio x the level's maximum
-// distance), re-weighted kernel.irls_iterations times per iteration on fixed pairs (Zhang 1997).
-// The residual is Euclidean, or with kernel.residual = mahalanobis (at distribution steps) the
-// Mahalanobis distance under both covariances, converted so that kernel.scale_sigma of it count
-// as kernel.scale_m.
+// distance), re-weighted kernel.irls_iterations times per iteration on fixed pairs (Zhang 1997),
+// on the Euclidean residual at the re-weighting's estimate.
 #include <cmath>
-
-#include <Eigen/Cholesky>
 
 #include "lmalign/registration/robust.hpp"
 #include "lmalign/weights/weights.hpp"
@@ -28,9 +24,6 @@ struct IrlsOptions {
   double scale_m = 0.02;
   double scale_ratio = 0.5;
   int irls_iterations = 3;
-  bool mahalanobis = false;
-  double scale_sigma = 3.0;
-  double floor_m = 0.005;
 };
 
 class IrlsKernel : public Kernel {
@@ -41,7 +34,7 @@ class IrlsKernel : public Kernel {
     return o_.kernel == RobustKernel::kNone ? 1 : o_.irls_iterations;
   }
 
-  void weigh(const RefineContext& c, const LoopState& loop, const Pairs& pairs, const Isometry3& T,
+  void weigh(const RefineContext& c, const LoopState& loop, const Pairs& pairs, const Isometry3&,
              const Isometry3& increment, std::vector<double>* weights) const override {
     const std::vector<double>* confidence =
         o_.confidence == WeightKind::kUniform ? nullptr : &c.target->weights(o_.confidence);
@@ -63,27 +56,17 @@ class IrlsKernel : public Kernel {
       return;
     }
     const double scale = std::max(o_.scale_m, o_.scale_ratio * loop.max_distance_m);
-    const bool mahalanobis = o_.mahalanobis && loop.distribution_step;
-    const double floor2 = o_.floor_m * o_.floor_m;
     for (std::size_t i = 0; i < pairs.points.size(); ++i) {
       const Correspondence& p = pairs.points[i];
       const double conf = confidence ? (*confidence)[p.target_index] : 1.0;
+      // After the last step, the pair's own distance; during the loop, the residual at the
+      // re-weighting's estimate.
       double rn = 0.0;
-      if (loop.final_pass && !loop.distribution_step) {
-        rn = std::sqrt(p.distance_sq_m2);  // the pair's own distance
+      if (loop.final_pass) {
+        rn = std::sqrt(p.distance_sq_m2);
       } else {
-        const Vec3 r = loop.final_pass
-                           ? Vec3(pairs.moved[p.source_index] - tp[p.target_index])
-                           : Vec3(increment * pairs.moved[p.source_index] - tp[p.target_index]);
+        const Vec3 r = increment * pairs.moved[p.source_index] - tp[p.target_index];
         rn = r.norm();
-        if (mahalanobis) {
-          const Mat3 R = (increment * T).linear();
-          Mat3 M = c.target->covariances_m2()[p.target_index] +
-                   R * (*c.source.covariances_m2)[p.source_index] * R.transpose();
-          M.diagonal().array() += floor2;
-          const double m2 = r.dot(M.ldlt().solve(r));
-          rn = std::sqrt(std::max(0.0, m2)) * o_.scale_m / o_.scale_sigma;
-        }
       }
       (*weights)[i] = conf * robust_weight(o_.kernel, rn, scale);
     }
@@ -114,16 +97,6 @@ std::vector<SettingRow> robust_rows() {
       int_setting("kernel.irls_iterations", "RobustRegistrationOptions::irls_iterations", 3,
                   SettingBound::closed(1, 1000), "count",
                   "re-weightings per iteration on fixed pairs"),
-      choice_setting("kernel.residual", "RobustRegistrationOptions::kernel_residual", "euclidean",
-                     {"euclidean", "mahalanobis"},
-                     "what the kernel sees at point-to-distribution steps: the Euclidean "
-                     "residual, or the Mahalanobis one scaled by scale_m / scale_sigma"),
-      real_setting("kernel.scale_sigma", "RobustRegistrationOptions::kernel_scale_sigma", 3.0,
-                   SettingBound::above(0.0), "1",
-                   "Mahalanobis residuals: this many sigma count as scale_m"),
-      real_setting("kernel.floor_m", "PointToDistributionOptions::covariance_floor_m", 0.005,
-                   SettingBound::at_least(1e-9), "m",
-                   "Mahalanobis residuals: floor added to the combined covariance"),
   };
 }
 
@@ -135,9 +108,6 @@ std::unique_ptr<Stage> make(RobustKernel kernel, const Settings& s) {
     o.scale_m = s.real("kernel.scale_m");
     o.scale_ratio = s.real("kernel.scale_ratio");
     o.irls_iterations = static_cast<int>(s.integer("kernel.irls_iterations"));
-    o.mahalanobis = s.choice("kernel.residual") == "mahalanobis";
-    o.scale_sigma = s.real("kernel.scale_sigma");
-    o.floor_m = s.real("kernel.floor_m");
   }
   return std::make_unique<IrlsKernel>(o);
 }

@@ -105,8 +105,4 @@ std::unique_ptr<Stage> make_match_weighted_knn(const Settings& s) {
       parse_weight_kind(s.choice("match.confidence")), s.boolean("match.reuse_neighbours"));
 }
 
-std::vector<std::string> confidence_names() {
-  return {"uniform", "covariance", "observations", "distance"};
-}
-
 }  // namespace lmalign::stages

@@ -10,8 +10,6 @@
     "every yaw about the maps' up axes, translation by a vote; bounded by a prior if given")       \
   X(kInitialiser, init_yaw_centroid, "yaw_centroid",                                               \
     "the guess and evenly spaced yaws about the centroids")                                        \
-  X(kInitialiser, init_global_vote, "global_vote",                                                 \
-    "yaws about a fixed up axis, 3-D translation vote, refined by ICP, most inliers kept")         \
   X(kMatcher, match_nearest, "nearest", "the nearest target landmark within the level's distance") \
   X(kMatcher, match_weighted_knn, "weighted_knn",                                                  \
     "the most confident of the k nearest within the level's distance (the paper's Eq. 6)")         \
@@ -29,8 +27,6 @@
     "Cauchy weight of the gate's Mahalanobis distance")                                            \
   X(kEstimator, estimate_umeyama, "umeyama", "weighted closed-form rigid transform (SVD)")         \
   X(kEstimator, estimate_four_dof, "four_dof", "x, y, z and yaw in closed form")                   \
-  X(kEstimator, estimate_p2d_gn, "p2d_gn",                                                         \
-    "point-to-distribution Gauss-Newton at the finer levels, Umeyama at the coarser")              \
   X(kEstimator, estimate_p2d_step, "p2d_step",                                                     \
     "one point-to-distribution Gauss-Newton step on the gated pairs per iteration")                \
   X(kSchedule, schedule_pcl, "pcl", "PCL's ICP convergence criteria at one fixed distance")        \
@@ -54,6 +50,21 @@ LMALIGN_STAGES(LMALIGN_DECLARE)
 namespace lmalign {
 
 namespace stages {
+
+void check_limits(std::optional<int> max_iterations, std::optional<double> max_distance_m) {
+  if (max_iterations && *max_iterations < 1) {
+    throw InvalidArgument("max_iterations = " + std::to_string(*max_iterations) +
+                          " (expected >= 1)");
+  }
+  if (max_distance_m && !(*max_distance_m > 0.0)) {
+    throw InvalidArgument("max_distance_m = " + message_number(*max_distance_m) +
+                          " (expected > 0 metres, or inf)");
+  }
+}
+
+std::vector<std::string> confidence_names() {
+  return {"uniform", "covariance", "observations", "distance"};
+}
 
 // The two "none" rows of optional seams: no settings, no stage.
 std::vector<SettingRow> score_none_settings() { return {}; }

@@ -43,6 +43,30 @@ class DistanceSchedule : public Schedule {
     return nullptr;
   }
 
+  // The budget replaces max_iterations (and caps max_iterations_per_level); the distance caps
+  // the levels: those above it become one level at it, the finer ones stay (inf, 1, 0.5, 0.25,
+  // 0.1, 0.05 capped at 0.3: 0.3, 0.25, 0.1, 0.05). The hypotheses' own levels stay.
+  std::vector<std::pair<std::string, SettingValue>> limits(
+      const Settings& s, std::optional<int> max_iterations,
+      std::optional<double> max_distance_m) const override {
+    check_limits(max_iterations, max_distance_m);
+    std::vector<std::pair<std::string, SettingValue>> out;
+    if (max_iterations) {
+      out.emplace_back("schedule.max_iterations", static_cast<long long>(*max_iterations));
+      out.emplace_back(
+          "schedule.max_iterations_per_level",
+          std::min<long long>(s.integer("schedule.max_iterations_per_level"), *max_iterations));
+    }
+    if (max_distance_m && std::isfinite(*max_distance_m)) {
+      std::vector<double> capped{*max_distance_m};
+      for (double d : s.reals("schedule.levels_m")) {
+        if (d < *max_distance_m) capped.push_back(d);
+      }
+      out.emplace_back("schedule.levels_m", capped);
+    }
+    return out;
+  }
+
   TerminationReason after_step(const RefineContext&, StageState*, const Step& step, const Pairs&,
                                LoopState* loop) const override {
     const Levels& l = levels(*loop);

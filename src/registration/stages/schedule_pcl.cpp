@@ -33,6 +33,16 @@ class PclSchedule : public Schedule {
     return static_cast<State*>(state)->criteria.check(loop->iterations, step.increment,
                                                       pairs.points);
   }
+  std::vector<std::pair<std::string, SettingValue>> limits(
+      const Settings&, std::optional<int> max_iterations,
+      std::optional<double> max_distance_m) const override {
+    std::vector<std::pair<std::string, SettingValue>> out;
+    check_limits(max_iterations, max_distance_m);
+    if (max_iterations)
+      out.emplace_back("schedule.max_iterations", static_cast<long long>(*max_iterations));
+    if (max_distance_m) out.emplace_back("schedule.max_distance_m", *max_distance_m);
+    return out;
+  }
   TerminationReason finish(TerminationReason reason, bool last_degenerate) const override {
     // The rotation of a rank-deficient last step is one minimiser among many: say so.
     if (last_degenerate && reason != TerminationReason::kNoCorrespondences) {

@@ -40,6 +40,17 @@ class SigmaSchedule : public Schedule {
     return nullptr;
   }
 
+  // The gate follows the covariances: there is no correspondence distance to cap.
+  std::vector<std::pair<std::string, SettingValue>> limits(
+      const Settings&, std::optional<int> max_iterations,
+      std::optional<double> max_distance_m) const override {
+    check_limits(max_iterations, max_distance_m);
+    std::vector<std::pair<std::string, SettingValue>> out;
+    if (max_iterations)
+      out.emplace_back("schedule.max_iterations", static_cast<long long>(*max_iterations));
+    return out;
+  }
+
   bool may_iterate(const LoopState& loop) const override {
     return loop.iterations < o_.max_iterations;
   }

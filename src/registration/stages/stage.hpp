@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,9 @@ namespace lmalign::stages {
 /// The landmark confidences a setting may name (weights.hpp): "uniform", "covariance",
 /// "observations", "distance".
 std::vector<std::string> confidence_names();
+
+/// Refuses a user's limits that are not limits: a budget < 1, a distance that is not > 0.
+void check_limits(std::optional<int> max_iterations, std::optional<double> max_distance_m);
 
 }  // namespace lmalign::stages
 

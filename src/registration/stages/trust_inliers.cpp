@@ -21,6 +21,8 @@ class InlierJudge : public TrustJudge {
     v.reason = t.reason;
     v.inlier_fraction = t.inlier_fraction;
     v.overlap_fraction = t.overlap_fraction;
+    v.num_inliers = cov.num_correspondences;
+    v.inlier_ratio = t.overlap_fraction > 0.0 ? t.inlier_fraction / t.overlap_fraction : 0.0;
     v.covariance = cov;
     return v;
   }

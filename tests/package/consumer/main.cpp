@@ -18,7 +18,7 @@ int main() {
 
   const lmalign::PreparedTarget prepared(target);
   const lmalign::RegistrationResult r = lmalign::align(
-      source, prepared, lmalign::RegistrationOptions::paper(lmalign::PaperStrategy::kBase));
+      source, prepared, lmalign::RegistrationOptions::paper(lmalign::WeightKind::kUniform));
   const lmalign::TransformError e = lmalign::transform_error(r.T_target_source, T_true);
   std::printf("consumer: %s; rotation error %.3g deg, translation error %.3g m\n",
               r.brief_report().c_str(), e.rotation_deg, e.translation_m);

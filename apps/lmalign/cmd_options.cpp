@@ -1,0 +1,53 @@
+// `lmalign options PRESET`: the preset's stages and its table of settings, one setting per line:
+// key, value, unit, bound, doc (docs/cli.md).
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "commands.hpp"
+#include "lmalign/registration/presets.hpp"
+
+namespace lmalign::cli {
+
+namespace {
+
+int run_options(const std::string& name) {
+  const Preset preset = find_preset(name);
+  const Pipeline pipeline(preset.spec);
+  const PipelineSpec& s = preset.spec;
+  std::printf("%s: %s\n", preset.name.c_str(), preset.doc.c_str());
+  std::string rejectors;
+  for (const std::string& r : s.rejectors) rejectors += (rejectors.empty() ? "" : ",") + r;
+  std::printf(
+      "stages: initialiser %s, matcher %s, rejectors %s, kernel %s, estimator %s, schedule %s, "
+      "scorer %s, trust %s (%s)\n",
+      s.initialiser.c_str(), s.matcher.c_str(), rejectors.empty() ? "-" : rejectors.c_str(),
+      s.kernel.c_str(), s.estimator.c_str(), s.schedule.c_str(), s.scorer.c_str(), s.trust.c_str(),
+      preset.file.c_str());
+  std::printf("%-40s %-26s %-6s %-40s %s\n", "key", "value", "unit", "bound", "doc");
+  const Settings& settings = pipeline.settings();
+  for (const SettingRow& row : settings.table()) {
+    std::printf("%-40s %-26s %-6s %-40s %s\n", row.key.c_str(),
+                row.text(settings.value(row.key)).c_str(), row.unit.c_str(),
+                row.bound.text(row.type).c_str(), row.doc.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner add_options_command(CLI::App& root) {
+  auto name = std::make_shared<std::string>();
+  CLI::App* cmd = root.add_subcommand(
+      "options",
+      "Print a strategy's stages and its settings, one per line: key, value, unit, bound, doc.\n"
+      "Any of them can be changed with `lmalign align --set KEY=VALUE`, an experiment config's\n"
+      "`settings:` or Python's settings= (docs/cli.md).");
+  cmd->add_option("PRESET", *name,
+                  "a strategy name (lmalign align --help lists them) or a preset "
+                  "file NAME.yaml")
+      ->required();
+  return [name]() { return run_options(*name); };
+}
+
+}  // namespace lmalign::cli
