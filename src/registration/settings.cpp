@@ -46,6 +46,8 @@ bool parse_real(const std::string& text, double* out) {
   return !s.empty() && r.ec == std::errc() && r.ptr == e && !std::isnan(*out);
 }
 
+}  // namespace
+
 std::size_t edit_distance(const std::string& a, const std::string& b) {
   std::vector<std::size_t> prev(b.size() + 1), cur(b.size() + 1);
   for (std::size_t j = 0; j <= b.size(); ++j) prev[j] = j;
@@ -59,6 +61,8 @@ std::size_t edit_distance(const std::string& a, const std::string& b) {
   }
   return prev[b.size()];
 }
+
+namespace {
 
 std::string last_part(const std::string& key) {
   const std::size_t dot = key.rfind('.');

@@ -68,6 +68,10 @@ struct SettingRow {
   SettingValue parse(const std::string& text) const;
 };
 
+/// The Levenshtein distance between two names (insertions, deletions, substitutions), for the
+/// nearest known key or preset named in refusals.
+std::size_t edit_distance(const std::string& a, const std::string& b);
+
 /// Row helpers (the stages' tables are lists of these).
 SettingRow bool_setting(std::string key, std::string member, bool value, std::string doc);
 SettingRow int_setting(std::string key, std::string member, long long value, SettingBound bound,
