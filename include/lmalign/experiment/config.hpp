@@ -137,7 +137,7 @@ struct BasinSpec {
   TranslationDirections translation_directions = TranslationDirections::kXy;
 };
 
-/// Random starts (issue 18's accuracy benchmark): `samples` displacements, each drawn
+/// Random starts (the accuracy benchmark's, docs/accuracy.md): `samples` displacements, each drawn
 /// independently: yaw uniform in [-yaw_deg, yaw_deg] about the up axis through the pivot, roll and
 /// pitch each uniform in [-roll_pitch_deg, roll_pitch_deg] (R = Rz(yaw) Ry(pitch) Rx(roll) in a
 /// frame whose z is up), then an offset across the up axis of length uniform in

@@ -1,5 +1,5 @@
 // Closed-form 4-DoF (x, y, z and yaw about the up axis) rigid estimation for gravity-aligned
-// maps (visual-inertial SLAM, ground robots). Not in the paper (issue 7).
+// maps (visual-inertial SLAM, ground robots). Not in the paper.
 #pragma once
 
 #include <string>

@@ -1,4 +1,4 @@
-// A seeded synthetic multi-robot scene for the merge (issue 21 item 7, docs/merge.md
+// A seeded synthetic multi-robot scene for the merge (docs/merge.md
 // "Synthetic fleet"): one large outdoor world cut into N mini-maps, each in its own random frame,
 // with the true T_world_map known and some planted look-alike (aliased) map pairs.
 //

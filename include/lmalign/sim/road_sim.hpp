@@ -1,5 +1,5 @@
 // A seeded simulator of an outdoor stereo landmark map pair: a car driving down a road
-// (KITTI-like; the outdoor counterpart of slam_sim.hpp's corridor, issue 18).
+// (KITTI-like; the outdoor counterpart of slam_sim.hpp's corridor).
 //
 // World frame = the road frame, axes as KITTI's camera frames: x right, y down, z forward along
 // the road. The camera drives along +z in the right lane (x = 1.75 m, swaying by 0.3 m) at a
