@@ -369,6 +369,26 @@ PYBIND11_MODULE(_lmalign, m) {
           "Judge 'gated' only (else None): mean Mahalanobis d^2 of the gated inliers at the "
           "estimate (dimensionless; 2.89 expected when the landmark covariances hold).")
       .def_property_readonly(
+          "covariance_scale",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.outcome.adaptive) return py::none();
+            return py::float_(o.outcome.adaptive->covariance_scale);
+          },
+          "'adaptive' only (else None): the factor k^2 the landmark covariances need for the "
+          "gated inliers' residuals (robust, from their median d^2; 1 when they hold). The "
+          "reported covariance includes it when it is above 1.")
+      .def_property_readonly(
+          "rival_T_target_source",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!o.outcome.adaptive || !o.outcome.adaptive->rival_T_target_source) {
+              return py::none();
+            }
+            return matrix_out<4, 4>(o.outcome.adaptive->rival_T_target_source->matrix());
+          },
+          "'adaptive' only (else None, also when there is none): the best distinct refined "
+          "pose, (4, 4) float64 T_target_source (metres), whose score over the best's is "
+          "`ambiguity`.")
+      .def_property_readonly(
           "translation_sd_m",
           [](const python::AlignOutcome& o) { return o.summary.covariance.translation_sd_m(); },
           "Standard deviation of the translation along its worst axis, metres.")

@@ -189,3 +189,23 @@ def test_gil_is_released_two_alignments_overlap_in_time(desk_pair):
     assert a1 - a0 >= results[0].wall_time_s and b1 - b0 >= results[1].wall_time_s
     overlap = min(a1, b1) - max(a0, b0)
     assert overlap > 0, ((a0, a1), (b0, b1))
+
+
+def test_adaptive_reports_its_verdict_as_the_cli_does(desk_pair, cli, tmp_path):
+    """The default's verdict: covariance scale, ambiguity and the rival pose it measured, the same
+    in Python as in the CLI's JSON. On the desk pair a distinct pose (the desk turned about its
+    normal) scores most of the best, so there is a rival."""
+    source_path, target_path = desk_pair
+    cli_result = run_cli(cli, [source_path, target_path, "--strategy", "adaptive"],
+                         tmp_path)["adaptive"]
+    r = lmalign.align(lmalign.read_map(source_path), lmalign.read_map(target_path),
+                      strategy="adaptive")
+    assert r.T_target_source.tolist() == cli_result["T_target_source"]
+    assert r.covariance_scale == cli_result["covariance_scale"]
+    assert r.ambiguity == cli_result["ambiguity"]
+    assert 0.0 < r.covariance_scale < 3.0
+    assert r.rival_T_target_source is not None
+    assert r.rival_T_target_source.tolist() == cli_result["rival"]["T_target_source"]
+    # The rival is a distinct pose: it moves the source by more than the estimate's uncertainty.
+    assert cli_result["rival"]["distance_m"] > 0.05 or cli_result["rival"]["angle_deg"] > 5.0
+    assert r.T_target_source.shape == r.rival_T_target_source.shape == (4, 4)

@@ -62,8 +62,15 @@ bool AdaptiveOptions::is_valid(std::string* why) const {
     return fail("second_up_min_angle_deg must be in [0, 180], got " +
                 message_number(second_up_min_angle_deg));
   }
-  if (!(max_nis_ratio >= 1.0) || !std::isfinite(max_nis_ratio)) {
-    return fail("max_nis_ratio must be >= 1 and finite, got " + message_number(max_nis_ratio));
+  if (!(max_covariance_scale >= 1.0) || !std::isfinite(max_covariance_scale)) {
+    return fail("max_covariance_scale must be >= 1 and finite, got " +
+                message_number(max_covariance_scale));
+  }
+  if (!(alias_ambiguity > 0.0 && alias_ambiguity <= 1.0)) {
+    return fail("alias_ambiguity must be in (0, 1], got " + message_number(alias_ambiguity));
+  }
+  if (!(alias_nis_ratio >= 1.0) || !std::isfinite(alias_nis_ratio)) {
+    return fail("alias_nis_ratio must be >= 1 and finite, got " + message_number(alias_nis_ratio));
   }
   if (!(distinct_cells > 0.0) || !std::isfinite(distinct_cells)) {
     return fail("distinct_cells must be > 0 and finite, got " + message_number(distinct_cells));
@@ -120,9 +127,13 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
   result.num_inliers = s.verdict.num_inliers;
   result.mean_nis = s.verdict.mean_nis;
   result.expected_nis = s.verdict.expected_nis;
+  result.covariance_scale = s.verdict.covariance_scale;
   result.num_overlap = s.verdict.num_overlap;
   result.inlier_ratio = s.verdict.inlier_ratio;
   result.ambiguity = s.verdict.ambiguity;
+  result.rival_T_target_source = s.verdict.rival_T_target_source;
+  result.rival_distance_m = s.verdict.rival_distance_m;
+  result.rival_angle_deg = s.verdict.rival_angle_deg;
   result.covariance = s.covariance;
   result.num_half_samples = s.num_half_samples;
   result.trustworthy = s.verdict.trustworthy;
@@ -154,7 +165,7 @@ AdaptiveResult align_adaptive(const SourceLandmarks& source, const PreparedTarge
 PipelineSpec adaptive_pipeline_spec(const AdaptiveOptions& o) {
   PipelineSpec spec;
   spec.name = "adaptive";
-  spec.initialiser = "yaw_vote";
+  spec.initialiser = o.complete_search ? "complete_search" : "yaw_vote";
   spec.matcher = "mahalanobis_gate";
   spec.kernel = "cauchy_mahalanobis";
   spec.estimator = "p2d_step";
@@ -172,6 +183,23 @@ PipelineSpec adaptive_pipeline_spec(const AdaptiveOptions& o) {
   set("init.vote_cell_factor", o.vote_cell_factor);
   set("init.start_sigma_factor", o.start_sigma_factor);
   set("init.second_up_min_angle_deg", o.second_up_min_angle_deg);
+  if (o.complete_search) {
+    const CompleteSearchOptions& c = o.complete;
+    set("search.vote_source_samples", integer(c.vote_source_samples));
+    set("search.vote_target_samples", integer(c.vote_target_samples));
+    set("search.peaks_per_yaw", integer(c.peaks_per_yaw));
+    set("search.pool", integer(c.pool));
+    set("search.screen_samples", integer(c.screen_samples));
+    set("search.snap_samples", integer(c.snap_samples));
+    set("search.snap_neighbours", integer(c.snap_neighbours));
+    set("search.rank_samples", integer(c.rank_samples));
+    set("search.rank_keep", integer(c.rank_keep));
+    set("search.round1_iterations", integer(c.round1_iterations));
+    set("search.round1_samples", integer(c.round1_samples));
+    set("search.round1_keep", integer(c.round1_keep));
+    set("search.round2_iterations", integer(c.round2_iterations));
+    set("search.round2_samples", integer(c.round2_samples));
+  }
   set("match.k", integer(o.gate.k));
   set("match.chi2_threshold", o.gate.chi2_threshold);
   set("kernel.scale_d2", o.gate.chi2_threshold);
@@ -187,7 +215,9 @@ PipelineSpec adaptive_pipeline_spec(const AdaptiveOptions& o) {
   set("score.samples", integer(o.hypothesis_samples));
   set("trust.min_inliers", integer(o.min_inliers));
   set("trust.min_inlier_ratio", o.min_inlier_ratio);
-  set("trust.max_nis_ratio", o.max_nis_ratio);
+  set("trust.max_covariance_scale", o.max_covariance_scale);
+  set("trust.alias_ambiguity", o.alias_ambiguity);
+  set("trust.alias_nis_ratio", o.alias_nis_ratio);
   set("trust.max_ambiguity", o.max_ambiguity);
   set("trust.distinct_cells", o.distinct_cells);
   set("scales.floor_m", o.floor_m);

@@ -274,8 +274,10 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
   const Vec3 centre = context.scales != nullptr ? context.scales->source.centre_m : Vec3::Zero();
   Pairs pairs;
   bool last_degenerate = false;
+  loop.max_iterations_per_level = start.max_iterations_per_level;
   for (;;) {
-    if (!schedule_->may_iterate(loop)) {
+    if (!schedule_->may_iterate(loop) ||
+        (start.max_iterations > 0 && loop.iterations >= start.max_iterations)) {
       out.termination = TerminationReason::kMaxIterations;
       break;
     }
@@ -440,6 +442,8 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     ic.prior_sigma_deg_m =
         std::make_pair(request.prior->rotation_deg, request.prior->translation_m);
   }
+  ic.pipeline = this;
+  ic.refine_context = &all;
   const std::vector<Hypothesis> hypotheses = initialiser_->propose(ic, &s.initialisation);
   if (hypotheses.empty()) throw Error("initialiser '" + spec_.initialiser + "' proposed nothing");
 

@@ -138,7 +138,8 @@ std::string Summary::FullReport() const {
     v += " (" + std::to_string(verdict.num_inliers) + " gated inliers of " +
          std::to_string(verdict.num_overlap) + " near, mean NIS " + fmt("%.4g", verdict.mean_nis) +
          " / " + fmt("%.4g", verdict.expected_nis) + ", ambiguity " +
-         fmt("%.3g", verdict.ambiguity) + ")";
+         fmt("%.3g", verdict.ambiguity) + ", covariance scale " +
+         fmt("%.3g", verdict.covariance_scale) + ")";
   } else if (!std::isnan(verdict.inlier_fraction)) {
     v += " (inlier fraction " + fmt("%.4g", verdict.inlier_fraction) + ", overlap fraction " +
          fmt("%.4g", verdict.overlap_fraction) + ")";
@@ -178,6 +179,14 @@ std::string to_json(const Summary& s, int indent) {
     e["ambiguity"] = s.verdict.ambiguity;
     e["mean_nis"] = s.verdict.mean_nis;
     e["expected_nis"] = s.verdict.expected_nis;
+    e["covariance_scale"] = s.verdict.covariance_scale;
+    if (s.verdict.rival_T_target_source) {
+      e["rival"] = {{"T_target_source", matrix4(*s.verdict.rival_T_target_source)},
+                    {"distance_m", s.verdict.rival_distance_m},
+                    {"angle_deg", s.verdict.rival_angle_deg}};
+    } else {
+      e["rival"] = nullptr;
+    }
   } else if (!std::isnan(s.verdict.inlier_fraction)) {
     e["inlier_fraction"] = s.verdict.inlier_fraction;
     e["overlap_fraction"] = s.verdict.overlap_fraction;

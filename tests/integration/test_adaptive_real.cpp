@@ -200,11 +200,37 @@ TEST(AdaptiveDeskWindows, AShortHandHeldWindowsUpAxisIsRescuedByItsLandmarkPlane
 
   const Isometry3 D = pose_from_xyz_rpy_deg(0.8, -0.5, 0.1, 0.0, 0.0, 100.0);
   const AdaptiveResult r = align_adaptive(displaced(SourceLandmarks::from_map(a), D), target);
-  EXPECT_EQ(r.ups_target.size(), 2u);
+  EXPECT_GE(r.ups_target.size(), 2u);
   const TransformError e = error_of(r, D);
   EXPECT_LT(e.rotation_deg, 0.5);
   EXPECT_LT(e.translation_m, 0.01);
   EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+}
+
+// Re-triangulated windows of the desk map whose votes never proposed the truth (the search kept
+// the best-voted yaw peaks): the complete search finds the pose its score prefers. Measured on a
+// 2-core AMD EPYC guest, 2026-11-23: 0.06 deg / 2 mm (60 frames) and 0.04 deg / 1 mm (30 frames),
+// both trusted; the earlier default ended 145 deg and 19 deg off.
+TEST(AdaptiveDeskWindows, TheCompleteSearchFindsShortWindowsTheVotesMissed) {
+  const std::string file = test::data_file("tum_fr1_desk/ground_truth_pair/map_fr1_desk_gt.txt");
+  LMALIGN_REQUIRE_FILE(file);
+  const Map full = read_map(file);
+  struct Case {
+    Id a0, a1, b0, b1;
+  };
+  for (const Case& k : {Case{20, 79, 50, 109}, Case{100, 129, 115, 144}}) {
+    SCOPED_TRACE(std::to_string(k.a0) + "-" + std::to_string(k.a1) + " onto " +
+                 std::to_string(k.b0) + "-" + std::to_string(k.b1));
+    const Map a = desk_window(full, k.a0, k.a1);
+    const Map b = desk_window(full, k.b0, k.b1);
+    const PreparedTarget target(b);
+    const Isometry3 D = pose_from_xyz_rpy_deg(0.4, -0.3, 0.05, 0.0, 0.0, -120.0);
+    const AdaptiveResult r = align_adaptive(displaced(SourceLandmarks::from_map(a), D), target);
+    const TransformError e = error_of(r, D);
+    EXPECT_LT(e.rotation_deg, 1.0);
+    EXPECT_LT(e.translation_m, 0.02);
+    EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  }
 }
 
 }  // namespace

@@ -1161,14 +1161,22 @@ TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
     s.positions = src;
     const AdaptiveResult r = align_adaptive(s, target);
     EXPECT_FALSE(r.trustworthy) << "seed " << seed << ": " << r.trust_reason;
+    // The verdict names the rival it measured, and the result carries it.
+    ASSERT_TRUE(r.rival_T_target_source.has_value());
+    EXPECT_GE(r.ambiguity, AdaptiveOptions{}.max_ambiguity);
+    EXPECT_NE(r.trust_reason.find("ambiguous: another pose"), std::string::npos) << r.trust_reason;
+    const TransformError apart =
+        transform_error(*r.rival_T_target_source, r.registration.T_target_source);
+    EXPECT_GT(r.rival_distance_m + r.rival_angle_deg, 0.0);
+    EXPECT_NEAR(r.rival_angle_deg, apart.rotation_deg, 1e-6);
   }
 }
 
-TEST(Adaptive, ResidualsBeyondTheCovariancesFailTheNisTest) {
+TEST(Adaptive, UnderstatedCovariancesAreMeasuredAndRefused) {
   // The room's landmarks are drawn from their covariances: the inliers' mean NIS is at most its
   // expectation (below it, as the floor adds to every pair's covariance). The same maps with
   // every covariance understated four-fold (sd halved): the same pose, but residuals twice the
-  // stated sd, so the NIS test rejects it and says why.
+  // stated sd, so the covariance scale (about 4) rejects it and says why.
   const Room room = make_room(far_truth(), 53);
   const PreparedTarget target = room.target();
   const AdaptiveResult right = align_adaptive(room.source, target);
@@ -1186,11 +1194,15 @@ TEST(Adaptive, ResidualsBeyondTheCovariancesFailTheNisTest) {
   o.floor_m = 1e-4;  // keep the floor from hiding the understatement
   const AdaptiveResult r = align_adaptive(understated.source, target4, o);
   EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).rotation_deg, 0.5);
-  EXPECT_GT(r.mean_nis, o.max_nis_ratio * r.expected_nis);
+  // The covariance scale measures the four-fold understatement from the inliers alone.
+  EXPECT_NEAR(right.covariance_scale, 1.0, 0.3);
+  EXPECT_NEAR(r.covariance_scale, 4.0, 1.0);
+  EXPECT_GT(r.covariance_scale, o.max_covariance_scale);
   EXPECT_FALSE(r.trustworthy);
-  EXPECT_NE(r.trust_reason.find("NIS"), std::string::npos) << r.trust_reason;
+  EXPECT_NE(r.trust_reason.find("times what their covariances say"), std::string::npos)
+      << r.trust_reason;
   // The threshold is an option: a looser one trusts the same result.
-  o.max_nis_ratio = r.mean_nis / r.expected_nis + 0.01;
+  o.max_covariance_scale = r.covariance_scale + 0.01;
   EXPECT_TRUE(align_adaptive(understated.source, target4, o).trustworthy);
 }
 
@@ -1345,9 +1357,9 @@ TEST(Adaptive, RefusesBadInput) {
   EXPECT_FALSE(o.is_valid(&why));
   EXPECT_NE(why.find("floor_m"), std::string::npos);
   o = AdaptiveOptions{};
-  o.max_nis_ratio = 0.9;
+  o.max_covariance_scale = 0.9;
   EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("max_nis_ratio"), std::string::npos);
+  EXPECT_NE(why.find("max_covariance_scale"), std::string::npos);
   o = AdaptiveOptions{};
   o.second_up_min_angle_deg = -1.0;
   EXPECT_FALSE(o.is_valid(&why));

@@ -13,6 +13,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/pipeline.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
 #include "support/synthetic_scene.hpp"
 
 namespace lmalign {
@@ -258,6 +259,42 @@ TEST_F(ComposedPipelines, APriorIsRefusedByAnInitialiserThatUsesNone) {
   r.prior = PriorSigma{2.0, 0.1};
   EXPECT_TRUE(contains(message_of([&] { Pipeline(spec).run(source_.view(), *target_, r); }),
                        "the initialiser 'guess' of 'custom' uses no prior"));
+}
+
+TEST_F(ComposedPipelines, AHypothesisCapsItsOwnRefinement) {
+  // A search refines many candidates briefly (complete_search): Hypothesis::max_iterations and
+  // max_iterations_per_level cap one refinement below the schedule's own budget.
+  PipelineSpec spec;
+  spec.matcher = "mahalanobis_gate";
+  spec.kernel = "cauchy_mahalanobis";
+  spec.estimator = "p2d_step";
+  spec.schedule = "sigma_anneal";
+  const Pipeline p(spec);
+  Scales scales;
+  scales.source = estimate_data_scales(source_.positions, &source_.covariances_m2);
+  scales.target = estimate_data_scales(target_->points(), &target_->covariances_m2());
+  scales.floor_m = std::max(scales.source.floor_m, scales.target.floor_m);
+  InitialiserReport init;
+  RefineContext c;
+  c.source = source_.view();
+  c.target = &*target_;
+  c.scales = &scales;
+  c.init = &init;
+  Hypothesis h;
+  h.T_target_source = pose_from_xyz_rpy_deg(0.02, 0.0, 0.0, 0.0, 0.0, 1.0) * T_true_;
+  h.start_sigma_m = 0.05;
+  h.start_sigma_rad = 0.02;
+  const Refinement free_run = p.refine(c, h, Phase::kHypothesis);
+  ASSERT_GT(free_run.iterations, 3);
+  h.max_iterations = 3;
+  const Refinement capped = p.refine(c, h, Phase::kHypothesis);
+  EXPECT_EQ(capped.iterations, 3);
+  EXPECT_EQ(capped.termination, TerminationReason::kMaxIterations);
+  h.max_iterations = 0;
+  h.max_iterations_per_level = 1;
+  const Refinement fast_levels = p.refine(c, h, Phase::kHypothesis);
+  EXPECT_GE(fast_levels.loop.level, free_run.loop.level);
+  EXPECT_LT(transform_error(free_run.T, T_true_).translation_m, 1e-3);
 }
 
 }  // namespace

@@ -38,6 +38,7 @@
 #include "lmalign/map/map.hpp"
 #include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/stages/complete_search.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
@@ -49,6 +50,10 @@ namespace lmalign {
 /// is left are dimensionless ratios, counts and probabilities. Plain struct; is_valid().
 struct AdaptiveOptions {
   // --- initialisation ---
+  /// Without a prior: the complete search (stages/complete_search.hpp; true) or the yaw vote
+  /// alone (false). search.yaw_step_deg and search.hypotheses apply to both.
+  bool complete_search = true;
+  CompleteSearchOptions complete;
   YawVoteOptions search;
   /// The vote cell is max(spacing, 2 sin(step / 2) * source radius): what half a yaw step moves
   /// a landmark twice the typical distance from the centre. Multiplied by this factor, > 0.
@@ -105,15 +110,18 @@ struct AdaptiveOptions {
   /// only near some landmark. [0, 1]. Measured: 0.29 (KITTI disjoint pair) and 0.84 (desk) at
   /// the right pose, 0.14-0.17 at the wrong poses found on KITTI (docs/accuracy.md).
   double min_inlier_ratio = 0.2;
-  /// Untrusted when the mean normalised innovation squared (NIS: the Mahalanobis d^2 of the
-  /// gated inliers at the estimate) exceeds this multiple of its expectation under the landmarks'
-  /// covariances (a chi-square of 3 dof truncated at the gate: 2.89 at the default gate), the
-  /// NIS consistency test of SLAM data association. Right poses match the same landmarks, whose
-  /// residuals follow the covariances; a pose aliased by repeated structure (a periodic facade,
-  /// a road under a half turn) matches different landmarks whose offsets do not. One-sided:
-  /// overstated covariances pass. >= 1. Measured (docs/accuracy.md): 0.2-1.1 of the expectation
-  /// at the right poses of the real datasets, 1.25-1.45 at the aliased road poses.
-  double max_nis_ratio = 1.1;
+  /// Untrusted when the inliers' residuals need the landmark covariances scaled by more than
+  /// this (the covariance scale k^2, estimated robustly from the median Mahalanobis d^2 of the
+  /// gated inliers against a chi-square of 3 dof truncated at the gate): the maps disagree beyond
+  /// their uncertainty. Real maps state covariances 30-40% too small (k^2 about 2), which must
+  /// pass. >= 1.
+  double max_covariance_scale = 3.0;
+  /// Untrusted when a distinct refined pose scores alias_ambiguity of the best while the inliers'
+  /// mean NIS exceeds alias_nis_ratio of its expectation (2.89 at the default gate): repeated
+  /// structure gives an aliased pose both rivals and residuals its covariances do not explain.
+  /// alias_ambiguity in (0, 1], alias_nis_ratio >= 1.
+  double alias_ambiguity = 0.7;
+  double alias_nis_ratio = 1.2;
 
   // --- uncertainty ---
   /// Edge of the spatial blocks of the cluster-robust covariance (p2d_cluster_covariance), as a
@@ -159,15 +167,25 @@ struct AdaptiveResult {
   double score = 0.0;
   std::size_t num_inliers = 0;
   /// Mean Mahalanobis d^2 of those inliers (dimensionless), and its expectation when the
-  /// covariances hold (max_nis_ratio).
+  /// covariances hold (alias_nis_ratio), and the covariance scale (max_covariance_scale).
   double mean_nis = 0.0;
   double expected_nis = 0.0;
+  /// How much the landmark covariances must be scaled for the inliers' residuals (k^2, robust:
+  /// from the median d^2; dimensionless, 1 when they hold); the reported covariance is
+  /// multiplied by it when it is above 1.
+  double covariance_scale = 1.0;
   /// Source landmarks that pass the gate widened by one vote cell of pose uncertainty (those in
   /// the overlap, roughly), and num_inliers over it.
   std::size_t num_overlap = 0;
   double inlier_ratio = 0.0;
   /// Best score of a distinct hypothesis over the best's, on the hypothesis samples (0 if none).
   double ambiguity = 0.0;
+  /// The best distinct refined pose (the rival that `ambiguity` measures; empty without one),
+  /// T_target_source as the estimate's, and how far it is from the estimate: the displacement
+  /// of the source's centre (m, target frame) and the rotation between them (deg).
+  std::optional<Isometry3> rival_T_target_source;
+  double rival_distance_m = 0.0;
+  double rival_angle_deg = 0.0;
   /// Covariance of the estimate, lmalign's convention (uncertainty.hpp): 6 DoF, the
   /// cluster-robust p2d_cluster_covariance of the final pairs raised to the half-sample
   /// covariance (covariance_half_sample_planes); 4 DoF, p2d_covariance. `valid` as

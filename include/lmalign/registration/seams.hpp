@@ -44,6 +44,7 @@
 namespace lmalign {
 
 class Pipeline;
+struct RefineContext;
 
 /// The source landmarks as the engine reads them (not owned): positions (metres, source frame),
 /// optional covariances (one 3x3 per landmark, m^2, source frame; null or empty = none) and an
@@ -140,6 +141,10 @@ struct Hypothesis {
   double search_score = 0.0;
   /// Where it came from: "search", "guess", "prior", ...
   std::string origin;
+  /// Caps on this refinement (0: the schedule's own): its iterations, and a schedule's
+  /// iterations per level. A search that refines many candidates briefly sets them.
+  int max_iterations = 0;
+  int max_iterations_per_level = 0;
 };
 
 /// What an initialiser tells the rest of the pipeline and the trust judge.
@@ -174,6 +179,10 @@ struct InitialiserContext {
   /// degrees, and of the translation, metres, about the target origin), if given.
   std::optional<Isometry3> initial_guess;
   std::optional<std::pair<double, double>> prior_sigma_deg_m;
+  /// The pipeline and every source landmark: an initialiser may refine its candidates with
+  /// the pipeline's own refinement (Pipeline::refine_part, Phase::kHypothesis).
+  const Pipeline* pipeline = nullptr;
+  const RefineContext* refine_context = nullptr;
 };
 
 class Initialiser : public Stage {
@@ -199,7 +208,9 @@ struct LoopState {
   Phase phase = Phase::kFinal;
   int iterations = 0;        ///< steps taken in this refinement
   int level_iterations = 0;  ///< since the schedule last changed its level
-  std::size_t level = 0;     ///< the schedule's level
+  /// The refinement's cap on a schedule's iterations per level (0: none; Hypothesis).
+  int max_iterations_per_level = 0;
+  std::size_t level = 0;  ///< the schedule's level
   /// The Euclidean gate of point matchers at this level, metres (+inf = none).
   double max_distance_m = std::numeric_limits<double>::infinity();
   /// The pose uncertainty that widens the gate of distribution matchers; its pivot is the
@@ -398,6 +409,16 @@ struct Verdict {
   double expected_nis = 0.0;
   std::size_t num_overlap = 0;
   double ambiguity = 0.0;
+  /// The covariance scale k^2 (dimensionless): the factor by which the landmark covariances
+  /// must be scaled for the inliers' median Mahalanobis d^2 to be that of a chi-square with 3
+  /// dof truncated at the gate (1 when the covariances hold; judge "gated").
+  double covariance_scale = 1.0;
+  /// The best distinct rival of the estimate (judge "gated"; when ambiguity > 0): its pose, the
+  /// distance between the two poses' images of the source centre (metres) and the rotation
+  /// between them (degrees).
+  std::optional<Isometry3> rival_T_target_source;
+  double rival_distance_m = 0.0;
+  double rival_angle_deg = 0.0;
   /// A covariance of the judge's own (judge "inliers": point-to-point on its inliers), reported
   /// instead of the estimator's.
   std::optional<PoseCovariance> covariance;

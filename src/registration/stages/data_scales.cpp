@@ -3,11 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <random>
 #include <string>
 
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
 #include "lmalign/search/kdtree.hpp"
 
 namespace lmalign {
@@ -147,6 +149,67 @@ std::optional<Vec3> landmark_plane_normal(const Points3& points, const Vec3& up_
   Vec3 normal = es.eigenvectors().col(0).normalized();
   if (normal.dot(up_hint) < 0.0) normal = -normal;
   if (!normal.allFinite()) return std::nullopt;
+  return normal;
+}
+
+std::optional<Vec3> dominant_plane_normal(const Points3& points, const Vec3& up_hint,
+                                          double threshold_m, double max_angle_deg,
+                                          std::size_t max_samples) {
+  if (points.size() < 3 || max_samples < 3 || !(threshold_m > 0.0) || !std::isfinite(threshold_m) ||
+      !up_hint.allFinite() || !(up_hint.norm() > 0.0)) {
+    return std::nullopt;
+  }
+  const std::size_t n = std::min(points.size(), max_samples);
+  Points3 q(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    q[i] = points[i * points.size() / n];
+    if (!q[i].allFinite()) return std::nullopt;
+  }
+  const Vec3 hint = up_hint.normalized();
+  const double min_cos = std::cos(max_angle_deg * kPi / 180.0);
+  // RANSAC over triplets, seeded and drawn by explicit formulas (the same draws on every
+  // platform); ties keep the earlier triplet.
+  std::mt19937_64 rng(0x5eed);
+  std::size_t best_count = 0;
+  Vec3 best_n = Vec3::Zero();
+  double best_d = 0.0;
+  for (int it = 0; it < 256; ++it) {
+    const std::size_t a = rng() % n, b = rng() % n, c = rng() % n;
+    Vec3 nn = (q[b] - q[a]).cross(q[c] - q[a]);
+    if (!(nn.norm() > 0.0)) continue;
+    nn.normalize();
+    if (std::abs(nn.dot(hint)) < min_cos) continue;  // a wall, not a floor
+    const double d = nn.dot(q[a]);
+    std::size_t count = 0;
+    for (const Vec3& p : q) {
+      if (std::abs(nn.dot(p) - d) < threshold_m) ++count;
+    }
+    if (count > best_count) {
+      best_count = count;
+      best_n = nn;
+      best_d = d;
+    }
+  }
+  if (best_count < std::max<std::size_t>(3, n / 10)) return std::nullopt;
+  // The normal of the inliers' best-fitting plane.
+  Vec3 mean = Vec3::Zero();
+  std::size_t k = 0;
+  for (const Vec3& p : q) {
+    if (std::abs(best_n.dot(p) - best_d) < threshold_m) {
+      mean += p;
+      ++k;
+    }
+  }
+  mean /= static_cast<double>(k);
+  Mat3 scatter = Mat3::Zero();
+  for (const Vec3& p : q) {
+    if (std::abs(best_n.dot(p) - best_d) < threshold_m)
+      scatter += (p - mean) * (p - mean).transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat3> es(scatter);
+  Vec3 normal = es.eigenvectors().col(0).normalized();
+  if (normal.dot(hint) < 0.0) normal = -normal;
+  if (!normal.allFinite() || normal.dot(hint) < min_cos) return std::nullopt;
   return normal;
 }
 

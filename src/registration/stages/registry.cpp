@@ -8,6 +8,9 @@
   X(kInitialiser, init_guess, "guess", "the initial guess alone (identity if none)")               \
   X(kInitialiser, init_yaw_vote, "yaw_vote",                                                       \
     "every yaw about the maps' up axes, translation by a vote; bounded by a prior if given")       \
+  X(kInitialiser, init_complete_search, "complete_search",                                         \
+    "every pair of up axes, yaw and translation: 3-D vote, finer votes, refinement rounds; "       \
+    "bounded by a prior if given")                                                                 \
   X(kInitialiser, init_yaw_centroid, "yaw_centroid",                                               \
     "the guess and evenly spaced yaws about the centroids")                                        \
   X(kMatcher, match_nearest, "nearest", "the nearest target landmark within the level's distance") \

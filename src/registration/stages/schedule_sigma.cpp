@@ -69,7 +69,11 @@ class SigmaSchedule : public Schedule {
         xi.head<3>().norm() < std::max(settle_t, o_.level_settle_ratio * sigma.translation_m) &&
         xi.tail<3>().norm() < std::max(settle_r, o_.level_settle_ratio * sigma.rotation_rad);
     if (settled && at_zero) return TerminationReason::kTransform;
-    if ((settled || loop->level_iterations >= o_.max_iterations_per_level) && !at_zero) {
+    const int per_level =
+        loop->max_iterations_per_level > 0
+            ? std::min(o_.max_iterations_per_level, loop->max_iterations_per_level)
+            : o_.max_iterations_per_level;
+    if ((settled || loop->level_iterations >= per_level) && !at_zero) {
       sigma.translation_m *= o_.sigma_decay;
       sigma.rotation_rad *= o_.sigma_decay;
       if (sigma.translation_m < floor && sigma.rotation_rad * c.scales->source.radius_m < floor) {

@@ -1,12 +1,21 @@
 // Trust judge "gated" (the adaptive default's verdict, docs/accuracy.md): at the estimate,
 // enough covariance-gated inliers; enough of the landmarks near a target landmark (those that
 // pass the gate widened by one search resolution of pose uncertainty) among them, since a right
-// pose puts the overlap within its covariances and a wrong one only near some landmark; their
-// mean normalised innovation squared (NIS) within max_nis_ratio of its expectation (repeated
-// structure aliases a pose with residuals the covariances do not explain); no distinct refined
-// hypothesis scoring nearly as well; a non-degenerate covariance.
+// pose puts the overlap within its covariances and a wrong one only near some landmark; a
+// covariance scale (how much larger the inliers' residuals are than their covariances say,
+// estimated robustly from the median of their Mahalanobis d^2) of at most max_covariance_scale;
+// a margin to the best distinct refined mode: none scoring max_ambiguity of the best, nor
+// alias_ambiguity of it while the residuals exceed their covariances by alias_nis_ratio
+// (repeated structure aliases a pose with residuals the covariances do not explain, and gives it
+// rivals); a non-degenerate covariance. The reported covariance is the estimator's times the
+// covariance scale when that is above 1.
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <string>
+#include <vector>
 
+#include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "stage.hpp"
 
@@ -19,10 +28,44 @@ namespace {
 struct GatedTrustOptions {
   std::size_t min_inliers = 12;
   double min_inlier_ratio = 0.2;
-  double max_nis_ratio = 1.1;
+  double max_covariance_scale = 3.0;
   double max_ambiguity = 0.85;
+  double alias_ambiguity = 0.7;
+  double alias_nis_ratio = 1.2;
   double distinct_cells = 4.0;
 };
+
+// A measured quantity in a verdict: three significant digits.
+std::string short_number(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.3g", v);
+  return b;
+}
+
+// P(chi2_3 <= x).
+double chi2_3_cdf(double x) {
+  if (!(x > 0.0)) return 0.0;
+  return std::erf(std::sqrt(0.5 * x)) - std::sqrt(2.0 * x / kPi) * std::exp(-0.5 * x);
+}
+
+// The covariance scale k^2 for which the median of d^2 ~ k^2 chi2_3, truncated at the gate
+// `chi2`, equals `median`: P(chi2_3 <= median / k^2) = 0.5 P(chi2_3 <= chi2 / k^2), by
+// bisection on log k^2 in [1e-3, 1e3] (the left side over the right falls as k^2 grows).
+double covariance_scale(double median, double chi2) {
+  if (!(median > 0.0) || !(chi2 > 0.0)) return 1.0;
+  double lo = std::log(1e-3), hi = std::log(1e3);
+  for (int i = 0; i < 100; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const double k2 = std::exp(mid);
+    const double ratio = chi2_3_cdf(median / k2) / std::max(1e-300, chi2_3_cdf(chi2 / k2));
+    if (ratio > 0.5) {
+      lo = mid;
+    } else {
+      hi = mid;
+    }
+  }
+  return std::exp(0.5 * (lo + hi));
+}
 
 // Two estimates are distinct poses when they move a landmark at the source's typical distance
 // from its centre apart by more than `distance_m`.
@@ -49,13 +92,20 @@ class GatedJudge : public TrustJudge {
       Pairs inliers;
       j.pipeline->matcher().match(c, nullptr, T, LoopState{}, &inliers);
       double sum_d2 = 0.0;
+      std::vector<double> d2;
       for (const GatedPair& g : inliers.gated) {
         v.score += 1.0 - g.d2 / inliers.chi2_threshold;
         sum_d2 += g.d2;
+        d2.push_back(g.d2);
       }
       v.num_inliers = inliers.gated.size();
       v.mean_nis = inliers.gated.empty() ? 0.0 : sum_d2 / static_cast<double>(inliers.gated.size());
       v.expected_nis = expected_gated_d2(inliers.chi2_threshold);
+      if (!d2.empty()) {
+        const std::size_t mid = d2.size() / 2;
+        std::nth_element(d2.begin(), d2.begin() + static_cast<std::ptrdiff_t>(mid), d2.end());
+        v.covariance_scale = covariance_scale(d2[mid], inliers.chi2_threshold);
+      }
     }
     {
       LoopState wide;
@@ -73,8 +123,20 @@ class GatedJudge : public TrustJudge {
       if (distinct(h[i].T_refined, h.front().T_refined, sc.source.centre_m, sc.source.radius_m,
                    o_.distinct_cells * j.init->resolution_m)) {
         v.ambiguity = h.front().score > 0.0 ? h[i].score / h.front().score : 1.0;
+        // The rival as seen from the estimate: the source centre's displacement between them
+        // and the rotation between them.
+        v.rival_T_target_source = h[i].T_refined;
+        v.rival_distance_m = (h[i].T_refined * sc.source.centre_m - T * sc.source.centre_m).norm();
+        v.rival_angle_deg =
+            Eigen::AngleAxisd(h[i].T_refined.linear() * T.linear().transpose()).angle() * 180.0 /
+            kPi;
         break;
       }
+    }
+    if (j.covariance->valid && v.covariance_scale > 1.0) {
+      PoseCovariance scaled = *j.covariance;
+      scaled.covariance *= v.covariance_scale;
+      v.covariance = scaled;
     }
     const TerminationReason end = j.final->termination;
     if (end == TerminationReason::kNoCorrespondences) {
@@ -87,14 +149,23 @@ class GatedJudge : public TrustJudge {
     } else if (v.inlier_ratio < o_.min_inlier_ratio) {
       v.reason = "few landmarks agree within their covariances (" + std::to_string(v.num_inliers) +
                  " of " + std::to_string(v.num_overlap) + " near a target landmark)";
-    } else if (v.mean_nis > o_.max_nis_ratio * v.expected_nis) {
-      v.reason = "the inliers' residuals exceed their covariances (mean NIS " +
-                 message_number(v.mean_nis) + ", " + message_number(v.expected_nis) +
-                 " expected): repeated structure may have aliased the pose";
-    } else if (v.ambiguity >= o_.max_ambiguity) {
-      v.reason = "ambiguous: a distinct pose scores " +
+    } else if (v.covariance_scale > o_.max_covariance_scale) {
+      v.reason = "the inliers' residuals are " + short_number(std::sqrt(v.covariance_scale)) +
+                 " times what their covariances say (at most " +
+                 short_number(std::sqrt(o_.max_covariance_scale)) +
+                 "): the maps disagree beyond their uncertainty";
+    } else if (v.ambiguity >= o_.max_ambiguity ||
+               (v.ambiguity >= o_.alias_ambiguity &&
+                v.mean_nis > o_.alias_nis_ratio * v.expected_nis)) {
+      v.reason = "ambiguous: another pose " + short_number(v.rival_distance_m) + " m / " +
+                 short_number(v.rival_angle_deg) + " deg away scores " +
                  std::to_string(static_cast<int>(std::lround(100.0 * v.ambiguity))) +
                  "% of the best";
+      if (v.ambiguity < o_.max_ambiguity) {
+        v.reason += ", and the inliers' residuals exceed their covariances (mean NIS " +
+                    short_number(v.mean_nis / v.expected_nis) +
+                    " times its expectation): repeated structure may have aliased the pose";
+      }
     } else {
       v.trustworthy = true;
       v.reason = "ok";
@@ -117,13 +188,19 @@ std::vector<SettingRow> trust_gated_settings() {
                    SettingBound::closed(0.0, 1.0), "1",
                    "untrusted when fewer than this fraction of the landmarks near a target "
                    "landmark pass the gate at the estimate"),
-      real_setting("trust.max_nis_ratio", "AdaptiveOptions::max_nis_ratio", 1.1,
+      real_setting("trust.max_covariance_scale", "AdaptiveOptions::max_covariance_scale", 3.0,
                    SettingBound::at_least(1.0), "1",
-                   "untrusted when the inliers' mean NIS exceeds this multiple of its "
-                   "expectation"),
+                   "untrusted when the inliers' residuals need their covariances scaled by more "
+                   "than this (robust, from the median Mahalanobis d^2)"),
       real_setting("trust.max_ambiguity", "AdaptiveOptions::max_ambiguity", 0.85,
                    SettingBound::open_closed(0.0, 1.0), "1",
                    "untrusted when a distinct pose scores at least this fraction of the best"),
+      real_setting("trust.alias_ambiguity", "AdaptiveOptions::alias_ambiguity", 0.7,
+                   SettingBound::open_closed(0.0, 1.0), "1",
+                   "untrusted when a distinct pose scores this fraction of the best and the "
+                   "mean NIS exceeds trust.alias_nis_ratio of its expectation"),
+      real_setting("trust.alias_nis_ratio", "AdaptiveOptions::alias_nis_ratio", 1.2,
+                   SettingBound::at_least(1.0), "1", "see trust.alias_ambiguity"),
       real_setting("trust.distinct_cells", "AdaptiveOptions::distinct_cells", 4.0,
                    SettingBound::above(0.0), "1",
                    "two poses are distinct when they move a landmark at the source's typical "
@@ -135,8 +212,10 @@ std::unique_ptr<Stage> make_trust_gated(const Settings& s) {
   GatedTrustOptions o;
   o.min_inliers = static_cast<std::size_t>(s.integer("trust.min_inliers"));
   o.min_inlier_ratio = s.real("trust.min_inlier_ratio");
-  o.max_nis_ratio = s.real("trust.max_nis_ratio");
+  o.max_covariance_scale = s.real("trust.max_covariance_scale");
   o.max_ambiguity = s.real("trust.max_ambiguity");
+  o.alias_ambiguity = s.real("trust.alias_ambiguity");
+  o.alias_nis_ratio = s.real("trust.alias_nis_ratio");
   o.distinct_cells = s.real("trust.distinct_cells");
   return std::make_unique<GatedJudge>(o);
 }

@@ -124,6 +124,95 @@ class VoteGrid {
   std::size_t mask_ = 0;
 };
 
+// The 3-D vote grid: open addressing over packed cell keys, linear probing, sized for the number
+// of votes. Cells are listed in slot order; peaks are found by count, then key.
+class VoteGrid3 {
+ public:
+  /// Dense over [lo, hi] (cells, inclusive) when that box has at most kDenseLimit cells, else
+  /// sparse, sized for max_votes. Both list the same cells with the same counts.
+  void reset(std::size_t max_votes, const std::int64_t* lo, const std::int64_t* hi) {
+    double cells = 1.0;
+    for (int k = 0; k < 3; ++k)
+      cells *= static_cast<double>(std::max<std::int64_t>(0, hi[k] - lo[k] + 1));
+    // Only the cells the last vote touched are cleared.
+    for (std::size_t i : touched_) dense_counts_[i] = 0;
+    touched_.clear();
+    dense_ = cells >= 1.0 && cells <= kDenseLimit;
+    if (dense_) {
+      for (int k = 0; k < 3; ++k) {
+        lo_[k] = lo[k];
+        n_[k] = hi[k] - lo[k] + 1;
+      }
+      if (dense_counts_.size() < static_cast<std::size_t>(cells)) {
+        dense_counts_.resize(static_cast<std::size_t>(cells), 0);
+      }
+      return;
+    }
+    std::size_t size = 64;
+    while (size < 2 * max_votes) size <<= 1;
+    keys_.assign(size, kEmpty);
+    counts_.assign(size, 0);
+    mask_ = size - 1;
+  }
+  void add(std::int64_t a, std::int64_t b, std::int64_t c) {
+    if (dense_) {
+      const std::int64_t i = a - lo_[0], j = b - lo_[1], k = c - lo_[2];
+      if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return;
+      const std::size_t idx = static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k);
+      if (dense_counts_[idx]++ == 0) touched_.push_back(idx);
+      return;
+    }
+    const std::uint64_t key = pack(a, b, c);
+    std::size_t i = hash(key);
+    while (keys_[i] != kEmpty && keys_[i] != key) i = (i + 1) & mask_;
+    keys_[i] = key;
+    ++counts_[i];
+  }
+  std::uint32_t count(std::int64_t a, std::int64_t b, std::int64_t c) const {
+    if (dense_) {
+      const std::int64_t i = a - lo_[0], j = b - lo_[1], k = c - lo_[2];
+      if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return 0;
+      return dense_counts_[static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k)];
+    }
+    const std::uint64_t key = pack(a, b, c);
+    std::size_t i = hash(key);
+    while (keys_[i] != kEmpty) {
+      if (keys_[i] == key) return counts_[i];
+      i = (i + 1) & mask_;
+    }
+    return 0;
+  }
+  /// visit(count, key) for every cell with votes.
+  template <typename Visit>
+  void for_each_cell(Visit&& visit) const {
+    if (dense_) {
+      for (std::size_t idx : touched_) {
+        const std::int64_t k = static_cast<std::int64_t>(idx) % n_[2];
+        const std::int64_t j = (static_cast<std::int64_t>(idx) / n_[2]) % n_[1];
+        const std::int64_t i = static_cast<std::int64_t>(idx) / (n_[2] * n_[1]);
+        visit(dense_counts_[idx], pack(lo_[0] + i, lo_[1] + j, lo_[2] + k));
+      }
+      return;
+    }
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
+      if (keys_[i] != kEmpty) visit(counts_[i], keys_[i]);
+    }
+  }
+
+ private:
+  static constexpr double kDenseLimit = 8.0e6;
+  std::size_t hash(std::uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 20) & mask_;
+  }
+  bool dense_ = false;
+  std::int64_t lo_[3] = {0, 0, 0}, n_[3] = {0, 0, 0};
+  std::vector<std::uint32_t> dense_counts_;
+  std::vector<std::size_t> touched_;
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> counts_;
+  std::size_t mask_ = 0;
+};
+
 struct Peak {
   std::size_t votes = 0;
   Vec3 t = Vec3::Zero();
@@ -142,9 +231,10 @@ struct VoteWindow {
 // horizontal part of t (in the plane normal to `up`, 3x3 cells): an error in either map's up axis
 // (a hand-held camera gives it to a few degrees) tilts the source, which moves its landmarks
 // mostly vertically. The vertical part of t is then the median of the peak's votes.
-Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3& up,
-          const VoteWindow& window, VoteGrid& grid, std::vector<double>& heights,
-          std::vector<std::pair<double, std::size_t>>& by_e1) {
+std::vector<Peak> vote(const Points3& rotated, const Points3& target, double cell, const Vec3& up,
+                       const VoteWindow& window, std::size_t max_peaks, VoteGrid& grid,
+                       std::vector<double>& heights,
+                       std::vector<std::pair<double, std::size_t>>& by_e1) {
   const Vec3 e1 = up.unitOrthogonal();
   const Vec3 e2 = up.cross(e1);
   const double inv = 1.0 / cell;
@@ -197,17 +287,21 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
   for_each_vote([&](const Vec3&, double a, double b) {
     grid.add(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b));
   });
-  // The 32 fullest cells, then their 3x3 sums.
+  // The fullest cells (32 for each peak wanted), then their 3x3 sums; peaks best first, each
+  // at least 3 cells (Chebyshev) from a better one.
   std::vector<std::pair<std::uint32_t, std::uint64_t>> top;
   grid.for_each_cell([&](std::uint32_t c, std::uint64_t key) { top.emplace_back(c, key); });
-  const std::size_t keep = std::min<std::size_t>(32, top.size());
+  const std::size_t keep = std::min<std::size_t>(32 * max_peaks, top.size());
   std::partial_sort(top.begin(), top.begin() + static_cast<std::ptrdiff_t>(keep), top.end(),
                     [](const auto& l, const auto& r) {
                       return l.first != r.first ? l.first > r.first : l.second < r.second;
                     });
-  Peak best;
-  double best_a = 0.0, best_b = 0.0;
-  std::int64_t best_x = 0, best_y = 0;
+  struct Cand {
+    std::size_t votes;
+    double a, b;
+    std::int64_t x, y;
+  };
+  std::vector<Cand> cands;
   for (std::size_t j = 0; j < keep; ++j) {
     const std::uint64_t key = top[j].second;
     const std::int64_t x = static_cast<std::int64_t>(key >> 42) - kCellLimit;
@@ -222,45 +316,163 @@ Peak vote(const Points3& rotated, const Points3& target, double cell, const Vec3
         wb += c * (static_cast<double>(y + dy) + 0.5);
       }
     }
-    if (sum > best.votes) {
-      best.votes = sum;
-      best_a = cell * wa / static_cast<double>(sum);
-      best_b = cell * wb / static_cast<double>(sum);
-      best_x = x;
-      best_y = y;
-    }
+    if (sum == 0) continue;
+    cands.push_back(
+        {sum, cell * wa / static_cast<double>(sum), cell * wb / static_cast<double>(sum), x, y});
   }
-  if (best.votes == 0) return best;
+  // Best first; among equal sums the fuller cell (earlier in `top`) first.
+  std::stable_sort(cands.begin(), cands.end(),
+                   [](const Cand& l, const Cand& r) { return l.votes > r.votes; });
+  std::vector<Cand> chosen;
+  for (const Cand& c : cands) {
+    if (chosen.size() >= max_peaks) break;
+    bool near = false;
+    for (const Cand& o : chosen) {
+      if (std::max(std::abs(o.x - c.x), std::abs(o.y - c.y)) < 3) near = true;
+    }
+    if (!near) chosen.push_back(c);
+  }
+  std::vector<Peak> peaks;
+  if (chosen.empty()) return peaks;
   // The vertical part: median over the votes in the peak's 3x3 cells. Only the target
   // landmarks whose projection on e1 puts them within a cell of those cells can vote there
   // (found by bisection in the targets sorted by that projection); each is then tested exactly as
   // in the vote, so the heights are the same as from every pair.
-  heights.clear();
   by_e1.clear();
   for (std::size_t j = 0; j < target.size(); ++j) by_e1.emplace_back(target[j].dot(e1), j);
   std::sort(by_e1.begin(), by_e1.end());
-  const double band_lo = (static_cast<double>(best_x) - 2.0) * cell;
-  const double band_hi = (static_cast<double>(best_x) + 3.0) * cell;
-  auto in_peak = [&](const Vec3& t, double a, double b) {
-    if (std::abs(a - static_cast<double>(best_x)) <= 1.0 &&
-        std::abs(b - static_cast<double>(best_y)) <= 1.0) {
-      heights.push_back(t.dot(up));
+  for (const Cand& c : chosen) {
+    heights.clear();
+    const double band_lo = (static_cast<double>(c.x) - 2.0) * cell;
+    const double band_hi = (static_cast<double>(c.x) + 3.0) * cell;
+    auto in_peak = [&](const Vec3& t, double a, double b) {
+      if (std::abs(a - static_cast<double>(c.x)) <= 1.0 &&
+          std::abs(b - static_cast<double>(c.y)) <= 1.0) {
+        heights.push_back(t.dot(up));
+      }
+    };
+    for (const Vec3& x : rotated) {
+      const double x1 = x.dot(e1);
+      auto it = std::lower_bound(by_e1.begin(), by_e1.end(),
+                                 std::pair<double, std::size_t>{x1 + band_lo, 0});
+      for (; it != by_e1.end() && it->first <= x1 + band_hi; ++it) {
+        vote_of(x, target[it->second], in_peak);
+      }
     }
-  };
+    if (heights.empty()) continue;  // not reached: the peak's own votes are among them
+    const std::size_t mid = heights.size() / 2;
+    std::nth_element(heights.begin(), heights.begin() + static_cast<std::ptrdiff_t>(mid),
+                     heights.end());
+    Peak p;
+    p.votes = c.votes;
+    p.t = c.a * e1 + c.b * e2 + heights[mid] * up;
+    peaks.push_back(p);
+  }
+  return peaks;
+}
+
+// The translations with the most votes in 3-D cells (3x3x3 sums, each peak at least 3 cells
+// from a better one), best first: the vote of vote() without its horizontal projection, for
+// up axes that agree (a tilt moves far landmarks across cells).
+std::vector<Peak> vote3d(const Points3& rotated, const Points3& target, double cell, const Vec3& up,
+                         const VoteWindow& window, std::size_t max_peaks, VoteGrid3& grid) {
+  const double inv = 1.0 / cell;
+  const double limit = static_cast<double>(kCellLimit - 2);
+  const bool bounded = std::isfinite(window.radius_h);
+  const double rh2 = window.radius_h * window.radius_h;
+  {
+    // The cells t = q - x can reach, from both sides' robust extents (2nd to 98th percentile
+    // per axis, one cell wider for rounding): a dense grid drops the votes outside, which only
+    // the farthest landmarks cast; a peak is made of many.
+    std::int64_t lo[3], hi[3];
+    std::vector<double> xs(rotated.size()), qs(target.size());
+    auto pct = [](std::vector<double>& v, double f) {
+      const std::size_t k = static_cast<std::size_t>(f * static_cast<double>(v.size() - 1));
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
+      return v[k];
+    };
+    for (int k = 0; k < 3; ++k) {
+      for (std::size_t i = 0; i < rotated.size(); ++i) xs[i] = rotated[i][k];
+      for (std::size_t i = 0; i < target.size(); ++i) qs[i] = target[i][k];
+      const double xl = pct(xs, 0.02), xh = pct(xs, 0.98), ql = pct(qs, 0.02), qh = pct(qs, 0.98);
+      lo[k] = static_cast<std::int64_t>(std::clamp(std::floor((ql - xh) * inv), -limit, limit)) - 1;
+      hi[k] = static_cast<std::int64_t>(std::clamp(std::floor((qh - xl) * inv), -limit, limit)) + 1;
+    }
+    grid.reset(rotated.size() * target.size(), lo, hi);
+  }
   for (const Vec3& x : rotated) {
-    const double x1 = x.dot(e1);
-    auto it = std::lower_bound(by_e1.begin(), by_e1.end(),
-                               std::pair<double, std::size_t>{x1 + band_lo, 0});
-    for (; it != by_e1.end() && it->first <= x1 + band_hi; ++it) {
-      vote_of(x, target[it->second], in_peak);
+    for (const Vec3& q : target) {
+      const Vec3 t = q - x;
+      if (bounded) {
+        const Vec3 d = t - window.centre;
+        const double v = d.dot(up);
+        if (std::abs(v) > window.radius_v || (d - v * up).squaredNorm() > rh2) continue;
+      }
+      const double a = std::floor(t[0] * inv), b = std::floor(t[1] * inv),
+                   c = std::floor(t[2] * inv);
+      if (std::abs(a) >= limit || std::abs(b) >= limit || std::abs(c) >= limit) continue;
+      grid.add(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b),
+               static_cast<std::int64_t>(c));
     }
   }
-  if (heights.empty()) return Peak{};  // not reached: the peak's own votes are among them
-  const std::size_t mid = heights.size() / 2;
-  std::nth_element(heights.begin(), heights.begin() + static_cast<std::ptrdiff_t>(mid),
-                   heights.end());
-  best.t = best_a * e1 + best_b * e2 + heights[mid] * up;
-  return best;
+  std::vector<std::pair<std::uint32_t, std::uint64_t>> top;
+  grid.for_each_cell([&](std::uint32_t n, std::uint64_t key) { top.emplace_back(n, key); });
+  const std::size_t keep = std::min<std::size_t>(64 * max_peaks, top.size());
+  std::partial_sort(top.begin(), top.begin() + static_cast<std::ptrdiff_t>(keep), top.end(),
+                    [](const auto& l, const auto& r) {
+                      return l.first != r.first ? l.first > r.first : l.second < r.second;
+                    });
+  struct Cand {
+    std::size_t votes;
+    Vec3 t;
+    std::int64_t i[3];
+  };
+  auto unpack = [](std::uint64_t key, std::int64_t* i) {
+    i[0] = static_cast<std::int64_t>(key >> 42) - kCellLimit;
+    i[1] = static_cast<std::int64_t>((key >> 21) & ((1u << 21) - 1)) - kCellLimit;
+    i[2] = static_cast<std::int64_t>(key & ((1u << 21) - 1)) - kCellLimit;
+  };
+  std::vector<Cand> cands;
+  for (std::size_t j = 0; j < keep; ++j) {
+    Cand c;
+    unpack(top[j].second, c.i);
+    std::size_t sum = 0;
+    Vec3 w = Vec3::Zero();
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const std::uint32_t n = grid.count(c.i[0] + dx, c.i[1] + dy, c.i[2] + dz);
+          sum += n;
+          w += n * Vec3(static_cast<double>(c.i[0] + dx) + 0.5,
+                        static_cast<double>(c.i[1] + dy) + 0.5,
+                        static_cast<double>(c.i[2] + dz) + 0.5);
+        }
+      }
+    }
+    c.votes = sum;
+    c.t = cell * w / static_cast<double>(sum);
+    cands.push_back(c);
+  }
+  std::stable_sort(cands.begin(), cands.end(),
+                   [](const Cand& l, const Cand& r) { return l.votes > r.votes; });
+  std::vector<Peak> peaks;
+  std::vector<const Cand*> chosen;
+  for (const Cand& c : cands) {
+    if (chosen.size() >= max_peaks) break;
+    bool near = false;
+    for (const Cand* o : chosen) {
+      std::int64_t d = 0;
+      for (int k = 0; k < 3; ++k) d = std::max(d, std::abs(o->i[k] - c.i[k]));
+      if (d < 3) near = true;
+    }
+    if (near) continue;
+    chosen.push_back(&c);
+    Peak p;
+    p.votes = c.votes;
+    p.t = c.t;
+    peaks.push_back(p);
+  }
+  return peaks;
 }
 
 }  // namespace
@@ -277,7 +489,106 @@ bool YawVoteOptions::is_valid(std::string* why) const {
     return fail("source_samples and target_samples must be >= 3");
   }
   if (hypotheses < 1) return fail("hypotheses must be >= 1");
+  if (peaks_per_yaw < 1 || peaks_per_yaw > 64) return fail("peaks_per_yaw must be in [1, 64]");
   return true;
+}
+
+YawHypothesis local_vote(const Points3& points, const KdTree& target_tree, const Vec3& up_in,
+                         const Vec3& source_centre, const Isometry3& T0,
+                         const LocalVoteOptions& o) {
+  YawHypothesis out;
+  out.T_target_source = T0;
+  if (points.empty() || target_tree.size() == 0) return out;
+  const Vec3 up = up_in.normalized();
+  const Vec3 pivot = T0 * source_centre;
+  const int half_n =
+      o.yaw_step_rad > 0.0
+          ? static_cast<int>(std::floor(o.yaw_half_width_rad / o.yaw_step_rad + 1e-9))
+          : 0;
+  const double inv = 1.0 / o.cell_m;
+  const std::int64_t n = 2 * static_cast<std::int64_t>(std::ceil(o.half_width_m * inv)) + 3;
+  const std::int64_t off = n / 2;
+  const std::size_t k = std::min(o.neighbours, target_tree.size());
+  // The neighbours of each moved landmark, once: wide enough for every yaw of the window.
+  std::vector<Vec3> moved(points.size());
+  std::vector<PointIndex> nbr(points.size() * k);
+  std::vector<double> d2(k);
+  std::vector<std::size_t> counts(points.size(), 0);
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    moved[i] = T0 * points[i];
+    counts[i] = target_tree.knn(moved[i], k, &nbr[i * k], d2.data());
+  }
+  const Points3& q = target_tree.points();
+  std::vector<std::uint32_t> grid(static_cast<std::size_t>(n * n * n));
+  std::vector<std::uint32_t> box1, box2;
+  std::size_t best_votes = 0;
+  for (int y = -half_n; y <= half_n; ++y) {
+    const Mat3 R = Eigen::AngleAxisd(y * o.yaw_step_rad, up).toRotationMatrix();
+    std::fill(grid.begin(), grid.end(), 0u);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Vec3 x = R * (moved[i] - pivot) + pivot;
+      for (std::size_t j = 0; j < counts[i]; ++j) {
+        const Vec3 t = q[nbr[i * k + j]] - x;
+        const std::int64_t a = static_cast<std::int64_t>(std::floor(t[0] * inv)) + off;
+        const std::int64_t b = static_cast<std::int64_t>(std::floor(t[1] * inv)) + off;
+        const std::int64_t c = static_cast<std::int64_t>(std::floor(t[2] * inv)) + off;
+        if (a < 1 || b < 1 || c < 1 || a >= n - 1 || b >= n - 1 || c >= n - 1) continue;
+        ++grid[static_cast<std::size_t>((a * n + b) * n + c)];
+      }
+    }
+    // 3x3x3 box sums, separably (exact integer sums), then the best cell; its position is the
+    // vote-weighted mean of its 27 cells.
+    auto at = [n](std::int64_t a, std::int64_t b, std::int64_t c) {
+      return static_cast<std::size_t>((a * n + b) * n + c);
+    };
+    box1.assign(grid.size(), 0u);
+    box2.assign(grid.size(), 0u);
+    for (std::int64_t a = 0; a < n; ++a)
+      for (std::int64_t b = 0; b < n; ++b)
+        for (std::int64_t c = 1; c < n - 1; ++c)
+          box1[at(a, b, c)] = grid[at(a, b, c - 1)] + grid[at(a, b, c)] + grid[at(a, b, c + 1)];
+    for (std::int64_t a = 0; a < n; ++a)
+      for (std::int64_t b = 1; b < n - 1; ++b)
+        for (std::int64_t c = 1; c < n - 1; ++c)
+          box2[at(a, b, c)] = box1[at(a, b - 1, c)] + box1[at(a, b, c)] + box1[at(a, b + 1, c)];
+    std::size_t yaw_best = 0;
+    std::int64_t ba = 0, bb = 0, bc = 0;
+    for (std::int64_t a = 1; a < n - 1; ++a) {
+      for (std::int64_t b = 1; b < n - 1; ++b) {
+        for (std::int64_t c = 1; c < n - 1; ++c) {
+          const std::size_t sum = box2[at(a - 1, b, c)] + box2[at(a, b, c)] + box2[at(a + 1, b, c)];
+          if (sum > yaw_best) {
+            yaw_best = sum;
+            ba = a;
+            bb = b;
+            bc = c;
+          }
+        }
+      }
+    }
+    if (yaw_best > best_votes) {
+      best_votes = yaw_best;
+      Vec3 w = Vec3::Zero();
+      for (int da = -1; da <= 1; ++da) {
+        for (int db = -1; db <= 1; ++db) {
+          for (int dc = -1; dc <= 1; ++dc) {
+            const std::uint32_t v = grid[at(ba + da, bb + db, bc + dc)];
+            w += v * Vec3(static_cast<double>(ba + da - off) + 0.5,
+                          static_cast<double>(bb + db - off) + 0.5,
+                          static_cast<double>(bc + dc - off) + 0.5);
+          }
+        }
+      }
+      const Vec3 t = o.cell_m * w / static_cast<double>(yaw_best);
+      Isometry3 T = Isometry3::Identity();
+      T.linear() = R;
+      T.translation() = pivot - R * pivot + t;  // x -> R (x - pivot) + pivot + t
+      out.T_target_source = T * T0;
+      out.yaw_rad = y * o.yaw_step_rad;
+    }
+  }
+  out.votes = best_votes;
+  return out;
 }
 
 Mat3 rotation_between(const Vec3& from, const Vec3& to) {
@@ -396,13 +707,15 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     radius_v = 3.0 * (window->translation_sd_m + window->rotation_sd_rad * across) + 2.0 * cell_m;
   }
 
-  std::vector<YawHypothesis> all(static_cast<std::size_t>(n_yaw));
+  const std::size_t per_yaw = std::max<std::size_t>(1, options.peaks_per_yaw);
+  std::vector<std::vector<YawHypothesis>> all(static_cast<std::size_t>(n_yaw));
   FirstException error;
 #pragma omp parallel
   {
     // Every thread reaches the worksharing loop (an exception may not skip it, nor leave an
     // iteration): allocations and iterations are captured one by one.
     VoteGrid grid;
+    VoteGrid3 grid3;
     std::vector<double> heights;
     std::vector<std::pair<double, std::size_t>> by_e1;
     Points3 rotated;
@@ -420,28 +733,41 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
         const Mat3 R = R_yaw * base;
         for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * (src[j] - centre);
         const VoteWindow w{R_yaw * t_centre - target_centre, radius_h, radius_v};
-        const Peak peak = vote(rotated, tgt, cell_m, up, w, grid, heights, by_e1);
-        YawHypothesis& h = all[static_cast<std::size_t>(i)];
-        h.yaw_rad = yaw;
-        h.votes = peak.votes;
-        h.T_target_source.linear() = R;
-        // p -> R (p - centre) + t_peak + target_centre
-        h.T_target_source.translation() = (peak.t + target_centre) - R * centre;
+        const std::vector<Peak> peaks =
+            options.vote_3d ? vote3d(rotated, tgt, cell_m, up, w, per_yaw, grid3)
+                            : vote(rotated, tgt, cell_m, up, w, per_yaw, grid, heights, by_e1);
+        for (const Peak& peak : peaks) {
+          YawHypothesis h;
+          h.yaw_rad = yaw;
+          h.votes = peak.votes;
+          h.T_target_source.linear() = R;
+          // p -> R (p - centre) + t_peak + target_centre
+          h.T_target_source.translation() = (peak.t + target_centre) - R * centre;
+          all[static_cast<std::size_t>(i)].push_back(h);
+        }
       });
     }
   }
   error.rethrow();
-  // Local maxima over yaw (circular without a window), best first.
+  // Local maxima over yaw (circular without a window) of each yaw's best peak, best first; with
+  // several peaks per yaw, every peak of every yaw.
   std::vector<YawHypothesis> out;
+  auto best_votes = [&](int i) -> std::size_t {
+    const auto& v = all[static_cast<std::size_t>(i)];
+    return v.empty() ? 0 : v.front().votes;
+  };
   for (int i = 0; i < n_yaw; ++i) {
-    const std::size_t v = all[static_cast<std::size_t>(i)].votes;
+    const std::size_t v = best_votes(i);
     if (v == 0) continue;
+    if (per_yaw > 1) {
+      for (const YawHypothesis& h : all[static_cast<std::size_t>(i)]) out.push_back(h);
+      continue;
+    }
     const bool has_prev = circular || i > 0;
     const bool has_next = circular || i + 1 < n_yaw;
-    const std::size_t prev =
-        has_prev ? all[static_cast<std::size_t>((i + n_yaw - 1) % n_yaw)].votes : 0;
-    const std::size_t next = has_next ? all[static_cast<std::size_t>((i + 1) % n_yaw)].votes : 0;
-    if (v >= prev && v >= next) out.push_back(all[static_cast<std::size_t>(i)]);
+    const std::size_t prev = has_prev ? best_votes((i + n_yaw - 1) % n_yaw) : 0;
+    const std::size_t next = has_next ? best_votes((i + 1) % n_yaw) : 0;
+    if (v >= prev && v >= next) out.push_back(all[static_cast<std::size_t>(i)].front());
   }
   std::stable_sort(out.begin(), out.end(), [](const YawHypothesis& a, const YawHypothesis& b) {
     return a.votes > b.votes;

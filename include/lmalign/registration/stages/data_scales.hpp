@@ -68,4 +68,15 @@ std::optional<Vec3> landmark_plane_normal(const Points3& points, const Vec3& up_
                                           double max_flatness = 0.25,
                                           std::size_t max_samples = 4096);
 
+/// A third cue to the up axis: the normal of the map's dominant plane within max_angle_deg of
+/// `up_hint` (a floor, a desk, a road; walls are farther from the hint), found by RANSAC over
+/// point triplets (256 seeded draws; landmarks within `threshold_m` of the plane are its
+/// inliers) and refitted to its inliers, oriented like the hint. The best-fitting plane of all
+/// landmarks (landmark_plane_normal) leans with the clutter on a desk; the dominant plane does
+/// not. `points`: N x 3, metres; at most `max_samples` (evenly strided) enter. Returns nullopt
+/// when fewer than a tenth of them lie on one plane, or for invalid input. Deterministic.
+std::optional<Vec3> dominant_plane_normal(const Points3& points, const Vec3& up_hint,
+                                          double threshold_m, double max_angle_deg = 60.0,
+                                          std::size_t max_samples = 2000);
+
 }  // namespace lmalign

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "lmalign/core/types.hpp"
+#include "lmalign/search/kdtree.hpp"
 
 namespace lmalign {
 
@@ -40,6 +41,13 @@ struct YawVoteOptions {
   std::size_t target_samples = 1024;
   /// How many hypotheses are returned at most, >= 1.
   std::size_t hypotheses = 6;
+  /// Translation peaks kept per yaw (each at least 3 cells from a better one), >= 1. With 1,
+  /// a yaw's peak is a hypothesis when it is a local maximum over yaw; with more, every peak of
+  /// every yaw is, best first.
+  std::size_t peaks_per_yaw = 1;
+  /// Vote in 3-D cells (3x3x3 peaks) instead of horizontal cells with the height from the
+  /// peak's votes.
+  bool vote_3d = false;
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -68,6 +76,24 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
                                                const Vec3& up_target, double cell_m,
                                                const YawVoteOptions& options,
                                                const PoseWindow* window = nullptr);
+
+/// Settings of local_vote(): a window about a candidate pose, and its resolution.
+struct LocalVoteOptions {
+  double yaw_half_width_rad = 0.0;  ///< >= 0
+  double yaw_step_rad = 0.0;        ///< > 0
+  double half_width_m = 0.0;        ///< > 0: translations within this of the candidate's
+  double cell_m = 0.0;              ///< > 0
+  std::size_t neighbours = 48;      ///< target landmarks examined per source landmark, >= 1
+};
+
+/// A finer vote about a candidate pose T0: for each yaw in the window (about the up axis through
+/// T0 * source_centre), the source landmarks `points` moved by T0 and that yaw vote for the
+/// translations towards their nearest target landmarks (within the window) in cells of cell_m
+/// (3x3x3 peaks). Returns the window's best pose and its votes (0 and T0 when nothing voted).
+/// `target_tree`: the target landmarks. Deterministic.
+YawHypothesis local_vote(const Points3& points, const KdTree& target_tree, const Vec3& up,
+                         const Vec3& source_centre, const Isometry3& T0,
+                         const LocalVoteOptions& options);
 
 /// The rotation taking unit vector `from` onto unit vector `to` by the smallest angle (about
 /// from x to; a half turn about any perpendicular axis when they are opposite).

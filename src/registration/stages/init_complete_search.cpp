@@ -1,0 +1,210 @@
+// Initialiser "complete_search" (the adaptive default's; stages/complete_search.hpp): without a
+// prior, the complete search over every pair of up-axis candidates, every yaw and every
+// translation, its candidates refined with the pipeline's own refinement in rounds; its distinct
+// modes are the hypotheses, plus the initial guess if given. Each map's up-axis candidates are
+// its frames' axis, its landmark plane's normal when that disagrees by more than
+// init.second_up_min_angle_deg, and its dominant plane's normal (a floor, a desk, a road) when
+// that disagrees with both by more than a degree. With a prior it is the "yaw_vote" initialiser
+// (the vote bounded by the prior). The vote cell, the search's coarse resolution, is
+// init.vote_cell_factor x max(target spacing, 2 sin(step / 2) x source radius); the modes are
+// refined from a third of it.
+#include <algorithm>
+#include <cmath>
+
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/stages/complete_search.hpp"
+#include "lmalign/registration/stages/yaw_vote_search.hpp"
+#include "stage.hpp"
+
+LMALIGN_STAGE_FUNCTIONS(init_complete_search)
+LMALIGN_STAGE_FUNCTIONS(init_yaw_vote)
+
+namespace lmalign::stages {
+
+namespace {
+
+struct CompleteInitOptions {
+  CompleteSearchOptions search;
+  std::size_t hypotheses = 6;
+  double vote_cell_factor = 1.5;
+  double start_sigma_factor = 0.3;
+  double second_up_min_angle_deg = 10.0;
+};
+
+class CompleteSearchInit : public Initialiser {
+ public:
+  CompleteSearchInit(CompleteInitOptions o, std::unique_ptr<Stage> bounded)
+      : o_(o), bounded_(static_cast<Initialiser*>(bounded.release())) {}
+  bool needs_scales() const override { return true; }
+  bool uses_prior() const override { return true; }
+
+  std::vector<Hypothesis> propose(const InitialiserContext& c,
+                                  InitialiserReport* report) const override {
+    if (c.prior_sigma_deg_m.has_value() || c.pipeline == nullptr || c.refine_context == nullptr) {
+      return bounded_->propose(c, report);
+    }
+    const Scales& sc = *c.scales;
+    const Points3& source = *c.source.positions;
+    const Points3& target = c.target->points();
+    const double step_rad = o_.search.yaw_step_deg * kPi / 180.0;
+    const double cell =
+        o_.vote_cell_factor *
+        std::max(sc.target.spacing_m, 2.0 * std::sin(0.5 * step_rad) * sc.source.radius_m);
+    report->initialisation = "global";
+    report->resolution_m = cell;
+    report->resolution_rad = step_rad;
+
+    const double min_cos = std::cos(o_.second_up_min_angle_deg * kPi / 180.0);
+    auto candidates = [&](const Vec3& up, const Points3& points, double spacing_m) {
+      std::vector<Vec3> ups{up};
+      const std::optional<Vec3> plane = landmark_plane_normal(points, up);
+      if (plane && plane->dot(up) < min_cos) ups.push_back(*plane);
+      const std::optional<Vec3> floor = dominant_plane_normal(points, up, spacing_m);
+      if (floor) {
+        bool fresh = true;
+        for (const Vec3& u : ups) fresh = fresh && floor->dot(u) < std::cos(kPi / 180.0);
+        if (fresh) ups.push_back(*floor);
+      }
+      return ups;
+    };
+    report->ups_source = candidates(sc.up_source, source, sc.source.spacing_m);
+    report->ups_target = candidates(sc.up_target, target, sc.target.spacing_m);
+
+    CompleteSearchInput in;
+    in.source.points = c.source.positions;
+    in.source.covariances_m2 = c.source.covariances_m2;
+    in.target = c.target;
+    in.ups_source = report->ups_source;
+    in.ups_target = report->ups_target;
+    in.source_centre_m = sc.source.centre_m;
+    in.source_radius_m = sc.source.radius_m;
+    in.cell_m = cell;
+    in.floor_m = sc.floor_m;
+    in.coarse_sigma.translation_m = o_.start_sigma_factor * 2.0 * cell;
+    in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
+    CompleteSearchOptions so = o_.search;
+    so.modes = o_.hypotheses;
+    const Pipeline& pipeline = *c.pipeline;
+    const RefineContext& all = *c.refine_context;
+    const SearchRefineFn refine = [&](const Isometry3& start, const PoseSigma& sigma,
+                                      const std::vector<std::uint32_t>& subset,
+                                      int max_iterations) {
+      Hypothesis h;
+      h.T_target_source = start;
+      h.start_sigma_m = sigma.translation_m;
+      h.start_sigma_rad = sigma.rotation_rad;
+      h.max_iterations = max_iterations;
+      h.max_iterations_per_level = 5;
+      return pipeline.refine_part(all, subset, h, Phase::kHypothesis).T;
+    };
+    const CompleteSearchResult found = complete_search(in, so, refine);
+
+    std::vector<Hypothesis> out;
+    for (const SearchMode& m : found.modes) {
+      Hypothesis h;
+      h.T_target_source = m.T_target_source;
+      h.start_sigma_m = found.fine_sigma.translation_m;
+      h.start_sigma_rad = found.fine_sigma.rotation_rad;
+      h.search_score = m.score;
+      h.origin = "search";
+      out.push_back(h);
+    }
+    if (!found.modes.empty()) report->best_search_score = found.modes[0].score;
+    if (found.modes.size() > 1) report->second_search_score = found.modes[1].score;
+    report->notes.emplace_back("search candidates", static_cast<double>(found.candidates));
+    report->notes.emplace_back("search pool", static_cast<double>(found.pooled));
+    report->notes.emplace_back("search fine cell (m)", found.fine_cell_m);
+    if (c.initial_guess.has_value() || out.empty()) {
+      Hypothesis g;
+      g.T_target_source = c.initial_guess.value_or(Isometry3::Identity());
+      g.start_sigma_m = in.coarse_sigma.translation_m;
+      g.start_sigma_rad = in.coarse_sigma.rotation_rad;
+      g.origin = "guess";
+      out.push_back(g);
+    }
+    return out;
+  }
+
+ private:
+  CompleteInitOptions o_;
+  std::unique_ptr<Initialiser> bounded_;
+};
+
+}  // namespace
+
+std::vector<SettingRow> init_complete_search_settings() {
+  // The prior-bounded vote's settings (init.*), then the complete search's own (search.*).
+  std::vector<SettingRow> rows = init_yaw_vote_settings();
+  const CompleteSearchOptions d;
+  auto count = [](const char* key, const char* member, std::size_t v, long long lo, long long hi,
+                  const char* doc) {
+    return int_setting(key, member, static_cast<long long>(v), SettingBound::closed(lo, hi),
+                       "count", doc);
+  };
+  rows.push_back(count("search.vote_source_samples", "CompleteSearchOptions::vote_source_samples",
+                       d.vote_source_samples, 3, 1000000,
+                       "source landmarks that cast the coarse 3-D vote (evenly strided)"));
+  rows.push_back(count("search.vote_target_samples", "CompleteSearchOptions::vote_target_samples",
+                       d.vote_target_samples, 3, 1000000,
+                       "target landmarks the coarse vote is cast towards (evenly strided)"));
+  rows.push_back(count("search.peaks_per_yaw", "CompleteSearchOptions::peaks_per_yaw",
+                       d.peaks_per_yaw, 1, 64,
+                       "translation peaks kept per yaw and pair of up axes (3 cells apart)"));
+  rows.push_back(count("search.pool", "CompleteSearchOptions::pool", d.pool, 1, 1000000,
+                       "candidates snapped to a finer vote (from the rankings by votes and by "
+                       "the coarse score, in turn)"));
+  rows.push_back(count("search.screen_samples", "CompleteSearchOptions::screen_samples",
+                       d.screen_samples, 16, 1000000,
+                       "source landmarks of the coarse score that ranks the candidates"));
+  rows.push_back(count("search.snap_samples", "CompleteSearchOptions::snap_samples", d.snap_samples,
+                       16, 1000000,
+                       "source landmarks of the finer vote about each pooled candidate"));
+  rows.push_back(count("search.snap_neighbours", "CompleteSearchOptions::snap_neighbours",
+                       d.snap_neighbours, 1, 256,
+                       "nearest target landmarks each of them votes towards"));
+  rows.push_back(count("search.rank_samples", "CompleteSearchOptions::rank_samples", d.rank_samples,
+                       16, 1000000,
+                       "source landmarks of the fine score that ranks the snapped candidates"));
+  rows.push_back(count("search.rank_keep", "CompleteSearchOptions::rank_keep", d.rank_keep, 1,
+                       1000000, "snapped candidates refined in the first round"));
+  rows.push_back(count("search.round1_iterations", "CompleteSearchOptions::round1_iterations",
+                       static_cast<std::size_t>(d.round1_iterations), 1, 100000,
+                       "iterations of the first round's refinements"));
+  rows.push_back(count("search.round1_samples", "CompleteSearchOptions::round1_samples",
+                       d.round1_samples, 16, 1000000, "source landmarks of the first round"));
+  rows.push_back(count("search.round1_keep", "CompleteSearchOptions::round1_keep", d.round1_keep, 1,
+                       1000000, "candidates refined in the second round"));
+  rows.push_back(count("search.round2_iterations", "CompleteSearchOptions::round2_iterations",
+                       static_cast<std::size_t>(d.round2_iterations), 1, 100000,
+                       "iterations of the second round's refinements"));
+  rows.push_back(count("search.round2_samples", "CompleteSearchOptions::round2_samples",
+                       d.round2_samples, 16, 1000000, "source landmarks of the second round"));
+  return rows;
+}
+
+std::unique_ptr<Stage> make_init_complete_search(const Settings& s) {
+  CompleteInitOptions o;
+  o.search.yaw_step_deg = s.real("init.yaw_step_deg");
+  o.hypotheses = static_cast<std::size_t>(s.integer("init.hypotheses"));
+  o.vote_cell_factor = s.real("init.vote_cell_factor");
+  o.start_sigma_factor = s.real("init.start_sigma_factor");
+  o.second_up_min_angle_deg = s.real("init.second_up_min_angle_deg");
+  auto n = [&](const char* key) { return static_cast<std::size_t>(s.integer(key)); };
+  o.search.vote_source_samples = n("search.vote_source_samples");
+  o.search.vote_target_samples = n("search.vote_target_samples");
+  o.search.peaks_per_yaw = n("search.peaks_per_yaw");
+  o.search.pool = n("search.pool");
+  o.search.screen_samples = n("search.screen_samples");
+  o.search.snap_samples = n("search.snap_samples");
+  o.search.snap_neighbours = n("search.snap_neighbours");
+  o.search.rank_samples = n("search.rank_samples");
+  o.search.rank_keep = n("search.rank_keep");
+  o.search.round1_iterations = static_cast<int>(s.integer("search.round1_iterations"));
+  o.search.round1_samples = n("search.round1_samples");
+  o.search.round1_keep = n("search.round1_keep");
+  o.search.round2_iterations = static_cast<int>(s.integer("search.round2_iterations"));
+  o.search.round2_samples = n("search.round2_samples");
+  return std::make_unique<CompleteSearchInit>(o, make_init_yaw_vote(s));
+}
+
+}  // namespace lmalign::stages
