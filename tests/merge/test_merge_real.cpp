@@ -103,13 +103,30 @@ TEST(MergeReal, DeskWindowsWithoutPriors) {
   const Windows w = cut(read_map(path, MapReadOptions{0}), 0, 30, 30, 4, 21);
   const MergeRun run =
       run_merge(w.maps, w.names, std::vector<std::optional<MapPrior>>(w.maps.size()), {});
-  // Known gap (docs/merge.md): the trust verdict keeps too few of these pairs to connect all
-  // four windows (measured: two parts of two), and the kept edges miss 5 deg / 10 cm at the
-  // moved frame origins (lever arm up to 3 m) although every window is placed within 2 deg /
-  // 5 cm in its part. Checked: placement per part, and that the evaluation says only the
-  // largest part is placed.
-  expect_placed(w, run, 2.0, 0.05, 0.1, /*one_component=*/false, /*check_edges=*/false);
+  // Known gap (docs/merge.md): consecutive 30-frame windows of this map share no frame and ~1%
+  // of their landmarks, and the default's complete search finds, for most pairs, a distinct
+  // pose scoring nearly as well as the best (measured 2026-11-23: frames 30-59 / 60-89 answer a
+  // pose 149 deg off, its rival scores 93%; 60-89 / 90-119 answer 2.2 deg / 4.6 cm off, a rival
+  // 20 deg away scores 87%): the verdict refuses them as ambiguous, so the graph stays in parts.
+  // Checked: at least one edge is kept; every window a kept edge reaches is placed within
+  // 2 deg / 5 cm in its part; no kept edge is false; only the largest part counts as placed.
+  ASSERT_FALSE(run.cancelled);
   const MergeEvaluation ev = evaluate_merge(run.result, run.edges, w.truth, {2.0, 0.05});
+  const MergeEvaluation edges = evaluate_merge(run.result, run.edges, w.truth, {5.0, 0.1});
+  std::size_t used = 0;
+  for (const EdgeReport& e : run.result.edges) used += e.used ? 1 : 0;
+  EXPECT_GE(used, 1u);
+  EXPECT_EQ(edges.false_kept_edges, 0u);
+  std::size_t connected = 0;
+  for (std::size_t i = 0; i < w.maps.size(); ++i) {
+    const MapError& e = ev.maps[i];
+    if (!e.connected) continue;
+    ++connected;
+    EXPECT_LE(e.rotation_deg, 2.0) << w.names[i];
+    EXPECT_LE(e.translation_m, 0.05) << w.names[i];
+  }
+  EXPECT_GE(connected, 2u);
+  EXPECT_EQ(ev.num_parts, run.result.num_components);
   EXPECT_EQ(ev.placed, ev.largest_part);
   EXPECT_DOUBLE_EQ(ev.fraction_within,
                    static_cast<double>(ev.largest_part) / static_cast<double>(w.maps.size()));

@@ -43,6 +43,48 @@ std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
          static_cast<std::uint64_t>(z + kCellLimit);
 }
 
+// Sparse vote counts over packed cell keys: open addressing, linear probing, sized for the
+// number of votes; cells are listed in slot order.
+class HashCounts {
+ public:
+  void reset(std::size_t max_votes) {
+    std::size_t size = 64;
+    while (size < 2 * max_votes) size <<= 1;
+    keys_.assign(size, kEmpty);
+    counts_.assign(size, 0);
+    mask_ = size - 1;
+  }
+  void add(std::uint64_t key) {
+    std::size_t i = hash(key);
+    while (keys_[i] != kEmpty && keys_[i] != key) i = (i + 1) & mask_;
+    keys_[i] = key;
+    ++counts_[i];
+  }
+  std::uint32_t count(std::uint64_t key) const {
+    std::size_t i = hash(key);
+    while (keys_[i] != kEmpty) {
+      if (keys_[i] == key) return counts_[i];
+      i = (i + 1) & mask_;
+    }
+    return 0;
+  }
+  /// visit(count, key) for every cell with votes.
+  template <typename Visit>
+  void for_each_cell(Visit&& visit) const {
+    for (std::size_t i = 0; i < keys_.size(); ++i) {
+      if (keys_[i] != kEmpty) visit(counts_[i], keys_[i]);
+    }
+  }
+
+ private:
+  std::size_t hash(std::uint64_t key) const {
+    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 20) & mask_;
+  }
+  std::vector<std::uint64_t> keys_;
+  std::vector<std::uint32_t> counts_;
+  std::size_t mask_ = 0;
+};
+
 // The vote grid over horizontal cells (a, b). Dense over the box of cells the votes can reach
 // when that box is no larger than the hash table would be (the usual case: the translations
 // between two maps span a few hundred cells per axis), else sparse: open addressing, linear
@@ -64,72 +106,48 @@ class VoteGrid {
       nb_ = static_cast<std::int64_t>(nb);
       dense_counts_.assign(static_cast<std::size_t>(na_ * nb_), 0);
     } else {
-      keys_.assign(size, kEmpty);
-      counts_.assign(size, 0);
-      mask_ = size - 1;
+      sparse_.reset(max_votes);
     }
   }
   void add(std::int64_t a, std::int64_t b) {
     if (dense_) {
       ++dense_counts_[static_cast<std::size_t>((a - a0_) * nb_ + (b - b0_))];
     } else {
-      ++counts_[slot(pack(a, b, 0))];
+      sparse_.add(pack(a, b, 0));
     }
   }
   std::uint32_t count(std::int64_t a, std::int64_t b) const {
-    if (dense_) {
-      if (a < a0_ || b < b0_ || a >= a0_ + na_ || b >= b0_ + nb_) return 0;
-      return dense_counts_[static_cast<std::size_t>((a - a0_) * nb_ + (b - b0_))];
-    }
-    const std::uint64_t key = pack(a, b, 0);
-    std::size_t i = hash(key);
-    while (keys_[i] != kEmpty) {
-      if (keys_[i] == key) return counts_[i];
-      i = (i + 1) & mask_;
-    }
-    return 0;
+    if (!dense_) return sparse_.count(pack(a, b, 0));
+    if (a < a0_ || b < b0_ || a >= a0_ + na_ || b >= b0_ + nb_) return 0;
+    return dense_counts_[static_cast<std::size_t>((a - a0_) * nb_ + (b - b0_))];
   }
   /// visit(count, key) for every cell with votes.
   template <typename Visit>
   void for_each_cell(Visit&& visit) const {
-    if (dense_) {
-      for (std::int64_t i = 0; i < na_; ++i) {
-        for (std::int64_t j = 0; j < nb_; ++j) {
-          const std::uint32_t c = dense_counts_[static_cast<std::size_t>(i * nb_ + j)];
-          if (c != 0) visit(c, pack(a0_ + i, b0_ + j, 0));
-        }
-      }
+    if (!dense_) {
+      sparse_.for_each_cell(visit);
       return;
     }
-    for (std::size_t i = 0; i < keys_.size(); ++i) {
-      if (keys_[i] != kEmpty) visit(counts_[i], keys_[i]);
+    for (std::int64_t i = 0; i < na_; ++i) {
+      for (std::int64_t j = 0; j < nb_; ++j) {
+        const std::uint32_t c = dense_counts_[static_cast<std::size_t>(i * nb_ + j)];
+        if (c != 0) visit(c, pack(a0_ + i, b0_ + j, 0));
+      }
     }
   }
 
  private:
-  std::size_t hash(std::uint64_t key) const {
-    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 20) & mask_;
-  }
-  std::size_t slot(std::uint64_t key) {
-    std::size_t i = hash(key);
-    while (keys_[i] != kEmpty && keys_[i] != key) i = (i + 1) & mask_;
-    keys_[i] = key;
-    return i;
-  }
   bool dense_ = false;
   std::int64_t a0_ = 0, b0_ = 0, na_ = 0, nb_ = 0;
   std::vector<std::uint32_t> dense_counts_;
-  std::vector<std::uint64_t> keys_;
-  std::vector<std::uint32_t> counts_;
-  std::size_t mask_ = 0;
+  HashCounts sparse_;
 };
 
-// The 3-D vote grid: open addressing over packed cell keys, linear probing, sized for the number
-// of votes. Cells are listed in slot order; peaks are found by count, then key.
+// The 3-D vote grid over cells (a, b, c): dense over the box of cells the votes can reach when
+// it has at most kDenseLimit cells, else sparse. Both list the same cells with the same counts;
+// peaks are found by count, then key.
 class VoteGrid3 {
  public:
-  /// Dense over [lo, hi] (cells, inclusive) when that box has at most kDenseLimit cells, else
-  /// sparse, sized for max_votes. Both list the same cells with the same counts.
   void reset(std::size_t max_votes, const std::int64_t* lo, const std::int64_t* hi) {
     double cells = 1.0;
     for (int k = 0; k < 3; ++k)
@@ -138,79 +156,56 @@ class VoteGrid3 {
     for (std::size_t i : touched_) dense_counts_[i] = 0;
     touched_.clear();
     dense_ = cells >= 1.0 && cells <= kDenseLimit;
-    if (dense_) {
-      for (int k = 0; k < 3; ++k) {
-        lo_[k] = lo[k];
-        n_[k] = hi[k] - lo[k] + 1;
-      }
-      if (dense_counts_.size() < static_cast<std::size_t>(cells)) {
-        dense_counts_.resize(static_cast<std::size_t>(cells), 0);
-      }
+    if (!dense_) {
+      sparse_.reset(max_votes);
       return;
     }
-    std::size_t size = 64;
-    while (size < 2 * max_votes) size <<= 1;
-    keys_.assign(size, kEmpty);
-    counts_.assign(size, 0);
-    mask_ = size - 1;
+    for (int k = 0; k < 3; ++k) {
+      lo_[k] = lo[k];
+      n_[k] = hi[k] - lo[k] + 1;
+    }
+    if (dense_counts_.size() < static_cast<std::size_t>(cells)) {
+      dense_counts_.resize(static_cast<std::size_t>(cells), 0);
+    }
   }
   void add(std::int64_t a, std::int64_t b, std::int64_t c) {
-    if (dense_) {
-      const std::int64_t i = a - lo_[0], j = b - lo_[1], k = c - lo_[2];
-      if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return;
-      const std::size_t idx = static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k);
-      if (dense_counts_[idx]++ == 0) touched_.push_back(idx);
+    if (!dense_) {
+      sparse_.add(pack(a, b, c));
       return;
     }
-    const std::uint64_t key = pack(a, b, c);
-    std::size_t i = hash(key);
-    while (keys_[i] != kEmpty && keys_[i] != key) i = (i + 1) & mask_;
-    keys_[i] = key;
-    ++counts_[i];
+    const std::int64_t i = a - lo_[0], j = b - lo_[1], k = c - lo_[2];
+    if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return;
+    const std::size_t idx = static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k);
+    if (dense_counts_[idx]++ == 0) touched_.push_back(idx);
   }
   std::uint32_t count(std::int64_t a, std::int64_t b, std::int64_t c) const {
-    if (dense_) {
-      const std::int64_t i = a - lo_[0], j = b - lo_[1], k = c - lo_[2];
-      if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return 0;
-      return dense_counts_[static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k)];
-    }
-    const std::uint64_t key = pack(a, b, c);
-    std::size_t i = hash(key);
-    while (keys_[i] != kEmpty) {
-      if (keys_[i] == key) return counts_[i];
-      i = (i + 1) & mask_;
-    }
-    return 0;
+    if (!dense_) return sparse_.count(pack(a, b, c));
+    const std::int64_t i = a - lo_[0], j = b - lo_[1], k = c - lo_[2];
+    if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return 0;
+    return dense_counts_[static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k)];
   }
   /// visit(count, key) for every cell with votes.
   template <typename Visit>
   void for_each_cell(Visit&& visit) const {
-    if (dense_) {
-      for (std::size_t idx : touched_) {
-        const std::int64_t k = static_cast<std::int64_t>(idx) % n_[2];
-        const std::int64_t j = (static_cast<std::int64_t>(idx) / n_[2]) % n_[1];
-        const std::int64_t i = static_cast<std::int64_t>(idx) / (n_[2] * n_[1]);
-        visit(dense_counts_[idx], pack(lo_[0] + i, lo_[1] + j, lo_[2] + k));
-      }
+    if (!dense_) {
+      sparse_.for_each_cell(visit);
       return;
     }
-    for (std::size_t i = 0; i < keys_.size(); ++i) {
-      if (keys_[i] != kEmpty) visit(counts_[i], keys_[i]);
+    for (std::size_t idx : touched_) {
+      const std::int64_t k = static_cast<std::int64_t>(idx) % n_[2];
+      const std::int64_t j = (static_cast<std::int64_t>(idx) / n_[2]) % n_[1];
+      const std::int64_t i = static_cast<std::int64_t>(idx) / (n_[2] * n_[1]);
+      visit(dense_counts_[idx], pack(lo_[0] + i, lo_[1] + j, lo_[2] + k));
     }
   }
 
  private:
   static constexpr double kDenseLimit = 8.0e6;
-  std::size_t hash(std::uint64_t key) const {
-    return static_cast<std::size_t>((key * 0x9E3779B97F4A7C15ull) >> 20) & mask_;
-  }
   bool dense_ = false;
   std::int64_t lo_[3] = {0, 0, 0}, n_[3] = {0, 0, 0};
   std::vector<std::uint32_t> dense_counts_;
   std::vector<std::size_t> touched_;
-  std::vector<std::uint64_t> keys_;
-  std::vector<std::uint32_t> counts_;
-  std::size_t mask_ = 0;
+  HashCounts sparse_;
 };
 
 struct Peak {
