@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
 
@@ -25,15 +26,19 @@ bool same_pose(const Isometry3& a, const Isometry3& b, const Vec3& centre, doubl
 std::vector<double> scores(const CompleteSearchInput& in, const std::vector<SearchMode>& poses,
                            const PoseSigma& sigma, const std::vector<std::uint32_t>& subset) {
   std::vector<double> out(poses.size(), 0.0);
+  FirstException error;
 #pragma omp parallel for schedule(dynamic, 4)
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(poses.size()); ++i) {
-    const Isometry3& T = poses[static_cast<std::size_t>(i)].T_target_source;
-    PoseSigma s = sigma;
-    s.pivot_m = T * in.source_centre_m;
-    std::vector<GatedPair> pairs;
-    gate_correspondences(in.source, *in.target, T, in.floor_m, s, in.gate, &subset, &pairs);
-    out[static_cast<std::size_t>(i)] = gated_inlier_score(pairs, in.gate);
+    error.capture([&] {
+      const Isometry3& T = poses[static_cast<std::size_t>(i)].T_target_source;
+      PoseSigma s = sigma;
+      s.pivot_m = T * in.source_centre_m;
+      std::vector<GatedPair> pairs;
+      gate_correspondences(in.source, *in.target, T, in.floor_m, s, in.gate, &subset, &pairs);
+      out[static_cast<std::size_t>(i)] = gated_inlier_score(pairs, in.gate);
+    });
   }
+  error.rethrow();
   return out;
 }
 
@@ -198,13 +203,18 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
     lv.neighbours = o.snap_neighbours;
     Points3 snap_points;
     for (std::uint32_t i : strided_indices(P.size(), o.snap_samples)) snap_points.push_back(P[i]);
+    FirstException error;
 #pragma omp parallel for schedule(dynamic, 1)
     for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(pool.size()); ++i) {
-      SearchMode& m = pool[static_cast<std::size_t>(i)];
-      const YawHypothesis f = local_vote(snap_points, in.target->tree(), up_t0, in.source_centre_m,
-                                         m.T_target_source, lv);
-      if (f.votes > 0) m.T_target_source = f.T_target_source;
+      if (error.failed()) continue;
+      error.capture([&] {
+        SearchMode& m = pool[static_cast<std::size_t>(i)];
+        const YawHypothesis f = local_vote(snap_points, in.target->tree(), up_t0,
+                                           in.source_centre_m, m.T_target_source, lv);
+        if (f.votes > 0) m.T_target_source = f.T_target_source;
+      });
     }
+    error.rethrow();
   }
 
   // --- 4. rounds: rank at the fine resolution, refine the best, rank sharply, refine further
@@ -226,11 +236,16 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
       {o.round2_iterations, o.round2_samples, o.modes, o.distinct_cells * in.cell_m}};
   for (const Round& r : rounds) {
     const std::vector<std::uint32_t> subset = strided_indices(P.size(), r.samples);
+    FirstException error;
 #pragma omp parallel for schedule(dynamic, 1)
     for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(pool.size()); ++i) {
-      SearchMode& m = pool[static_cast<std::size_t>(i)];
-      m.T_target_source = refine(m.T_target_source, out.fine_sigma, subset, r.iterations);
+      if (error.failed()) continue;
+      error.capture([&] {
+        SearchMode& m = pool[static_cast<std::size_t>(i)];
+        m.T_target_source = refine(m.T_target_source, out.fine_sigma, subset, r.iterations);
+      });
     }
+    error.rethrow();
     const std::vector<double> s = scores(in, pool, no_sigma, subset);
     pool = keep_distinct(in, pool, by_decreasing(s), s, r.keep, r.distinct_m);
   }
