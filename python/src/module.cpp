@@ -371,21 +371,19 @@ PYBIND11_MODULE(_lmalign, m) {
       .def_property_readonly(
           "covariance_scale",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.adaptive) return py::none();
-            return py::float_(o.outcome.adaptive->covariance_scale);
+            if (!(o.summary.verdict.expected_nis > 0.0)) return py::none();
+            return py::float_(o.summary.verdict.covariance_scale);
           },
-          "'adaptive' only (else None): the factor k^2 the landmark covariances need for the "
+          "Judge 'gated' only (else None): the factor k^2 the landmark covariances need for the "
           "gated inliers' residuals (robust, from their median d^2; 1 when they hold). The "
           "reported covariance includes it when it is above 1.")
       .def_property_readonly(
           "rival_T_target_source",
           [](const python::AlignOutcome& o) -> py::object {
-            if (!o.outcome.adaptive || !o.outcome.adaptive->rival_T_target_source) {
-              return py::none();
-            }
-            return matrix_out<4, 4>(o.outcome.adaptive->rival_T_target_source->matrix());
+            if (!o.summary.verdict.rival_T_target_source) return py::none();
+            return matrix_out<4, 4>(o.summary.verdict.rival_T_target_source->matrix());
           },
-          "'adaptive' only (else None, also when there is none): the best distinct refined "
+          "Judge 'gated' only (else None, also when there is none): the best distinct refined "
           "pose, (4, 4) float64 T_target_source (metres), whose score over the best's is "
           "`ambiguity`.")
       .def_property_readonly(
