@@ -106,10 +106,12 @@ TEST_F(CliAlign, SettingsAreSetCheckedAndListed) {
     std::string expect;
   };
   for (const Bad& b :
-       {Bad{"schedule.max_iteration=2", "unknown setting 'schedule.max_iteration' (nearest: "
-                                        "'schedule.max_iterations')"},
-        Bad{"schedule.max_iterations=0", "schedule.max_iterations = 0 is outside its bound [1, "
-                                         "2147483647]"},
+       {Bad{"schedule.max_iteration=2",
+            "unknown setting 'schedule.max_iteration' (nearest: "
+            "'schedule.max_iterations')"},
+        Bad{"schedule.max_iterations=0",
+            "schedule.max_iterations = 0 is outside its bound [1, "
+            "2147483647]"},
         Bad{"kernel.confidence=weights", "kernel.confidence = 'weights' is not one of uniform"},
         Bad{"kernel.scale_m", "expected KEY=VALUE"}}) {
     const test::CliRun e = run("align " + path("missing.txt") + " " + target_ +
@@ -156,8 +158,8 @@ TEST_F(CliAlign, SettingsAreSetCheckedAndListed) {
     std::ofstream(path("bad.yaml")) << "doc: x\ninitialiser: guess\nmatcher: nearst\n"
                                        "kernel: none\nestimator: umeyama\nschedule: pcl\n";
   }
-  const test::CliRun bad = run("align " + source_ + " " + target_ + " --strategy " +
-                               path("bad.yaml"));
+  const test::CliRun bad =
+      run("align " + source_ + " " + target_ + " --strategy " + path("bad.yaml"));
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find(path("bad.yaml") + ":3: unknown matcher stage 'nearst' (known: nearest"),
             std::string::npos)

@@ -1,5 +1,6 @@
-// `lmalign align --strategy global_robust_obs` from a start no local method recovers (150 degrees, 2.5 m),
-// and the trust verdict of every result, on the real pair with a known truth (identity).
+// `lmalign align --strategy global_robust_obs` from a start no local method recovers (150
+// degrees, 2.5 m), and the trust verdict of every result, on the real pair with a known truth
+// (identity).
 #include <string>
 
 #include <gtest/gtest.h>
