@@ -42,6 +42,19 @@ std::vector<double> scores(const CompleteSearchInput& in, const std::vector<Sear
   return out;
 }
 
+// body(mode) for every mode, in parallel, one mode per iteration (each writes only its own);
+// the first exception is rethrown after the loop.
+template <typename Body>
+void for_each_mode(std::vector<SearchMode>& modes, Body&& body) {
+  FirstException error;
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(modes.size()); ++i) {
+    if (error.failed()) continue;
+    error.capture([&] { body(modes[static_cast<std::size_t>(i)]); });
+  }
+  error.rethrow();
+}
+
 // Indices of `values` by decreasing value (stable).
 std::vector<std::size_t> by_decreasing(const std::vector<double>& values) {
   std::vector<std::size_t> order(values.size());
@@ -203,18 +216,11 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
     lv.neighbours = o.snap_neighbours;
     Points3 snap_points;
     for (std::uint32_t i : strided_indices(P.size(), o.snap_samples)) snap_points.push_back(P[i]);
-    FirstException error;
-#pragma omp parallel for schedule(dynamic, 1)
-    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(pool.size()); ++i) {
-      if (error.failed()) continue;
-      error.capture([&] {
-        SearchMode& m = pool[static_cast<std::size_t>(i)];
-        const YawHypothesis f = local_vote(snap_points, in.target->tree(), up_t0,
-                                           in.source_centre_m, m.T_target_source, lv);
-        if (f.votes > 0) m.T_target_source = f.T_target_source;
-      });
-    }
-    error.rethrow();
+    for_each_mode(pool, [&](SearchMode& m) {
+      const YawHypothesis f = local_vote(snap_points, in.target->tree(), up_t0, in.source_centre_m,
+                                         m.T_target_source, lv);
+      if (f.votes > 0) m.T_target_source = f.T_target_source;
+    });
   }
 
   // --- 4. rounds: rank at the fine resolution, refine the best, rank sharply, refine further
@@ -236,16 +242,9 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
       {o.round2_iterations, o.round2_samples, o.modes, o.distinct_cells * in.cell_m}};
   for (const Round& r : rounds) {
     const std::vector<std::uint32_t> subset = strided_indices(P.size(), r.samples);
-    FirstException error;
-#pragma omp parallel for schedule(dynamic, 1)
-    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(pool.size()); ++i) {
-      if (error.failed()) continue;
-      error.capture([&] {
-        SearchMode& m = pool[static_cast<std::size_t>(i)];
-        m.T_target_source = refine(m.T_target_source, out.fine_sigma, subset, r.iterations);
-      });
-    }
-    error.rethrow();
+    for_each_mode(pool, [&](SearchMode& m) {
+      m.T_target_source = refine(m.T_target_source, out.fine_sigma, subset, r.iterations);
+    });
     const std::vector<double> s = scores(in, pool, no_sigma, subset);
     pool = keep_distinct(in, pool, by_decreasing(s), s, r.keep, r.distinct_m);
   }
