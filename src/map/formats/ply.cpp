@@ -236,6 +236,9 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   std::vector<double> values;
   for (std::size_t e = 0; e <= vertex_index; ++e) {
     const Element& element = elements[e];
+    // An element without properties occupies no bytes, whatever its count: nothing to read (a
+    // count of 1e14 once made the loop below run for hours; found by fuzz_ply_reader).
+    if (element.properties.empty()) continue;
     // Smallest size of one instance: each property its size (binary) or one byte (ASCII).
     std::size_t min_bytes = 0;
     for (const Property& p : element.properties) {
