@@ -16,12 +16,14 @@
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/similarity.hpp"
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/io/ply.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "lmalign/map/transform.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 
@@ -48,9 +50,10 @@ struct AlignArgs {
   std::string ply_path;
   std::string format = "auto";  // --format: the reader of SOURCE and TARGET
   bool history = false;
-  std::string initial_guess;  // 4x4 file; empty: none
-  std::string prior_sigma;    // ROT_DEG,TRANS_M; empty: none
-  std::string image_size;     // W,H px (Bundler); empty: none
+  std::string initial_guess;   // 4x4 file; empty: none
+  std::string prior_sigma;     // ROT_DEG,TRANS_M; empty: none
+  std::string image_size;      // W,H px (Bundler); empty: none
+  std::string scale = "auto";  // --scale auto|free|fixed
   bool max_iterations_given = false;
   bool max_distance_given = false;
 };
@@ -58,7 +61,7 @@ struct AlignArgs {
 struct Run {
   Preset preset;
   Summary summary;
-  std::optional<TransformError> error;
+  std::optional<SimilarityError> error;
   bool right_basin = false;
 };
 
@@ -153,6 +156,11 @@ int run_align(const AlignArgs& a) {
     request.max_distance_m = a.max_distance_m;
   }
   request.k = a.k;
+  try {
+    request.scale = parse_scale_mode(a.scale);
+  } catch (const InvalidArgument& e) {
+    throw InvalidArgument(std::string("--") + e.what());
+  }
   request.record_history = a.history;
   for (const std::string& s : a.settings) {
     const std::size_t eq = s.find('=');
@@ -230,12 +238,12 @@ int run_align(const AlignArgs& a) {
     for (AlignRequest& r : requests) r.initial_guess = guess;
   }
 
-  std::optional<Isometry3> T_gt;  // ground truth for the undisplaced source
+  std::optional<Similarity3> T_gt;  // ground truth for the undisplaced source
   if (a.ground_truth == "identity") {
-    T_gt = Isometry3::Identity();
+    T_gt = Similarity3{};
   } else if (!a.ground_truth.empty()) {
-    T_gt = read_transform(a.ground_truth);
-    check_supported_translation("--ground-truth " + a.ground_truth, T_gt->translation());
+    T_gt = read_similarity(a.ground_truth);
+    check_supported_translation("--ground-truth " + a.ground_truth, T_gt->rigid.translation());
   }
 
   MapReadOptions ropt;
@@ -259,8 +267,9 @@ int run_align(const AlignArgs& a) {
   if (const std::optional<Vec3> up = estimate_up_axis(source)) src.up = T_displace.linear() * *up;
   // Truth for the displaced source. Errors are measured on the recovered map-to-map transform
   // T_est * T_displace against T_gt, so they do not depend on the artificial displacement.
-  std::optional<Isometry3> T_true;
-  if (T_gt) T_true = *T_gt * T_displace.inverse();
+  std::optional<Similarity3> T_true;
+  const Similarity3 S_displace{1.0, T_displace};
+  if (T_gt) T_true = *T_gt * S_displace.inverse();
 
   const PreparedTarget prepared(target, wopt);
 
@@ -295,17 +304,23 @@ int run_align(const AlignArgs& a) {
     run.preset = strategies[i];
     run.summary = align(strategies[i], src.view(), prepared, requests[i]);
     if (T_true) {
-      run.error = transform_error(run.summary.registration.T_target_source * T_displace, *T_gt);
+      run.error = similarity_error(run.summary.similarity() * S_displace, *T_gt);
       run.right_basin = run.error->rotation_deg < a.success_rotation_deg &&
                         run.error->translation_m < a.success_translation_m;
     }
     runs.push_back(std::move(run));
   }
 
+  // The scale's columns when any run estimated it or the truth has one.
+  bool scale_columns = T_gt && T_gt->scale != 1.0;
+  for (const Run& r : runs) scale_columns = scale_columns || r.summary.scale.free;
+
   // --- human table
   std::printf("%-17s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score",
               "iters", "termination", "time ms");
   if (T_true) std::printf(" %8s %8s %6s", "rot deg", "trans m", "basin");
+  if (scale_columns) std::printf(" %10s %8s", "scale", "scale sd");
+  if (scale_columns && T_true) std::printf(" %9s", "scale err");
   std::printf(" %6s\n", "trust");
   for (const Run& r : runs) {
     const RegistrationResult& g = r.summary.registration;
@@ -316,6 +331,10 @@ int run_align(const AlignArgs& a) {
     if (r.error) {
       std::printf(" %8.3f %8.4f %6s", r.error->rotation_deg, r.error->translation_m,
                   r.right_basin ? "yes" : "NO");
+    }
+    if (scale_columns) {
+      std::printf(" %10.6g %8.2g", r.summary.scale.scale, r.summary.scale.scale_sd);
+      if (r.error) std::printf(" %9.2e", r.error->scale_error);
     }
     std::printf(" %6s\n", r.summary.verdict.trustworthy ? "yes" : "NO");
   }
@@ -338,8 +357,11 @@ int run_align(const AlignArgs& a) {
     std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", r.preset.name.c_str(), v[0],
                 v[1], v[2], v[3], v[4], v[5]);
   }
+  if (scale_columns) {
+    std::printf("scale: target units per source unit (p_target = scale * R * p_source + t)\n");
+  }
   if (T_true) {
-    const auto v = xyz_rpy_deg_from_pose(*T_true);
+    const auto v = xyz_rpy_deg_from_pose(T_true->rigid);
     std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2],
                 v[3], v[4], v[5]);
   }
@@ -349,8 +371,10 @@ int run_align(const AlignArgs& a) {
     for (const Run& r : runs) {
       const std::string path = ply_path_for(a.ply_path, r.preset.name, runs.size() > 1);
       // The writer by extension: .ply (with covariances), a folder (COLMAP text), else ours.
-      write_any_map(path,
-                    transform_map(source, r.summary.registration.T_target_source * T_displace));
+      write_any_map(
+          path, r.summary.scale.free
+                    ? transform_map(source, r.summary.similarity() * S_displace)
+                    : transform_map(source, r.summary.registration.T_target_source * T_displace));
       std::printf("aligned source (%s) written to %s\n", r.preset.name.c_str(), path.c_str());
     }
   }
@@ -374,7 +398,14 @@ int run_align(const AlignArgs& a) {
     j["covariance_norm"] = a.covariance_norm;
     if (T_true) {
       j["ground_truth"] = a.ground_truth;
-      j["T_target_source_true"] = json_matrix(*T_true);
+      j["T_target_source_true"] = json_matrix(T_true->rigid);
+      if (scale_columns) {
+        const Mat4 S = T_true->matrix();
+        nlohmann::json m = nlohmann::json::array();
+        for (int i = 0; i < 4; ++i) m.push_back({S(i, 0), S(i, 1), S(i, 2), S(i, 3)});
+        j["S_target_source_true"] = m;
+        j["scale_true"] = T_true->scale;
+      }
       j["success_rotation_deg"] = a.success_rotation_deg;
       j["success_translation_m"] = a.success_translation_m;
     }
@@ -386,6 +417,7 @@ int run_align(const AlignArgs& a) {
       if (r.error) {
         e["rotation_error_deg"] = r.error->rotation_deg;
         e["translation_error_m"] = r.error->translation_m;
+        if (scale_columns) e["scale_error"] = r.error->scale_error;
         e["right_basin"] = r.right_basin;
       }
       results.push_back(e);
@@ -467,8 +499,9 @@ CommandRunner add_align_command(CLI::App& root) {
                   "about the world origin, R = Rz(yaw) Ry(pitch) Rx(roll) (the paper's protocol)");
   cmd->add_option(
       "--ground-truth", args->ground_truth,
-      "true T_target_source of the undisplaced source: 'identity' or a 4x4 matrix file; "
-      "adds rotation (deg) and translation (m) errors");
+      "true T_target_source of the undisplaced source: 'identity' or a 4x4 matrix file, rigid "
+      "[R t; 0 1] or a similarity [sR t; 0 1]; adds rotation (deg), translation (m) and, with "
+      "a scale, relative scale errors");
   cmd->add_option("--success-rotation-deg", args->success_rotation_deg,
                   "right-basin threshold on the rotation error, degrees")
       ->capture_default_str();
@@ -493,6 +526,12 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--prior-sigma", args->prior_sigma,
                   "ROT_DEG,TRANS_M: standard deviations of --initial-guess (identity if none), "
                   "degrees and metres, each > 0: a searching strategy stays within 3 sigma of it");
+  cmd->add_option("--scale", args->scale,
+                  "auto, free or fixed: whether the scale is estimated too (a similarity, "
+                  "p_target = scale * R * p_source + t, for maps without a common metric scale; "
+                  "docs/scale.md). auto: free when either map's header says its scale is not "
+                  "metric, fixed otherwise")
+      ->capture_default_str();
   cmd->add_flag("--history", args->history,
                 "record per-iteration correspondences, MSE and score (into --json)");
   return [args, max_iterations, max_distance]() {

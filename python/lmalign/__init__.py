@@ -87,7 +87,7 @@ _ALIGN_OPTIONS = ("k", "max_iterations", "max_distance_m", "covariance_norm")
 
 def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, threads=0, *,
           prior_sigma=None, source_covariances=None, target_covariances=None,
-          target_weights=None, settings=None, **options):
+          target_weights=None, settings=None, scale="auto", **options):
     """Align `source` onto `target`; returns an AlignmentResult.
 
     Equals `lmalign align SOURCE TARGET --strategy STRATEGY [--set KEY=VALUE ...]` bit for bit
@@ -111,6 +111,9 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
     settings: {key: value} of the strategy's settings (the CLI's --set; bool, int, float, a name
         or a list of floats, or text as the CLI reads it). An unknown key raises InvalidArgument
         naming the nearest known one; a value outside its bound names the key, value and bound.
+    scale: 'auto', 'free' or 'fixed' (the CLI's --scale): with 'free' the scale is estimated too,
+        a similarity p_target = scale * R @ p_source + t for maps without a common metric scale
+        (docs/scale.md); 'auto' is free when either map says its scale is not metric.
     options (as the CLI's): k (neighbourhood of the weighted kNN strategies, default 5),
         max_iterations (replaces each strategy's budget), max_distance_m (the paper's maximum
         distance, a cap on the shrinking schedules), covariance_norm ('spectral' or 'frobenius',
@@ -120,7 +123,9 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
     initial_score_m2, final_score_m2, wall_time_s, started_s, finished_s (time.monotonic()
     clock), usable, trustworthy, trust_reason, inlier_fraction and overlap_fraction (judge
     'inliers', else None), gated_inlier_ratio, ambiguity and mean_nis (judge 'gated', else None),
-    translation_sd_m, rotation_sd_deg, covariance (6, 6) or None, source_landmarks_left_out and
+    translation_sd_m, rotation_sd_deg, covariance (6, 6) or None, scale (target units per
+    source unit, 1.0 when fixed), scale_sd (None when fixed), scale_mode, S_target_source (4, 4)
+    (the similarity [scale * R, t; 0 1]; T_target_source is its rotation and translation), source_landmarks_left_out and
     target_landmarks_left_out; brief_report(), full_report(), to_json() (the CLI's JSON entry).
     Supported range (docs/robustness.md): landmarks with a coordinate beyond 1e15 m are left out
     of the alignment, counted in *_landmarks_left_out and named at the end of trust_reason; an
@@ -139,7 +144,7 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
             source_covariances,
             target_covariances, target_weights, int(options.get("k", 5)),
             options.get("max_iterations"), options.get("max_distance_m"),
-            options.get("covariance_norm", "spectral"), settings)
+            options.get("covariance_norm", "spectral"), settings, str(scale))
     except InvalidArgument as e:
         if "built from bare points" not in str(e):
             raise

@@ -92,6 +92,14 @@ class AlignmentResult:
     @property
     def covariance(self) -> Optional[F64]: ...  # (6, 6): (tx, ty, tz [m], rx, ry, rz [rad])
     @property
+    def scale(self) -> float: ...  # target units per source unit (1.0 when fixed)
+    @property
+    def scale_sd(self) -> Optional[float]: ...
+    @property
+    def scale_mode(self) -> str: ...  # "free" or "fixed"
+    @property
+    def S_target_source(self) -> F64: ...  # (4, 4) [scale * R, t; 0 1]
+    @property
     def usable(self) -> bool: ...
     def brief_report(self) -> str: ...
     def full_report(self) -> str: ...
@@ -122,6 +130,7 @@ def align(
     max_distance_m: Optional[float] = None,
     covariance_norm: str = "spectral",
     settings: Optional[Dict[str, Any]] = None,  # key -> value (lmalign.options(strategy))
+    scale: str = "auto",  # auto, free or fixed
 ) -> AlignmentResult: ...
 def split(
     map: Map,

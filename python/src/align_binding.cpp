@@ -43,6 +43,7 @@ AlignOutcome run_alignment(const Points3& source_points,
   r.max_distance_m = request.max_distance_m;
   r.initial_guess = request.initial_guess;
   r.prior = request.prior;
+  r.scale = request.scale;
   const Pipeline base(preset.spec);
   for (const auto& [key, value] : request.settings) {
     try {

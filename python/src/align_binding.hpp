@@ -30,6 +30,8 @@ struct AlignRequest {
   std::optional<PriorSigma> prior;
   /// The source's up axis (source frame), from a Map's frames.
   std::optional<Vec3> source_up;
+  /// The CLI's --scale: auto, free or fixed (AlignRequest::scale).
+  ScaleMode scale = ScaleMode::kAuto;
   /// OpenMP threads for this call (0: OpenMP's default). Results do not depend on it.
   int threads = 0;
 };

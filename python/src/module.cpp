@@ -387,6 +387,29 @@ PYBIND11_MODULE(_lmalign, m) {
           "pose, (4, 4) float64 T_target_source (metres), whose score over the best's is "
           "`ambiguity`.")
       .def_property_readonly(
+          "scale", [](const python::AlignOutcome& o) { return o.summary.scale.scale; },
+          "Target units per source unit: p_target = scale * R @ p_source + t (1.0 when the scale "
+          "was fixed).")
+      .def_property_readonly(
+          "scale_sd",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!std::isfinite(o.summary.scale.scale_sd)) return py::none();
+            return py::float_(o.summary.scale.scale_sd);
+          },
+          "Standard deviation of `scale` (from the 7x7 covariance), None when the scale was "
+          "fixed or it is not determined.")
+      .def_property_readonly(
+          "scale_mode",
+          [](const python::AlignOutcome& o) { return o.summary.scale.free ? "free" : "fixed"; },
+          "'free' when the scale was estimated, else 'fixed' (scale= resolved).")
+      .def_property_readonly(
+          "S_target_source",
+          [](const python::AlignOutcome& o) {
+            return matrix_out<4, 4>(o.summary.similarity().matrix());
+          },
+          "(4, 4) float64: the similarity [scale * R, t; 0 1] (T_target_source when the scale "
+          "is fixed); p_target = S_target_source @ p_source.")
+      .def_property_readonly(
           "translation_sd_m",
           [](const python::AlignOutcome& o) { return o.summary.covariance.translation_sd_m(); },
           "Standard deviation of the translation along its worst axis, metres.")
@@ -426,8 +449,9 @@ PYBIND11_MODULE(_lmalign, m) {
          const py::handle& source_covariances, const py::handle& target_covariances,
          const py::handle& target_weights, int k, std::optional<int> max_iterations,
          std::optional<double> max_distance_m, const std::string& covariance_norm,
-         const py::handle& settings) {
+         const py::handle& settings, const std::string& scale) {
         python::AlignRequest req;
+        req.scale = parse_scale_mode(scale);
         req.strategy = strategy;
         req.k = k;
         req.max_iterations = max_iterations;
@@ -518,7 +542,7 @@ PYBIND11_MODULE(_lmalign, m) {
       py::arg("prior_sigma"), py::arg("threads"), py::arg("source_covariances"),
       py::arg("target_covariances"), py::arg("target_weights"), py::arg("k"),
       py::arg("max_iterations"), py::arg("max_distance_m"), py::arg("covariance_norm"),
-      py::arg("settings"));
+      py::arg("settings"), py::arg("scale"));
 
   m.def(
       "strategies", []() { return preset_names(); },

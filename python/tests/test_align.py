@@ -209,3 +209,27 @@ def test_adaptive_reports_its_verdict_as_the_cli_does(desk_pair, cli, tmp_path):
     # The rival is a distinct pose: it moves the source by more than the estimate's uncertainty.
     assert cli_result["rival"]["distance_m"] > 0.05 or cli_result["rival"]["angle_deg"] > 5.0
     assert r.T_target_source.shape == r.rival_T_target_source.shape == (4, 4)
+
+
+@pytest.mark.parametrize("strategy", ["base", "adaptive"])
+def test_free_scale_recovers_a_similarity_from_arrays(strategy):
+    """scale='free': the target is the source moved by a similarity of scale 0.37."""
+    source = random_scene(seed=7)
+    T = lmalign.pose_from_xyz_rpy_deg(0.02, -0.01, 0.01, 1.0, -1.0, 3.0)
+    S = T.copy()
+    S[:3, :3] *= 0.37
+    target = source @ S[:3, :3].T + S[:3, 3]
+    r = lmalign.align(source, target, strategy=strategy, scale="free",
+                      source_covariances=np.tile(1e-6 * np.eye(3), (len(source), 1, 1)),
+                      target_covariances=np.tile(0.37**2 * 1e-6 * np.eye(3), (len(target), 1, 1)))
+    assert r.scale_mode == "free"
+    assert abs(r.scale / 0.37 - 1.0) < 0.01
+    assert r.scale_sd is not None and r.scale_sd > 0.0
+    assert np.abs(r.S_target_source - S).max() < 1e-3
+    assert np.allclose(r.S_target_source[:3, :3], r.scale * r.T_target_source[:3, :3])
+    fixed = lmalign.align(source, target, strategy=strategy, scale="fixed",
+                          source_covariances=np.tile(1e-6 * np.eye(3), (len(source), 1, 1)),
+                          target_covariances=np.tile(1e-6 * np.eye(3), (len(target), 1, 1)))
+    assert fixed.scale == 1.0 and fixed.scale_sd is None and fixed.scale_mode == "fixed"
+    with pytest.raises(lmalign.InvalidArgument, match="expected auto, free or fixed"):
+        lmalign.align(source, target, strategy=strategy, scale="metric")

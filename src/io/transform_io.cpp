@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/similarity.hpp"
 #include "lmalign/io/atomic_file.hpp"
 
 namespace lmalign {
@@ -31,7 +32,10 @@ std::string shortest(double v) {
 
 }  // namespace
 
-Isometry3 read_transform(const std::string& path) {
+namespace {
+
+// The 4x4 matrix of a transform file (rows, numbers, finiteness checked).
+Mat4 read_matrix4(const std::string& path) {
   std::ifstream in(path);
   if (!in) {
     throw IoError("cannot open transform file '" + path + "': " + std::strerror(errno));
@@ -71,6 +75,13 @@ Isometry3 read_transform(const std::string& path) {
     throw ParseError(path, 0,
                      "expected 4 rows of 4 numbers (a 4x4 matrix), found " + std::to_string(row));
   }
+  return M;
+}
+
+}  // namespace
+
+Isometry3 read_transform(const std::string& path) {
+  const Mat4 M = read_matrix4(path);
   if (M(3, 0) != 0.0 || M(3, 1) != 0.0 || M(3, 2) != 0.0 || M(3, 3) != 1.0) {
     throw ParseError(path, 0, "last row must be 0 0 0 1 (a rigid transform)");
   }
@@ -82,6 +93,15 @@ Isometry3 read_transform(const std::string& path) {
   Isometry3 T = Isometry3::Identity();
   T.matrix() = M;
   return T;
+}
+
+Similarity3 read_similarity(const std::string& path) {
+  const Mat4 M = read_matrix4(path);
+  try {
+    return similarity_from_matrix(M, "a similarity [sR t; 0 0 0 1]");
+  } catch (const InvalidArgument& e) {
+    throw ParseError(path, 0, e.what());
+  }
 }
 
 void write_transform(const std::string& path, const Isometry3& T) {

@@ -11,6 +11,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/registration/score.hpp"
+#include "lmalign/registration/similarity.hpp"
 
 namespace lmalign {
 
@@ -74,6 +75,24 @@ double mean_squared_distance(const Pairs& pairs, const Points3& target_points) {
     sum += (target_points[g.target_index] - g.moved_source_m).squaredNorm();
   }
   return sum / static_cast<double>(pairs.gated.size());
+}
+
+// The source rescaled by `scale` (positions times s, covariances times s^2).
+SourceLandmarks rescaled(const SourceView& source, double scale) {
+  SourceLandmarks out;
+  out.positions.reserve(source.size());
+  for (const Vec3& p : *source.positions) out.positions.push_back(scale * p);
+  if (source.has_covariances()) {
+    out.covariances_m2.reserve(source.size());
+    for (const Mat3& c : *source.covariances_m2) out.covariances_m2.push_back(scale * scale * c);
+  }
+  out.up = source.up;
+  return out;
+}
+
+void rescale_in_place(SourceLandmarks* source, double factor) {
+  for (Vec3& p : source->positions) p *= factor;
+  for (Mat3& c : source->covariances_m2) c *= factor * factor;
 }
 
 }  // namespace
@@ -387,6 +406,38 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     check_supported_translation("initial guess", request.initial_guess->translation());
   }
 
+  // --- free scale: the source rescaled by the data's initial scale (positions by s, covariances
+  // by s^2); the rounds below refine the scale as a seventh degree of freedom.
+  std::optional<SourceLandmarks> owned;
+  ScaleEstimate scale_estimate;
+  if (request.free_scale) {
+    if (estimator_->degrees_of_freedom() != 6) {
+      throw InvalidArgument("scale free: the estimator '" + spec_.estimator + "' of '" +
+                            spec_.name + "' estimates " +
+                            std::to_string(estimator_->degrees_of_freedom()) +
+                            " degrees of freedom; a free scale needs a 6-DoF estimator");
+    }
+    if (sp.size() < 3 || target.size() < 3) {
+      throw InvalidArgument("scale free: fewer than 3 landmarks in a map");
+    }
+    const DataScales a = estimate_data_scales(sp, source.covariances_m2);
+    const std::vector<Mat3>* tgt_cov =
+        target.has_covariances() ? &target.covariances_m2() : nullptr;
+    const DataScales b = estimate_data_scales(target.points(), tgt_cov, 4096, &target.tree());
+    scale_estimate.free = true;
+    scale_estimate.initial_scale = initial_scale_from_spacing(a.spacing_m, b.spacing_m);
+    if (request.initial_scale) {
+      if (!std::isfinite(*request.initial_scale) || !(*request.initial_scale > 0.0)) {
+        throw InvalidArgument("initial scale " + message_number(*request.initial_scale) +
+                              ": expected finite and > 0");
+      }
+      scale_estimate.initial_scale = *request.initial_scale;
+    }
+    scale_estimate.scale = scale_estimate.initial_scale;
+    owned = rescaled(source, scale_estimate.scale);
+  }
+  const SourceView src = owned ? owned->view() : source;
+
   Summary s;
   s.preset = spec_.name;
   s.stages = spec_;
@@ -403,7 +454,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   };
 
   RefineContext all;
-  all.source = source;
+  all.source = src;
   all.target = &target;
   all.init = &s.initialisation;
 
@@ -417,7 +468,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
       s.total_time_s = reg.wall_time_s;
       return s;
     }
-    scales.source = estimate_data_scales(sp, source.covariances_m2);
+    scales.source = estimate_data_scales(*src.positions, src.covariances_m2);
     const std::vector<Mat3>* tgt_cov =
         target.has_covariances() ? &target.covariances_m2() : nullptr;
     scales.target = estimate_data_scales(target.points(), tgt_cov, 4096, &target.tree());
@@ -426,7 +477,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
                                          : std::max(scales.source.floor_m, scales.target.floor_m);
     const std::vector<double>& up = settings_.reals("scales.default_up");
     const Vec3 default_up(up[0], up[1], up[2]);
-    scales.up_source = source.up.value_or(default_up).normalized();
+    scales.up_source = src.up.value_or(default_up).normalized();
     scales.up_target = target.up_axis().value_or(default_up).normalized();
     s.scales = scales;
     all.scales = &*s.scales;
@@ -434,7 +485,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
 
   // --- hypotheses
   InitialiserContext ic;
-  ic.source = source;
+  ic.source = src;
   ic.target = &target;
   ic.scales = all.scales;
   ic.initial_guess = request.initial_guess;
@@ -452,9 +503,9 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   int total_iterations = 0;
   if (scorer_ != nullptr) {
     const std::vector<std::uint32_t> samples = scorer_->samples(sp.size());
-    const OwnedPart part = part_of(source, samples);
+    const OwnedPart part = part_of(src, samples);
     RefineContext sub = all;
-    sub.source = part.view(source);
+    sub.source = part.view(src);
     std::vector<RefinedHypothesis> refined(hypotheses.size());
     FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for schedule(dynamic, 1)
@@ -484,6 +535,120 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   const int history = request.record_history ? (request.history_scores ? 2 : 1) : 0;
   const Schedule::EndPass end = schedule_->end_pass();
   Refinement fin = refine(all, best, Phase::kFinal, end == Schedule::EndPass::kLastStep, history);
+  if (owned) {
+    // --- the scale as a seventh degree of freedom: one 7-DoF step on the pairs at the estimate
+    // (Umeyama with scale on point pairs, Gauss-Newton on distribution pairs), the source
+    // rescaled by its scale change, and the final refinement again from the step's pose.
+    const Vec3 centre_0 = all.scales != nullptr ? all.scales->source.centre_m : Vec3::Zero();
+    auto pairs_at = [&](const Isometry3& T, const LoopState& at, Pairs* pairs) {
+      LoopState loop = at;
+      loop.final_pass = true;
+      loop.sigma.pivot_m = T * (all.scales != nullptr ? all.scales->source.centre_m : centre_0);
+      std::unique_ptr<StageState> state = matcher_->begin(all);
+      matcher_->match(all, state.get(), T, loop, pairs);
+      for (const auto& rj : rejectors_) rj->reject(all, &loop, pairs);
+      if (pairs->size() > 0) {
+        loop.distribution_step = estimator_->distribution_step(loop);
+        kernel_->weigh(all, loop, *pairs, T, Isometry3::Identity(), &pairs->weights);
+      }
+      return loop.sigma.pivot_m;
+    };
+    // The pairs as (moved, target, information) for the 7-DoF step.
+    auto step_at = [&](const Isometry3& T, const LoopState& at,
+                       std::optional<Similarity3>* closed_form) {
+      Pairs pairs;
+      Vec3 pivot = pairs_at(T, at, &pairs);
+      Points3 moved, targets;
+      std::vector<Mat3> information;
+      const Points3& tp = target.points();
+      if (pairs.kind == Pairs::Kind::kPoints) {
+        for (const Correspondence& c : pairs.points) {
+          moved.push_back(pairs.moved[c.source_index]);
+          targets.push_back(tp[c.target_index]);
+        }
+        if (all.scales == nullptr && !moved.empty()) {
+          pivot = Vec3::Zero();
+          for (const Vec3& m : moved) pivot += m;
+          pivot /= static_cast<double>(moved.size());
+        }
+        if (closed_form != nullptr) {
+          *closed_form =
+              umeyama_similarity(moved, targets, pairs.weights.empty() ? nullptr : &pairs.weights);
+        }
+      } else {
+        for (const GatedPair& g : pairs.gated) {
+          moved.push_back(g.moved_source_m);
+          targets.push_back(tp[g.target_index]);
+          information.push_back(g.information);
+        }
+      }
+      const SimilarityStep st = solve_similarity_step(
+          moved, targets, information.empty() ? nullptr : &information, pairs.weights, pivot);
+      return std::make_pair(st, pivot);
+    };
+    // A round: 7-DoF steps, each on the pairs made again at the current similarity (the last
+    // refinement's gate), until the scale settles (at most kStepsPerRound); then the final
+    // refinement again, from the round's pose at its scale.
+    constexpr int kMaxScaleRounds = 20;
+    constexpr int kStepsPerRound = 10;
+    constexpr double kScaleTolerance = 1e-6;
+    auto rescale_by = [&](double factor) {
+      rescale_in_place(&*owned, factor);
+      scale_estimate.scale *= factor;
+      if (s.scales) {
+        DataScales& d = s.scales->source;
+        d.spacing_m *= factor;
+        d.floor_m *= factor;
+        d.radius_m *= factor;
+        d.centre_m *= factor;
+        if (!(settings_.real("scales.floor_m") > 0.0)) {
+          s.scales->floor_m = std::max(d.floor_m, s.scales->target.floor_m);
+        }
+      }
+    };
+    for (int round = 0; round < kMaxScaleRounds; ++round) {
+      Isometry3 T = fin.T;
+      double round_change = 0.0;  // |log| of the round's scale change
+      bool moved = false;
+      for (int k = 0; k < kStepsPerRound; ++k) {
+        std::optional<Similarity3> closed;
+        const auto [st, pivot] = step_at(T, fin.loop, &closed);
+        Similarity3 dS;
+        if (closed) {
+          dS = *closed;
+        } else if (st.ok) {
+          dS = similarity_increment(st.xi, pivot);
+        } else {
+          break;
+        }
+        if (!(dS.scale > 0.0) || !std::isfinite(dS.scale) || !dS.matrix().allFinite()) break;
+        // p_target = dS (T (s p)) = dR R (ds s p) + ds dR t + dt.
+        Isometry3 next = Isometry3::Identity();
+        next.linear() = dS.rigid.linear() * T.linear();
+        next.translation() =
+            dS.scale * (dS.rigid.linear() * T.translation()) + dS.rigid.translation();
+        T = next;
+        rescale_by(dS.scale);
+        moved = true;
+        round_change += std::log(dS.scale);
+        if (std::abs(std::log(dS.scale)) < kScaleTolerance) break;
+      }
+      if (!moved) break;
+      Hypothesis from = best;
+      from.T_target_source = T;
+      total_iterations += fin.iterations;
+      fin = refine(all, from, Phase::kFinal, end == Schedule::EndPass::kLastStep, history);
+      ++scale_estimate.rounds;
+      if (std::abs(round_change) < kScaleTolerance) break;
+    }
+    const auto [st, pivot] = step_at(fin.T, fin.loop, nullptr);
+    scale_estimate.covariance_7x7 = similarity_covariance(st, pivot);
+    if (scale_estimate.covariance_7x7) {
+      scale_estimate.scale_sd =
+          scale_estimate.scale * std::sqrt((*scale_estimate.covariance_7x7)(6, 6));
+    }
+  }
+  s.scale = scale_estimate;
   reg.T_target_source = fin.T;
   reg.termination = fin.termination;
   reg.converged = fin.termination == TerminationReason::kTransform ||

@@ -349,8 +349,31 @@ Summary align(const Preset& preset, const SourceView& source, const PreparedTarg
   r.prior = request.prior;
   r.record_history = request.record_history;
   r.history_scores = request.record_history;
-  Summary out = pipeline.run(kept.source ? kept.source->view() : source,
-                             kept.target ? *kept.target : target, r);
+  r.free_scale = resolve_scale_mode(request.scale, request.source_metric, request.target_metric) ==
+                 ScaleMode::kFree;
+  const SourceView source_kept = kept.source ? kept.source->view() : source;
+  const PreparedTarget& target_kept = kept.target ? *kept.target : target;
+  Summary out = pipeline.run(source_kept, target_kept, r);
+  if (r.free_scale && !out.verdict.trustworthy) {
+    // The initial scale from the spacings can be off by more than the search absorbs (maps of
+    // different landmark density): the scale axis of the search, tried only when the first
+    // is not trusted. The first trusted result wins; none: the first.
+    const double s0 = out.scale.initial_scale;
+    double time_s = out.total_time_s;
+    int attempts = 1;
+    for (const double factor : {1.25, 0.8}) {
+      r.initial_scale = s0 * factor;
+      Summary alt = pipeline.run(source_kept, target_kept, r);
+      ++attempts;
+      time_s += alt.total_time_s;
+      if (alt.verdict.trustworthy) {
+        out = std::move(alt);
+        break;
+      }
+    }
+    out.scale.attempts = attempts;
+    out.total_time_s = time_s;
+  }
   out.source_left_out = kept.source_left_out;
   out.target_left_out = kept.target_left_out;
   const std::string note = left_out_message(kept.source_left_out, kept.target_left_out);

@@ -59,6 +59,9 @@ bool Summary::IsSolutionUsable() const {
 
 std::string Summary::BriefReport() const {
   std::string s = preset + ": " + registration.brief_report() + "; " +
+                  (scale.free ? "scale " + fmt("%.6g", scale.scale) + " +- " +
+                                    fmt("%.2g", scale.scale_sd) + "; "
+                              : std::string()) +
                   (verdict.trustworthy ? std::string("trusted") : "not trusted: " + verdict.reason);
   return s;
 }
@@ -95,6 +98,13 @@ std::string Summary::FullReport() const {
                        fmt("%.4g", scales->target.spacing_m) + " m, floor " +
                        fmt("%.4g", scales->floor_m) + " m, radius " +
                        fmt("%.4g", scales->source.radius_m) + " m");
+  }
+  if (scale.free) {
+    line("scale", "free: " + fmt("%.6g", scale.scale) + " +- " + fmt("%.2g", scale.scale_sd) +
+                      " target units per source unit (initial " + fmt("%.4g", scale.initial_scale) +
+                      " from the spacings, " + std::to_string(scale.rounds) +
+                      " rounds of the 7-DoF steps, " + std::to_string(scale.attempts) +
+                      " initial scales tried)");
   }
   line("initialisation",
        initialisation.initialisation +
@@ -158,6 +168,29 @@ std::string to_json(const Summary& s, int indent) {
                  {"estimator", s.stages.estimator},     {"schedule", s.stages.schedule},
                  {"scorer", s.stages.scorer},           {"trust", s.stages.trust}};
   e["T_target_source"] = matrix4(r.T_target_source);
+  // The scale (target units per source unit; 1 when fixed) and the whole similarity [sR t; 0 1].
+  e["scale_mode"] = s.scale.free ? "free" : "fixed";
+  e["scale"] = s.scale.scale;
+  e["scale_sd"] = number(s.scale.scale_sd);
+  {
+    json m = json::array();
+    const Mat4 S = s.similarity().matrix();
+    for (int i = 0; i < 4; ++i) m.push_back({S(i, 0), S(i, 1), S(i, 2), S(i, 3)});
+    e["S_target_source"] = m;
+  }
+  if (s.scale.free) {
+    json c;
+    if (s.scale.covariance_7x7) {
+      c = json::array();
+      for (int i = 0; i < 7; ++i) {
+        for (int k = 0; k < 7; ++k) c.push_back((*s.scale.covariance_7x7)(i, k));
+      }
+    }
+    e["scale_report"] = {{"initial_scale", s.scale.initial_scale},
+                         {"rounds", s.scale.rounds},
+                         {"attempts", s.scale.attempts},
+                         {"covariance_7x7", c}};
+  }
   e["converged"] = r.converged;
   e["termination"] = to_string(r.termination);
   e["iterations"] = r.iterations;

@@ -6,8 +6,10 @@
 #include <string>
 
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/similarity.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "lmalign/map/transform.hpp"
 #include "support/data_path.hpp"
 #include "support/run_cli.hpp"
 #include "support/synthetic_scene.hpp"
@@ -235,6 +237,59 @@ TEST_F(CliAlign, BadInputGivesOneLineErrorAndNonZeroExit) {
   EXPECT_NE(r.err.find("bad.txt:2:"), std::string::npos) << r.err;
   // The source file is untouched by the refused --json.
   EXPECT_NO_THROW(read_map(source_));
+}
+
+TEST_F(CliAlign, FreeScaleRecoversASimilarityAndReportsItsScaleError) {
+  // The source is the target moved by S_true^-1, a similarity of scale 1 / 0.37 (covariances
+  // scale by its square); --ground-truth takes S_true = [sR t; 0 1].
+  const Similarity3 S_true{0.37, pose_from_xyz_rpy_deg(0.05, -0.04, 0.02, 1, -1, 4)};
+  write_map(path("scaled.txt"), transform_map(read_map(target_), S_true.inverse()));
+  {
+    std::ofstream o(path("gt_sim.txt"));
+    const Mat4 M = S_true.matrix();
+    o.precision(17);
+    for (int r = 0; r < 4; ++r)
+      o << M(r, 0) << " " << M(r, 1) << " " << M(r, 2) << " " << M(r, 3) << "\n";
+  }
+  const test::CliRun r =
+      run("align " + path("scaled.txt") + " " + target_ + " --strategy base,adaptive --scale free" +
+          " --ground-truth " + path("gt_sim.txt") + " --json " + path("sim.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* s : {"scale", "scale sd", "scale err"}) {
+    EXPECT_NE(r.out.find(s), std::string::npos) << s << "\n" << r.out;
+  }
+  const auto j = nlohmann::json::parse(test::read_text(path("sim.json")));
+  ASSERT_EQ(j["results"].size(), 2u);
+  for (const auto& e : j["results"]) {
+    EXPECT_EQ(e["scale_mode"], "free");
+    EXPECT_NEAR(e["scale"].get<double>(), 0.37, 0.0037) << e["strategy"];
+    EXPECT_LT(e["scale_error"].get<double>(), 0.01) << e["strategy"];
+    EXPECT_LT(e["rotation_error_deg"].get<double>(), 0.5) << e["strategy"];
+    EXPECT_GT(e["scale_sd"].get<double>(), 0.0) << e["strategy"];
+    EXPECT_NEAR(e["S_target_source"][0][0].get<double>(),
+                e["scale"].get<double>() * e["T_target_source"][0][0].get<double>(), 1e-12);
+  }
+  EXPECT_NEAR(j["scale_true"].get<double>(), 0.37, 1e-12);
+  // A fixed scale on the same files cannot reach the truth, and says how far its scale is off.
+  const test::CliRun f = run("align " + path("scaled.txt") + " " + target_ +
+                             " --strategy base --scale fixed --ground-truth " + path("gt_sim.txt"));
+  ASSERT_EQ(f.exit_code, 0) << f.err;
+  EXPECT_NE(f.out.find("scale err"), std::string::npos) << f.out;
+  // Bad input: one line naming the option or the file.
+  const test::CliRun bad = run("align " + source_ + " " + target_ + " --scale metric");
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--scale 'metric': expected auto, free or fixed"), std::string::npos)
+      << bad.err;
+  {
+    std::ofstream o(path("shear.txt"));
+    o << "1 0.5 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  }
+  const test::CliRun shear =
+      run("align " + source_ + " " + target_ + " --ground-truth " + path("shear.txt"));
+  EXPECT_NE(shear.exit_code, 0);
+  EXPECT_NE(shear.err.find("shear.txt"), std::string::npos) << shear.err;
+  EXPECT_NE(shear.err.find("neither a rotation nor a scaled rotation"), std::string::npos)
+      << shear.err;
 }
 
 TEST_F(CliAlign, HelpNamesUnitsAndFrames) {

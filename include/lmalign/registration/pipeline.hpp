@@ -28,6 +28,7 @@
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/seams.hpp"
 #include "lmalign/registration/settings.hpp"
+#include "lmalign/registration/similarity.hpp"
 
 namespace lmalign {
 
@@ -66,6 +67,36 @@ struct PipelineRequest {
   /// the fitness score at every iteration when history_scores is set.
   bool record_history = false;
   bool history_scores = false;
+  /// Estimate the scale too (Sim(3), registration/similarity.hpp): the source is rescaled by an
+  /// initial scale from the data (initial_scale_from_spacing), the pipeline runs on it (an
+  /// initial guess and a prior apply to the rescaled source), then rounds of one 7-DoF step on
+  /// the final pairs (Umeyama with scale for point pairs, the 7-DoF point-to-distribution
+  /// Gauss-Newton step for distribution pairs) and a final refinement at the new scale, until
+  /// the scale changes by less than 1e-6 (relative) or after 20 rounds. Needs a 6-DoF
+  /// estimator. False: rigid, as before (the scale stays exactly 1).
+  bool free_scale = false;
+  /// With free_scale: the initial scale (finite, > 0) instead of the one from the data.
+  std::optional<double> initial_scale;
+};
+
+/// The scale of a result (Sim(3); all defaults when the scale was fixed).
+struct ScaleEstimate {
+  bool free = false;  ///< estimated (else fixed at 1)
+  /// Target units per source unit: p_target = scale * R * p_source + t.
+  double scale = 1.0;
+  /// Its standard deviation (target units per source unit; first order from the 7x7 covariance
+  /// of log scale); NaN when fixed or not determined.
+  double scale_sd = std::numeric_limits<double>::quiet_NaN();
+  /// The initial scale from the data (target / source median landmark spacing, in [1/10, 10]).
+  double initial_scale = 1.0;
+  /// Rounds of the 7-DoF steps and re-refinement.
+  int rounds = 0;
+  /// Initial scales tried (align() of presets.hpp tries more when the first is not trusted).
+  int attempts = 1;
+  /// The 7x7 covariance of (rho [target units], phi [rad], log scale) as a left perturbation
+  /// about the target origin (similarity_covariance: the normal equations of the 7-DoF step at
+  /// the estimate); nullopt when fixed or singular.
+  std::optional<Mat7> covariance_7x7;
 };
 
 /// The diagnostics at the estimate after the last step (schedules that ask for them): the last
@@ -95,6 +126,9 @@ struct Summary {
   /// The scales (when a stage needed them).
   std::optional<Scales> scales;
   EstimateDiagnostics at_estimate;
+  /// The scale (free scale only; registration.T_target_source is then the rotation and
+  /// translation of the similarity, similarity() the whole of it).
+  ScaleEstimate scale;
   /// The estimator's covariance (raised to the half-sample covariance where that ran), and the
   /// halves that entered it.
   PoseCovariance estimator_covariance;
@@ -122,6 +156,8 @@ struct Summary {
   /// True when the estimate is finite and the last refinement ended with a step that determined
   /// it (not without pairs, not degenerate). Says nothing of trust: see verdict.
   bool IsSolutionUsable() const;
+  /// The estimate as a similarity: scale.scale with registration.T_target_source.
+  Similarity3 similarity() const { return {scale.scale, registration.T_target_source}; }
 };
 
 /// The one serialisation of a result, as JSON text (`indent` < 0: one line): the preset, its

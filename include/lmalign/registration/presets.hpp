@@ -77,6 +77,12 @@ struct AlignRequest {
   std::vector<std::pair<std::string, SettingValue>> settings;
   /// Per-iteration history of the final refinement (and the fitness score at each).
   bool record_history = false;
+  /// Whether the scale is estimated too (Sim(3), PipelineRequest::free_scale). kAuto: free when
+  /// either map has no metric scale (source_metric, target_metric: what the maps' headers say;
+  /// true when the front end does not know), fixed otherwise.
+  ScaleMode scale = ScaleMode::kAuto;
+  bool source_metric = true;
+  bool target_metric = true;
 };
 
 /// The preset's pipeline spec with the request's k, limits and settings applied. Throws
