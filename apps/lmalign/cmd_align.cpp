@@ -357,13 +357,15 @@ int run_align(const AlignArgs& a) {
     std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", r.preset.name.c_str(), v[0],
                 v[1], v[2], v[3], v[4], v[5]);
   }
-  if (scale_columns) {
-    std::printf("scale: target units per source unit (p_target = scale * R * p_source + t)\n");
-  }
   if (T_true) {
     const auto v = xyz_rpy_deg_from_pose(T_true->rigid);
     std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2],
                 v[3], v[4], v[5]);
+  }
+  if (scale_columns) {
+    std::printf(
+        "scale: target units per source unit (p_target = scale * R * p_source + t); the rows "
+        "above are R and t\n");
   }
 
   // --- machine-readable outputs
