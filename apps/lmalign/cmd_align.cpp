@@ -518,8 +518,10 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--format", args->format,
                   "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
                   "colmap-bin, ply, stella-vslam (docs/map-format.md)");
-  cmd->add_option("--image-size", args->image_size,
-                  "Bundler maps: the image size W,H in pixels (Bundler pixels are centred)");
+  cmd->add_option(
+      "--image-size", args->image_size,
+      "Bundler maps: the image size W,H in pixels, for outputs that store pixels from the "
+      "top-left corner (Bundler's are centred; reading needs no size)");
   cmd->add_option("--initial-guess", args->initial_guess,
                   "a first estimate of T_target_source (of the displaced source, if --displace): "
                   "a 4x4 matrix file (p_target = T * p_source, metres). Every strategy starts "

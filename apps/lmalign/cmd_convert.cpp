@@ -70,8 +70,10 @@ CommandRunner add_convert_command(CLI::App& root) {
   cmd->add_option("--format", args->format,
                   "reader of IN: auto (by content), lmalign, bundler, colmap-text, colmap-bin, "
                   "ply, stella-vslam");
-  cmd->add_option("--image-size", args->image_size,
-                  "Bundler: image size W,H in pixels (Bundler pixels are centred)");
+  cmd->add_option(
+      "--image-size", args->image_size,
+      "Bundler: image size W,H in pixels, needed when OUT stores pixels from the top-left "
+      "corner (lmalign text, COLMAP); Bundler's are centred");
   cmd->add_option("--pixel-sigma", args->pixel_sigma_px,
                   "pixel noise for re-estimated covariances, px; 0: COLMAP's stored mean "
                   "reprojection error where present, else 1 px")

@@ -146,8 +146,10 @@ CommandRunner add_split_command(CLI::App& root) {
       "1 degree median 6 cm, 95th percentile 40 cm; 2-5 degrees 1 cm, 4.2 cm), hence\n"
       "--min-parallax. See docs/split.md.");
   cmd->add_option("MAP", args->input, "Input map file (method.md section 1 format)")->required();
-  cmd->add_option("--image-size", args->image_size,
-                  "Bundler maps: the image size W,H in pixels (Bundler pixels are centred)");
+  cmd->add_option(
+      "--image-size", args->image_size,
+      "Bundler maps: the image size W,H in pixels, for outputs that store pixels from the "
+      "top-left corner (Bundler's are centred; reading needs no size)");
   cmd->add_option("--format", args->format,
                   "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin, "
                   "ply, stella-vslam (docs/map-format.md)");

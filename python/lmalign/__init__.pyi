@@ -30,6 +30,10 @@ class Map:
     @property
     def observation_counts(self) -> I64: ...  # (N,)
     @property
+    def scale(self) -> str: ...  # 'metric', 'arbitrary' or 'unknown'
+    @property
+    def covariance_assumed(self) -> bool: ...
+    @property
     def landmark_ids(self) -> I64: ...  # (N,)
     @property
     def frame_ids(self) -> I64: ...  # (F,)
@@ -109,7 +113,7 @@ def read_map(
     path: PathLike,
     min_observations: int = 2,
     format: str = "auto",  # auto, lmalign, bundler, colmap-text, colmap-bin, ply, stella-vslam
-    image_size: Optional[Tuple[int, int]] = None,  # (width, height) px, Bundler only
+    image_size: Optional[Tuple[int, int]] = None,  # (width, height) px, Bundler: top-left pixels
 ) -> Map: ...
 def write_map(path: PathLike, map: Map) -> None: ...
 def strategies() -> List[str]: ...

@@ -181,6 +181,15 @@ PYBIND11_MODULE(_lmalign, m) {
           },
           "(N,) int64: number of observations of each landmark.")
       .def_property_readonly(
+          "scale", [](const Map& map) { return map_scale_name(map.header.scale); },
+          "'metric' (lengths in metres: RGB-D and stereo SLAM, our format by default), "
+          "'arbitrary' (one unknown scale: COLMAP, Bundler, monocular stella_vslam) or 'unknown' "
+          "(a point cloud that does not say); docs/map-format.md.")
+      .def_property_readonly(
+          "covariance_assumed", [](const Map& map) { return map.header.covariance_assumed; },
+          "True when the covariances were not in the file but assumed: isotropic, half the "
+          "local landmark spacing (point clouds without covariances).")
+      .def_property_readonly(
           "landmark_ids",
           [](const Map& map) { return per_landmark(map, [](const Landmark& l) { return l.id; }); },
           "(N,) int64: landmark ids, in landmark order.")
@@ -220,7 +229,9 @@ PYBIND11_MODULE(_lmalign, m) {
         py::arg("format") = "auto", py::arg("image_size") = py::none(),
         "Reads a map in any format lmalign reads (docs/map-format.md): format 'auto' (by content), "
         "'lmalign', 'bundler', 'colmap-text', 'colmap-bin' (a COLMAP model folder), 'ply', "
-        "'stella-vslam'. image_size (width, height) px is needed for Bundler. Landmarks with "
+        "'stella-vslam'. image_size (width, height) px: Bundler only, for pixels from the top-left "
+        "corner (without it they stay centred; writing such a map in the lmalign text format "
+        "is refused). Landmarks with "
         "fewer than min_observations observations are dropped (2: the paper's loader, and "
         "`lmalign align`'s default); formats without covariances get them re-estimated from the "
         "observations, landmarks whose covariance cannot be estimated are dropped.\n"

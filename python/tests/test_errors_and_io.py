@@ -191,5 +191,14 @@ def test_read_map_reads_other_formats_by_content(desk_pair, tmp_path):
     assert m.positions.shape[1] == 3 and 100 < m.positions.shape[0] <= 544
     assert len(m.frame_ids) == 5
     assert np.all(np.isfinite(m.covariances))
+    assert m.scale == "arbitrary" and not m.covariance_assumed  # structure from motion
+    # Without the image size (the file has none) the same landmarks and covariances; writing it
+    # where pixels are stored from the top-left corner needs the size.
+    u = lmalign.read_map(out, min_observations=2)
+    assert np.array_equal(u.landmark_ids, m.landmark_ids)
+    assert np.allclose(u.covariances, m.covariances, rtol=1e-6, atol=0)
+    with pytest.raises(lmalign.InvalidArgument, match="image-size"):
+        lmalign.write_map(tmp_path / "b.txt", u)
+    assert lmalign.read_map(desk_pair[0]).scale == "metric"
     with pytest.raises(lmalign.InvalidArgument):
         lmalign.read_map(out, format="no-such-format")

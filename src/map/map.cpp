@@ -1,13 +1,33 @@
 // Map model: frame index, positions, validation and rigid transformation (method.md §1).
 #include "lmalign/map/map.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <unordered_map>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/search/kdtree.hpp"
 
 namespace lmalign {
+
+std::string map_scale_name(MapScale scale) {
+  switch (scale) {
+    case MapScale::kMetric:
+      return "metric";
+    case MapScale::kArbitrary:
+      return "arbitrary";
+    default:
+      return "unknown";
+  }
+}
+
+std::optional<MapScale> map_scale_from_name(const std::string& name) {
+  for (const MapScale scale : {MapScale::kMetric, MapScale::kArbitrary, MapScale::kUnknown}) {
+    if (name == map_scale_name(scale)) return scale;
+  }
+  return std::nullopt;
+}
 
 Isometry3 Frame::T_world_camera() const {
   Isometry3 T = Isometry3::Identity();
@@ -95,6 +115,7 @@ void Map::validate() const {
 Map transform_map(const Map& map, const Isometry3& T_new_old) {
   const Mat3 R = T_new_old.linear();
   Map out;
+  out.header = map.header;
   out.frames.reserve(map.frames.size());
   for (const Frame& frame : map.frames) {
     Frame f = frame;
@@ -115,6 +136,55 @@ Map transform_map(const Map& map, const Isometry3& T_new_old) {
     out.landmarks.push_back(std::move(l));
   }
   return out;
+}
+
+void assume_covariances_from_spacing(Map& map, std::size_t k) {
+  if (k == 0) throw InvalidArgument("assume_covariances_from_spacing: k must be >= 1");
+  const std::size_t n = map.landmarks.size();
+  if (n < 2) {
+    throw InvalidArgument("cannot assume covariances from the spacing of " + std::to_string(n) +
+                          " landmark(s): at least 2 are needed");
+  }
+  Points3 points = map.positions();
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!points[i].allFinite()) {
+      throw InvalidArgument("LANDMARK " + std::to_string(map.landmarks[i].id) +
+                            " has a non-finite position");
+    }
+  }
+  const KdTree tree(std::move(points));
+  const std::size_t m = std::min(k, n - 1) + 1;  // the landmark itself comes first
+  std::vector<PointIndex> indices(m);
+  std::vector<double> distances_sq(m);
+  std::vector<double> spacing(n, 0.0);
+  std::vector<double> found;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t got = tree.knn(tree.points()[i], m, indices.data(), distances_sq.data());
+    found.clear();
+    for (std::size_t j = 0; j < got; ++j) {
+      if (indices[j] != static_cast<PointIndex>(i)) found.push_back(std::sqrt(distances_sq[j]));
+    }
+    if (found.empty()) continue;
+    std::nth_element(found.begin(), found.begin() + found.size() / 2, found.end());
+    spacing[i] = found[found.size() / 2];
+  }
+  std::vector<double> positive;
+  for (const double d : spacing) {
+    if (d > 0.0) positive.push_back(d);
+  }
+  if (positive.empty()) {
+    throw InvalidArgument("cannot assume covariances from the spacing: all " + std::to_string(n) +
+                          " landmarks lie at one point");
+  }
+  std::nth_element(positive.begin(), positive.begin() + positive.size() / 2, positive.end());
+  const double fallback = positive[positive.size() / 2];
+  for (std::size_t i = 0; i < n; ++i) {
+    const double sigma_m = 0.5 * (spacing[i] > 0.0 ? spacing[i] : fallback);
+    Landmark& l = map.landmarks[i];
+    l.cov_world_m2 = Mat3::Identity() * (sigma_m * sigma_m);
+    l.covariance_unknown = false;
+  }
+  map.header.covariance_assumed = true;
 }
 
 }  // namespace lmalign

@@ -12,6 +12,7 @@
 #include <ios>
 #include <istream>
 #include <limits>
+#include <optional>
 #include <ostream>
 #include <streambuf>
 #include <string>
@@ -32,6 +33,8 @@ namespace {
 constexpr std::string_view kFrameSyntax = "FRAME id tx ty tz qw qx qy qz";
 constexpr std::string_view kLandmarkSyntax =
     "LANDMARK id x y z c00 c01 c02 c10 c11 c12 c20 c21 c22 n f_1 u_1 v_1 ... f_n u_n v_n";
+constexpr std::string_view kHeaderSyntax =
+    "MAP [scale metric|arbitrary|unknown] [covariance estimated|assumed]";
 constexpr std::size_t kFrameTokens = 9;
 constexpr std::size_t kLandmarkFixedTokens = 15;  // LANDMARK id x y z c00..c22 n
 constexpr const char* kCovNames[3][3] = {
@@ -225,8 +228,10 @@ class Reader {
       parse_frame();
     } else if (type == "LANDMARK") {
       parse_landmark();
+    } else if (type == "MAP") {
+      parse_header();
     } else {
-      fail("unknown record type " + quote(type) + " (expected FRAME or LANDMARK)");
+      fail("unknown record type " + quote(type) + " (expected FRAME, LANDMARK or MAP)");
     }
   }
 
@@ -257,6 +262,43 @@ class Reader {
       fail("field '" + field.str() + "' is not a non-negative integer: " + quote(token));
     }
     return value;
+  }
+
+  /// MAP key value ...: what the map says about itself (MapHeader). At most one per file.
+  void parse_header() {
+    if (header_line_ != 0) {
+      fail("duplicate MAP record (first on line " + std::to_string(header_line_) + ")");
+    }
+    header_line_ = line_number_;
+    if (tokens_.size() % 2 != 1) {
+      fail("MAP record has " + std::to_string(tokens_.size()) + " fields, expected " +
+           std::string(kHeaderSyntax));
+    }
+    bool seen_scale = false;
+    bool seen_covariance = false;
+    for (std::size_t i = 1; i + 1 < tokens_.size(); i += 2) {
+      const std::string_view key = tokens_[i];
+      const std::string value(tokens_[i + 1]);
+      if (key == "scale") {
+        if (seen_scale) fail("MAP record: duplicate key 'scale'");
+        seen_scale = true;
+        const std::optional<MapScale> scale = map_scale_from_name(value);
+        if (!scale) {
+          fail("MAP record: scale " + quote(value) + " is not one of metric, arbitrary, unknown");
+        }
+        map_.header.scale = *scale;
+      } else if (key == "covariance") {
+        if (seen_covariance) fail("MAP record: duplicate key 'covariance'");
+        seen_covariance = true;
+        if (value != "estimated" && value != "assumed") {
+          fail("MAP record: covariance " + quote(value) + " is not one of estimated, assumed");
+        }
+        map_.header.covariance_assumed = value == "assumed";
+      } else {
+        fail("MAP record: unknown key " + quote(key) + " (known: scale, covariance; " +
+             std::string(kHeaderSyntax) + ")");
+      }
+    }
   }
 
   void parse_frame() {
@@ -361,6 +403,7 @@ class Reader {
   const std::string& name_;
   const MapReadOptions& options_;
   std::size_t line_number_ = 0;
+  std::size_t header_line_ = 0;
   std::vector<std::string_view> tokens_;
   std::unordered_map<Id, std::size_t> frame_lines_;
   std::unordered_map<Id, std::size_t> landmark_lines_;
@@ -418,6 +461,13 @@ Map read_map(const std::string& path, const MapReadOptions& options) {
 void write_map(std::ostream& out, const Map& map) {
   std::string line;
   line.reserve(256);
+  if (map.header != MapHeader{}) {
+    line.assign("MAP scale ");
+    line.append(map_scale_name(map.header.scale));
+    line.append(map.header.covariance_assumed ? " covariance assumed\n"
+                                              : " covariance estimated\n");
+    out.write(line.data(), static_cast<std::streamsize>(line.size()));
+  }
   for (const Frame& frame : map.frames) {
     line.assign("FRAME ");
     append_id(line, frame.id);
@@ -467,6 +517,12 @@ void write_map(const std::string& path, const Map& map) {
   // Refuse what read_map (default options) would reject, so that write -> read always works.
   const MapReadOptions defaults;
   for (const Frame& frame : map.frames) {
+    if (frame.camera && frame.camera->centred_pixels) {
+      throw InvalidArgument("FRAME " + std::to_string(frame.id) +
+                            ": its pixels are relative to the image centre (a Bundler map read "
+                            "without an image size); the map text format stores pixels from the "
+                            "top-left corner: give the image size (--image-size W,H)");
+    }
     if (std::string problem =
             quaternion_problem(frame.q_world_camera, defaults.quaternion_norm_tolerance);
         !problem.empty()) {

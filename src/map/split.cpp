@@ -65,6 +65,7 @@ Map split_map(const Map& map, const SplitOptions& options, SplitStats* stats) {
 
   SplitStats local;
   Map out;
+  out.header = map.header;
 
   // Window frames, in their original order; every frame id, to catch dangling observations.
   std::unordered_map<Id, std::size_t> all_frames;  // id -> index in map.frames

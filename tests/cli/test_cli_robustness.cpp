@@ -75,10 +75,9 @@ TEST_F(CliRobustness, EmptyMapsAreRefusedNamingWhich) {
   write_bytes(path("empty.txt"), "");
   write_bytes(path("comments.txt"), "# only a comment\n\n");
   expect_one_line_error(run("align " + path("empty.txt") + " " + target_),
-                        "source map '" + path("empty.txt") + "' has no landmarks", "empty source");
+                        "map '" + path("empty.txt") + "' has no landmarks", "empty source");
   expect_one_line_error(run("align " + source_ + " " + path("comments.txt")),
-                        "target map '" + path("comments.txt") + "' has no landmarks",
-                        "empty target");
+                        "map '" + path("comments.txt") + "' has no landmarks", "empty target");
 }
 
 TEST_F(CliRobustness, OneTwoOrThreeLandmarks) {

@@ -16,6 +16,7 @@
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
 
+#include "lmalign/core/error.hpp"
 #include "lmalign/map/formats/bundler.hpp"
 #include "lmalign/map/formats/colmap.hpp"
 #include "lmalign/map/formats/formats.hpp"
@@ -435,6 +436,66 @@ TEST(ColmapReal, T265FisheyeModelReadsItsCameras) {
   EXPECT_EQ(
       map.find_frame(1)->camera->params,
       (std::vector<double>{283.999, 285.266, 417.246, 400.402, -0.002, 0.039, -0.038, 0.007}));
+  // It has no 3-D point: as a map to align it is refused, in one line naming it.
+  try {
+    read_any_map(dir);
+    ADD_FAILURE() << "a map without landmarks was read";
+  } catch (const InvalidArgument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("map '" + dir + "' has no landmarks (colmap-text: 6 frames, 0 landmarks)"),
+              std::string::npos)
+        << what;
+    EXPECT_EQ(what.find('\n'), std::string::npos);
+  }
+}
+
+// Each real file records whether it has a metric scale: COLMAP and Bundler (structure from
+// motion) and monocular stella_vslam do not; our own desk map (RGB-D SLAM) does.
+TEST(FormatsReal, EachFileRecordsItsScale) {
+  const std::vector<std::pair<std::string, MapScale>> files = {
+      {kStella + "94eb7149/map.msg", MapScale::kArbitrary},
+      {"real_formats/colmap_txt_kapture_maupertuis", MapScale::kArbitrary},
+      {kBundler, MapScale::kArbitrary},
+      {"real_formats/ply_openmvg_kapture_maupertuis/colorized.ply", MapScale::kUnknown},
+      {kDesk, MapScale::kMetric}};
+  for (const auto& [file, scale] : files) {
+    const std::string path = test::data_file(file);
+    LMALIGN_REQUIRE_FILE(path);
+    AnyMapReadOptions keep;
+    keep.keep_unknown_covariance = true;  // the PLY has no covariances
+    EXPECT_EQ(read_any_map(path, keep).header.scale, scale) << file;
+  }
+}
+
+// Balbianello without an image size (the file has none): the same frames and landmarks, its
+// centred pixels reproject through the centred RADIAL camera as the file's do, and the derived
+// covariances are those read with the size.
+TEST(BundlerReal, ReadsWithoutTheImageSize) {
+  const std::string path = test::data_file(kBundler);
+  LMALIGN_REQUIRE_FILE(path);
+  const Map centred = read_bundler(path, {});
+  ASSERT_EQ(centred.frames.size(), 5u);
+  ASSERT_EQ(centred.landmarks.size(), 544u);
+  std::vector<double> errors_px;
+  for (const Landmark& landmark : centred.landmarks) {
+    for (const Observation& obs : landmark.observations) {
+      const Frame& frame = *centred.find_frame(obs.frame_id);
+      ASSERT_TRUE(frame.camera->centred_pixels);
+      const Vec3 p_camera = frame.T_world_camera().inverse() * landmark.p_world;
+      errors_px.push_back(
+          (frame.camera->project(p_camera) - Eigen::Vector2d(obs.u_px, obs.v_px)).norm());
+    }
+  }
+  std::sort(errors_px.begin(), errors_px.end());
+  EXPECT_LT(errors_px[errors_px.size() / 2], 0.2);
+  const Map unsized = read_any_map(path);
+  const Map sized = read_any_map(path, balbianello_options());
+  ASSERT_EQ(unsized.landmarks.size(), sized.landmarks.size());
+  for (std::size_t i = 0; i < sized.landmarks.size(); ++i) {
+    ASSERT_EQ(unsized.landmarks[i].id, sized.landmarks[i].id);
+    EXPECT_LT((unsized.landmarks[i].cov_world_m2 - sized.landmarks[i].cov_world_m2).norm(),
+              1e-6 * sized.landmarks[i].cov_world_m2.norm());
+  }
 }
 
 }  // namespace

@@ -33,6 +33,11 @@ void write_text(const std::string& path, const std::string& text) {
   out << text;
 }
 
+std::string slurp_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 // The hand-written model. One PINHOLE camera fx=500 fy=400 cx=320 cy=240 (640x480).
 // Image 1: identity, t = 0. Image 2: q = (cos 45, 0, sin 45, 0), a +90 deg rotation about y,
 // R = [[0,0,1],[0,1,0],[-1,0,0]], t = (-3, 0, 3): camera centre -R^T t = (3, 0, 3).
@@ -416,6 +421,47 @@ TEST(Bundler, KnownSceneConventionsAndProjection) {
   for (const Landmark& l : any.landmarks) {
     EXPECT_GT(Eigen::SelfAdjointEigenSolver<Mat3>(l.cov_world_m2).eigenvalues()(0), 0.0);
   }
+
+  // Without the image size: Bundler's centred pixels with v down, (x, -y), and the principal
+  // point at 0, 0. The same poses, the same projection, the same derived covariances: only the
+  // outputs that store top-left pixels need the size.
+  std::istringstream again(file.str());
+  const Map centred = read_bundler(again, "scene.out", {});
+  for (std::size_t c = 0; c < cams.size(); ++c) {
+    const Frame& frame = centred.frames[c];
+    EXPECT_EQ(frame.p_world_camera, map.frames[c].p_world_camera);
+    ASSERT_TRUE(frame.camera->centred_pixels);
+    EXPECT_EQ(frame.camera->params[1], 0.0);
+    EXPECT_EQ(frame.camera->width_px, 0);
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Observation& o = centred.landmarks[i].observations[c];
+      EXPECT_NEAR(o.u_px, expected[i][c].x() - w / 2, 1e-9);
+      EXPECT_NEAR(o.v_px, expected[i][c].y() - h / 2, 1e-9);
+      const Vec3 p_camera = frame.T_world_camera().inverse() * points[i];
+      EXPECT_LT((frame.camera->project(p_camera) - Eigen::Vector2d(o.u_px, o.v_px)).norm(), 1e-9);
+    }
+  }
+  const Map unsized = read_any_map(dir.file("scene.out"));
+  ASSERT_EQ(unsized.landmarks.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_LT((unsized.landmarks[i].cov_world_m2 - any.landmarks[i].cov_world_m2).norm(),
+              1e-9 * any.landmarks[i].cov_world_m2.norm());
+  }
+  try {
+    write_map(dir.file("ours.txt"), unsized);
+    ADD_FAILURE() << "centred pixels written as top-left ones";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("FRAME 0: its pixels are relative to the image centre"),
+              std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("--image-size W,H"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir.file("ours.txt")));
+  EXPECT_THROW(write_colmap_text(dir.file("colmap"), unsized), InvalidArgument);
+  write_ply_map(dir.file("ok.ply"), unsized);  // PLY stores no pixels
+  EXPECT_EQ(read_ply_map(dir.file("ok.ply")).landmarks.size(), 3u);
+  std::istringstream half(file.str());
+  EXPECT_THROW(read_bundler(half, "scene.out", {640, 0}), InvalidArgument);
 }
 
 TEST(DetectMapFormat, ByContentNotExtension) {
@@ -434,8 +480,169 @@ TEST(DetectMapFormat, ByContentNotExtension) {
   EXPECT_THROW(detect_map_format(dir.file("missing")), IoError);
   EXPECT_EQ(parse_map_format("colmap-bin"), MapFormat::kColmapBinary);
   EXPECT_THROW(parse_map_format("fbx"), InvalidArgument);
-  // A Bundler file needs the image size.
-  EXPECT_THROW(read_any_map(dir.file("bundle.txt")), InvalidArgument);
+  // A file whose first record is the MAP header is ours.
+  write_text(dir.file("header.txt"),
+             "# c\nMAP scale arbitrary\nLANDMARK 0 0 0 0 1 0 0 0 1 0 0 0 1 0\n");
+  EXPECT_EQ(detect_map_format(dir.file("header.txt")), MapFormat::kLmalign);
+}
+
+// A file with no landmarks is refused in one line naming it, in every format.
+TEST(ReadAnyMap, AMapWithoutLandmarksIsRefusedInOneLine) {
+  ScratchDir dir("empty_maps");
+  write_text(dir.file("empty.txt"), "# only a comment\n\nFRAME 0 0 0 0 1 0 0 0\n");
+  write_text(dir.file("bundle.out"), "# Bundle file v0.3\n0 0\n");
+  write_text(dir.file("none.ply"),
+             "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+             "property float z\nend_header\n");
+  std::filesystem::create_directories(dir.file("colmap"));
+  write_text(dir.file("colmap/cameras.txt"), kCamerasTxt);
+  write_text(dir.file("colmap/images.txt"), kImagesTxt);
+  write_text(dir.file("colmap/points3D.txt"), "# no points\n");
+  // (images.txt names points 7 and 8, which are not there: the 2-D points must not name any.)
+  write_text(dir.file("colmap/images.txt"), "1 1 0 0 0 0 0 0 1 a.png\n195 440 -1\n");
+  for (const char* name : {"empty.txt", "bundle.out", "none.ply", "colmap"}) {
+    SCOPED_TRACE(name);
+    try {
+      read_any_map(dir.file(name));
+      ADD_FAILURE() << "an empty map was read";
+    } catch (const InvalidArgument& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find("map '" + dir.file(name) + "' has no landmarks"), std::string::npos)
+          << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos);
+    }
+  }
+  // Our format: landmarks all below min_observations are the caller's to report, not an error.
+  write_text(dir.file("one_view.txt"),
+             "FRAME 0 0 0 0 1 0 0 0\nLANDMARK 0 0 0 1 1 0 0 0 1 0 0 0 1 1 0 1 2\n");
+  EXPECT_TRUE(read_any_map(dir.file("one_view.txt")).landmarks.empty());
+}
+
+// Three or more landmarks at one point or on one line: refused by the readers of other formats
+// (our format leaves it to the alignment, which reports a degenerate result).
+TEST(ReadAnyMap, LandmarksAtOnePointOrOnOneLineAreRefused) {
+  ScratchDir dir("degenerate_maps");
+  const std::string head =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty double x\nproperty double y\n"
+      "property double z\nproperty double cov_xx\nproperty double cov_xy\n"
+      "property double cov_xz\nproperty double cov_yy\nproperty double cov_yz\n"
+      "property double cov_zz\nend_header\n";
+  const std::string cov = " 1 0 0 1 0 1\n";
+  write_text(dir.file("point.ply"),
+             head + "1 2 3" + cov + "1 2 3" + cov + "1 2 3" + cov + "1 2 3" + cov);
+  write_text(dir.file("line.ply"),
+             head + "0 0 0" + cov + "1 2 3" + cov + "2 4 6" + cov + "-1 -2 -3" + cov);
+  write_text(dir.file("plane.ply"),
+             head + "0 0 0" + cov + "1 0 0" + cov + "0 1 0" + cov + "1 1 0" + cov);
+  for (const auto& [name, fragment] : std::vector<std::pair<std::string, std::string>>{
+           {"point.ply", "all lie at one point"}, {"line.ply", "all lie on one line"}}) {
+    try {
+      read_any_map(dir.file(name));
+      ADD_FAILURE() << name << " was read";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("map '" + dir.file(name) + "': its 4 landmark"),
+                std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(read_any_map(dir.file("plane.ply")).landmarks.size(), 4u);  // a plane is enough
+}
+
+// ---- the map header: scale and assumed covariances
+
+TEST(MapHeader, OurFormatWritesAndReadsTheMapRecord) {
+  ScratchDir dir("header");
+  Map map;
+  map.frames.push_back(Frame{});
+  Landmark l;
+  l.cov_world_m2 = Mat3::Identity() * 1e-4;
+  l.observations = {{0, 1.0, 2.0}, {0, 3.0, 4.0}};
+  map.landmarks.push_back(l);
+  // The default (metric, estimated covariances) writes no MAP record: files as before.
+  write_map(dir.file("metric.txt"), map);
+  const std::string metric_text = slurp_file(dir.file("metric.txt"));
+  EXPECT_EQ(metric_text.find("MAP"), std::string::npos) << metric_text;
+  EXPECT_EQ(read_map(dir.file("metric.txt")).header, MapHeader{});
+  map.header.scale = MapScale::kArbitrary;
+  map.header.covariance_assumed = true;
+  write_map(dir.file("arbitrary.txt"), map);
+  const std::string text = slurp_file(dir.file("arbitrary.txt"));
+  EXPECT_EQ(text.substr(0, text.find('\n')), "MAP scale arbitrary covariance assumed");
+  EXPECT_EQ(read_map(dir.file("arbitrary.txt")).header, map.header);
+  // Keys may come alone, in any order; the record anywhere (records may come in any order).
+  write_text(dir.file("late.txt"),
+             "FRAME 0 0 0 0 1 0 0 0\nMAP covariance estimated scale unknown\n");
+  EXPECT_EQ(read_map(dir.file("late.txt")).header.scale, MapScale::kUnknown);
+  // PLY keeps the header in obj_info lines; transform_map and split keep it.
+  write_ply_map(dir.file("h.ply"), map);
+  EXPECT_EQ(read_ply_map(dir.file("h.ply")).header, map.header);
+  EXPECT_EQ(transform_map(map, Isometry3::Identity()).header, map.header);
+
+  struct Case {
+    std::string text;
+    std::string fragment;
+  };
+  const std::vector<Case> cases = {
+      {"MAP scale\n", ":1: MAP record has 2 fields, expected MAP [scale metric|arbitrary|unknown]"},
+      {"MAP scale huge\n", ":1: MAP record: scale 'huge' is not one of metric, arbitrary, unknown"},
+      {"MAP covariance guessed\n", ":1: MAP record: covariance 'guessed' is not one of estimated"},
+      {"MAP units m\n", ":1: MAP record: unknown key 'units' (known: scale, covariance"},
+      {"MAP scale metric scale metric\n", ":1: MAP record: duplicate key 'scale'"},
+      {"MAP scale metric\n\nMAP scale metric\n", ":3: duplicate MAP record (first on line 1)"},
+      {"map scale metric\n", ":1: unknown record type 'map' (expected FRAME, LANDMARK or MAP)"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    std::istringstream in(c.text);
+    try {
+      read_map(in, "m.txt");
+      ADD_FAILURE() << "no error; expected " << c.fragment;
+    } catch (const ParseError& e) {
+      EXPECT_NE(std::string(e.what()).find("m.txt" + c.fragment), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(MapHeader, AssumedCovariancesAreHalfTheLocalSpacing) {
+  // A 5 x 5 x 5 grid of step 0.1 m: every landmark's 6 nearest others are at 0.1 m (inside) or
+  // include 0.1 * sqrt(2) (on a face or edge); the median is 0.1 m for the inner ones.
+  Map map;
+  for (int i = 0; i < 5; ++i) {
+    for (int j = 0; j < 5; ++j) {
+      for (int k = 0; k < 5; ++k) {
+        Landmark l;
+        l.id = static_cast<Id>(map.landmarks.size());
+        l.p_world = Vec3(0.1 * i, 0.1 * j, 0.1 * k);
+        l.covariance_unknown = true;
+        map.landmarks.push_back(l);
+      }
+    }
+  }
+  assume_covariances_from_spacing(map);
+  EXPECT_TRUE(map.header.covariance_assumed);
+  const Landmark& centre = map.landmarks[2 * 25 + 2 * 5 + 2];
+  EXPECT_FALSE(centre.covariance_unknown);
+  EXPECT_NEAR(centre.cov_world_m2(0, 0), 0.05 * 0.05, 1e-15);
+  EXPECT_EQ(centre.cov_world_m2(0, 1), 0.0);
+  EXPECT_EQ(centre.cov_world_m2(1, 1), centre.cov_world_m2(2, 2));
+  for (const Landmark& l : map.landmarks) {
+    EXPECT_GE(l.cov_world_m2(0, 0), 0.05 * 0.05 - 1e-15);
+    EXPECT_LE(l.cov_world_m2(0, 0),
+              0.5 * 0.1 * std::sqrt(2.0) * 0.5 * 0.1 * std::sqrt(2.0) + 1e-15);
+  }
+  // Duplicates take the median spacing; all at one point, or a single landmark, is refused.
+  Map dup = map;
+  dup.landmarks[1].p_world = dup.landmarks[0].p_world;
+  dup.landmarks.resize(2);
+  dup.landmarks.push_back(map.landmarks[124]);
+  assume_covariances_from_spacing(dup, 1);
+  EXPECT_GT(dup.landmarks[0].cov_world_m2(0, 0), 0.0);
+  Map same = dup;
+  for (Landmark& l : same.landmarks) l.p_world = Vec3(1, 2, 3);
+  EXPECT_THROW(assume_covariances_from_spacing(same), InvalidArgument);
+  same.landmarks.resize(1);
+  EXPECT_THROW(assume_covariances_from_spacing(same), InvalidArgument);
 }
 
 TEST(MapModel, UnknownCovarianceIsNotWrittenAsANumber) {
@@ -475,7 +682,7 @@ TEST(Ply, WriterRoundTripsPositionsCovariancesAndFlagsBitExactly) {
   for (int i = 0; i < 3; ++i) {
     Landmark l;
     l.id = 10 + i;
-    l.p_world = Vec3(0.1 * i, -1.0 / 3.0, 1e-300 * i);
+    l.p_world = Vec3(0.1 * i, -1.0 / 3.0 * (1 + i * i), 1e-300 * i);  // not on one line
     l.cov_world_m2 << 2e-4, 1e-5, -3e-6, 1e-5, 1e-4, 0, -3e-6, 0, 5e-4;
     l.cov_world_m2 *= (i + 1);
     map.landmarks.push_back(l);
@@ -622,6 +829,7 @@ struct StellaSpoil {
   double qw = 1.0;
   std::int64_t lm_id = 5;
   bool extra_lm_id = false;
+  std::string setup;  // setup_type, if not empty
 };
 std::string stella_bytes(const StellaSpoil& s) {
   test::MsgpackWriter w;
@@ -629,7 +837,11 @@ std::string stella_bytes(const StellaSpoil& s) {
   w.str("cameras");
   w.map_header(1);
   w.str("c");
-  w.map_header(13);
+  w.map_header(s.setup.empty() ? 13 : 14);
+  if (!s.setup.empty()) {
+    w.str("setup_type");
+    w.str(s.setup);
+  }
   const std::pair<const char*, double> values[] = {
       {"cx", 320}, {"cy", 240},  {"fx", 500}, {"fy", 400}, {"k1", s.k1},
       {"k2", 0},   {"k3", s.k3}, {"k4", 0},   {"p1", 0},   {"p2", 0}};
@@ -757,6 +969,33 @@ TEST(StellaVslam, HostileInputNamesRecordFieldAndExpectation) {
   test::MsgpackWriter huge;
   huge.array_header(0xffffffffu);
   EXPECT_THROW(read_stella_vslam_bytes(huge.bytes(), "m.msg"), ParseError);
+}
+
+// What each reader says about the scale: COLMAP and Bundler maps have none of their own
+// (structure from motion), stella_vslam's setup_type says, PLY says only through our obj_info.
+TEST(MapHeader, EachReaderRecordsTheScale) {
+  ScratchDir dir("scales");
+  write_hand_model(dir.path());
+  EXPECT_EQ(read_colmap(dir.path(), false).header.scale, MapScale::kArbitrary);
+  std::istringstream bundle("# Bundle file v0.3\n0 0\n");
+  EXPECT_EQ(read_bundler(bundle, "b.out", {}).header.scale, MapScale::kArbitrary);
+  write_text(dir.file("c.ply"),
+             "ply\nformat ascii 1.0\nobj_info made by a scanner\nelement vertex 1\n"
+             "property double x\nproperty double y\nproperty double z\nend_header\n1 2 3\n");
+  EXPECT_EQ(read_ply_map(dir.file("c.ply")).header.scale, MapScale::kUnknown);
+  write_text(dir.file("bad.ply"),
+             "ply\nformat ascii 1.0\nobj_info lmalign_scale huge\nelement vertex 1\n"
+             "property double x\nproperty double y\nproperty double z\nend_header\n1 2 3\n");
+  EXPECT_THROW(read_ply_map(dir.file("bad.ply")), ParseError);
+  for (const auto& [setup, scale] :
+       std::vector<std::pair<std::string, MapScale>>{{"Monocular", MapScale::kArbitrary},
+                                                     {"Stereo", MapScale::kMetric},
+                                                     {"RGBD", MapScale::kMetric},
+                                                     {"", MapScale::kUnknown}}) {
+    StellaSpoil s;
+    s.setup = setup;
+    EXPECT_EQ(read_stella_vslam_bytes(stella_bytes(s), "m.msg").header.scale, scale) << setup;
+  }
 }
 
 }  // namespace

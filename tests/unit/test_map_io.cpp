@@ -226,7 +226,7 @@ TEST(MapIoRoundTrip, QuaternionIsNotNormalisedOnLoad) {
 
 TEST(MapIoParseErrors, UnknownRecordType) {
   expect_parse_error(kFrame0 + "FOO 1 2 3\n", 2,
-                     {"unknown record type 'FOO'", "(expected FRAME or LANDMARK)"});
+                     {"unknown record type 'FOO'", "(expected FRAME, LANDMARK or MAP)"});
   // Record types are case sensitive.
   expect_parse_error("frame 0 0 0 0 1 0 0 0\n", 1, {"unknown record type 'frame'"});
 }

@@ -2,11 +2,13 @@
 //
 // A Map holds frames (keyframe poses) and landmarks (3-D points with a position covariance and
 // the pixel observations that made them). Everything is expressed in one world frame, the
-// map's own; positions in metres, covariances in m^2, pixels in raw (undistorted-free) pixels.
+// map's own; positions in metres (or in the map's own unit when its header says its scale is
+// arbitrary), covariances in m^2, pixels in raw (undistorted-free) pixels.
 #pragma once
 
 #include <cstddef>
 #include <optional>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
@@ -55,12 +57,47 @@ struct Landmark {
   std::size_t num_observations() const { return observations.size(); }
 };
 
+/// Whether a map's lengths are metres.
+enum class MapScale {
+  /// Metres: RGB-D and stereo SLAM (stella_vslam's Stereo and RGBD setups, our VO builder), and
+  /// our own map text format unless its header says otherwise.
+  kMetric,
+  /// One unknown scale of its own: monocular SLAM (stella_vslam's Monocular setup) and structure
+  /// from motion (COLMAP, Bundler). Two such maps of one place differ by a similarity.
+  kArbitrary,
+  /// The file does not say (a point cloud from another tool).
+  kUnknown,
+};
+
+/// "metric", "arbitrary", "unknown".
+std::string map_scale_name(MapScale scale);
+/// The scale of a name above, or nullopt.
+std::optional<MapScale> map_scale_from_name(const std::string& name);
+
+/// What a map says about itself (docs/map-format.md, "The MAP record").
+struct MapHeader {
+  /// Whether its lengths are metres: our text format's `MAP scale ...` (metric without one),
+  /// arbitrary for COLMAP and Bundler, stella_vslam's setup_type, PLY's `obj_info lmalign_scale`
+  /// (unknown without one).
+  MapScale scale = MapScale::kMetric;
+  /// True when the landmark covariances are not measurements but assumed: isotropic, from the
+  /// landmarks' local spacing (assume_covariances_from_spacing(); point clouds without
+  /// covariances). Aligners that weigh by covariance say so in their result.
+  bool covariance_assumed = false;
+
+  bool operator==(const MapHeader& other) const {
+    return scale == other.scale && covariance_assumed == other.covariance_assumed;
+  }
+  bool operator!=(const MapHeader& other) const { return !(*this == other); }
+};
+
 /// A landmark map: frames and landmarks in one world frame.
 ///
 /// Invariants kept by the reader (and checked by validate()): ids are unique within frames and
 /// within landmarks, and every observation refers to a frame of the map.
 class Map {
  public:
+  MapHeader header;
   std::vector<Frame> frames;
   std::vector<Landmark> landmarks;
 
@@ -84,7 +121,17 @@ class Map {
 };
 
 /// Applies T_new_old to every landmark (position and covariance) and every frame pose of `map`,
-/// giving the map expressed in frame `new`. Observations are unchanged (they are camera-relative).
+/// giving the map expressed in frame `new`. Observations and the header are unchanged
+/// (observations are camera-relative).
 Map transform_map(const Map& map, const Isometry3& T_new_old);
+
+/// Gives every landmark of `map` an assumed isotropic covariance from its local spacing, for
+/// point clouds that store none: sigma_i = d_i / 2, with d_i the median distance from landmark i
+/// to its `k` nearest other landmarks (the half-spacing floor of the adaptive default's
+/// DataScales, per landmark). A d_i of 0 (duplicates) takes the median of the positive d_i.
+/// Sets covariance_unknown = false on every landmark and header.covariance_assumed = true.
+/// Throws InvalidArgument if the map has fewer than 2 landmarks, a non-finite position, or all
+/// its landmarks at one point (no spacing), or if k is 0.
+void assume_covariances_from_spacing(Map& map, std::size_t k = 6);
 
 }  // namespace lmalign

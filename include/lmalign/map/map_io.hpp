@@ -1,5 +1,6 @@
 // Reading and writing the map text file (method.md §1; format in docs/map-format.md).
 //
+//   MAP scale metric|arbitrary|unknown covariance estimated|assumed   (optional, at most once)
 //   FRAME id tx ty tz qw qx qy qz
 //   LANDMARK id x y z c00 c01 c02 c10 c11 c12 c20 c21 c22 n  f_1 u_1 v_1 ... f_n u_n v_n
 //
@@ -36,8 +37,10 @@ struct MapReadOptions {
   bool is_valid(std::string* why = nullptr) const;
 };
 
-/// Reads a map file. Strict: every malformed record throws ParseError naming the file, the
-/// 1-based line and what was expected (unknown record type, missing or extra token, non-numeric
+/// Reads a map file. The MAP record, if any, fills Map::header (else the default: metric,
+/// estimated covariances). Strict: every malformed record throws ParseError naming the file, the
+/// 1-based line and what was expected (unknown record type, a bad or repeated MAP record or key,
+/// missing or extra token, non-numeric
 /// value, NaN/inf, quaternion norm off by more than the tolerance, non-symmetric or non-PSD
 /// covariance, observation of an unknown frame, duplicate frame or landmark id).
 /// Throws IoError if the file cannot be opened or read, InvalidArgument if options are invalid.
@@ -53,8 +56,10 @@ Map read_map(std::istream& in, const std::string& name, const MapReadOptions& op
 /// Throws IoError (nothing is left at `path` on failure) or InvalidArgument if map.validate() fails
 /// or the map holds something read_map (default options) would reject: a quaternion whose norm is
 /// off by more than 1e-3, a covariance that is not symmetric or not positive semi-definite, or a
-/// landmark flagged covariance_unknown (the format has no way to say so). Frame intrinsics
-/// (Frame::camera) are not written: the format has none.
+/// landmark flagged covariance_unknown (the format has no way to say so), or a frame whose
+/// camera has centred_pixels (the format stores pixels from the top-left corner). Frame
+/// intrinsics (Frame::camera) are not written: the format has none. The header is written as a
+/// MAP record, first, when it is not the default, so default maps are written as before.
 void write_map(const std::string& path, const Map& map);
 
 /// Writes the map text to a stream (no validation, no atomicity).

@@ -28,11 +28,12 @@ constexpr std::size_t kMinViewBytes = 4 * 2;
 }  // namespace
 
 Map read_bundler(std::istream& in, const std::string& name, const BundlerReadOptions& options) {
-  if (options.width_px <= 0 || options.height_px <= 0) {
+  const bool sized = options.width_px != 0 || options.height_px != 0;
+  if (sized && (options.width_px <= 0 || options.height_px <= 0)) {
     throw InvalidArgument("Bundler image size " + std::to_string(options.width_px) + "x" +
                           std::to_string(options.height_px) +
-                          ": width_px and height_px must be > 0 (Bundler pixels are relative to "
-                          "the image centre)");
+                          ": width_px and height_px must both be > 0, or both 0 (unknown: the "
+                          "pixels stay relative to the image centre)");
   }
   const std::string text = formats_detail::slurp(in, name);
   const std::size_t eol = text.find('\n');
@@ -53,11 +54,13 @@ Map read_bundler(std::istream& in, const std::string& name, const BundlerReadOpt
                 std::to_string(tokens.remaining_bytes()) + " bytes that follow (truncated file?)");
   }
 
+  // Without an image size the principal point is (0, 0): pixels (x, -y), centred, v down.
   const double w = static_cast<double>(options.width_px);
   const double h = static_cast<double>(options.height_px);
+  Map map;
+  map.header.scale = MapScale::kArbitrary;  // structure from motion
   // D maps Bundler's camera axes (x right, y up, z backward) to ours (x right, y down, z forward).
   const Mat3 D = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
-  Map map;
   std::vector<bool> reconstructed(num_cameras, false);
   for (std::size_t c = 0; c < num_cameras; ++c) {
     const std::string cam = "camera " + std::to_string(c) + " ";
@@ -90,6 +93,7 @@ Map read_bundler(std::istream& in, const std::string& name, const BundlerReadOpt
     k.width_px = options.width_px;
     k.height_px = options.height_px;
     k.params = {f, w / 2.0, h / 2.0, k1, k2};
+    k.centred_pixels = !sized;
     frame.camera = k;
     map.frames.push_back(frame);
     reconstructed[c] = true;

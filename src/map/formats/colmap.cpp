@@ -370,6 +370,7 @@ Map read_colmap(const ColmapFiles& files, bool binary, const ColmapReadOptions& 
     read_text(files, options, m);
   }
   check_points2d(m);
+  m.map.header.scale = MapScale::kArbitrary;  // structure from motion
   for (ImageRecord& image : m.images) m.map.frames.push_back(std::move(image.frame));
   if (mean_reprojection_error_px != nullptr) *mean_reprojection_error_px = std::move(m.errors_px);
   return std::move(m.map);
@@ -380,6 +381,12 @@ void write_colmap_text(const std::string& dir, const Map& map, const PinholeIntr
   std::vector<CameraIntrinsics> cameras;
   for (const Frame& frame : map.frames) {
     CameraIntrinsics k;
+    if (frame.camera && frame.camera->centred_pixels) {
+      throw InvalidArgument("frame " + std::to_string(frame.id) +
+                            ": its pixels are relative to the image centre (a Bundler map read "
+                            "without an image size); COLMAP stores pixels from the top-left "
+                            "corner: give the image size (--image-size W,H)");
+    }
     if (frame.camera) {
       k = *frame.camera;
     } else {

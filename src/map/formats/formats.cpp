@@ -12,6 +12,8 @@
 #include <string_view>
 #include <unordered_map>
 
+#include <Eigen/Eigenvalues>
+
 #include "lmalign/core/error.hpp"
 #include "lmalign/map/formats/bundler.hpp"
 #include "lmalign/map/formats/colmap.hpp"
@@ -118,7 +120,7 @@ MapFormat detect_map_format(const std::string& path) {
     const std::size_t start = line.find_first_not_of(" \t");
     if (start != std::string::npos && line[start] != '#') {
       const std::string_view record = std::string_view(line).substr(start);
-      for (const char* type : {"FRAME", "LANDMARK"}) {
+      for (const char* type : {"FRAME", "LANDMARK", "MAP"}) {
         const std::size_t len = std::char_traits<char>::length(type);
         if (record.substr(0, len) == type &&
             (record.size() == len || record[len] == ' ' || record[len] == '\t')) {
@@ -203,10 +205,62 @@ std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
   return flagged;
 }
 
+namespace {
+
+[[noreturn]] void refuse_empty(const std::string& path, MapFormat format, const Map& map) {
+  throw InvalidArgument("map '" + path + "' has no landmarks (" + map_format_name(format) + ": " +
+                        std::to_string(map.frames.size()) +
+                        " frames, 0 landmarks); there is nothing to align");
+}
+
+/// Refuses a file of 3 or more landmarks that all lie at one point or on one line: no rigid
+/// transform can be estimated from it. (One or two landmarks are left to the alignment, which
+/// reports them as for our own format.)
+void refuse_degenerate(const std::string& path, const Map& map) {
+  const std::size_t n = map.landmarks.size();
+  if (n < 3) return;
+  Vec3 mean = Vec3::Zero();
+  for (const Landmark& l : map.landmarks) mean += l.p_world;
+  mean /= static_cast<double>(n);
+  Mat3 scatter = Mat3::Zero();
+  double largest_coordinate = 0.0;
+  for (const Landmark& l : map.landmarks) {
+    const Vec3 d = l.p_world - mean;
+    scatter += d * d.transpose();
+    largest_coordinate = std::max(largest_coordinate, l.p_world.cwiseAbs().maxCoeff());
+  }
+  scatter /= static_cast<double>(n);
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(scatter, Eigen::EigenvaluesOnly);
+  const Vec3 spread = eig.eigenvalues().cwiseMax(0.0).cwiseSqrt();  // ascending, metres
+  if (!(spread(2) > 1e-12 * std::max(1.0, largest_coordinate))) {
+    throw InvalidArgument("map '" + path + "': its " + std::to_string(n) +
+                          " landmark(s) all lie at one point; there is nothing to align");
+  }
+  if (!(spread(1) > 1e-6 * spread(2))) {
+    throw InvalidArgument("map '" + path + "': its " + std::to_string(n) +
+                          " landmarks all lie on one line (spread across it " +
+                          std::to_string(spread(1)) + ", along it " + std::to_string(spread(2)) +
+                          "); no rotation about that line can be estimated");
+  }
+}
+
+}  // namespace
+
 Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
   const MapFormat format =
       options.format == MapFormat::kAuto ? detect_map_format(path) : options.format;
-  if (format == MapFormat::kLmalign) return read_map(path, options.map);
+  if (format == MapFormat::kLmalign) {
+    Map map = read_map(path, options.map);
+    if (map.landmarks.empty()) {
+      // Empty file, or every landmark below min_observations (the caller's to report)?
+      MapReadOptions all = options.map;
+      all.min_observations = 0;
+      if (options.map.min_observations == 0 || read_map(path, all).landmarks.empty()) {
+        refuse_empty(path, format, map);
+      }
+    }
+    return map;
+  }
   std::string why;
   if (!options.map.is_valid(&why)) throw InvalidArgument("map read options: " + why);
   if (!options.confidence.is_valid(&why)) throw InvalidArgument("confidence options: " + why);
@@ -215,6 +269,8 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
   std::vector<double> sigma_px;
   if (format == MapFormat::kPly) {
     map = read_ply_map(path);
+    if (map.landmarks.empty()) refuse_empty(path, format, map);
+    refuse_degenerate(path, map);
     const bool any_known = std::any_of(map.landmarks.begin(), map.landmarks.end(),
                                        [](const Landmark& l) { return !l.covariance_unknown; });
     if (!map.landmarks.empty() && !any_known && !options.keep_unknown_covariance) {
@@ -233,20 +289,19 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
   if (format == MapFormat::kStellaVslam) {
     map = read_stella_vslam(path);
   } else if (format == MapFormat::kBundler) {
-    if (!options.image_size_px) {
-      throw InvalidArgument("'" + path +
-                            "' is a Bundler file: its pixels are relative to the image centre, "
-                            "so the image size is needed (image_size_px, --image-size W,H)");
-    }
     BundlerReadOptions bo;
-    bo.width_px = (*options.image_size_px)[0];
-    bo.height_px = (*options.image_size_px)[1];
+    if (options.image_size_px) {
+      bo.width_px = (*options.image_size_px)[0];
+      bo.height_px = (*options.image_size_px)[1];
+    }
     map = read_bundler(path, bo);
   } else {
     ColmapReadOptions co;
     co.quaternion_norm_tolerance = options.map.quaternion_norm_tolerance;
     map = read_colmap(path, format == MapFormat::kColmapBinary, co, &sigma_px);
   }
+  if (map.landmarks.empty()) refuse_empty(path, format, map);
+  refuse_degenerate(path, map);
   estimate_covariances(map, options.confidence, sigma_px.empty() ? nullptr : &sigma_px);
   const std::size_t min_obs = options.map.min_observations;
   const bool keep_unknown = options.keep_unknown_covariance;

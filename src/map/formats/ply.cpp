@@ -123,6 +123,8 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   }
   bool binary = false;
   bool have_format = false;
+  MapHeader header;
+  header.scale = MapScale::kUnknown;  // unless our obj_info says
   std::vector<Element> elements;
   for (;;) {
     if (!next_line(line))
@@ -130,7 +132,31 @@ Map read_ply_map(std::istream& in, const std::string& name) {
     TokenReader t(line, name, lines.line());
     const std::string_view keyword = t.next();
     if (keyword == "end_header") break;
-    if (keyword == "comment" || keyword == "obj_info" || keyword.empty()) continue;
+    if (keyword == "obj_info") {
+      // Our own metadata (write_ply_map); other tools' obj_info lines are skipped.
+      const std::string_view key = t.next();
+      if (key == "lmalign_scale") {
+        const std::string_view value = t.next();
+        const std::optional<MapScale> scale = map_scale_from_name(std::string(value));
+        if (!scale) {
+          t.fail("obj_info lmalign_scale " + quoted(value) +
+                 " is not one of metric, arbitrary, unknown");
+        }
+        header.scale = *scale;
+      } else if (key == "lmalign_covariance") {
+        const std::string_view value = t.next();
+        if (value != "estimated" && value != "assumed") {
+          t.fail("obj_info lmalign_covariance " + quoted(value) +
+                 " is not one of estimated, assumed");
+        }
+        header.covariance_assumed = value == "assumed";
+      } else {
+        continue;
+      }
+      if (!t.at_end()) t.fail("unexpected field after the obj_info value");
+      continue;
+    }
+    if (keyword == "comment" || keyword.empty()) continue;
     if (keyword == "format") {
       const std::string_view format = t.next();
       if (format == "ascii") {
@@ -233,6 +259,7 @@ Map read_ply_map(std::istream& in, const std::string& name) {
   TokenReader tokens(body, name, lines.line() + 1);
   const auto body_offset = pos;
   Map map;
+  map.header = header;
   std::vector<double> values;
   for (std::size_t e = 0; e <= vertex_index; ++e) {
     const Element& element = elements[e];
@@ -329,6 +356,9 @@ Map read_ply_map(const std::string& path) {
 void write_ply_map(const std::string& path, const Map& map) {
   write_file_atomically(path, [&map](std::ostream& out) {
     out << "ply\nformat ascii 1.0\ncomment lmalign landmark map (docs/map-format.md)\n"
+        << "obj_info lmalign_scale " << map_scale_name(map.header.scale) << "\n"
+        << "obj_info lmalign_covariance "
+        << (map.header.covariance_assumed ? "assumed" : "estimated") << "\n"
         << "element vertex " << map.landmarks.size() << "\n"
         << "property double x\nproperty double y\nproperty double z\n"
         << "property int num_observations\n";

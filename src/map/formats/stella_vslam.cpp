@@ -218,7 +218,18 @@ Map read_stella_vslam_bytes(std::string_view bytes, const std::string& name) {
                     read_camera(r, camera, "camera " + formats_detail::quoted(camera_name)));
   }
 
+  // The scale: metric when every camera is a stereo or RGB-D setup, arbitrary when one is
+  // monocular, unknown when a camera does not say.
   Map map;
+  map.header.scale = MapScale::kMetric;
+  for (const auto& [camera_name, camera] : cameras) {
+    if (!camera.metric) {
+      if (map.header.scale == MapScale::kMetric) map.header.scale = MapScale::kUnknown;
+    } else if (!*camera.metric) {
+      map.header.scale = MapScale::kArbitrary;
+    }
+  }
+  if (cameras.empty()) map.header.scale = MapScale::kUnknown;
   const Json& json_landmarks = r.member(root, "landmarks", top);
   if (!json_landmarks.is_object()) r.fail("landmarks", "expected a map of id -> landmark");
   std::map<Id, const Json*> landmarks_by_id;

@@ -65,8 +65,10 @@ struct AnyMapReadOptions {
   /// (after the confidences are derived, counting the file's observations).
   MapReadOptions map;
   MapFormat format = MapFormat::kAuto;
-  /// Bundler: the image size (width, height) in pixels, needed because Bundler's pixels are
-  /// relative to the image centre. Required for Bundler files.
+  /// Bundler: the image size (width, height) in pixels. Bundler's pixels are relative to the
+  /// image centre; with the size they are moved to the top-left corner, without it they stay
+  /// centred (CameraIntrinsics::centred_pixels), which triangulation does not mind but outputs
+  /// that store top-left pixels (our map text format, COLMAP) refuse.
   std::optional<std::array<long long, 2>> image_size_px;
   ConfidenceOptions confidence;
   /// false (the default): landmarks whose covariance could not be estimated are dropped, so the
@@ -95,7 +97,11 @@ std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
 /// with an unknown covariance, are dropped. PLY has no observations: min_observations does not
 /// apply, and a PLY with no covariance properties is an InvalidArgument unless
 /// keep_unknown_covariance is set. Throws what the chosen reader throws (ParseError
-/// with file:line or byte offset, IoError), and InvalidArgument for bad options.
+/// with file:line or byte offset, IoError), and InvalidArgument for bad options, for a file with
+/// no landmarks ("map '<path>' has no landmarks (...)"; our format: an empty file, not one whose
+/// landmarks are all below min_observations), and, for the other formats, for a file of 3 or
+/// more landmarks that all lie at one point or on one line (our format leaves that to the
+/// alignment, which reports it as degenerate).
 Map read_any_map(const std::string& path, const AnyMapReadOptions& options = {});
 
 /// True if write_any_map() writes a COLMAP text model to `path`: it ends in '/' or is an
