@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -20,6 +21,7 @@
 #include "lmalign/map/formats/bundler.hpp"
 #include "lmalign/map/formats/colmap.hpp"
 #include "lmalign/map/formats/formats.hpp"
+#include "lmalign/map/formats/ply.hpp"
 #include "lmalign/map/formats/stella_vslam.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
@@ -464,6 +466,76 @@ TEST(FormatsReal, EachFileRecordsItsScale) {
     AnyMapReadOptions keep;
     keep.keep_unknown_covariance = true;  // the PLY has no covariances
     EXPECT_EQ(read_any_map(path, keep).header.scale, scale) << file;
+  }
+}
+
+// Every map file in ../shared/data/real_formats reads through read_any_map, found by walking the
+// folder (a file added there is covered without editing this list): the three stella_vslam maps,
+// the COLMAP model and OpenMVG's three PLYs (two binary with double coordinates, one ASCII; the
+// four camera centres OpenMVG appends are vertices like the others). The one model without a 3-D
+// point is refused in one line naming it. Counts from each folder's SOURCE.md.
+TEST(FormatsReal, EveryRealFileReads) {
+  const std::string root = test::data_file("real_formats");
+  LMALIGN_REQUIRE_FILE(root);
+  const std::map<std::string, std::size_t> expected_vertices = {
+      {"ply_openmvg_kapture_maupertuis/cloud_and_poses.ply", 369},
+      {"ply_openmvg_kapture_maupertuis/colorized.ply", 369},
+      {"ply_openmvg_kapture_maupertuis/robust.ply", 527}};
+  const std::string empty_model = "colmap_txt_kapture_t265_nonstandard";
+  std::map<std::string, std::size_t> read;  // relative path -> landmarks
+  std::vector<std::string> refused;
+  std::vector<std::filesystem::path> candidates;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(root)) {
+    candidates.push_back(entry.path());
+  }
+  std::sort(candidates.begin(), candidates.end());
+  for (const std::filesystem::path& p : candidates) {
+    const std::string relative = std::filesystem::relative(p, root).generic_string();
+    SCOPED_TRACE(relative);
+    if (std::filesystem::is_regular_file(p) &&
+        std::filesystem::exists(p.parent_path() / "cameras.txt")) {
+      continue;  // a file of a COLMAP model, read as its folder
+    }
+    MapFormat format;
+    try {
+      format = detect_map_format(p.string());
+    } catch (const InvalidArgument&) {
+      continue;  // not a map (SOURCE.md, a README, OpenMVG's JSON, the camera YAML)
+    }
+    if (std::filesystem::is_directory(p) && format == MapFormat::kLmalign) continue;
+    AnyMapReadOptions options;
+    options.keep_unknown_covariance = true;  // PLYs without covariances
+    try {
+      const Map map = read_any_map(p.string(), options);
+      ASSERT_FALSE(map.landmarks.empty());
+      for (const Landmark& l : map.landmarks) ASSERT_TRUE(l.p_world.allFinite()) << l.id;
+      read[relative] = map.landmarks.size();
+    } catch (const InvalidArgument& e) {
+      const std::string what = e.what();
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+      EXPECT_NE(what.find("map '" + p.string() + "' has no landmarks"), std::string::npos) << what;
+      refused.push_back(relative);
+    }
+  }
+  EXPECT_EQ(refused, std::vector<std::string>{empty_model});
+  ASSERT_EQ(read.size(), 7u);  // 3 stella_vslam maps, 1 COLMAP model, 3 PLYs
+  for (const auto& [file, vertices] : expected_vertices) EXPECT_EQ(read.at(file), vertices);
+  EXPECT_GT(read.at("colmap_txt_kapture_maupertuis"), 1000u);
+  for (const StellaCounts& c : kStellaMaps) {
+    const std::size_t n =
+        read.at(std::string("stella_openhps_aist_living_lab_1/") + c.folder + "/map.msg");
+    EXPECT_GT(n, c.landmarks * 9 / 10);
+    EXPECT_LE(n, c.landmarks);
+  }
+  // The binary PLY (double coordinates, camera centres first) and the ASCII one (camera centres
+  // last) hold the same 369 vertices to the ASCII's 16 digits.
+  const Map binary = read_ply_map(root + "/ply_openmvg_kapture_maupertuis/cloud_and_poses.ply");
+  const Map ascii = read_ply_map(root + "/ply_openmvg_kapture_maupertuis/colorized.ply");
+  ASSERT_EQ(binary.landmarks.size(), 369u);
+  ASSERT_EQ(ascii.landmarks.size(), 369u);
+  for (std::size_t i = 0; i < 369; ++i) {
+    const Vec3& b = binary.landmarks[(i + 4) % 369].p_world;
+    ASSERT_LT((b - ascii.landmarks[i].p_world).norm(), 1e-12 * (1.0 + b.norm())) << i;
   }
 }
 
