@@ -10,6 +10,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "cli_util.hpp"
@@ -272,9 +273,21 @@ int run_align(const AlignArgs& a) {
   if (T_gt) T_true = *T_gt * S_displace.inverse();
 
   const PreparedTarget prepared(target, wopt);
+  for (AlignRequest& r : requests) {
+    r.covariances_assumed = source.header.covariance_assumed || target.header.covariance_assumed;
+  }
 
   std::printf("lmalign align: source %s (%zu landmarks) -> target %s (%zu landmarks)\n",
               a.source.c_str(), source.landmarks.size(), a.target.c_str(), target.landmarks.size());
+  for (const auto& [role, map] : {std::pair<const char*, const Map*>{"source", &source},
+                                  std::pair<const char*, const Map*>{"target", &target}}) {
+    if (map->header.covariance_assumed) {
+      std::printf(
+          "%s: covariances assumed (the map stores none): isotropic, half the median distance to "
+          "the 6 nearest landmarks\n",
+          role);
+    }
+  }
   if (!disp.empty()) {
     std::printf(
         "source displaced about the world origin by x=%g y=%g z=%g m, roll=%g pitch=%g yaw=%g "
@@ -346,7 +359,8 @@ int run_align(const AlignArgs& a) {
     if (!r.summary.verdict.trustworthy) {
       std::printf("  %-17s not trusted: %s\n", r.preset.name.c_str(),
                   r.summary.verdict.reason.c_str());
-    } else if (r.summary.source_left_out + r.summary.target_left_out > 0) {
+    } else if (r.summary.source_left_out + r.summary.target_left_out > 0 ||
+               r.summary.covariances_assumed) {
       std::printf("  %-17s trusted: %s\n", r.preset.name.c_str(), r.summary.verdict.reason.c_str());
     }
   }
@@ -386,6 +400,10 @@ int run_align(const AlignArgs& a) {
     j["target"] = a.target;
     j["source_landmarks"] = source.landmarks.size();
     j["target_landmarks"] = target.landmarks.size();
+    j["source_scale"] = map_scale_name(source.header.scale);
+    j["target_scale"] = map_scale_name(target.header.scale);
+    j["source_covariance_assumed"] = source.header.covariance_assumed;
+    j["target_covariance_assumed"] = target.header.covariance_assumed;
     j["frames"] =
         "T_target_source maps displaced-source coordinates to target coordinates (metres)";
     if (!disp.empty()) {
@@ -517,7 +535,7 @@ CommandRunner add_align_command(CLI::App& root) {
                   "several strategies, one each: NAME_<strategy>.ply");
   cmd->add_option("--format", args->format,
                   "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
-                  "colmap-bin, ply, stella-vslam (docs/map-format.md)");
+                  "colmap-bin, ply, stella-vslam, xyz (docs/map-format.md)");
   cmd->add_option(
       "--image-size", args->image_size,
       "Bundler maps: the image size W,H in pixels, for outputs that store pixels from the "

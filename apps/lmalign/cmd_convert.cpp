@@ -3,6 +3,7 @@
 #include <array>
 #include <iostream>
 #include <memory>
+#include <sstream>
 #include <string>
 
 #include "cli_util.hpp"
@@ -14,13 +15,20 @@ namespace lmalign::cli {
 
 namespace {
 
+/// A number as `<<` prints it (1, 0.5).
+std::string number_text(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
 struct ConvertArgs {
   std::string input;
   std::string output;
   std::string format = "auto";
   std::string image_size;  // "W,H"
   double pixel_sigma_px = 0.0;
-  double min_parallax_deg = 1.0;
+  double min_parallax_deg = 0.0;
   std::size_t min_observations = 0;
   bool keep_unknown = false;
 };
@@ -42,12 +50,36 @@ int run_convert(const ConvertArgs& args) {
   const MapFormat format =
       options.format == MapFormat::kAuto ? detect_map_format(args.input) : options.format;
   options.format = format;
-  const Map map = read_any_map(args.input, options);
+  MapReadStats stats;
+  const Map map = read_any_map(args.input, options, &stats);
   write_any_map(args.output, map);
   std::cout << "convert " << args.input << " (" << map_format_name(format) << ") -> " << args.output
             << " (" << map_format_name(written_map_format(args.output)) << ")"
             << "\n  frames:    " << map.frames.size() << "\n  landmarks: " << map.landmarks.size()
-            << "\n";
+            << " of " << stats.landmarks_in_file << " kept, " << stats.dropped() << " dropped\n";
+  // Every kind that occurs, kept then dropped (MapReadStats).
+  const auto line = [](const char* verb, std::size_t n, const std::string& what) {
+    if (n > 0) std::cout << "    " << verb << " " << n << " " << what << "\n";
+  };
+  const std::string low = number_text(kLowParallaxDeg);
+  line("kept", stats.kept_stored, "with the covariance the file stores");
+  line("kept", stats.kept_triangulated,
+       "with a triangulated covariance (parallax >= " + low + " deg)");
+  line("kept", stats.kept_low_parallax,
+       "with low parallax (< " + low + " deg): triangulated, their covariance is large");
+  line("kept", stats.kept_assumed,
+       "with an assumed covariance (a point cloud without any: isotropic, half the local "
+       "spacing)");
+  line("kept", stats.kept_unknown, "with an unknown covariance (--keep-unknown-covariance)");
+  line("dropped", stats.dropped_min_observations,
+       "with fewer than " + std::to_string(args.min_observations) +
+           " observations (--min-observations)");
+  line("dropped", stats.dropped_too_few_views, "seen in fewer than 2 usable views");
+  line("dropped", stats.dropped_not_triangulated,
+       "that cannot be triangulated (no parallax, or behind a camera)");
+  line("dropped", stats.dropped_below_min_parallax,
+       "with parallax below " + number_text(args.min_parallax_deg) + " deg (--min-parallax)");
+  line("dropped", stats.dropped_unknown, "flagged covariance_known = 0 in the file");
   return 0;
 }
 
@@ -60,8 +92,11 @@ CommandRunner add_convert_command(CLI::App& root) {
       "Convert a map to the lmalign map text format (or, if OUT is a folder, to a COLMAP text\n"
       "model; if OUT ends in .ply, to PLY with the covariances). IN may be an lmalign map, a\n"
       "Bundler v0.3 .out file, a COLMAP model folder (text or binary), a stella_vslam .msg or\n"
-      "a PLY, chosen by content. Formats without covariances get them re-estimated by\n"
-      "triangulation; landmarks where that is impossible are dropped (docs/map-format.md).");
+      "a PLY or an XYZ text point cloud, chosen by content. Formats without covariances get\n"
+      "them re-estimated by triangulation (landmarks of low parallax are kept, with their large\n"
+      "covariance); landmarks that cannot be triangulated are dropped; point clouds get an\n"
+      "assumed covariance from the local spacing. Prints what it kept and dropped, by kind\n"
+      "(docs/map-format.md).");
   cmd->add_option("IN", args->input, "input map (file or COLMAP model folder)")->required();
   cmd->add_option("OUT", args->output,
                   "output: a file (lmalign map text), FILE.ply (PLY) or a folder ending in / "
@@ -69,7 +104,7 @@ CommandRunner add_convert_command(CLI::App& root) {
       ->required();
   cmd->add_option("--format", args->format,
                   "reader of IN: auto (by content), lmalign, bundler, colmap-text, colmap-bin, "
-                  "ply, stella-vslam");
+                  "ply, stella-vslam, xyz");
   cmd->add_option(
       "--image-size", args->image_size,
       "Bundler: image size W,H in pixels, needed when OUT stores pixels from the top-left "
@@ -79,7 +114,8 @@ CommandRunner add_convert_command(CLI::App& root) {
                   "reprojection error where present, else 1 px")
       ->capture_default_str();
   cmd->add_option("--min-parallax", args->min_parallax_deg,
-                  "below this largest viewing-ray angle (deg) a covariance is not estimated")
+                  "drop landmarks whose largest viewing-ray angle is below this (deg); 0: keep "
+                  "every landmark that triangulates")
       ->capture_default_str();
   cmd->add_option("--min-observations", args->min_observations,
                   "drop landmarks with fewer observations")

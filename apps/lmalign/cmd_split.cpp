@@ -152,7 +152,7 @@ CommandRunner add_split_command(CLI::App& root) {
       "top-left corner (Bundler's are centred; reading needs no size)");
   cmd->add_option("--format", args->format,
                   "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin, "
-                  "ply, stella-vslam (docs/map-format.md)");
+                  "ply, stella-vslam, xyz (docs/map-format.md)");
   cmd->add_option("--frames", args->frames,
                   "Frame-id window A-B, inclusive, non-negative integers with A <= B (e.g. 0-119)")
       ->required()

@@ -126,7 +126,9 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
     translation_sd_m, rotation_sd_deg, covariance (6, 6) or None, scale (target units per
     source unit, 1.0 when fixed), scale_sd (None when fixed), scale_mode, S_target_source (4, 4)
     (the similarity [scale * R, t; 0 1]; T_target_source is its rotation and translation), source_landmarks_left_out and
-    target_landmarks_left_out; brief_report(), full_report(), to_json() (the CLI's JSON entry).
+    target_landmarks_left_out, covariances_assumed (a Map's covariances were assumed from its
+    landmark spacing, Map.covariance_assumed, and the strategy uses covariances: also named at
+    the end of trust_reason); brief_report(), full_report(), to_json() (the CLI's JSON entry).
     Supported range (docs/robustness.md): landmarks with a coordinate beyond 1e15 m are left out
     of the alignment, counted in *_landmarks_left_out and named at the end of trust_reason; an
     initial_guess translation or a prior_sigma beyond it raises InvalidArgument.

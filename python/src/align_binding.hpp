@@ -32,6 +32,9 @@ struct AlignRequest {
   std::optional<Vec3> source_up;
   /// The CLI's --scale: auto, free or fixed (AlignRequest::scale).
   ScaleMode scale = ScaleMode::kAuto;
+  /// A Map's covariances were assumed (MapHeader::covariance_assumed): lmalign::AlignRequest's
+  /// flag.
+  bool covariances_assumed = false;
   /// OpenMP threads for this call (0: OpenMP's default). Results do not depend on it.
   int threads = 0;
 };

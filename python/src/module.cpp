@@ -229,8 +229,9 @@ PYBIND11_MODULE(_lmalign, m) {
         py::arg("format") = "auto", py::arg("image_size") = py::none(),
         "Reads a map in any format lmalign reads (docs/map-format.md): format 'auto' (by content), "
         "'lmalign', 'bundler', 'colmap-text', 'colmap-bin' (a COLMAP model folder), 'ply', "
-        "'stella-vslam'. image_size (width, height) px: Bundler only, for pixels from the top-left "
-        "corner (without it they stay centred; writing such a map in the lmalign text format "
+        "'stella-vslam', 'xyz'. image_size (width, height) px: Bundler only, for pixels from the "
+        "top-left corner (without it they stay centred; writing such a map in the lmalign text "
+        "format "
         "is refused). Landmarks with "
         "fewer than min_observations observations are dropped (2: the paper's loader, and "
         "`lmalign align`'s default); formats without covariances get them re-estimated from the "
@@ -327,7 +328,8 @@ PYBIND11_MODULE(_lmalign, m) {
       .def_property_readonly(
           "trust_reason", [](const python::AlignOutcome& o) { return o.summary.verdict.reason; },
           "'ok', or why the estimate is not trusted; either followed by '; N source landmarks "
-          "... left out' when landmarks beyond the supported range were left out.")
+          "... left out' when landmarks beyond the supported range were left out, and by a note "
+          "when the covariances it weighed by were assumed (covariances_assumed).")
       .def_property_readonly(
           "source_landmarks_left_out",
           [](const python::AlignOutcome& o) { return o.summary.source_left_out; },
@@ -341,6 +343,13 @@ PYBIND11_MODULE(_lmalign, m) {
           "usable", [](const python::AlignOutcome& o) { return o.summary.IsSolutionUsable(); },
           "True when the estimate is finite and determined (Summary::IsSolutionUsable; says "
           "nothing of trust).")
+      .def_property_readonly(
+          "covariances_assumed",
+          [](const python::AlignOutcome& o) { return o.summary.covariances_assumed; },
+          "True when the strategy uses covariances (a covariance confidence or a distribution "
+          "matcher: covariance, adaptive) "
+          "and a map's covariances were assumed from its landmark spacing (a point cloud "
+          "without any: Map.covariance_assumed).")
       .def_property_readonly(
           "inlier_fraction",
           [](const python::AlignOutcome& o) -> py::object {
@@ -514,6 +523,7 @@ PYBIND11_MODULE(_lmalign, m) {
           source_points = s.positions();
           source_cov = s.covariances_m2();
           req.source_up = estimate_up_axis(s);
+          req.covariances_assumed = s.header.covariance_assumed;
         } else {
           source_points = points_from(source, "source");
           if (!source_covariances.is_none())
@@ -527,6 +537,7 @@ PYBIND11_MODULE(_lmalign, m) {
             throw InvalidArgument(
                 "target_covariances / target_weights: give them only with an array target");
           const Map& t = with_frame_index(target.cast<const Map&>());
+          req.covariances_assumed = req.covariances_assumed || t.header.covariance_assumed;
           py::gil_scoped_release release;
           prepared.emplace(t, wopt);
         } else {

@@ -202,3 +202,27 @@ def test_read_map_reads_other_formats_by_content(desk_pair, tmp_path):
     assert lmalign.read_map(desk_pair[0]).scale == "metric"
     with pytest.raises(lmalign.InvalidArgument):
         lmalign.read_map(out, format="no-such-format")
+
+
+def test_point_clouds_without_covariances_read_with_assumed_ones(desk_pair, tmp_path):
+    """XYZ text (one point per line) reads with covariances assumed from the spacing and says so;
+    the default aligns it and flags the assumption, base ICP does not weigh by covariance."""
+    target = lmalign.read_map(desk_pair[1])
+    xyz = tmp_path / "target.xyz"
+    xyz.write_text("".join("%r %r %r\n" % tuple(p) for p in target.positions))
+    cloud = lmalign.read_map(xyz)
+    assert cloud.covariance_assumed and cloud.scale == "unknown"
+    assert np.array_equal(cloud.positions, target.positions)
+    cov = cloud.covariances
+    assert np.all(cov[:, 0, 0] > 0) and np.all(cov[:, 0, 1] == 0)
+    assert np.all(cov[:, 0, 0] == cov[:, 2, 2])  # isotropic
+    r = lmalign.align(cloud, cloud, initial_guess=lmalign.pose_from_xyz_rpy_deg(0.05, 0, 0, 0, 0, 3))
+    assert r.covariances_assumed and "covariances assumed" in r.trust_reason
+    assert np.abs(r.T_target_source - np.eye(4)).max() < 1e-6
+    b = lmalign.align(cloud, cloud, strategy="base")
+    assert not b.covariances_assumed and b.trust_reason == "ok"
+    bad = tmp_path / "bad.xyz"
+    bad.write_text("1 2 3\n4 5\n")
+    with pytest.raises(lmalign.ParseError) as info:
+        lmalign.read_map(bad)
+    assert info.value.line == 2

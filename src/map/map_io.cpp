@@ -385,6 +385,8 @@ class Reader {
     // follows the kept map rather than the file.
     if (landmark.num_observations() >= options_.min_observations) {
       map_.landmarks.push_back(std::move(landmark));
+    } else {
+      ++num_dropped_;
     }
   }
 
@@ -414,6 +416,10 @@ class Reader {
   };
   std::vector<PendingFrame> pending_frames_;
   Map map_;
+
+ public:
+  /// Landmarks dropped by the min_observations filter.
+  std::size_t num_dropped_ = 0;
 };
 
 }  // namespace
@@ -438,13 +444,17 @@ bool MapReadOptions::is_valid(std::string* why) const {
   return true;
 }
 
-Map read_map(std::istream& in, const std::string& name, const MapReadOptions& options) {
+Map read_map(std::istream& in, const std::string& name, const MapReadOptions& options,
+             std::size_t* num_dropped) {
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("map read options: " + why);
-  return Reader(name, options).read(in);
+  Reader reader(name, options);
+  Map map = reader.read(in);
+  if (num_dropped != nullptr) *num_dropped = reader.num_dropped_;
+  return map;
 }
 
-Map read_map(const std::string& path, const MapReadOptions& options) {
+Map read_map(const std::string& path, const MapReadOptions& options, std::size_t* num_dropped) {
   std::error_code ec;
   if (std::filesystem::is_directory(path, ec)) {
     throw IoError("cannot open map file '" + path + "': " + std::strerror(EISDIR));
@@ -455,7 +465,7 @@ Map read_map(const std::string& path, const MapReadOptions& options) {
     const int err = errno != 0 ? errno : ENOENT;
     throw IoError("cannot open map file '" + path + "': " + std::strerror(err));
   }
-  return read_map(in, path, options);
+  return read_map(in, path, options, num_dropped);
 }
 
 void write_map(std::ostream& out, const Map& map) {

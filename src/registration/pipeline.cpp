@@ -280,6 +280,28 @@ Pipeline::Pipeline(const PipelineSpec& spec) : spec_(spec) {
   }
 }
 
+std::vector<WeightKind> Pipeline::confidences() const {
+  std::vector<const Stage*> stages{initialiser_.get(), matcher_.get()};
+  for (const auto& r : rejectors_) stages.push_back(r.get());
+  stages.insert(stages.end(),
+                {kernel_.get(), estimator_.get(), schedule_.get(), scorer_.get(), trust_.get()});
+  std::vector<WeightKind> out;
+  for (const Stage* stage : stages) {
+    if (stage == nullptr) continue;
+    const WeightKind kind = stage->confidence();
+    if (kind != WeightKind::kUniform && std::find(out.begin(), out.end(), kind) == out.end()) {
+      out.push_back(kind);
+    }
+  }
+  return out;
+}
+
+bool Pipeline::uses_covariances() const {
+  const std::vector<WeightKind> kinds = confidences();
+  return matcher_->kind() == Pairs::Kind::kDistributions ||
+         std::find(kinds.begin(), kinds.end(), WeightKind::kCovariance) != kinds.end();
+}
+
 Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& start, Phase phase,
                             bool keep_pairs, int history) const {
   Refinement out;

@@ -376,7 +376,27 @@ Summary align(const Preset& preset, const SourceView& source, const PreparedTarg
   }
   out.source_left_out = kept.source_left_out;
   out.target_left_out = kept.target_left_out;
-  const std::string note = left_out_message(kept.source_left_out, kept.target_left_out);
+  // A confidence that is 0 everywhere (Eqs. 2-3 on a target without observations) never picks a
+  // neighbour (Eq. 6) and zeroes every pair's weight: say why rather than judge the unmoved start.
+  for (WeightKind kind : pipeline.confidences()) {
+    const std::vector<double>& w = target_kept.weights(kind);
+    if (!w.empty() && std::all_of(w.begin(), w.end(), [](double x) { return x == 0.0; })) {
+      out.verdict.trustworthy = false;
+      out.verdict.reason = "every target landmark has " + to_string(kind) +
+                           " weight 0 (it has no observations: a point cloud), so the strategy "
+                           "weighs every pair by 0 (method.md Eqs. 2-3, 6): nothing was "
+                           "aligned; use base, covariance or adaptive";
+      break;
+    }
+  }
+  std::string note = left_out_message(kept.source_left_out, kept.target_left_out);
+  if (request.covariances_assumed && pipeline.uses_covariances()) {
+    out.covariances_assumed = true;
+    note = (note.empty() ? "" : note + "; ") +
+           "covariances assumed from the landmark spacing (isotropic, half the median distance "
+           "to the 6 nearest landmarks: the map stores none), so the covariance weights and "
+           "gates measure agreement with that assumption";
+  }
   if (!note.empty()) out.verdict.reason += "; " + note;
   return out;
 }

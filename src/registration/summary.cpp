@@ -203,6 +203,7 @@ std::string to_json(const Summary& s, int indent) {
   e["trust_reason"] = s.verdict.reason;
   e["source_landmarks_left_out"] = s.source_left_out;
   e["target_landmarks_left_out"] = s.target_left_out;
+  e["covariances_assumed"] = s.covariances_assumed;
   e["initialisation"] = s.initialisation.initialisation;
   e["hypotheses"] = s.hypotheses.size();
   if (gated(s)) {

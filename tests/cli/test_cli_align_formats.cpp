@@ -1,5 +1,10 @@
 // `lmalign align` and `lmalign split` read every format the library reads (issue 19, item 6):
 // the real Bundler reconstruction of Balbianello, aligned onto itself from a known displacement.
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+
 #include <nlohmann/json.hpp>
 
 #include "support/data_path.hpp"
@@ -42,6 +47,77 @@ TEST_F(CliAlignFormats, AlignsARealBundlerMapOntoItselfFromADisplacement) {
   const test::CliRun bad = run("align " + out + " " + out + " --image-size 640x427");
   EXPECT_EQ(bad.exit_code, 2);
   EXPECT_NE(bad.err.find("--image-size"), std::string::npos) << bad.err;
+}
+
+// Bare point clouds (issue: maps without covariances): the real desk map's landmark positions as
+// XYZ text (source) and as a PLY without covariance properties (target). Both read with assumed
+// covariances; base ICP and the default undo a displacement; the default and the covariance
+// strategy flag the assumption in their result and trust reason; observations and distance,
+// whose weights are all 0 without observations, match nothing and say so, untrusted.
+TEST_F(CliAlignFormats, PointCloudsWithoutCovariancesAlign) {
+  const std::string desk = test::data_file("tum_fr1_desk/map_fr1_desk.txt");
+  LMALIGN_REQUIRE_FILE(desk);
+  {
+    std::ifstream in(desk);
+    std::ofstream xyz(path("desk.xyz"));
+    std::ostringstream vertices;
+    std::size_t n = 0;
+    std::string line;
+    while (std::getline(in, line)) {
+      std::istringstream fields(line);
+      std::string type, id, x, y, z, c;
+      fields >> type >> id >> x >> y >> z;
+      if (type != "LANDMARK") continue;
+      for (int i = 0; i < 9; ++i) fields >> c;
+      int observations = 0;
+      fields >> observations;
+      if (observations < 2) continue;
+      xyz << x << " " << y << " " << z << "\n";
+      vertices << x << " " << y << " " << z << "\n";
+      ++n;
+    }
+    std::ofstream(path("desk.ply")) << "ply\nformat ascii 1.0\nelement vertex " << n
+                                    << "\nproperty double x\nproperty double y\nproperty "
+                                       "double z\nend_header\n"
+                                    << vertices.str();
+  }
+  const test::CliRun r = run("align " + path("desk.xyz") + " " + path("desk.ply") +
+                             " --strategy base,covariance,observations,distance,adaptive "
+                             "--displace 0.1,-0.05,0.02,0,0,10 --ground-truth identity --json " +
+                             path("c.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("source: covariances assumed (the map stores none)"), std::string::npos)
+      << r.out;
+  EXPECT_NE(r.out.find("target: covariances assumed"), std::string::npos) << r.out;
+  const auto j = nlohmann::json::parse(test::read_text(path("c.json")));
+  EXPECT_EQ(j["source_landmarks"], 6081);  // the real map's landmarks with 2+ observations
+  EXPECT_EQ(j["target_covariance_assumed"], true);
+  EXPECT_EQ(j["target_scale"], "unknown");
+  std::map<std::string, nlohmann::json> by_name;
+  for (const auto& e : j["results"]) by_name[e["strategy"].get<std::string>()] = e;
+  ASSERT_EQ(by_name.size(), 5u);
+  for (const char* name : {"base", "adaptive"}) {
+    SCOPED_TRACE(name);
+    EXPECT_EQ(by_name[name]["right_basin"], true);
+    EXPECT_LT(by_name[name]["rotation_error_deg"].get<double>(), 0.01);
+    EXPECT_EQ(by_name[name]["trustworthy"], true);
+  }
+  EXPECT_EQ(by_name["base"]["covariances_assumed"], false);
+  EXPECT_EQ(by_name["base"]["trust_reason"], "ok");
+  for (const char* name : {"covariance", "adaptive"}) {
+    SCOPED_TRACE(name);
+    EXPECT_EQ(by_name[name]["covariances_assumed"], true);
+    EXPECT_NE(by_name[name]["trust_reason"].get<std::string>().find(
+                  "covariances assumed from the landmark spacing"),
+              std::string::npos);
+  }
+  for (const char* name : {"observations", "distance"}) {
+    SCOPED_TRACE(name);
+    EXPECT_EQ(by_name[name]["trustworthy"], false);
+    EXPECT_EQ(by_name[name]["termination"], "no_correspondences");
+    EXPECT_NE(by_name[name]["trust_reason"].get<std::string>().find("weight 0"), std::string::npos)
+        << by_name[name]["trust_reason"];
+  }
 }
 
 }  // namespace

@@ -2,11 +2,15 @@
 // (../shared/data/bundler_balbianello): Bundler -> ours and -> COLMAP text, then align and split
 // reading the COLMAP folder by content.
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/colmap.hpp"
@@ -29,10 +33,19 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
   const std::string ours = path("balbianello.txt");
   const std::string colmap = path("colmap") + "/";
 
+  // Without the image size (the file has none): a PLY output (no pixels) is written; our
+  // format and split's output store pixels from the top-left corner, so they need the size and
+  // say so in one line.
   const test::CliRun no_size = run("convert " + shell_quote(bundler) + " " + shell_quote(ours));
-  EXPECT_EQ(no_size.exit_code, 2);
-  EXPECT_NE(no_size.err.find("image size"), std::string::npos) << no_size.err;
+  test::expect_one_line_error(no_size, "give the image size (--image-size W,H)", "convert");
   EXPECT_FALSE(std::filesystem::exists(ours));
+  const test::CliRun to_ply =
+      run("convert " + shell_quote(bundler) + " " + shell_quote(path("b.ply")));
+  ASSERT_EQ(to_ply.exit_code, 0) << to_ply.err;
+  EXPECT_GT(read_ply_map(path("b.ply")).landmarks.size(), 200u);
+  test::expect_one_line_error(run("split " + shell_quote(bundler) + " --frames 0-4 -o " +
+                                  shell_quote(path("w.txt")) + " --retriangulate"),
+                              "--image-size W,H", "split");
 
   const test::CliRun to_ours =
       run("convert " + shell_quote(bundler) + " " + shell_quote(ours) + " --image-size 640,427");
@@ -99,6 +112,63 @@ TEST_F(CliConvert, ExperimentReadsAStellaVslamSource) {
   const std::string csv = test::read_text(path("out/results.csv"));
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 2) << csv;  // header + one run
   EXPECT_NE(csv.find(",true,"), std::string::npos) << csv;        // it succeeded
+}
+
+// convert keeps landmarks of low parallax with their (large) covariance and drops only what
+// cannot be triangulated, printing every kind: the real desk map written as a COLMAP model and
+// read back. Measured: 22,338 landmarks, 4,785 triangulated at >= 1 deg, 1,291 below it kept,
+// 16,257 seen from one frame and 5 that do not triangulate dropped.
+TEST_F(CliConvert, KeepsLowParallaxLandmarksAndCountsEveryKind) {
+  const std::string desk = test::data_file("tum_fr1_desk/map_fr1_desk.txt");
+  LMALIGN_REQUIRE_FILE(desk);
+  const std::string colmap = path("desk") + "/";
+  ASSERT_EQ(run("convert " + shell_quote(desk) + " " + shell_quote(colmap)).exit_code, 0);
+  const test::CliRun all = run("convert " + shell_quote(colmap) + " " + shell_quote(path("a.txt")));
+  ASSERT_EQ(all.exit_code, 0) << all.err;
+  const test::CliRun one_deg = run("convert " + shell_quote(colmap) + " " +
+                                   shell_quote(path("b.txt")) + " --min-parallax 1");
+  ASSERT_EQ(one_deg.exit_code, 0) << one_deg.err;
+  // "kept N <what>" / "dropped N <what>", and the total line.
+  const auto count = [](const std::string& out, const std::string& verb, const std::string& what) {
+    const std::size_t at = out.find(what);
+    if (at == std::string::npos) return std::size_t{0};
+    const std::size_t line = out.rfind(verb + " ", at);
+    return static_cast<std::size_t>(std::stoul(out.substr(line + verb.size() + 1)));
+  };
+  const std::size_t low = count(all.out, "kept", "with low parallax (< 1 deg)");
+  const std::size_t triangulated = count(all.out, "kept", "with a triangulated covariance");
+  const std::size_t one_view = count(all.out, "dropped", "seen in fewer than 2 usable views");
+  const std::size_t failed = count(all.out, "dropped", "that cannot be triangulated");
+  EXPECT_GT(low, 500u) << all.out;
+  EXPECT_GT(triangulated, 4000u) << all.out;
+  EXPECT_GT(one_view, 10000u) << all.out;
+  EXPECT_NE(all.out.find("landmarks: " + std::to_string(low + triangulated) + " of " +
+                         std::to_string(low + triangulated + one_view + failed) + " kept, " +
+                         std::to_string(one_view + failed) + " dropped"),
+            std::string::npos)
+      << all.out;
+  // --min-parallax 1 drops exactly the low-parallax kind, and says so.
+  EXPECT_EQ(count(one_deg.out, "dropped", "with parallax below 1 deg"), low) << one_deg.out;
+  EXPECT_EQ(one_deg.out.find("with low parallax"), std::string::npos) << one_deg.out;
+  MapReadOptions every;
+  every.min_observations = 0;
+  const Map kept_all = read_map(path("a.txt"), every);
+  const Map kept_one = read_map(path("b.txt"), every);
+  ASSERT_EQ(kept_all.landmarks.size(), low + triangulated);
+  ASSERT_EQ(kept_one.landmarks.size(), triangulated);
+  // The low-parallax ones (in a.txt, not in b.txt) have well-defined, larger covariances.
+  std::set<Id> well_conditioned;
+  for (const Landmark& l : kept_one.landmarks) well_conditioned.insert(l.id);
+  std::vector<double> low_sd_m, other_sd_m;
+  for (const Landmark& l : kept_all.landmarks) {
+    const double largest = Eigen::SelfAdjointEigenSolver<Mat3>(l.cov_world_m2).eigenvalues()(2);
+    ASSERT_TRUE(std::isfinite(largest) && largest > 0.0) << l.id;
+    (well_conditioned.count(l.id) ? other_sd_m : low_sd_m).push_back(std::sqrt(largest));
+  }
+  ASSERT_EQ(low_sd_m.size(), low);
+  std::sort(low_sd_m.begin(), low_sd_m.end());
+  std::sort(other_sd_m.begin(), other_sd_m.end());
+  EXPECT_GT(low_sd_m[low_sd_m.size() / 2], 2.0 * other_sd_m[other_sd_m.size() / 2]);
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/formats/ply.hpp"
 #include "lmalign/map/formats/stella_vslam.hpp"
+#include "lmalign/map/formats/xyz.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "support/msgpack_writer.hpp"
 #include "support/temp_dir.hpp"
@@ -804,12 +805,16 @@ TEST(Ply, AnElementWithoutPropertiesIsSkippedAtOnce) {
   EXPECT_EQ(map.landmarks[0].p_world, Vec3(1, 2, 3));
 }
 
-TEST(Ply, WithoutCovariancesReadAnyMapRefusesUnlessKept) {
+TEST(Ply, WithoutCovariancesReadAnyMapAssumesThemUnlessKept) {
   ScratchDir dir("ply_nocov");
   write_text(dir.file("c.ply"),
              "ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\n"
              "property double y\nproperty double z\nend_header\n1 2 3\n4 5 6\n");
-  EXPECT_THROW(read_any_map(dir.file("c.ply")), InvalidArgument);
+  // Two points 3 sqrt(3) m apart: sigma = half of that, on both, isotropic.
+  const Map assumed = read_any_map(dir.file("c.ply"));
+  EXPECT_TRUE(assumed.header.covariance_assumed);
+  EXPECT_NEAR(assumed.landmarks[0].cov_world_m2(2, 2), 27.0 / 4.0, 1e-12);
+  EXPECT_EQ(assumed.landmarks[1].cov_world_m2, assumed.landmarks[0].cov_world_m2);
   AnyMapReadOptions keep;
   keep.keep_unknown_covariance = true;
   const Map map = read_any_map(dir.file("c.ply"), keep);
@@ -995,6 +1000,117 @@ TEST(MapHeader, EachReaderRecordsTheScale) {
     StellaSpoil s;
     s.setup = setup;
     EXPECT_EQ(read_stella_vslam_bytes(stella_bytes(s), "m.msg").header.scale, scale) << setup;
+  }
+}
+
+// ---- XYZ text and point clouds without covariances
+
+TEST(Xyz, ReadsPointsSkipsExtraColumnsAndNamesBadLines) {
+  ScratchDir dir("xyz");
+  write_text(dir.file("cloud.xyz"),
+             "# x y z r g b\n0 0 0 10 20 30\n1,0,0,1,2,3\n0\t2 , 0 4 5 6\r\n\n0 0 3 7 8 9\n");
+  EXPECT_EQ(detect_map_format(dir.file("cloud.xyz")), MapFormat::kXyz);
+  const Map cloud = read_xyz_map(dir.file("cloud.xyz"));
+  ASSERT_EQ(cloud.landmarks.size(), 4u);
+  EXPECT_EQ(cloud.landmarks[2].p_world, Vec3(0, 2, 0));
+  EXPECT_EQ(cloud.landmarks[3].id, 3);
+  EXPECT_EQ(cloud.landmarks[3].p_world, Vec3(0, 0, 3));
+  EXPECT_TRUE(cloud.frames.empty());
+  EXPECT_EQ(cloud.header.scale, MapScale::kUnknown);
+  for (const Landmark& l : cloud.landmarks) EXPECT_TRUE(l.covariance_unknown);
+
+  struct Case {
+    std::string text;
+    std::string fragment;
+  };
+  const std::vector<Case> cases = {
+      {"1 2\n", "c.xyz:1: expected a point 'x y z' (3 or more numbers), got 2 field(s)"},
+      {"1 2 3\n4 5 6 7\n", "c.xyz:2: expected 3 fields as on line 1, got 4"},
+      {"# h\n1 2 3\n4 nan 6\n", "c.xyz:3: field 'y' is not a finite number: 'nan'"},
+      {"1 2 3 4\n1 2 3 red\n", "c.xyz:2: field 4 is not a finite number: 'red'"},
+      {"1,2,3,\n", "c.xyz:1: field 4 is not a finite number: ''"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.text);
+    std::istringstream in(c.text);
+    try {
+      read_xyz_map(in, "c.xyz");
+      ADD_FAILURE() << "no error; expected " << c.fragment;
+    } catch (const ParseError& e) {
+      EXPECT_NE(std::string(e.what()).find(c.fragment), std::string::npos) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+  // A first record that is not three numbers is not XYZ: the error lists XYZ among the formats.
+  write_text(dir.file("words.txt"), "x y z\n1 2 3\n");
+  try {
+    detect_map_format(dir.file("words.txt"));
+    ADD_FAILURE() << "words read as a format";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("not XYZ text"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(read_xyz_map(dir.file("missing.xyz")), IoError);
+}
+
+// A point cloud without covariances (XYZ, or PLY without cov_* properties) reads with
+// covariances assumed from the spacing and flagged as such; keep_unknown_covariance keeps them
+// unknown instead. The stats count every landmark once.
+TEST(ReadAnyMap, PointCloudsWithoutCovariancesGetThemAssumed) {
+  ScratchDir dir("clouds");
+  std::string xyz;
+  std::string ply =
+      "ply\nformat ascii 1.0\nelement vertex 64\nproperty double x\nproperty double y\n"
+      "property double z\nend_header\n";
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      for (int k = 0; k < 4; ++k) {
+        const std::string p = std::to_string(0.2 * i) + " " + std::to_string(0.2 * j) + " " +
+                              std::to_string(0.2 * k) + "\n";
+        xyz += p;
+        ply += p;
+      }
+    }
+  }
+  write_text(dir.file("grid.xyz"), xyz);
+  write_text(dir.file("grid.ply"), ply);
+  for (const char* name : {"grid.xyz", "grid.ply"}) {
+    SCOPED_TRACE(name);
+    MapReadStats stats;
+    const Map map = read_any_map(dir.file(name), {}, &stats);
+    ASSERT_EQ(map.landmarks.size(), 64u);
+    EXPECT_TRUE(map.header.covariance_assumed);
+    EXPECT_EQ(map.header.scale, MapScale::kUnknown);
+    for (const Landmark& l : map.landmarks) {
+      ASSERT_FALSE(l.covariance_unknown);
+      // Half the median distance to the 6 nearest: 0.2 m inside, up to 0.2 sqrt(2) m at a corner.
+      EXPECT_GE(l.cov_world_m2(0, 0), 0.1 * 0.1 - 1e-12);
+      EXPECT_LE(l.cov_world_m2(0, 0), 0.25 * 0.2 * 0.2 * 2 + 1e-12);  // sigma <= 0.2 sqrt(2) / 2
+      EXPECT_EQ(l.cov_world_m2(0, 1), 0.0);
+    }
+    EXPECT_EQ(stats.landmarks_in_file, 64u);
+    EXPECT_EQ(stats.kept_assumed, 64u);
+    EXPECT_EQ(stats.kept(), 64u);
+    EXPECT_EQ(stats.dropped(), 0u);
+    // Our format keeps the flag (the MAP record), so the assumption is not lost on the way.
+    write_any_map(dir.file(std::string(name) + ".txt"), map);
+    EXPECT_TRUE(read_any_map(dir.file(std::string(name) + ".txt")).header.covariance_assumed);
+
+    AnyMapReadOptions keep;
+    keep.keep_unknown_covariance = true;
+    const Map raw = read_any_map(dir.file(name), keep, &stats);
+    EXPECT_FALSE(raw.header.covariance_assumed);
+    EXPECT_TRUE(raw.landmarks[0].covariance_unknown);
+    EXPECT_EQ(stats.kept_unknown, 64u);
+  }
+  // Two points have a spacing; one has none: refused in one line naming the file.
+  write_text(dir.file("one.xyz"), "1 2 3\n");
+  try {
+    read_any_map(dir.file("one.xyz"));
+    ADD_FAILURE() << "one point read";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("map '" + dir.file("one.xyz") + "': cannot assume"),
+              std::string::npos)
+        << e.what();
   }
 }
 

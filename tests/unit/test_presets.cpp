@@ -5,12 +5,14 @@
 // an experiment config's `settings:` read against each strategy's table.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <set>
 #include <string>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/experiment/config.hpp"
+#include "lmalign/map/map.hpp"
 #include "lmalign/registration/presets.hpp"
 
 namespace lmalign {
@@ -65,6 +67,68 @@ TEST(Presets, BuiltInPresetsAreReadWithUniqueNamesAndOneDefault) {
   EXPECT_EQ(find_preset("mean_distance").name, "distance");
   EXPECT_TRUE(find_preset("observations").uses_k());
   EXPECT_FALSE(find_preset("base").uses_k());
+}
+
+// Which presets depend on the landmark covariances, and which read a target confidence: a
+// distribution matcher (adaptive) or a covariance confidence (covariance) use covariances; the
+// observation weight is read by observations' matcher and robust_obs's kernel.
+TEST(Presets, PipelinesSayWhatTheyWeighBy) {
+  auto pipeline = [](const char* name) { return Pipeline(find_preset(name).spec); };
+  EXPECT_FALSE(pipeline("base").uses_covariances());
+  EXPECT_TRUE(pipeline("covariance").uses_covariances());
+  EXPECT_FALSE(pipeline("observations").uses_covariances());
+  EXPECT_FALSE(pipeline("robust_obs").uses_covariances());
+  EXPECT_TRUE(pipeline("adaptive").uses_covariances());
+  EXPECT_TRUE(pipeline("base").confidences().empty());
+  EXPECT_EQ(pipeline("covariance").confidences(), std::vector<WeightKind>{WeightKind::kCovariance});
+  EXPECT_EQ(pipeline("distance").confidences(), std::vector<WeightKind>{WeightKind::kMeanDistance});
+  EXPECT_EQ(pipeline("robust_obs").confidences(),
+            std::vector<WeightKind>{WeightKind::kObservations});
+}
+
+// A point cloud: landmarks without observations, with (assumed) isotropic covariances. The
+// observation weight is 0 everywhere: a strategy that weighs by it aligns nothing and is refused
+// with the reason; base ICP aligns it. With covariances_assumed, only the strategies that use
+// covariances flag it (and say so at the end of their reason).
+TEST(Presets, PointCloudsWithoutObservationsOrMeasuredCovariances) {
+  Map cloud;
+  for (int i = 0; i < 400; ++i) {
+    Landmark l;
+    l.id = i;
+    l.p_world = Vec3(2.0 * std::sin(1.3 * i), 3.0 * std::cos(0.7 * i), 0.3 * (i % 7));
+    l.cov_world_m2 = Mat3::Identity() * 1e-4;
+    cloud.landmarks.push_back(l);
+  }
+  const PreparedTarget target(cloud);
+  SourceLandmarks source = SourceLandmarks::from_map(cloud);
+  AlignRequest request;
+  request.covariances_assumed = true;
+  Isometry3 guess = Isometry3::Identity();
+  guess.translation() = Vec3(0.02, -0.01, 0.0);
+  request.initial_guess = guess;
+  const std::string note = "; covariances assumed from the landmark spacing";
+  for (const char* name : {"observations", "distance", "robust_obs"}) {
+    SCOPED_TRACE(name);
+    const Summary s = align(find_preset(name), source.view(), target, request);
+    EXPECT_FALSE(s.verdict.trustworthy);
+    EXPECT_TRUE(contains(s.verdict.reason, "weight 0 (it has no observations: a point cloud)"))
+        << s.verdict.reason;
+    EXPECT_FALSE(s.covariances_assumed);
+    EXPECT_FALSE(contains(s.verdict.reason, note)) << s.verdict.reason;
+  }
+  const Summary base = align(find_preset("base"), source.view(), target, request);
+  EXPECT_TRUE(base.verdict.trustworthy) << base.verdict.reason;
+  EXPECT_EQ(base.verdict.reason, "ok");
+  EXPECT_FALSE(base.covariances_assumed);
+  EXPECT_LT(base.registration.T_target_source.translation().norm(), 1e-9);
+  const Summary cov = align(find_preset("covariance"), source.view(), target, request);
+  EXPECT_TRUE(cov.covariances_assumed);
+  EXPECT_TRUE(contains(cov.verdict.reason, note)) << cov.verdict.reason;
+  EXPECT_TRUE(contains(to_json(cov), "\"covariances_assumed\":true")) << to_json(cov);
+  request.covariances_assumed = false;
+  const Summary measured = align(find_preset("covariance"), source.view(), target, request);
+  EXPECT_FALSE(measured.covariances_assumed);
+  EXPECT_FALSE(contains(measured.verdict.reason, note)) << measured.verdict.reason;
 }
 
 TEST(Presets, UnknownNamesNameTheNearestPreset) {

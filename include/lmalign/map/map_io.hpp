@@ -45,11 +45,14 @@ struct MapReadOptions {
 /// covariance, observation of an unknown frame, duplicate frame or landmark id).
 /// Throws IoError if the file cannot be opened or read, InvalidArgument if options are invalid.
 /// Memory: the text is streamed one line at a time; only the kept landmarks, and the ids and
-/// line numbers of all records, are held.
-Map read_map(const std::string& path, const MapReadOptions& options = {});
+/// line numbers of all records, are held. `num_dropped`, if given, receives the number of
+/// landmarks dropped by options.min_observations.
+Map read_map(const std::string& path, const MapReadOptions& options = {},
+             std::size_t* num_dropped = nullptr);
 
 /// Same, from a stream; `name` is used in error messages in place of a path.
-Map read_map(std::istream& in, const std::string& name, const MapReadOptions& options = {});
+Map read_map(std::istream& in, const std::string& name, const MapReadOptions& options = {},
+             std::size_t* num_dropped = nullptr);
 
 /// Writes `map` atomically (temporary file in the same directory, then rename). Values are written
 /// in the shortest form that reads back to the same double, so write -> read is exact.

@@ -146,6 +146,10 @@ struct Summary {
   /// alignment of the others.
   std::size_t source_left_out = 0;
   std::size_t target_left_out = 0;
+  /// AlignRequest::covariances_assumed, for a pipeline that uses covariances
+  /// (Pipeline::uses_covariances); then the verdict's reason ends with "; covariances assumed
+  /// from the landmark spacing (...)" (after the left-out note, if any).
+  bool covariances_assumed = false;
 
   /// One line: the preset, the termination, iterations, scores, time, the verdict.
   std::string BriefReport() const;
@@ -163,7 +167,7 @@ struct Summary {
 /// The one serialisation of a result, as JSON text (`indent` < 0: one line): the preset, its
 /// stages and every setting, T_target_source (4x4, row-major rows), termination, iterations,
 /// scores, time, usable, the verdict (trustworthy, trust_reason, source_landmarks_left_out and
-/// target_landmarks_left_out, and its evidence: inlier and
+/// target_landmarks_left_out, covariances_assumed, and its evidence: inlier and
 /// overlap fractions, or the gated inliers, NIS and ambiguity), the initialiser's report, the
 /// refined hypotheses, the diagnostics at the estimate, covariance_6x6 (the reported one;
 /// row-major, xi = (rho [m], phi [rad]) on the left in the target frame; null when not
@@ -216,6 +220,12 @@ class Pipeline {
   const Scorer* scorer() const { return scorer_.get(); }
   const TrustJudge* trust() const { return trust_.get(); }
   bool needs_scales() const { return needs_scales_; }
+  /// The target landmark confidences its stages read (kUniform omitted), in seam order.
+  std::vector<WeightKind> confidences() const;
+  /// True when the result depends on the landmark covariances: a matcher that pairs
+  /// distributions (its gate and the point-to-distribution cost) or a covariance confidence
+  /// (Eq. 1).
+  bool uses_covariances() const;
 
   /// One refinement from `start` in `phase` on the landmarks of `context`. `keep_pairs`: keep
   /// the last iteration's pairs in the result. `history`: 0 none, 1 pairs, 2 pairs and scores.

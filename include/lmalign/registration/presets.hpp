@@ -83,6 +83,11 @@ struct AlignRequest {
   ScaleMode scale = ScaleMode::kAuto;
   bool source_metric = true;
   bool target_metric = true;
+  /// Either map's covariances are assumed, not measured (MapHeader::covariance_assumed: a point
+  /// cloud without any, given an isotropic covariance from its local spacing). A pipeline that
+  /// uses covariances says so in Summary::covariances_assumed and at the end of its verdict's
+  /// reason.
+  bool covariances_assumed = false;
 };
 
 /// The preset's pipeline spec with the request's k, limits and settings applied. Throws
@@ -90,7 +95,10 @@ struct AlignRequest {
 /// value outside its bound (key, value, bound).
 PipelineSpec resolve_spec(const Preset& preset, const AlignRequest& request);
 
-/// Aligns the source onto the target with the preset. Throws InvalidArgument on bad settings
+/// Aligns the source onto the target with the preset. A pipeline whose stages read a target
+/// confidence that is 0 for every target landmark (observations or mean distance on a point
+/// cloud without observations: Eqs. 2-3) aligns nothing; its verdict is then untrusted and says
+/// so. Throws InvalidArgument on bad settings
 /// (resolve_spec), a non-rigid initial guess, a prior for a preset whose initialiser uses none,
 /// and what Pipeline::run throws.
 Summary align(const Preset& preset, const SourceView& source, const PreparedTarget& target,

@@ -123,6 +123,9 @@ class Stage {
     (void)pair_kind;
     return true;
   }
+  /// The target landmark confidence (weights.hpp: Eqs. 1-4) the stage reads, if any: a weighted
+  /// kNN matcher's choice among the k nearest, a kernel's factor. kUniform reads none.
+  virtual WeightKind confidence() const { return WeightKind::kUniform; }
 
  private:
   std::string name_;

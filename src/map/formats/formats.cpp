@@ -11,6 +11,7 @@
 #include <fstream>
 #include <string_view>
 #include <unordered_map>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 
@@ -19,6 +20,7 @@
 #include "lmalign/map/formats/colmap.hpp"
 #include "lmalign/map/formats/ply.hpp"
 #include "lmalign/map/formats/stella_vslam.hpp"
+#include "lmalign/map/formats/xyz.hpp"
 #include "lmalign/map/triangulation.hpp"
 
 namespace lmalign {
@@ -37,6 +39,7 @@ constexpr FormatName kNames[] = {
     {MapFormat::kColmapBinary, "colmap-bin"},
     {MapFormat::kPly, "ply"},
     {MapFormat::kStellaVslam, "stella-vslam"},
+    {MapFormat::kXyz, "xyz"},
 };
 
 std::string accepted_names() {
@@ -127,11 +130,12 @@ MapFormat detect_map_format(const std::string& path) {
           return MapFormat::kLmalign;
         }
       }
+      if (is_xyz_record(line.substr(start))) return MapFormat::kXyz;
       throw InvalidArgument("cannot tell the format of '" + path +
                             "': not a COLMAP model folder, not Bundler v0.3 (first line '# "
                             "Bundle file v0.3'), not PLY (first line 'ply'), not an lmalign map "
-                            "(FRAME / LANDMARK records); "
-                            "use --format to choose a reader");
+                            "(MAP / FRAME / LANDMARK records), not XYZ text (a point 'x y z' "
+                            "per line); use --format to choose a reader");
     }
     if (!in) return MapFormat::kLmalign;  // only blank and comment lines: an empty map
   }
@@ -155,7 +159,8 @@ bool ConfidenceOptions::is_valid(std::string* why) const {
 
 std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
                                  const std::vector<double>* sigma_px_per_landmark,
-                                 const PinholeIntrinsics& fallback) {
+                                 const PinholeIntrinsics& fallback,
+                                 std::vector<CovarianceEstimate>* estimates) {
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("confidence options: " + why);
   if (sigma_px_per_landmark != nullptr && sigma_px_per_landmark->size() != map.landmarks.size()) {
@@ -171,6 +176,7 @@ std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
 
   std::size_t flagged = 0;
   std::vector<PixelView> views;
+  if (estimates != nullptr) estimates->assign(map.landmarks.size(), CovarianceEstimate{});
   for (std::size_t l = 0; l < map.landmarks.size(); ++l) {
     Landmark& landmark = map.landmarks[l];
     views.clear();
@@ -192,8 +198,17 @@ std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
         (*sigma_px_per_landmark)[l] > 0.0 && std::isfinite((*sigma_px_per_landmark)[l])) {
       topt.pixel_sigma_px = (*sigma_px_per_landmark)[l];
     }
-    const std::optional<TriangulatedPoint> point = triangulate(views, topt);
-    if (point && point->max_parallax_deg >= options.min_parallax_deg) {
+    const std::optional<TriangulatedPoint> point =
+        views.size() >= 2 ? triangulate(views, topt) : std::nullopt;
+    using Kind = CovarianceEstimate::Kind;
+    CovarianceEstimate estimate;
+    estimate.kind = views.size() < 2 ? Kind::kTooFewViews : Kind::kNotTriangulated;
+    if (point) {
+      estimate.max_parallax_deg = point->max_parallax_deg;
+      estimate.kind = point->max_parallax_deg >= options.min_parallax_deg ? Kind::kTriangulated
+                                                                          : Kind::kBelowMinParallax;
+    }
+    if (estimate.kind == Kind::kTriangulated) {
       landmark.cov_world_m2 = point->cov_world_m2;
       landmark.covariance_unknown = false;
     } else {
@@ -201,6 +216,7 @@ std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
       landmark.covariance_unknown = true;
       ++flagged;
     }
+    if (estimates != nullptr) (*estimates)[l] = estimate;
   }
   return flagged;
 }
@@ -246,19 +262,20 @@ void refuse_degenerate(const std::string& path, const Map& map) {
 
 }  // namespace
 
-Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
+Map read_any_map(const std::string& path, const AnyMapReadOptions& options,
+                 MapReadStats* stats_out) {
   const MapFormat format =
       options.format == MapFormat::kAuto ? detect_map_format(path) : options.format;
+  MapReadStats stats;
   if (format == MapFormat::kLmalign) {
-    Map map = read_map(path, options.map);
-    if (map.landmarks.empty()) {
-      // Empty file, or every landmark below min_observations (the caller's to report)?
-      MapReadOptions all = options.map;
-      all.min_observations = 0;
-      if (options.map.min_observations == 0 || read_map(path, all).landmarks.empty()) {
-        refuse_empty(path, format, map);
-      }
-    }
+    std::size_t dropped = 0;
+    Map map = read_map(path, options.map, &dropped);
+    // Empty file, or every landmark below min_observations (the caller's to report)?
+    if (map.landmarks.empty() && dropped == 0) refuse_empty(path, format, map);
+    stats.landmarks_in_file = map.landmarks.size() + dropped;
+    stats.kept_stored = map.landmarks.size();
+    stats.dropped_min_observations = dropped;
+    if (stats_out != nullptr) *stats_out = stats;
     return map;
   }
   std::string why;
@@ -266,26 +283,46 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
   if (!options.confidence.is_valid(&why)) throw InvalidArgument("confidence options: " + why);
 
   Map map;
-  std::vector<double> sigma_px;
-  if (format == MapFormat::kPly) {
-    map = read_ply_map(path);
+  if (format == MapFormat::kPly || format == MapFormat::kXyz) {
+    // Point clouds: no observations, so min_observations does not apply.
+    map = format == MapFormat::kPly ? read_ply_map(path) : read_xyz_map(path);
     if (map.landmarks.empty()) refuse_empty(path, format, map);
     refuse_degenerate(path, map);
+    stats.landmarks_in_file = map.landmarks.size();
     const bool any_known = std::any_of(map.landmarks.begin(), map.landmarks.end(),
                                        [](const Landmark& l) { return !l.covariance_unknown; });
-    if (!map.landmarks.empty() && !any_known && !options.keep_unknown_covariance) {
-      throw InvalidArgument("'" + path +
-                            "' is a PLY without per-vertex covariances (cov_xx cov_xy cov_xz "
-                            "cov_yy cov_yz cov_zz) and without observations to derive them from; "
-                            "set keep_unknown_covariance to read it flagged");
+    if (!any_known) {
+      if (options.keep_unknown_covariance) {
+        stats.kept_unknown = map.landmarks.size();
+      } else {
+        try {
+          assume_covariances_from_spacing(map);
+        } catch (const InvalidArgument& e) {
+          throw InvalidArgument("map '" + path + "': " + e.what());
+        }
+        stats.kept_assumed = map.landmarks.size();
+      }
+    } else {
+      for (const Landmark& l : map.landmarks) {
+        if (!l.covariance_unknown) {
+          ++stats.kept_stored;
+        } else if (options.keep_unknown_covariance) {
+          ++stats.kept_unknown;
+        } else {
+          ++stats.dropped_unknown;
+        }
+      }
+      if (!options.keep_unknown_covariance) {
+        map.landmarks.erase(std::remove_if(map.landmarks.begin(), map.landmarks.end(),
+                                           [](const Landmark& l) { return l.covariance_unknown; }),
+                            map.landmarks.end());
+      }
     }
-    if (!options.keep_unknown_covariance) {
-      map.landmarks.erase(std::remove_if(map.landmarks.begin(), map.landmarks.end(),
-                                         [](const Landmark& l) { return l.covariance_unknown; }),
-                          map.landmarks.end());
-    }
+    map.validate();
+    if (stats_out != nullptr) *stats_out = stats;
     return map;
   }
+  std::vector<double> sigma_px;
   if (format == MapFormat::kStellaVslam) {
     map = read_stella_vslam(path);
   } else if (format == MapFormat::kBundler) {
@@ -302,16 +339,40 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options) {
   }
   if (map.landmarks.empty()) refuse_empty(path, format, map);
   refuse_degenerate(path, map);
-  estimate_covariances(map, options.confidence, sigma_px.empty() ? nullptr : &sigma_px);
+  std::vector<CovarianceEstimate> estimates;
+  estimate_covariances(map, options.confidence, sigma_px.empty() ? nullptr : &sigma_px,
+                       PinholeIntrinsics::tum_fr1(), &estimates);
+  stats.landmarks_in_file = map.landmarks.size();
   const std::size_t min_obs = options.map.min_observations;
   const bool keep_unknown = options.keep_unknown_covariance;
-  map.landmarks.erase(std::remove_if(map.landmarks.begin(), map.landmarks.end(),
-                                     [&](const Landmark& l) {
-                                       return l.observations.size() < min_obs ||
-                                              (l.covariance_unknown && !keep_unknown);
-                                     }),
-                      map.landmarks.end());
+  std::vector<bool> keep(map.landmarks.size(), true);
+  using Kind = CovarianceEstimate::Kind;
+  for (std::size_t i = 0; i < map.landmarks.size(); ++i) {
+    const CovarianceEstimate& e = estimates[i];
+    if (map.landmarks[i].observations.size() < min_obs) {
+      ++stats.dropped_min_observations;
+      keep[i] = false;
+    } else if (e.kind == Kind::kTriangulated) {
+      ++(e.max_parallax_deg < kLowParallaxDeg ? stats.kept_low_parallax : stats.kept_triangulated);
+    } else if (keep_unknown) {
+      ++stats.kept_unknown;
+    } else {
+      keep[i] = false;
+      ++(e.kind == Kind::kTooFewViews        ? stats.dropped_too_few_views
+         : e.kind == Kind::kBelowMinParallax ? stats.dropped_below_min_parallax
+                                             : stats.dropped_not_triangulated);
+    }
+  }
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < map.landmarks.size(); ++i) {
+    if (keep[i]) {
+      if (kept != i) map.landmarks[kept] = std::move(map.landmarks[i]);
+      ++kept;
+    }
+  }
+  map.landmarks.resize(kept);
   map.validate();
+  if (stats_out != nullptr) *stats_out = stats;
   return map;
 }
 

@@ -30,6 +30,8 @@ class IrlsKernel : public Kernel {
  public:
   explicit IrlsKernel(IrlsOptions o) : o_(o) {}
 
+  WeightKind confidence() const override { return o_.confidence; }
+
   int reweightings() const override {
     return o_.kernel == RobustKernel::kNone ? 1 : o_.irls_iterations;
   }

@@ -19,6 +19,8 @@ class CauchyMahalanobis : public Kernel {
   CauchyMahalanobis(double scale_d2, WeightKind confidence)
       : scale_d2_(scale_d2), confidence_(confidence) {}
 
+  WeightKind confidence() const override { return confidence_; }
+
   void weigh(const RefineContext& c, const LoopState&, const Pairs& pairs, const Isometry3&,
              const Isometry3&, std::vector<double>* weights) const override {
     const std::vector<double>* confidence =

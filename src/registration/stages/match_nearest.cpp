@@ -29,6 +29,10 @@ class NearestMatcher : public Matcher {
 
   Pairs::Kind kind() const override { return Pairs::Kind::kPoints; }
 
+  WeightKind confidence() const override {
+    return kind_ == CorrespondenceKind::kWeightedKnn ? weight_ : WeightKind::kUniform;
+  }
+
   std::unique_ptr<StageState> begin(const RefineContext&) const override {
     return std::make_unique<State>();
   }

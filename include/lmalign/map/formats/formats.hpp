@@ -5,6 +5,7 @@
 #include <array>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "lmalign/map/map.hpp"
 #include "lmalign/map/map_io.hpp"
@@ -19,10 +20,11 @@ enum class MapFormat {
   kColmapBinary,  ///< COLMAP sparse model folder with cameras.bin, images.bin, points3D.bin
   kPly,           ///< PLY point cloud, optional per-vertex covariance (formats/ply.hpp)
   kStellaVslam,   ///< stella_vslam / OpenVSLAM map database .msg (formats/stella_vslam.hpp)
+  kXyz,           ///< XYZ text point cloud, one point per line (formats/xyz.hpp)
 };
 
 /// The name used by `--format`: auto, lmalign, bundler, colmap-text, colmap-bin, ply,
-/// stella-vslam.
+/// stella-vslam, xyz.
 std::string map_format_name(MapFormat format);
 /// Parses a `--format` name. Throws InvalidArgument listing the accepted names.
 MapFormat parse_map_format(const std::string& name);
@@ -32,7 +34,8 @@ MapFormat parse_map_format(const std::string& name);
 /// whose first line is "# Bundle file v0.3" is Bundler, one whose first line is "ply" is PLY, one
 /// that starts with a MessagePack map whose first key is "cameras" is a stella_vslam map
 /// database; a file whose first record (after blank and
-/// comment lines) starts with FRAME or LANDMARK, or that holds no record, is ours.
+/// comment lines) starts with MAP, FRAME or LANDMARK, or that holds no record, is ours; one whose
+/// first record is 3 or more numbers is XYZ text.
 /// Throws IoError if `path` cannot be read, InvalidArgument naming the path and the formats
 /// looked for if it is none of them.
 MapFormat detect_map_format(const std::string& path);
@@ -72,8 +75,22 @@ struct AnyMapReadOptions {
   std::optional<std::array<long long, 2>> image_size_px;
   ConfidenceOptions confidence;
   /// false (the default): landmarks whose covariance could not be estimated are dropped, so the
-  /// map can be aligned and written in our format. true: they are kept, flagged.
+  /// map can be aligned and written in our format, and point clouds without covariances get
+  /// them assumed from the spacing. true: they are kept, flagged (point clouds as read).
   bool keep_unknown_covariance = false;
+};
+
+/// What estimate_covariances() found for one landmark.
+struct CovarianceEstimate {
+  enum class Kind {
+    kTriangulated,      ///< covariance set (parallax >= min_parallax_deg)
+    kBelowMinParallax,  ///< triangulated, but parallax below min_parallax_deg: flagged
+    kTooFewViews,       ///< fewer than 2 usable views: cannot be triangulated; flagged
+    kNotTriangulated,   ///< triangulation failed (no parallax, behind a camera, ...); flagged
+  };
+  Kind kind = Kind::kNotTriangulated;
+  /// Largest angle between two viewing rays, degrees (0 unless triangulated).
+  double max_parallax_deg = 0.0;
 };
 
 /// Re-estimates the covariance of every landmark of `map` from its observations and the frames'
@@ -84,25 +101,61 @@ struct AnyMapReadOptions {
 /// parallax below options.min_parallax_deg gets covariance_unknown = true and a zero covariance.
 /// `sigma_px_per_landmark`, if given (one per landmark, 0 = none), overrides the default noise
 /// when options.pixel_sigma_px is 0. Frames without intrinsics use `fallback` (the TUM fr1
-/// pinhole by default). Returns the number of landmarks flagged.
+/// pinhole by default). `estimates`, if given, receives one CovarianceEstimate per landmark.
+/// Returns the number of landmarks flagged.
 /// Throws InvalidArgument on invalid options, a sigma vector of the wrong size, or an
 /// observation of a frame missing from the map.
 std::size_t estimate_covariances(Map& map, const ConfidenceOptions& options,
                                  const std::vector<double>* sigma_px_per_landmark = nullptr,
-                                 const PinholeIntrinsics& fallback = PinholeIntrinsics::tum_fr1());
+                                 const PinholeIntrinsics& fallback = PinholeIntrinsics::tum_fr1(),
+                                 std::vector<CovarianceEstimate>* estimates = nullptr);
+
+/// Below this parallax (degrees) a triangulated landmark counts as low-parallax in MapReadStats:
+/// its covariance is large along the viewing direction, but well defined.
+inline constexpr double kLowParallaxDeg = 1.0;
+
+/// What read_any_map() did with the landmarks of a file, by kind (`convert` prints it). Every
+/// landmark of the file is counted once: landmarks_in_file = kept() + dropped().
+struct MapReadStats {
+  std::size_t landmarks_in_file = 0;
+  // Kept, by where their covariance comes from:
+  std::size_t kept_stored = 0;        ///< stored in the file (ours, a PLY with covariances)
+  std::size_t kept_triangulated = 0;  ///< triangulated, parallax >= kLowParallaxDeg
+  std::size_t kept_low_parallax = 0;  ///< triangulated, parallax below kLowParallaxDeg
+  std::size_t kept_assumed = 0;       ///< assumed from the spacing (a point cloud without any)
+  std::size_t kept_unknown = 0;       ///< unknown, flagged (keep_unknown_covariance)
+  // Dropped:
+  std::size_t dropped_min_observations = 0;    ///< fewer than map.min_observations
+  std::size_t dropped_too_few_views = 0;       ///< fewer than 2 usable views
+  std::size_t dropped_not_triangulated = 0;    ///< triangulation failed
+  std::size_t dropped_below_min_parallax = 0;  ///< parallax below confidence.min_parallax_deg
+  std::size_t dropped_unknown = 0;             ///< a PLY vertex flagged covariance_known = 0
+
+  std::size_t kept() const {
+    return kept_stored + kept_triangulated + kept_low_parallax + kept_assumed + kept_unknown;
+  }
+  std::size_t dropped() const {
+    return dropped_min_observations + dropped_too_few_views + dropped_not_triangulated +
+           dropped_below_min_parallax + dropped_unknown;
+  }
+};
 
 /// Reads a map in any supported format (options.format, or detect_map_format()). For formats
 /// without covariances they are derived by estimate_covariances(); then landmarks with fewer
 /// than options.map.min_observations observations, and (unless keep_unknown_covariance) those
-/// with an unknown covariance, are dropped. PLY has no observations: min_observations does not
-/// apply, and a PLY with no covariance properties is an InvalidArgument unless
-/// keep_unknown_covariance is set. Throws what the chosen reader throws (ParseError
+/// with an unknown covariance, are dropped. Point clouds (PLY, XYZ text) have no observations:
+/// min_observations does not apply; one that stores no covariance at all gets them assumed from
+/// the landmark spacing (assume_covariances_from_spacing(): isotropic, sigma half the median
+/// distance to the 6 nearest landmarks; MapHeader::covariance_assumed), unless
+/// keep_unknown_covariance is set, which keeps them unknown. `stats`, if given, receives what
+/// was kept and dropped, by kind. Throws what the chosen reader throws (ParseError
 /// with file:line or byte offset, IoError), and InvalidArgument for bad options, for a file with
 /// no landmarks ("map '<path>' has no landmarks (...)"; our format: an empty file, not one whose
 /// landmarks are all below min_observations), and, for the other formats, for a file of 3 or
 /// more landmarks that all lie at one point or on one line (our format leaves that to the
 /// alignment, which reports it as degenerate).
-Map read_any_map(const std::string& path, const AnyMapReadOptions& options = {});
+Map read_any_map(const std::string& path, const AnyMapReadOptions& options = {},
+                 MapReadStats* stats = nullptr);
 
 /// True if write_any_map() writes a COLMAP text model to `path`: it ends in '/' or is an
 /// existing folder.
