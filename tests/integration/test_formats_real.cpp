@@ -472,7 +472,8 @@ TEST(FormatsReal, EachFileRecordsItsScale) {
 // Every map file in ../shared/data/real_formats reads through read_any_map, found by walking the
 // folder (a file added there is covered without editing this list): the three stella_vslam maps,
 // the COLMAP model and OpenMVG's three PLYs (two binary with double coordinates, one ASCII; the
-// four camera centres OpenMVG appends are vertices like the others). The one model without a 3-D
+// four camera centres OpenMVG appends are vertices like the others; no covariances, so they are
+// assumed from the spacing). The one model without a 3-D
 // point is refused in one line naming it. Counts from each folder's SOURCE.md.
 TEST(FormatsReal, EveryRealFileReads) {
   const std::string root = test::data_file("real_formats");
@@ -503,12 +504,15 @@ TEST(FormatsReal, EveryRealFileReads) {
       continue;  // not a map (SOURCE.md, a README, OpenMVG's JSON, the camera YAML)
     }
     if (std::filesystem::is_directory(p) && format == MapFormat::kLmalign) continue;
-    AnyMapReadOptions options;
-    options.keep_unknown_covariance = true;  // PLYs without covariances
     try {
-      const Map map = read_any_map(p.string(), options);
+      const Map map = read_any_map(p.string());
       ASSERT_FALSE(map.landmarks.empty());
-      for (const Landmark& l : map.landmarks) ASSERT_TRUE(l.p_world.allFinite()) << l.id;
+      for (const Landmark& l : map.landmarks) {
+        ASSERT_TRUE(l.p_world.allFinite()) << l.id;
+        ASSERT_FALSE(l.covariance_unknown) << l.id;
+      }
+      // OpenMVG's PLYs store no covariance: assumed from the spacing, and flagged.
+      EXPECT_EQ(map.header.covariance_assumed, format == MapFormat::kPly);
       read[relative] = map.landmarks.size();
     } catch (const InvalidArgument& e) {
       const std::string what = e.what();
