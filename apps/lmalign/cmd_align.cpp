@@ -534,8 +534,8 @@ CommandRunner add_align_command(CLI::App& root) {
                   "covariances, a folder as COLMAP text, any other name as an lmalign map; with "
                   "several strategies, one each: NAME_<strategy>.ply");
   cmd->add_option("--format", args->format,
-                  "reader of SOURCE and TARGET: auto (by content), lmalign, colmap-text, "
-                  "colmap-bin, ply, stella-vslam, xyz (docs/map-format.md)");
+                  "reader of SOURCE and TARGET: " + map_format_names() +
+                      " (auto: by content; docs/map-format.md)");
   cmd->add_option(
       "--image-size", args->image_size,
       "Bundler maps: the image size W,H in pixels, for outputs that store pixels from the "

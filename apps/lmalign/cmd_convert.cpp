@@ -102,9 +102,9 @@ CommandRunner add_convert_command(CLI::App& root) {
                   "output: a file (lmalign map text), FILE.ply (PLY) or a folder ending in / "
                   "(COLMAP text)")
       ->required();
-  cmd->add_option("--format", args->format,
-                  "reader of IN: auto (by content), lmalign, bundler, colmap-text, colmap-bin, "
-                  "ply, stella-vslam, xyz");
+  cmd->add_option(
+      "--format", args->format,
+      "reader of IN: " + map_format_names() + " (auto: by content; docs/map-format.md)");
   cmd->add_option(
       "--image-size", args->image_size,
       "Bundler: image size W,H in pixels, needed when OUT stores pixels from the top-left "

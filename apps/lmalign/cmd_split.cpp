@@ -150,9 +150,9 @@ CommandRunner add_split_command(CLI::App& root) {
       "--image-size", args->image_size,
       "Bundler maps: the image size W,H in pixels, for outputs that store pixels from the "
       "top-left corner (Bundler's are centred; reading needs no size)");
-  cmd->add_option("--format", args->format,
-                  "reader of MAP: auto (by content), lmalign, colmap-text, colmap-bin, "
-                  "ply, stella-vslam, xyz (docs/map-format.md)");
+  cmd->add_option(
+      "--format", args->format,
+      "reader of MAP: " + map_format_names() + " (auto: by content; docs/map-format.md)");
   cmd->add_option("--frames", args->frames,
                   "Frame-id window A-B, inclusive, non-negative integers with A <= B (e.g. 0-119)")
       ->required()

@@ -23,6 +23,7 @@ from ._lmalign import (  # noqa: F401  (re-exported)
     Map,
     ParseError,
     evaluate_trajectory,
+    map_formats,
     options,
     pose_from_xyz_rpy_deg,
     read_map,
@@ -76,7 +77,8 @@ if HAVE_MERGE:
 
 __all__ = [
     "AlignmentResult", "Error", "InvalidArgument", "IoError", "Map", "ParseError",
-    "RECOMMENDED_STRATEGY", "align", "evaluate_trajectory", "experiment", "options",
+    "RECOMMENDED_STRATEGY", "align", "evaluate_trajectory", "experiment", "map_formats",
+    "options",
     "pose_from_xyz_rpy_deg",
     "read_map", "read_tum_trajectory", "split", "strategies", "transform_covariances",
     "transform_points", "write_map", "HAVE_MERGE", "MERGE_NAMES",

@@ -114,10 +114,11 @@ class AlignmentResult:
 def read_map(
     path: PathLike,
     min_observations: int = 2,
-    format: str = "auto",  # auto, lmalign, bundler, colmap-text, colmap-bin, ply, stella-vslam, xyz
+    format: str = "auto",  # "auto" or a name of map_formats()
     image_size: Optional[Tuple[int, int]] = None,  # (width, height) px, Bundler: top-left pixels
 ) -> Map: ...
 def write_map(path: PathLike, map: Map) -> None: ...
+def map_formats() -> List[Dict[str, Union[str, bool]]]: ...  # name, doc, detected_by, writes
 def strategies() -> List[str]: ...
 def options(strategy: str) -> List[Dict[str, str]]: ...  # key, value, unit, bound, doc
 def align(

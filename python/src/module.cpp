@@ -225,18 +225,36 @@ PYBIND11_MODULE(_lmalign, m) {
                std::to_string(map.frames.size()) + " frames>";
       });
 
+  // The format names come from the one registry (map_formats(), formats.hpp).
+  static const std::string read_map_doc =
+      "Reads a map in any format lmalign reads (docs/map-format.md, map_formats()): format " +
+      map_format_names() +
+      " ('auto': by content). image_size (width, height) px: Bundler only, for pixels from the "
+      "top-left corner (without it they stay centred; writing such a map in the lmalign text "
+      "format is refused). Landmarks with fewer than min_observations observations are dropped "
+      "(2: the paper's loader, and `lmalign align`'s default); formats without covariances get "
+      "them re-estimated from the observations, landmarks whose covariance cannot be estimated "
+      "are dropped; point clouds without any get them assumed from their spacing.\n"
+      "Raises ParseError (file, line or byte offset), IoError, InvalidArgument.";
   m.def("read_map", &read_map_file, py::arg("path"), py::arg("min_observations") = 2,
-        py::arg("format") = "auto", py::arg("image_size") = py::none(),
-        "Reads a map in any format lmalign reads (docs/map-format.md): format 'auto' (by content), "
-        "'lmalign', 'bundler', 'colmap-text', 'colmap-bin' (a COLMAP model folder), 'ply', "
-        "'stella-vslam', 'xyz'. image_size (width, height) px: Bundler only, for pixels from the "
-        "top-left corner (without it they stay centred; writing such a map in the lmalign text "
-        "format "
-        "is refused). Landmarks with "
-        "fewer than min_observations observations are dropped (2: the paper's loader, and "
-        "`lmalign align`'s default); formats without covariances get them re-estimated from the "
-        "observations, landmarks whose covariance cannot be estimated are dropped.\n"
-        "Raises ParseError (file, line or byte offset), IoError, InvalidArgument.");
+        py::arg("format") = "auto", py::arg("image_size") = py::none(), read_map_doc.c_str());
+  m.def(
+      "map_formats",
+      []() {
+        py::list rows;
+        for (const MapFormatInfo& f : map_formats()) {
+          py::dict row;
+          row["name"] = f.name;
+          row["doc"] = f.doc;
+          row["detected_by"] = f.detected_by;
+          row["writes"] = f.write != nullptr;
+          rows.append(row);
+        }
+        return rows;
+      },
+      "Every map format read_map() reads, in the order format 'auto' tries them: a list of dicts "
+      "with name (read_map's format), doc, detected_by (what 'auto' looks for) and writes (True "
+      "when lmalign writes it: `lmalign convert`'s outputs).");
   m.def(
       "write_map",
       [](const std::filesystem::path& path, const Map& map) {

@@ -226,3 +226,30 @@ def test_point_clouds_without_covariances_read_with_assumed_ones(desk_pair, tmp_
     with pytest.raises(lmalign.ParseError) as info:
         lmalign.read_map(bad)
     assert info.value.line == 2
+
+
+def test_map_formats_is_the_one_list_of_formats(tmp_path):
+    """map_formats() is the registry: read_map accepts each name (and 'auto') and no other, its
+    docstring and the unknown-name error list every one."""
+    rows = lmalign.map_formats()
+    names = [r["name"] for r in rows]
+    assert names[0] == "lmalign" and "bundler" in names and "xyz" in names
+    assert len(set(names)) == len(names) == 7
+    assert sorted(r["name"] for r in rows if r["writes"]) == ["colmap-text", "lmalign", "ply"]
+    for name in names:
+        assert name in lmalign.read_map.__doc__
+    missing = tmp_path / "missing.txt"
+    for name in ["auto"] + names:
+        with pytest.raises((lmalign.IoError, lmalign.ParseError, lmalign.InvalidArgument)) as info:
+            lmalign.read_map(missing, format=name)
+        assert "is not one of" not in str(info.value)
+    with pytest.raises(lmalign.InvalidArgument) as info:
+        lmalign.read_map(missing, format="fbx")
+    for name in names:
+        assert name in str(info.value)
+    other = tmp_path / "other.txt"
+    other.write_text("solid cube\n")
+    with pytest.raises(lmalign.InvalidArgument) as info:
+        lmalign.read_map(other)
+    for r in rows:
+        assert r["detected_by"] in str(info.value)

@@ -8,6 +8,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/similarity.hpp"
 #include "lmalign/io/transform_io.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/transform.hpp"
 #include "support/data_path.hpp"
@@ -290,6 +291,18 @@ TEST_F(CliAlign, FreeScaleRecoversASimilarityAndReportsItsScaleError) {
   EXPECT_NE(shear.err.find("shear.txt"), std::string::npos) << shear.err;
   EXPECT_NE(shear.err.find("neither a rotation nor a scaled rotation"), std::string::npos)
       << shear.err;
+}
+
+// Every reader's help lists every format of the registry (map_formats()).
+TEST_F(CliAlign, HelpOfEveryReaderListsEveryFormat) {
+  for (const char* command : {"align", "split", "convert"}) {
+    SCOPED_TRACE(command);
+    const test::CliRun r = run(std::string(command) + " --help");
+    EXPECT_EQ(r.exit_code, 0);
+    for (const MapFormatInfo& f : map_formats()) {
+      EXPECT_NE(r.out.find(std::string(", ") + f.name), std::string::npos) << f.name << r.out;
+    }
+  }
 }
 
 TEST_F(CliAlign, HelpNamesUnitsAndFrames) {

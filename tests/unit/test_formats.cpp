@@ -487,6 +487,65 @@ TEST(DetectMapFormat, ByContentNotExtension) {
   EXPECT_EQ(detect_map_format(dir.file("header.txt")), MapFormat::kLmalign);
 }
 
+// One registry (map_formats()): every row's name parses back to its format and is listed by
+// map_format_names(); parse_map_format's error lists every name; the detection error names
+// what every format is detected by; write_any_map writes by the row of written_map_format().
+TEST(MapFormats, OneRowPerFormatReadByEveryList) {
+  const std::vector<MapFormatInfo>& rows = map_formats();
+  ASSERT_EQ(rows.size(), 7u);  // every MapFormat but kAuto
+  const std::string names = map_format_names();
+  EXPECT_EQ(names.rfind("auto, ", 0), 0u) << names;
+  std::string parse_error;
+  try {
+    (void)parse_map_format("fbx");
+  } catch (const InvalidArgument& e) {
+    parse_error = e.what();
+  }
+  ScratchDir dir("registry");
+  write_text(dir.file("other.txt"), "solid cube\n");
+  std::string detect_error;
+  try {
+    (void)detect_map_format(dir.file("other.txt"));
+  } catch (const InvalidArgument& e) {
+    detect_error = e.what();
+  }
+  EXPECT_EQ(detect_error.find('\n'), std::string::npos);
+  for (const MapFormatInfo& f : rows) {
+    SCOPED_TRACE(f.name);
+    EXPECT_EQ(parse_map_format(f.name), f.format);
+    EXPECT_EQ(map_format_name(f.format), f.name);
+    EXPECT_EQ(&map_format_info(f.format), &f);
+    EXPECT_NE(names.find(std::string(", ") + f.name), std::string::npos) << names;
+    EXPECT_NE(parse_error.find(f.name), std::string::npos) << parse_error;
+    EXPECT_NE(detect_error.find(f.detected_by), std::string::npos) << detect_error;
+    EXPECT_NE(f.detect, nullptr);
+    EXPECT_NE(f.read, nullptr);
+  }
+  EXPECT_THROW((void)map_format_info(MapFormat::kAuto), InvalidArgument);
+  // Written: ours, COLMAP text and PLY; each write reads back by detection as that format.
+  Map map;
+  for (int i = 0; i < 4; ++i) {
+    Landmark l;
+    l.id = i;
+    l.p_world = Vec3(i, i * i, 1.0 + (i % 2));
+    l.cov_world_m2 = Mat3::Identity() * 1e-4;
+    map.landmarks.push_back(l);
+  }
+  for (const std::string& out : {dir.file("w.txt"), dir.file("w.ply")}) {
+    const MapFormatInfo& f = map_format_info(written_map_format(out));
+    ASSERT_NE(f.write, nullptr) << out;
+    write_any_map(out, map);
+    EXPECT_EQ(detect_map_format(out), f.format) << out;
+    MapReadOptions every;  // landmarks without observations too
+    every.min_observations = 0;
+    EXPECT_EQ(read_any_map(out, AnyMapReadOptions(every)).landmarks.size(), 4u) << out;
+  }
+  std::size_t writers = 0;
+  for (const MapFormatInfo& f : rows) writers += f.write != nullptr ? 1 : 0;
+  EXPECT_EQ(writers, 3u);
+  EXPECT_NE(map_format_info(MapFormat::kColmapText).write, nullptr);
+}
+
 // A file with no landmarks is refused in one line naming it, in every format.
 TEST(ReadAnyMap, AMapWithoutLandmarksIsRefusedInOneLine) {
   ScratchDir dir("empty_maps");

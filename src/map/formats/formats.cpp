@@ -27,27 +27,6 @@ namespace lmalign {
 
 namespace {
 
-struct FormatName {
-  MapFormat format;
-  const char* name;
-};
-constexpr FormatName kNames[] = {
-    {MapFormat::kAuto, "auto"},
-    {MapFormat::kLmalign, "lmalign"},
-    {MapFormat::kBundler, "bundler"},
-    {MapFormat::kColmapText, "colmap-text"},
-    {MapFormat::kColmapBinary, "colmap-bin"},
-    {MapFormat::kPly, "ply"},
-    {MapFormat::kStellaVslam, "stella-vslam"},
-    {MapFormat::kXyz, "xyz"},
-};
-
-std::string accepted_names() {
-  std::string out;
-  for (const FormatName& n : kNames) out += (out.empty() ? "" : ", ") + std::string(n.name);
-  return out;
-}
-
 bool has_files(const std::filesystem::path& dir, const char* ext) {
   for (const char* stem : {"cameras", "images", "points3D"}) {
     std::error_code ec;
@@ -56,89 +35,188 @@ bool has_files(const std::filesystem::path& dir, const char* ext) {
   return true;
 }
 
+// Detectors: each looks at the probe only.
+bool is_ours(const MapProbe& p) {
+  if (p.is_directory) return false;
+  const std::string_view record(p.first_record);
+  for (const char* type : {"FRAME", "LANDMARK", "MAP"}) {
+    const std::size_t len = std::char_traits<char>::length(type);
+    if (record.substr(0, len) == type &&
+        (record.size() == len || record[len] == ' ' || record[len] == '\t')) {
+      return true;
+    }
+  }
+  return false;
+}
+bool is_bundler(const MapProbe& p) {
+  return !p.is_directory && p.first_line == "# Bundle file v0.3";
+}
+bool is_colmap_text(const MapProbe& p) {
+  return p.is_directory && has_files(p.path, ".txt") && !has_files(p.path, ".bin");
+}
+bool is_colmap_binary(const MapProbe& p) { return p.is_directory && has_files(p.path, ".bin"); }
+bool is_ply(const MapProbe& p) { return !p.is_directory && p.first_line == "ply"; }
+bool is_stella_vslam(const MapProbe& p) {
+  // A MessagePack map (fixmap, map 16 or map 32) whose first key, in nlohmann's sorted order, is
+  // the 7-byte string "cameras" (fixstr 0xa7).
+  const std::string_view bytes(p.head);
+  const auto first = bytes.empty() ? 0 : static_cast<unsigned char>(bytes[0]);
+  const std::size_t key_at = (first >= 0x80 && first <= 0x8f) ? 1
+                             : first == 0xde                  ? 3
+                             : first == 0xdf                  ? 5
+                                                              : 0;
+  return !p.is_directory && key_at > 0 &&
+         bytes.substr(key_at, 8) == std::string_view(
+                                        "\xa7"
+                                        "cameras",
+                                        8);
+}
+bool is_xyz(const MapProbe& p) {
+  return !p.is_directory && !p.first_record.empty() && is_xyz_record(p.first_record);
+}
+
+// Readers: the format's own reader with the options that apply to it.
+Map read_ours(const std::string& path, const AnyMapReadOptions& o, MapFileExtras* extras) {
+  return read_map(path, o.map, &extras->dropped_min_observations);
+}
+Map read_bundler_file(const std::string& path, const AnyMapReadOptions& o, MapFileExtras*) {
+  BundlerReadOptions bo;
+  if (o.image_size_px) {
+    bo.width_px = (*o.image_size_px)[0];
+    bo.height_px = (*o.image_size_px)[1];
+  }
+  return read_bundler(path, bo);
+}
+Map read_colmap_model(const std::string& path, const AnyMapReadOptions& o, MapFileExtras* extras,
+                      bool binary) {
+  ColmapReadOptions co;
+  co.quaternion_norm_tolerance = o.map.quaternion_norm_tolerance;
+  return read_colmap(path, binary, co, &extras->sigma_px);
+}
+Map read_colmap_text(const std::string& path, const AnyMapReadOptions& o, MapFileExtras* extras) {
+  return read_colmap_model(path, o, extras, false);
+}
+Map read_colmap_binary(const std::string& path, const AnyMapReadOptions& o, MapFileExtras* extras) {
+  return read_colmap_model(path, o, extras, true);
+}
+Map read_ply_file(const std::string& path, const AnyMapReadOptions&, MapFileExtras*) {
+  return read_ply_map(path);
+}
+Map read_stella_file(const std::string& path, const AnyMapReadOptions&, MapFileExtras*) {
+  return read_stella_vslam(path);
+}
+Map read_xyz_file(const std::string& path, const AnyMapReadOptions&, MapFileExtras*) {
+  return read_xyz_map(path);
+}
+void write_colmap_model(const std::string& path, const Map& map) { write_colmap_text(path, map); }
+
 }  // namespace
 
+const std::vector<MapFormatInfo>& map_formats() {
+  static const std::vector<MapFormatInfo> rows{
+      {MapFormat::kLmalign, "lmalign", "our map text format (MAP, FRAME and LANDMARK records)",
+       "an lmalign map (MAP / FRAME / LANDMARK records)", MapFormatKind::kOurs, is_ours, read_ours,
+       write_map},
+      {MapFormat::kBundler, "bundler", "Bundler v0.3 .out (cameras, points, their views)",
+       "Bundler v0.3 (first line '# Bundle file v0.3')", MapFormatKind::kReconstruction, is_bundler,
+       read_bundler_file, nullptr},
+      {MapFormat::kColmapText, "colmap-text",
+       "a COLMAP sparse model folder of cameras.txt, images.txt, points3D.txt",
+       "a COLMAP text model (a folder of cameras.txt, images.txt, points3D.txt)",
+       MapFormatKind::kReconstruction, is_colmap_text, read_colmap_text, write_colmap_model},
+      {MapFormat::kColmapBinary, "colmap-bin",
+       "a COLMAP sparse model folder of cameras.bin, images.bin, points3D.bin",
+       "a COLMAP binary model (a folder of cameras.bin, images.bin, points3D.bin)",
+       MapFormatKind::kReconstruction, is_colmap_binary, read_colmap_binary, nullptr},
+      {MapFormat::kPly, "ply", "a PLY point cloud, with or without covariance properties",
+       "PLY (first line 'ply')", MapFormatKind::kPointCloud, is_ply, read_ply_file, write_ply_map},
+      {MapFormat::kStellaVslam, "stella-vslam", "a stella_vslam / OpenVSLAM map database (.msg)",
+       "a stella_vslam map database (a MessagePack map whose first key is 'cameras')",
+       MapFormatKind::kReconstruction, is_stella_vslam, read_stella_file, nullptr},
+      {MapFormat::kXyz, "xyz", "XYZ text: one point 'x y z' per line",
+       "XYZ text (a point 'x y z' per line)", MapFormatKind::kPointCloud, is_xyz, read_xyz_file,
+       nullptr},
+  };
+  return rows;
+}
+
+const MapFormatInfo& map_format_info(MapFormat format) {
+  for (const MapFormatInfo& f : map_formats()) {
+    if (f.format == format) return f;
+  }
+  throw InvalidArgument("map format 'auto' has no reader of its own (detect_map_format)");
+}
+
+std::string map_format_names() {
+  std::string out = "auto";
+  for (const MapFormatInfo& f : map_formats()) out += ", " + std::string(f.name);
+  return out;
+}
+
 std::string map_format_name(MapFormat format) {
-  for (const FormatName& n : kNames) {
-    if (n.format == format) return n.name;
+  for (const MapFormatInfo& f : map_formats()) {
+    if (f.format == format) return f.name;
   }
   return "auto";
 }
 
 MapFormat parse_map_format(const std::string& name) {
-  for (const FormatName& n : kNames) {
-    if (name == n.name) return n.format;
+  if (name == "auto") return MapFormat::kAuto;
+  for (const MapFormatInfo& f : map_formats()) {
+    if (name == f.name) return f.format;
   }
-  throw InvalidArgument("map format '" + name + "' is not one of: " + accepted_names());
+  throw InvalidArgument("map format '" + name + "' is not one of: " + map_format_names());
 }
 
 MapFormat detect_map_format(const std::string& path) {
+  MapProbe probe;
+  probe.path = path;
   std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    if (has_files(path, ".bin")) return MapFormat::kColmapBinary;
-    if (has_files(path, ".txt")) return MapFormat::kColmapText;
-    throw InvalidArgument("'" + path +
-                          "' is a folder but not a COLMAP model (expected cameras, images and "
-                          "points3D as .bin or .txt)");
-  }
-  errno = 0;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {  // the same message as read_map's
-    throw IoError("cannot open map file '" + path +
-                  "': " + std::strerror(errno != 0 ? errno : ENOENT));
-  }
-  {
-    // stella_vslam: a MessagePack map (fixmap, map 16 or map 32) whose first key, in
-    // nlohmann's sorted order, is the 7-byte string "cameras" (fixstr 0xa7).
+  probe.is_directory = std::filesystem::is_directory(path, ec);
+  if (!probe.is_directory) {
+    errno = 0;
+    std::ifstream in(path, std::ios::binary);
+    if (!in) {  // the same message as read_map's
+      throw IoError("cannot open map file '" + path +
+                    "': " + std::strerror(errno != 0 ? errno : ENOENT));
+    }
     char head[16] = {};
     in.read(head, sizeof(head));
-    const std::string_view bytes(head, static_cast<std::size_t>(in.gcount()));
-    const auto first = bytes.empty() ? 0 : static_cast<unsigned char>(bytes[0]);
-    const std::size_t key_at = (first >= 0x80 && first <= 0x8f) ? 1
-                               : first == 0xde                  ? 3
-                               : first == 0xdf                  ? 5
-                                                                : 0;
-    if (key_at > 0 && bytes.substr(key_at, 8) == std::string_view("\xa7"
-                                                                  "cameras",
-                                                                  8)) {
-      return MapFormat::kStellaVslam;
-    }
+    probe.head.assign(head, static_cast<std::size_t>(in.gcount()));
     in.clear();
     in.seekg(0);
-  }
-  // The first non-blank, non-comment line decides (at most 4 KiB of each line is looked at).
-  std::string line;
-  bool first = true;
-  while (true) {
-    line.clear();
-    char c = 0;
-    while (in.get(c) && c != '\n') {
-      if (line.size() < 4096) line.push_back(c);
-    }
-    if (in.bad()) throw IoError("cannot read map file '" + path + "'");
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (first && line == "# Bundle file v0.3") return MapFormat::kBundler;
-    if (first && line == "ply") return MapFormat::kPly;
-    first = false;
-    const std::size_t start = line.find_first_not_of(" \t");
-    if (start != std::string::npos && line[start] != '#') {
-      const std::string_view record = std::string_view(line).substr(start);
-      for (const char* type : {"FRAME", "LANDMARK", "MAP"}) {
-        const std::size_t len = std::char_traits<char>::length(type);
-        if (record.substr(0, len) == type &&
-            (record.size() == len || record[len] == ' ' || record[len] == '\t')) {
-          return MapFormat::kLmalign;
-        }
+    // The first line, and the first non-blank, non-comment line (at most 4 KiB of each).
+    std::string line;
+    bool first = true;
+    while (in) {
+      line.clear();
+      char c = 0;
+      while (in.get(c) && c != '\n') {
+        if (line.size() < 4096) line.push_back(c);
       }
-      if (is_xyz_record(line.substr(start))) return MapFormat::kXyz;
-      throw InvalidArgument("cannot tell the format of '" + path +
-                            "': not a COLMAP model folder, not Bundler v0.3 (first line '# "
-                            "Bundle file v0.3'), not PLY (first line 'ply'), not an lmalign map "
-                            "(MAP / FRAME / LANDMARK records), not XYZ text (a point 'x y z' "
-                            "per line); use --format to choose a reader");
+      if (in.bad()) throw IoError("cannot read map file '" + path + "'");
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      if (first) probe.first_line = line;
+      first = false;
+      const std::size_t start = line.find_first_not_of(" \t");
+      if (start != std::string::npos && line[start] != '#') {
+        probe.first_record = line.substr(start);
+        break;
+      }
     }
-    if (!in) return MapFormat::kLmalign;  // only blank and comment lines: an empty map
   }
+  for (const MapFormatInfo& f : map_formats()) {
+    if (f.detect(probe)) return f.format;
+  }
+  // A file of only blank and comment lines: an empty map of ours (read_any_map refuses it).
+  if (!probe.is_directory && probe.first_record.empty()) return MapFormat::kLmalign;
+  std::string looked_for;
+  for (const MapFormatInfo& f : map_formats()) {
+    looked_for += (looked_for.empty() ? "not " : ", not ") + std::string(f.detected_by);
+  }
+  throw InvalidArgument("cannot tell the format of " +
+                        std::string(probe.is_directory ? "the folder '" : "'") + path +
+                        "': " + looked_for + "; use --format to choose a reader");
 }
 
 bool ConfidenceOptions::is_valid(std::string* why) const {
@@ -266,10 +344,12 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options,
                  MapReadStats* stats_out) {
   const MapFormat format =
       options.format == MapFormat::kAuto ? detect_map_format(path) : options.format;
+  const MapFormatInfo& info = map_format_info(format);
   MapReadStats stats;
-  if (format == MapFormat::kLmalign) {
-    std::size_t dropped = 0;
-    Map map = read_map(path, options.map, &dropped);
+  MapFileExtras extras;
+  if (info.kind == MapFormatKind::kOurs) {
+    Map map = info.read(path, options, &extras);
+    const std::size_t dropped = extras.dropped_min_observations;
     // Empty file, or every landmark below min_observations (the caller's to report)?
     if (map.landmarks.empty() && dropped == 0) refuse_empty(path, format, map);
     stats.landmarks_in_file = map.landmarks.size() + dropped;
@@ -282,10 +362,9 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options,
   if (!options.map.is_valid(&why)) throw InvalidArgument("map read options: " + why);
   if (!options.confidence.is_valid(&why)) throw InvalidArgument("confidence options: " + why);
 
-  Map map;
-  if (format == MapFormat::kPly || format == MapFormat::kXyz) {
+  Map map = info.read(path, options, &extras);
+  if (info.kind == MapFormatKind::kPointCloud) {
     // Point clouds: no observations, so min_observations does not apply.
-    map = format == MapFormat::kPly ? read_ply_map(path) : read_xyz_map(path);
     if (map.landmarks.empty()) refuse_empty(path, format, map);
     refuse_degenerate(path, map);
     stats.landmarks_in_file = map.landmarks.size();
@@ -322,21 +401,7 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options,
     if (stats_out != nullptr) *stats_out = stats;
     return map;
   }
-  std::vector<double> sigma_px;
-  if (format == MapFormat::kStellaVslam) {
-    map = read_stella_vslam(path);
-  } else if (format == MapFormat::kBundler) {
-    BundlerReadOptions bo;
-    if (options.image_size_px) {
-      bo.width_px = (*options.image_size_px)[0];
-      bo.height_px = (*options.image_size_px)[1];
-    }
-    map = read_bundler(path, bo);
-  } else {
-    ColmapReadOptions co;
-    co.quaternion_norm_tolerance = options.map.quaternion_norm_tolerance;
-    map = read_colmap(path, format == MapFormat::kColmapBinary, co, &sigma_px);
-  }
+  const std::vector<double>& sigma_px = extras.sigma_px;
   if (map.landmarks.empty()) refuse_empty(path, format, map);
   refuse_degenerate(path, map);
   std::vector<CovarianceEstimate> estimates;
@@ -390,16 +455,7 @@ MapFormat written_map_format(const std::string& path) {
 }
 
 void write_any_map(const std::string& path, const Map& map) {
-  switch (written_map_format(path)) {
-    case MapFormat::kColmapText:
-      write_colmap_text(path, map);
-      break;
-    case MapFormat::kPly:
-      write_ply_map(path, map);
-      break;
-    default:
-      write_map(path, map);
-  }
+  map_format_info(written_map_format(path)).write(path, map);
 }
 
 }  // namespace lmalign

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
 #include <optional>
 #include <string>
 #include <vector>
@@ -23,21 +24,21 @@ enum class MapFormat {
   kXyz,           ///< XYZ text point cloud, one point per line (formats/xyz.hpp)
 };
 
-/// The name used by `--format`: auto, lmalign, bundler, colmap-text, colmap-bin, ply,
-/// stella-vslam, xyz.
+/// The name used by `--format` (map_formats()' names, and "auto").
 std::string map_format_name(MapFormat format);
-/// Parses a `--format` name. Throws InvalidArgument listing the accepted names.
+/// Parses a `--format` name. Throws InvalidArgument listing the accepted names
+/// (map_format_names()).
 MapFormat parse_map_format(const std::string& name);
 
-/// The format of `path`, by content: a folder is a COLMAP model (binary if it holds
-/// cameras.bin, images.bin and points3D.bin, else text if it holds the three .txt files); a file
-/// whose first line is "# Bundle file v0.3" is Bundler, one whose first line is "ply" is PLY, one
-/// that starts with a MessagePack map whose first key is "cameras" is a stella_vslam map
-/// database; a file whose first record (after blank and
-/// comment lines) starts with MAP, FRAME or LANDMARK, or that holds no record, is ours; one whose
-/// first record is 3 or more numbers is XYZ text.
-/// Throws IoError if `path` cannot be read, InvalidArgument naming the path and the formats
-/// looked for if it is none of them.
+/// The format of `path`, by content: the first row of map_formats() whose detect() accepts it
+/// (a folder is a COLMAP model, binary if it holds cameras.bin, images.bin and points3D.bin,
+/// else text if it holds the three .txt files; a file whose first line is "# Bundle file v0.3"
+/// is Bundler, one whose first line is "ply" is PLY, one that starts with a MessagePack map
+/// whose first key is "cameras" is a stella_vslam map database; a file whose first record
+/// (after blank and comment lines) starts with MAP, FRAME or LANDMARK is ours, one whose first
+/// record is 3 or more numbers is XYZ text); a file that holds no record is ours (an empty map).
+/// Throws IoError if `path` cannot be read, InvalidArgument naming the path and what each
+/// format is detected by if it is none of them.
 MapFormat detect_map_format(const std::string& path);
 
 /// How confidences are derived for formats that store none (docs/map-format.md).
@@ -169,5 +170,57 @@ MapFormat written_map_format(const std::string& path);
 /// the covariances as properties (write_ply_map, formats/ply.hpp), any other path our text
 /// format (write_map; see there for what is refused). Each file is written atomically.
 void write_any_map(const std::string& path, const Map& map);
+
+/// What detect_map_format() looks at, read once from a path.
+struct MapProbe {
+  std::string path;
+  bool is_directory = false;
+  /// Files: the first 16 bytes, the first line (without its end; at most 4 KiB of it), and the
+  /// first record: the first line that is neither blank nor a comment ('#'), from its first
+  /// non-blank character ("" if the file holds none).
+  std::string head;
+  std::string first_line;
+  std::string first_record;
+};
+
+/// Where read_any_map() takes a format's covariances from.
+enum class MapFormatKind {
+  kOurs,            ///< stored (our text format)
+  kPointCloud,      ///< stored if any, else assumed from the spacing (no observations)
+  kReconstruction,  ///< triangulated from the observations (estimate_covariances())
+};
+
+/// What a reader gives beside the map.
+struct MapFileExtras {
+  /// COLMAP: each landmark's mean reprojection error, pixels (0 = none stored).
+  std::vector<double> sigma_px;
+  /// Our format: landmarks dropped for fewer than min_observations observations.
+  std::size_t dropped_min_observations = 0;
+};
+
+/// One format: one row of map_formats(). Every list of formats (the CLI's help, Python's
+/// map_formats() and read_map(), parse_map_format()'s and detect_map_format()'s errors) is read
+/// from these rows.
+struct MapFormatInfo {
+  MapFormat format;
+  const char* name;         ///< the `--format` name
+  const char* doc;          ///< one line: what it is
+  const char* detected_by;  ///< what detect() looks for, as the detection error names it
+  MapFormatKind kind;
+  /// True when the content is accepted by this format (the rows are tried in order).
+  bool (*detect)(const MapProbe& probe);
+  /// The format's reader (options: min_observations and the quaternion tolerance of ours and
+  /// COLMAP, Bundler's image size). Throws what the reader throws.
+  Map (*read)(const std::string& path, const AnyMapReadOptions& options, MapFileExtras* extras);
+  /// Its writer (atomic), or nullptr if lmalign does not write it.
+  void (*write)(const std::string& path, const Map& map);
+};
+
+/// Every format lmalign reads, in the order detection tries them (not "auto").
+const std::vector<MapFormatInfo>& map_formats();
+/// The row of `format`. Throws InvalidArgument for kAuto.
+const MapFormatInfo& map_format_info(MapFormat format);
+/// "auto, lmalign, bundler, ...": every name `--format` accepts.
+std::string map_format_names();
 
 }  // namespace lmalign
