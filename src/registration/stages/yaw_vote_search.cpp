@@ -366,9 +366,32 @@ std::vector<Peak> vote(const Points3& rotated, const Points3& target, double cel
   return peaks;
 }
 
-// The translations with the most votes in 3-D cells (3x3x3 sums, each peak at least 3 cells
-// from a better one), best first: the vote of vote() without its horizontal projection, for
-// up axes that agree (a tilt moves far landmarks across cells).
+// The votes of `cell` above its surroundings: its count minus the mean count of the 98 cells two
+// cells away (the 5x5x5 block without the 3x3x3 one), at least 0. Every source sample votes for
+// every target sample, so the counts carry a smooth background, the overlap of the two maps'
+// extents at that translation: on a street it is a ridge along the road, highest where the maps
+// overlap most, and the truth of a short overlap sits on its flank. The matched landmarks add a
+// spike of one or two cells (their covariances are smaller than a cell) on top of it; the mean of
+// a symmetric shell cancels a background that is linear across it.
+double prominence(const VoteGrid3& grid, const std::int64_t* cell) {
+  double shell = 0.0;
+  int n = 0;
+  for (int dx = -2; dx <= 2; ++dx) {
+    for (int dy = -2; dy <= 2; ++dy) {
+      for (int dz = -2; dz <= 2; ++dz) {
+        if (std::max({std::abs(dx), std::abs(dy), std::abs(dz)}) < 2) continue;
+        shell += grid.count(cell[0] + dx, cell[1] + dy, cell[2] + dz);
+        ++n;
+      }
+    }
+  }
+  return std::max(0.0, grid.count(cell[0], cell[1], cell[2]) - shell / n);
+}
+
+// The most prominent translations in 3-D cells (prominence() of the cells with the most votes,
+// each peak at least 3 cells from a better one), best first; each peak's translation is the mean
+// of its 3x3x3 block's votes. The vote of vote() without its horizontal projection, for up axes
+// that agree (a tilt moves far landmarks across cells).
 std::vector<Peak> vote3d(const Points3& rotated, const Points3& target, double cell, const Vec3& up,
                          const VoteWindow& window, std::size_t max_peaks, VoteGrid3& grid) {
   const double inv = 1.0 / cell;
@@ -444,7 +467,7 @@ std::vector<Peak> vote3d(const Points3& rotated, const Points3& target, double c
         }
       }
     }
-    c.votes = sum;
+    c.votes = static_cast<std::size_t>(prominence(grid, c.i));
     c.t = cell * w / static_cast<double>(sum);
     cands.push_back(c);
   }

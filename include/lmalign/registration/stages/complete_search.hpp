@@ -4,15 +4,20 @@
 //
 //   1. Coarse vote. For each pair of up axes (source, target) and each yaw on a grid of
 //      yaw_step_deg, the sampled source landmarks, rotated about their centre, vote for the
-//      3-D translations q - R p towards every sampled target landmark, in cells of cell_m
-//      (3 x 3 x 3 peaks). The peaks_per_yaw best peaks of every yaw, each at least three cells
-//      from a better one, are the candidates: every yaw and every region of translations is
-//      visited; nothing is kept because a neighbouring yaw did better.
-//   2. Pool. The candidates are ranked twice, by votes and by the gated score at the coarse
+//      3-D translations q - R p towards every sampled target landmark, in cells of cell_m.
+//      Every pair votes, so the counts carry a smooth background (the overlap of the two maps'
+//      extents at that translation) under the matched landmarks' spike of one or two cells; a
+//      peak is ranked by its prominence, its cell's votes above the mean of the cells two away
+//      (on a street the background is a ridge along the road whose crest, where the maps overlap
+//      most, outvotes the truth of a short overlap on its flank). The peaks_per_yaw most
+//      prominent peaks of every yaw, each at least three cells from a better one, are the
+//      candidates: every yaw and every region of translations is visited; nothing is kept
+//      because a neighbouring yaw did better.
+//   2. Pool. The candidates are ranked twice, by prominence and by the gated score at the coarse
 //      resolution on screen_samples landmarks; the pool takes them from the two rankings in
 //      turn, dropping near-duplicates, up to `pool`. (Indoors, repeated structure spreads the
 //      votes and the score ranks best; on a street the score at the coarse resolution is flatter
-//      than the true peak is narrow, and the votes rank best.)
+//      than the true peak is narrow, and the prominence ranks best.)
 //   3. Snap. Each pooled candidate moves to the peak of a finer vote about it: yaws within one
 //      coarse step at a quarter of it, translations within two cells at a third of a cell,
 //      towards each moved landmark's snap_neighbours nearest target landmarks.

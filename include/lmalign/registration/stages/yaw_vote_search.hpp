@@ -45,8 +45,10 @@ struct YawVoteOptions {
   /// a yaw's peak is a hypothesis when it is a local maximum over yaw; with more, every peak of
   /// every yaw is, best first.
   std::size_t peaks_per_yaw = 1;
-  /// Vote in 3-D cells (3x3x3 peaks) instead of horizontal cells with the height from the
-  /// peak's votes.
+  /// Vote in 3-D cells instead of horizontal cells with the height from the peak's votes; peaks
+  /// are ranked by prominence (their cell's votes above the mean of the cells two away, which
+  /// removes the smooth background of every-pair votes), their translation is the mean of their
+  /// 3x3x3 block's votes.
   bool vote_3d = false;
   bool is_valid(std::string* why = nullptr) const;
 };
@@ -62,7 +64,7 @@ struct PoseWindow {
 struct YawHypothesis {
   Isometry3 T_target_source = Isometry3::Identity();
   double yaw_rad = 0.0;   ///< about the target's up axis, relative to the base rotation
-  std::size_t votes = 0;  ///< peak votes (3x3x3 cells)
+  std::size_t votes = 0;  ///< peak votes (3x3x3 cells); with vote_3d its prominence
 };
 
 /// The hypotheses for aligning `source_points` to `target_points` (metres; see the file
