@@ -75,11 +75,8 @@ bool is_finite(const Isometry3& T) { return T.matrix().allFinite(); }
 Mat6 se3_adjoint(const Isometry3& T) {
   Mat6 A = Mat6::Zero();
   const Mat3 R = T.linear();
-  const Vec3 t = T.translation();
-  Mat3 tx;
-  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
   A.block<3, 3>(0, 0) = R;
-  A.block<3, 3>(0, 3) = tx * R;
+  A.block<3, 3>(0, 3) = skew(T.translation()) * R;
   A.block<3, 3>(3, 3) = R;
   return A;
 }

@@ -8,19 +8,11 @@
 #include <Eigen/SVD>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
 
 namespace lmalign {
 
-namespace {
-
-// [v]x, the cross-product matrix ([v]x w = v x w), column by column.
-Mat3 cross_matrix(const Vec3& v) {
-  Mat3 m;
-  for (int i = 0; i < 3; ++i) m.col(i) = v.cross(Vec3::Unit(i));
-  return m;
-}
-
-}  // namespace
+namespace {}  // namespace
 
 std::string to_string(ScaleMode mode) {
   switch (mode) {
@@ -107,7 +99,7 @@ SimilarityStep solve_similarity_step(const Points3& moved, const Points3& target
     // r(xi) = r - rho + [d]x phi - sigma d.
     Eigen::Matrix<double, 3, 7> J;
     J.leftCols<3>() = -Mat3::Identity();
-    J.block<3, 3>(0, 3) = cross_matrix(d);
+    J.block<3, 3>(0, 3) = skew(d);
     J.col(6) = -d;
     const Mat3 O = information != nullptr ? (*information)[i] : Mat3::Identity();
     const Eigen::Matrix<double, 7, 3> JtO = J.transpose() * O;
@@ -144,7 +136,7 @@ std::optional<Mat7> similarity_covariance(const SimilarityStep& step, const Vec3
   const double dof = 3.0 * static_cast<double>(step.num_pairs) - 7.0;
   const double s2 = dof > 0.0 ? step.chi2 / dof : 1.0;
   Mat7 A = Mat7::Identity();
-  A.block<3, 3>(0, 3) = cross_matrix(pivot);
+  A.block<3, 3>(0, 3) = skew(pivot);
   A.block<3, 1>(0, 6) = -pivot;
   Mat7 c = s2 * A * lu.inverse() * A.transpose();
   c = 0.5 * (c + c.transpose());

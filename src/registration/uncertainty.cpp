@@ -9,18 +9,13 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/first_exception.hpp"
+#include "lmalign/core/geometry.hpp"
 
 namespace lmalign {
 
 namespace {
 
 constexpr double kRadToDeg = 57.29577951308232;
-
-Mat3 skew(const Vec3& v) {
-  Mat3 S;
-  S << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return S;
-}
 
 }  // namespace
 

@@ -56,6 +56,13 @@ bool is_finite(const Isometry3& T);
 /// (0, 0, 0, 1) and T finite.
 bool is_rigid_transform(const Isometry3& T);
 
+/// [v]x, the 3x3 cross-product (skew-symmetric) matrix: skew(v) * w == v.cross(w).
+inline Mat3 skew(const Vec3& v) {
+  Mat3 m;
+  m << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return m;
+}
+
 /// The 6x6 adjoint of T in registration/uncertainty.hpp's (rho m, phi rad) ordering,
 /// Ad(T) = [[R, [t]x R], [0, R]]: a left perturbation xi_b in frame b becomes Ad(T_ab) xi_b in
 /// frame a (T_ab Exp(xi_b) = Exp(Ad(T_ab) xi_b) T_ab); covariances move as Ad C Ad^T.

@@ -1,4 +1,4 @@
-// The adaptive pipeline: lmalign's recommended default (issue 18; docs/accuracy.md, "The
+// The adaptive pipeline: lmalign's recommended default (docs/accuracy.md, "The
 // adaptive default"). It is written as explicit stages, each in its own file under stages/:
 //   scales          DataScales of both maps: landmark spacing, covariance floor, size, up axis
 //                   (stages/data_scales.hpp). Every metric setting below is derived from them.
@@ -107,8 +107,8 @@ struct AdaptiveOptions {
   /// Untrusted when fewer than this fraction of the source landmarks that pass the gate widened
   /// by one vote cell of pose uncertainty (those near a target landmark) pass it at the estimate
   /// itself: a right pose puts the overlapping landmarks within their covariances, a wrong one
-  /// only near some landmark. [0, 1]. Measured: 0.29 (KITTI disjoint pair) and 0.84 (desk) at
-  /// the right pose, 0.14-0.17 at the wrong poses found on KITTI (docs/accuracy.md).
+  /// only near some landmark. [0, 1]. The ratios seen at right and wrong poses:
+  /// docs/accuracy.md.
   double min_inlier_ratio = 0.2;
   /// Untrusted when the inliers' residuals need the landmark covariances scaled by more than
   /// this (the covariance scale k^2, estimated robustly from the median Mahalanobis d^2 of the
@@ -141,8 +141,7 @@ struct AdaptiveOptions {
   /// errors, depth distortion, drift), which the rigid fit absorbs in part. A half re-aligned from
   /// fewer than min_inliers landmarks, or whose refinement fails, is left out; with fewer than
   /// half of the halves the block covariance stays. 0: off. >= 0; costs 2 (n + 1) refinements of
-  /// half the overlap (0.03-0.2 s on the real pairs). Measured on the real pairs
-  /// (docs/accuracy.md): the mean NEES against the truth goes from 72-895 to 2.9-12.1.
+  /// half the overlap. Its cost and its effect on the NEES: docs/accuracy.md.
   int covariance_half_sample_planes = 8;
 
   bool is_valid(std::string* why = nullptr) const;

@@ -8,18 +8,13 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/robust.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 
 namespace {
-
-Mat3 skew(const Vec3& v) {
-  Mat3 m;
-  m << 0.0, -v[2], v[1], v[2], 0.0, -v[0], -v[1], v[0], 0.0;
-  return m;
-}
 
 // Pair i's Jacobian about the pivot: r(xi) = r - rho + [x - pivot]x phi.
 Eigen::Matrix<double, 3, 6> pair_jacobian(const GatedPair& p, const Vec3& pivot_m) {

@@ -51,8 +51,7 @@ DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* 
 /// nearest the mean of the frames' -y axes (which fixes the sign, and the direction when the
 /// camera only moved straight ahead). Returns nullopt for fewer than 2 frames, or when no
 /// direction is orthogonal to the x axes (a camera rolled through all angles).
-/// Measured: 5 degrees from the motion-capture z on the TUM desk (a hand-held camera pitched
-/// down by 30 degrees), within 1 degree of -y on KITTI (docs/accuracy.md).
+/// Its accuracy on a hand-held and a car-mounted camera: docs/accuracy.md.
 std::optional<Vec3> estimate_up_axis(const Map& map);
 
 /// A second opinion on the up axis, from the landmarks themselves: the normal of their
@@ -60,8 +59,7 @@ std::optional<Vec3> estimate_up_axis(const Map& map);
 /// planar enough (smallest eigenvalue at most `max_flatness` times the middle one), oriented to
 /// make an acute angle with `up_hint`. Most maps are dominated by a horizontal surface (a floor,
 /// a desk, a road), and this cue needs no camera assumption: a hand-held camera rolls, which
-/// makes estimate_up_axis() unreliable on a short window (measured: 3-48 degrees off on 30-frame
-/// windows of the TUM desk, against 2-13 degrees for the plane normal; docs/accuracy.md).
+/// makes estimate_up_axis() unreliable on a short window (both compared: docs/accuracy.md).
 /// `points`: N x 3, metres. At most `max_samples` (evenly strided) enter. Returns nullopt for
 /// fewer than 3 points, non-finite points, or a scatter that is not planar enough.
 std::optional<Vec3> landmark_plane_normal(const Points3& points, const Vec3& up_hint,

@@ -34,7 +34,7 @@ namespace lmalign {
 /// Settings of the yaw-vote search. Plain struct; check with is_valid().
 struct YawVoteOptions {
   /// Spacing of the yaw grid, degrees, (0, 90]. A hypothesis is then at most half a step off in
-  /// yaw; the refinement's basin must cover that (measured: 5 deg steps on KITTI and the desk).
+  /// yaw; the refinement's basin must cover that (the basins: docs/accuracy.md).
   double yaw_step_deg = 3.0;
   /// Landmarks that vote: evenly strided samples of each map, >= 3 each.
   std::size_t source_samples = 128;
