@@ -101,7 +101,8 @@ fuzz: deps
 	  -DLMALIGN_FUZZ=ON -DLMALIGN_BUILD_TESTS=OFF -DLMALIGN_BUILD_APPS=OFF -DLMALIGN_BUILD_VO=OFF \
 	  -DLMALIGN_BUILD_BENCH=OFF -DLMALIGN_WITH_PCL=OFF
 	cmake --build $(FUZZ_BUILD_DIR) -j $(JOBS) --target fuzz_map_reader fuzz_experiment_config \
-	  fuzz_bundler_reader fuzz_colmap_reader fuzz_ply_reader fuzz_stella_vslam_reader
+	  fuzz_bundler_reader fuzz_colmap_reader fuzz_ply_reader fuzz_stella_vslam_reader \
+	  fuzz_default_alignment fuzz_merge_manifest fuzz_cli_options
 	FUZZ_BUILD_DIR=$(FUZZ_BUILD_DIR) fuzz/run_fuzzers.sh $(FUZZ_SECONDS)
 
 # `make bench`: lmalign against PCL and Open3D on the real pair, in one script run (each

@@ -1,19 +1,27 @@
 #!/usr/bin/env bash
 # Runs every libFuzzer target of fuzz/ for a bounded time and fails on any finding: a crash, an
 # uncaught exception other than lmalign::Error, an oracle violation, a sanitizer report, a leak,
-# a timeout (10 s per input) or an out-of-memory (2 GB). Called by `make fuzz` (docs/robustness.md).
+# a timeout (10 s per input; 60 s for the alignment paths, whose inputs are whole alignments under
+# the sanitizers, up to about 2 s of CPU each, and much longer in wall time on a loaded machine:
+# the measurements and the margin are in docs/robustness.md) or an out-of-memory (2 GB). Called by `make fuzz` (docs/robustness.md).
 #
 #   fuzz/run_fuzzers.sh [SECONDS_PER_TARGET]      (default 60; FUZZ_BUILD_DIR, default build-fuzz)
 #
 # map_reader and experiment_config run in parallel, one per core, for SECONDS each; then the
 # readers of other formats (bundler_reader, colmap_reader, ply_reader, stella_vslam_reader) in
-# parallel for SECONDS/4 each (at least 5 s): 1.25 x SECONDS of wall time, 3 x SECONDS of core
-# time in all. Inputs:
+# parallel for SECONDS/4 each (at least 5 s); then the targets of the alignment paths
+# (default_alignment, merge_manifest, cli_options) in parallel for SECONDS/3 each (at least 5 s;
+# their seeds and regression inputs are always replayed first, whatever the time): about
+# 1.6 x SECONDS of wall time, 4 x SECONDS of core time in all. Inputs:
 #   $FUZZ_BUILD_DIR/fuzz-corpus/<target>/  the working corpus: new inputs go here (kept between runs)
 #   fuzz/corpus/<target>/                  the seed corpus of the repository (read only)
 #   fuzz/regressions/<target>/             every input that once failed (read only)
 #   $LMALIGN_DATA/tum_fr1_desk/ground_truth_pair/   map_reader only, if present: the real maps,
 #                                          read only; -max_len keeps only their first 8 KB.
+#   $FUZZ_BUILD_DIR/fuzz-seeds/<target>/   default_alignment, merge_manifest, cli_options: seeds
+#                                          derived from $LMALIGN_DATA by fuzz/make_seeds.py at
+#                                          each run (small map pairs cut from the real pairs,
+#                                          priors from the real trajectory); none if it is absent.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
@@ -21,7 +29,7 @@ build="${FUZZ_BUILD_DIR:-build-fuzz}"
 data="${LMALIGN_DATA:-../shared/data}"
 
 run_target() {
-  local target="$1" max_len="$2" seconds="${3:-$seconds}"
+  local target="$1" max_len="$2" seconds="${3:-$seconds}" timeout="${4:-10}"
   local binary="$build/fuzz/fuzz_$target"
   local work="$build/fuzz-corpus/$target"
   local artifacts="$build/fuzz-artifacts/$target"
@@ -32,12 +40,13 @@ run_target() {
   if [ "$target" = map_reader ] && [ -d "$data/tum_fr1_desk/ground_truth_pair" ]; then
     corpora+=("$data/tum_fr1_desk/ground_truth_pair")
   fi
+  [ -d "$build/fuzz-seeds/$target" ] && corpora+=("$build/fuzz-seeds/$target")
   local dict="fuzz/$target.dict"
   [ -f "$dict" ] || { echo "fuzz: missing $dict" >&2; exit 1; }
   # detect_leaks: LeakSanitizer at exit and per input; -fno-sanitize-recover: UBSan aborts.
   ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:${ASAN_OPTIONS:-}" \
   UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1:${UBSAN_OPTIONS:-}" \
-    "$binary" "${corpora[@]}" -dict="$dict" -max_len="$max_len" -timeout=10 -rss_limit_mb=2048 \
+    "$binary" "${corpora[@]}" -dict="$dict" -max_len="$max_len" -timeout="$timeout" -rss_limit_mb=2048 \
     -max_total_time="$seconds" -artifact_prefix="$artifacts/" -print_final_stats=1 \
     >"$log" 2>&1
 }
@@ -61,7 +70,7 @@ summary() {
 }
 
 for target in map_reader experiment_config bundler_reader colmap_reader ply_reader \
-    stella_vslam_reader; do
+    stella_vslam_reader default_alignment merge_manifest cli_options; do
   if [ ! -x "$build/fuzz/fuzz_$target" ]; then
     echo "fuzz: $build/fuzz/fuzz_$target is not built (make fuzz builds it)" >&2
     exit 1
@@ -90,5 +99,20 @@ summary bundler_reader "$status_bundler"
 summary colmap_reader "$status_colmap"
 summary ply_reader "$status_ply"
 summary stella_vslam_reader "$status_stella"
+
+third=$(( seconds / 3 )); [ "$third" -ge 5 ] || third=5
+echo "== fuzzing the alignment paths for $third s each (in parallel)"
+rm -rf "$build/fuzz-seeds"
+python3 fuzz/make_seeds.py "$data" "$build/fuzz-seeds" || echo "fuzz: no seeds from $data" >&2
+run_target default_alignment 24576 "$third" 60 & pid_align=$!
+run_target merge_manifest 8192 "$third" 60 & pid_merge=$!
+run_target cli_options 4096 "$third" 60 & pid_cli=$!
+status_align=0; wait "$pid_align" || status_align=$?
+status_merge=0; wait "$pid_merge" || status_merge=$?
+status_cli=0; wait "$pid_cli" || status_cli=$?
+summary default_alignment "$status_align"
+summary merge_manifest "$status_merge"
+summary cli_options "$status_cli"
 [ "$status_map" -eq 0 ] && [ "$status_config" -eq 0 ] && [ "$status_bundler" -eq 0 ] &&
-  [ "$status_colmap" -eq 0 ] && [ "$status_ply" -eq 0 ] && [ "$status_stella" -eq 0 ]
+  [ "$status_colmap" -eq 0 ] && [ "$status_ply" -eq 0 ] && [ "$status_stella" -eq 0 ] &&
+  [ "$status_align" -eq 0 ] && [ "$status_merge" -eq 0 ] && [ "$status_cli" -eq 0 ]

@@ -7,6 +7,7 @@
 #include <set>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SVD>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
@@ -105,7 +106,16 @@ Isometry3 relative_prior(const MapPrior& source, const MapPrior& target, Mat6* c
     const Mat6 A = se3_adjoint(T_target_world);
     *covariance = A * (source.covariance + target.covariance) * A.transpose();
   }
-  return T_target_world * source.T_world_map;
+  Isometry3 T_target_source = T_target_world * source.T_world_map;
+  // Priors are accepted with rotations orthonormal to 1e-6 (is_rigid_transform, as the manifest
+  // reads them); two such compose to one that may be off by more, which the edge's alignment would
+  // refuse as an initial guess. Then the nearest rotation (exact rotations are left as they are).
+  const Mat3 R = T_target_source.linear();
+  if (!((R.transpose() * R - Mat3::Identity()).cwiseAbs().maxCoeff() <= 1e-12)) {
+    const Eigen::JacobiSVD<Mat3> svd(R, Eigen::ComputeFullU | Eigen::ComputeFullV);
+    T_target_source.linear() = svd.matrixU() * svd.matrixV().transpose();
+  }
+  return T_target_source;
 }
 
 std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summaries,

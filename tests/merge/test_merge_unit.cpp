@@ -18,6 +18,7 @@
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/merge/output.hpp"
 #include "lmalign/merge/pose_graph.hpp"
+#include "lmalign/registration/adaptive.hpp"
 #include "support/temp_dir.hpp"
 
 namespace lmalign {
@@ -455,6 +456,33 @@ TEST(MergeCandidates, PreFilterKeepsTheBestFewPerMap) {
       return p.source == i && p.target == i + 1;
     })) << i;
   }
+}
+
+// The manifest accepts rotations orthonormal to 1e-6 (is_rigid_transform). Composed, two such gave
+// a relative prior off by more (1.1e-6 in the input the merge-manifest fuzzer found), which the
+// edge's alignment then refused as an initial guess: the merge failed on a manifest it accepted.
+TEST(MergeCandidates, TheRelativePriorOfNearlyRigidPriorsIsARotation) {
+  const Isometry3 exact = pose_from_xyz_rpy_deg(1.0, 2.0, 0.5, 10.0, -20.0, 125.0);
+  Isometry3 skewed = pose_from_xyz_rpy_deg(1.5, 2.0, 0.4, 12.0, -18.0, 120.0);
+  Mat3 stretch = Mat3::Identity();
+  stretch(0, 1) = stretch(1, 0) = 4e-7;  // R^T R - I of about 8e-7: accepted
+  stretch(2, 2) += 3e-7;
+  skewed.linear() = (skewed.linear() * stretch).eval();
+  ASSERT_TRUE(is_rigid_transform(skewed));
+  const Mat6 C = Mat6::Identity() * 1e-4;
+  const MapPrior a{skewed, C}, b{exact, C};
+  for (const auto& [source, target] : {std::pair{a, b}, std::pair{b, a}}) {
+    const Isometry3 unprojected = target.T_world_map.inverse() * source.T_world_map;
+    const Isometry3 T = relative_prior(source, target, nullptr);
+    const Mat3 R = T.linear();
+    EXPECT_LT((R.transpose() * R - Mat3::Identity()).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_NEAR(R.determinant(), 1.0, 1e-12);
+    EXPECT_LT((T.matrix() - unprojected.matrix()).cwiseAbs().maxCoeff(), 1e-5);
+  }
+  // Exact rotations are left bit for bit as composed.
+  const MapPrior c{pose_from_xyz_rpy_deg(0.2, 0.1, 0.0, 0.0, 0.0, 30.0), C};
+  EXPECT_EQ(relative_prior(c, b, nullptr).matrix(),
+            (b.T_world_map.inverse() * c.T_world_map).matrix());
 }
 
 TEST(MergeOutput, WritesPosesEdgesAndFusedMergedMap) {

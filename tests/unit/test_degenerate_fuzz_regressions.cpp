@@ -3,60 +3,24 @@
 //   fuzz/regressions/<target>/  every input that once crashed a fuzz target (must stay fixed);
 //   fuzz/corpus/<target>/       the seed corpus (real-format and malformed files).
 // An oracle violation aborts the test binary, naming the input on stderr.
-#include <algorithm>
+#include <cstddef>
 #include <cstdint>
-#include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <string>
-#include <vector>
 
 #include <gtest/gtest.h>
 
+#include "../../fuzz/default_alignment_check.hpp"
 #include "../../fuzz/experiment_config_check.hpp"
 #include "../../fuzz/foreign_map_check.hpp"
 #include "../../fuzz/map_reader_check.hpp"
+#include "support/fuzz_inputs.hpp"
 
 namespace lmalign {
 namespace {
 
-namespace fs = std::filesystem;
-
-fs::path fuzz_dir() {
-  return fs::path(__FILE__).parent_path().parent_path().parent_path() / "fuzz";
-}
-
-std::vector<fs::path> inputs(const std::string& kind, const std::string& target) {
-  std::vector<fs::path> files;
-  const fs::path dir = fuzz_dir() / kind / target;
-  if (!fs::is_directory(dir)) return files;
-  for (const auto& entry : fs::directory_iterator(dir)) {
-    if (entry.is_regular_file()) files.push_back(entry.path());
-  }
-  std::sort(files.begin(), files.end());
-  return files;
-}
-
-std::string bytes_of(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
 void replay(const std::string& target, void (*check)(const std::uint8_t*, std::size_t),
             std::size_t min_inputs = 10) {
-  std::size_t count = 0;
-  for (const char* kind : {"regressions", "corpus"}) {
-    for (const fs::path& file : inputs(kind, target)) {
-      SCOPED_TRACE(file.string());
-      std::fprintf(stderr, "replaying %s\n", file.c_str());
-      const std::string data = bytes_of(file);
-      check(reinterpret_cast<const std::uint8_t*>(data.data()), data.size());
-      ++count;
-    }
-  }
-  // The seed corpus is part of the repository: finding nothing means the path is wrong.
-  EXPECT_GE(count, min_inputs) << "no fuzz inputs under " << fuzz_dir();
+  test::replay_fuzz_inputs(target, check, min_inputs);
 }
 
 TEST(DegenerateFuzzRegressions, MapReaderInputsSatisfyTheOracle) {
@@ -81,6 +45,10 @@ TEST(DegenerateFuzzRegressions, PlyReaderInputsSatisfyTheOracle) {
 
 TEST(DegenerateFuzzRegressions, StellaVslamReaderInputsSatisfyTheOracle) {
   replay("stella_vslam_reader", &fuzz::check_stella_vslam_bytes, 5);
+}
+
+TEST(DegenerateFuzzRegressions, DefaultAlignmentInputsSatisfyTheOracle) {
+  replay("default_alignment", &fuzz::check_default_alignment_bytes, 5);
 }
 
 }  // namespace

@@ -68,7 +68,8 @@ struct MapSummary {
 MapSummary summarise_map(const Map& map, const CandidateOptions& options, std::uint64_t seed);
 
 /// Relative prior of two maps' priors (see CandidatePair::prior): T_target_source and its 6x6
-/// covariance in the target frame (uncertainty.hpp's convention).
+/// covariance in the target frame (uncertainty.hpp's convention). Its rotation is a rotation to
+/// round-off even when the priors' are orthonormal only to 1e-6 (the nearest rotation then).
 Isometry3 relative_prior(const MapPrior& source, const MapPrior& target, Mat6* covariance);
 
 /// Plans the candidate pairs of `summaries` (one per map, in manifest order) with their priors
