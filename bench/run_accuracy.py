@@ -39,6 +39,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 import accuracy_default  # noqa: E402
+import accuracy_similarity  # noqa: E402
 DEFAULT_CONFIG = os.path.join(ROOT, "bench", "accuracy.yaml")
 RESULTS_JSON = os.path.join(ROOT, "bench", "results", "accuracy.json")
 
@@ -153,6 +154,11 @@ def load_config(path, data_dir):
                 raise BenchError("%s.simulate.scene: expected road, street or corridor" % where)
             if "frames" in s and s["scene"] != "street":
                 raise BenchError("%s.simulate.frames: only for scene street" % where)
+    try:
+        cfg["similarity"] = accuracy_similarity.check_entries(
+            cfg.get("similarity"), names, "%s: similarity" % path)
+    except accuracy_similarity.SimilarityError as e:
+        raise BenchError(str(e))
     dflt = cfg.setdefault("default", {})
     prior = dflt.setdefault("truth_prior_sigma", [0.05, 0.005])
     if (not isinstance(prior, list) or len(prior) != 2 or
@@ -705,6 +711,8 @@ def parse_args(argv):
                    help="skip the default's search regret (and its own alignment per start)")
     p.add_argument("--no-basin", action="store_true",
                    help="skip the default's refinement basin (bisection along each axis)")
+    p.add_argument("--no-similarity", action="store_true",
+                   help="skip the Sim(3) datasets (the config's similarity: list)")
     return p.parse_args(argv)
 
 
@@ -736,6 +744,7 @@ def main(argv=None):
               "quick": a.quick, "random": random_spec, "protocol_cases": len(protocol),
               "strategies": strategies, "datasets": {}}
     started = time.time()
+    prepared = {}
     for d in datasets:
         name = d["name"]
         folder = os.path.join(out, name)
@@ -743,6 +752,7 @@ def main(argv=None):
         log = os.path.join(folder, "log.txt")
         t0 = time.time()
         source, target, truth = prepare_maps(lmalign, d, os.path.join(folder, "maps"), log)
+        prepared[name] = (d, source, target, truth)
         tag = "quick" if a.quick else "full"
         cfg_path = os.path.join(folder, "experiment_%s.yaml" % tag)
         exp = experiment_config(d, source, target, truth, strategies, cfg.get("k", 5),
@@ -774,15 +784,46 @@ def main(argv=None):
             if m["success_rate"] is not None)), flush=True)
         if rep.get("default"):
             print("%-16s         %s" % ("", default_line(rep["default"])), flush=True)
+    # Sim(3): each entry whose rigid dataset ran, on a similarity-moved copy of its source.
+    report["similarity"] = {}
+    keys = ["x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg"]
+    starts = [[p[k] for k in keys] for _, p in protocol_poses()[::5]]
+    for e in [] if a.no_similarity else cfg["similarity"]:
+        if e["of"] not in prepared:
+            continue
+        d, source, target, truth = prepared[e["of"]]
+        if a.quick:
+            e = dict(e, starts=min(e["starts"], 3))
+        folder = os.path.join(out, e["name"])
+        t0 = time.time()
+        try:
+            rep = accuracy_similarity.similarity_report(
+                lmalign, e, d, source, target, truth, starts, folder,
+                os.path.join(folder, "log.txt"))
+        except accuracy_similarity.SimilarityError as err:
+            raise BenchError(str(err))
+        rep["wall_time_s"] = time.time() - t0
+        report["similarity"][e["name"]] = rep
+        print("%-16s %5.0f s  Sim(3) of %s, scale %g: right basin %s, scale error %s, time "
+              "ratio %s" % (e["name"], rep["wall_time_s"], e["of"], e["scale"],
+                            _pct(rep["right_basin_rate"]),
+                            "-" if rep["median_scale_error"] is None
+                            else "%.3f%%" % (100 * rep["median_scale_error"]),
+                            "-" if rep["median_time_ratio"] is None
+                            else "%.2fx" % rep["median_time_ratio"]), flush=True)
     report["overall"] = overall_report(report["datasets"])
     report["wall_time_s"] = time.time() - started
     write_csv(os.path.join(out, "accuracy.csv"), csv_rows(report))
     write_csv(os.path.join(out, "default.csv"), default_csv_rows(report), DEFAULT_COLUMNS)
+    write_csv(os.path.join(out, "similarity.csv"),
+              accuracy_similarity.csv_rows(report["similarity"]), accuracy_similarity.COLUMNS)
     write_json(os.path.join(out, "accuracy.json"), report)
-    write_text(os.path.join(out, "accuracy.md"), markdown_tables(report))
+    write_text(os.path.join(out, "accuracy.md"),
+               markdown_tables(report) + accuracy_similarity.markdown(report["similarity"]))
     if full:
         write_json(RESULTS_JSON, report)
-    print("accuracy benchmark: %s/accuracy.csv, default.csv, accuracy.json, accuracy.md, plots/ "
+    print("accuracy benchmark: %s/accuracy.csv, default.csv, similarity.csv, accuracy.json, "
+          "accuracy.md, plots/ "
           "(%.0f s)%s"
           % (out, report["wall_time_s"], "; bench/results/accuracy.json" if full else ""))
     return 0

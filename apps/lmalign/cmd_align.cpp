@@ -273,9 +273,7 @@ int run_align(const AlignArgs& a) {
   if (T_gt) T_true = *T_gt * S_displace.inverse();
 
   const PreparedTarget prepared(target, wopt);
-  for (AlignRequest& r : requests) {
-    r.covariances_assumed = source.header.covariance_assumed || target.header.covariance_assumed;
-  }
+  for (AlignRequest& r : requests) r.describe_maps(source.header, target.header);
 
   std::printf("lmalign align: source %s (%zu landmarks) -> target %s (%zu landmarks)\n",
               a.source.c_str(), source.landmarks.size(), a.target.c_str(), target.landmarks.size());

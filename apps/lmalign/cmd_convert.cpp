@@ -3,13 +3,16 @@
 #include <array>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 
 #include "cli_util.hpp"
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
+#include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/formats.hpp"
+#include "lmalign/map/transform.hpp"
 
 namespace lmalign::cli {
 
@@ -31,6 +34,8 @@ struct ConvertArgs {
   double min_parallax_deg = 0.0;
   std::size_t min_observations = 0;
   bool keep_unknown = false;
+  std::string transform;  // a 4x4 file: S_out_in
+  std::string map_scale;  // metric|arbitrary|unknown: the header's scale, as written
 };
 
 int run_convert(const ConvertArgs& args) {
@@ -50,8 +55,21 @@ int run_convert(const ConvertArgs& args) {
   const MapFormat format =
       options.format == MapFormat::kAuto ? detect_map_format(args.input) : options.format;
   options.format = format;
+  std::optional<MapScale> scale;
+  if (!args.map_scale.empty()) {
+    scale = map_scale_from_name(args.map_scale);
+    if (!scale) {
+      throw InvalidArgument("--map-scale '" + args.map_scale +
+                            "': expected metric, arbitrary or unknown");
+    }
+  }
+  // Read before any map work, so a bad file fails first.
+  const std::optional<Similarity3> S_out_in =
+      args.transform.empty() ? std::nullopt : std::optional(read_similarity(args.transform));
   MapReadStats stats;
-  const Map map = read_any_map(args.input, options, &stats);
+  Map map = read_any_map(args.input, options, &stats);
+  if (S_out_in) map = transform_map(map, *S_out_in);
+  if (scale) map.header.scale = *scale;
   write_any_map(args.output, map);
   std::cout << "convert " << args.input << " (" << map_format_name(format) << ") -> " << args.output
             << " (" << map_format_name(written_map_format(args.output)) << ")"
@@ -122,6 +140,15 @@ CommandRunner add_convert_command(CLI::App& root) {
       ->capture_default_str();
   cmd->add_flag("--keep-unknown-covariance", args->keep_unknown,
                 "keep landmarks whose covariance cannot be estimated (COLMAP or PLY output only)");
+  cmd->add_option("--transform", args->transform,
+                  "FILE: move the map by the 4x4 transform in FILE (4 rows of 4 numbers, last "
+                  "row 0 0 0 1), rigid [R t; 0 1] or a similarity [sR t; 0 1]: p_out = s R p_in "
+                  "+ t, in the map's units; frames move with it and covariances become "
+                  "s^2 R C R^T");
+  cmd->add_option("--map-scale", args->map_scale,
+                  "metric, arbitrary or unknown: the scale the written map's header records "
+                  "(default: the one read; docs/map-format.md). A map moved by a similarity is "
+                  "no longer metric unless you say so");
   return [args]() { return run_convert(*args); };
 }
 

@@ -115,7 +115,8 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
         naming the nearest known one; a value outside its bound names the key, value and bound.
     scale: 'auto', 'free' or 'fixed' (the CLI's --scale): with 'free' the scale is estimated too,
         a similarity p_target = scale * R @ p_source + t for maps without a common metric scale
-        (docs/scale.md); 'auto' is free when either map says its scale is not metric.
+        (docs/scale.md); 'auto' is free when either Map's header says its scale is not metric
+        (arbitrary or unknown); arrays count as metric.
     options (as the CLI's): k (neighbourhood of the weighted kNN strategies, default 5),
         max_iterations (replaces each strategy's budget), max_distance_m (the paper's maximum
         distance, a cap on the shrinking schedules), covariance_norm ('spectral' or 'frobenius',

@@ -44,7 +44,7 @@ AlignOutcome run_alignment(const Points3& source_points,
   r.initial_guess = request.initial_guess;
   r.prior = request.prior;
   r.scale = request.scale;
-  r.covariances_assumed = request.covariances_assumed;
+  r.describe_maps(request.source_header, request.target_header);
   const Pipeline base(preset.spec);
   for (const auto& [key, value] : request.settings) {
     try {

@@ -32,9 +32,10 @@ struct AlignRequest {
   std::optional<Vec3> source_up;
   /// The CLI's --scale: auto, free or fixed (AlignRequest::scale).
   ScaleMode scale = ScaleMode::kAuto;
-  /// A Map's covariances were assumed (MapHeader::covariance_assumed): lmalign::AlignRequest's
-  /// flag.
-  bool covariances_assumed = false;
+  /// What each Map's header says (scale, assumed covariances), for AlignRequest::describe_maps;
+  /// an array keeps the default header (metric, covariances measured).
+  MapHeader source_header;
+  MapHeader target_header;
   /// OpenMP threads for this call (0: OpenMP's default). Results do not depend on it.
   int threads = 0;
 };

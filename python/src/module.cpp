@@ -541,7 +541,7 @@ PYBIND11_MODULE(_lmalign, m) {
           source_points = s.positions();
           source_cov = s.covariances_m2();
           req.source_up = estimate_up_axis(s);
-          req.covariances_assumed = s.header.covariance_assumed;
+          req.source_header = s.header;
         } else {
           source_points = points_from(source, "source");
           if (!source_covariances.is_none())
@@ -555,7 +555,7 @@ PYBIND11_MODULE(_lmalign, m) {
             throw InvalidArgument(
                 "target_covariances / target_weights: give them only with an array target");
           const Map& t = with_frame_index(target.cast<const Map&>());
-          req.covariances_assumed = req.covariances_assumed || t.header.covariance_assumed;
+          req.target_header = t.header;
           py::gil_scoped_release release;
           prepared.emplace(t, wopt);
         } else {

@@ -198,6 +198,8 @@ std::string to_json(const Summary& s, int indent) {
   e["initial_score_m2"] = number(r.initial_score_m2);
   e["final_score_m2"] = number(r.final_score_m2);
   e["wall_time_s"] = r.wall_time_s;
+  // The whole call: the verdict, the scale's rounds and its retried initial scales included.
+  e["total_time_s"] = s.total_time_s;
   e["usable"] = s.IsSolutionUsable();
   e["trustworthy"] = s.verdict.trustworthy;
   e["trust_reason"] = s.verdict.reason;

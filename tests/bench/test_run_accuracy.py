@@ -75,13 +75,23 @@ elif cmd == "experiment":
     open(os.path.join(out, "summary.json"), "w").write("{}")
     print("experiment %s" % cfg_path)
     print("  source %s (1200 landmarks), target %s (1300 landmarks)" % (cfg["source"], cfg["target"]))
+elif cmd == "convert":
+    # The Sim(3) datasets: the source moved by --transform, marked with --map-scale.
+    out = sys.argv[3]
+    open(out, "w").write("MAP scale " + sys.argv[sys.argv.index("--map-scale") + 1] + "\n")
 elif cmd == "align":
     import math
     arg = lambda name: sys.argv[sys.argv.index(name) + 1] if name in sys.argv else None
     truth = arg("--ground-truth")
     T = ([[float(v) for v in l.split()] for l in open(truth) if l.strip()]
          if truth != "identity" else [[float(r == c) for c in range(4)] for r in range(4)])
-    r = {"strategy": "adaptive", "wall_time_s": 0.2}
+    r = {"strategy": "adaptive", "wall_time_s": 0.2, "total_time_s": 0.2, "scale_mode": "fixed"}
+    if open(sys.argv[2]).read().startswith("MAP scale arbitrary"):
+        # A Sim(3) source: the truth's scale from the 3x3 block; 1.25x the rigid time.
+        det = (T[0][0] * (T[1][1] * T[2][2] - T[1][2] * T[2][1]) -
+               T[0][1] * (T[1][0] * T[2][2] - T[1][2] * T[2][0]) +
+               T[0][2] * (T[1][0] * T[2][1] - T[1][1] * T[2][0]))
+        r.update(total_time_s=0.25, scale_mode="free", scale=det ** (1 / 3), scale_error=0.002)
     if arg("--initial-guess"):
         G = [[float(v) for v in l.split()] for l in open(arg("--initial-guess")) if l.strip()]
         prior = [float(v) for v in arg("--prior-sigma").split(",")]
@@ -437,6 +447,58 @@ class Driver(unittest.TestCase):
         self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
                                          "--datasets", "files", default=True), 0)
         self.assertEqual(len(self.calls_of("align")), n_align)
+
+    def test_similarity_datasets_move_the_source_and_time_it_against_rigid(self):
+        with open(self.config, "a") as f:
+            f.write("similarity:\n  - {name: files_sim3, of: files, scale: 0.5, yaw_deg: 90, "
+                    "translation: [1, 2, 3], starts: 4}\n")
+        self.assertEqual(self.run_driver("--no-plots", "--strategies", "good", "--datasets",
+                                         "files"), 0)
+        with open(os.path.join(self.out, "accuracy.json")) as f:
+            rep = json.load(f)
+        sim = rep["similarity"]["files_sim3"]
+        # The source was moved by M = [0.5 Rz(90) t] and marked arbitrary; the truth is M^-1.
+        conv = self.calls_of("convert")
+        self.assertEqual(len(conv), 1)
+        self.assertEqual(conv[0][1], os.path.join(self.data, "a.txt"))
+        M = accuracy_default.read_transform(conv[0][conv[0].index("--transform") + 1])
+        self.assertAlmostEqual(M[0][1], -0.5)
+        self.assertAlmostEqual(M[1][0], 0.5)
+        self.assertEqual([M[i][3] for i in range(3)], [1.0, 2.0, 3.0])
+        S = accuracy_default.read_transform(
+            os.path.join(self.out, "files_sim3", "maps", "S_target_source.txt"))
+        MS = accuracy_default.matmul4(S, M)
+        for r in range(4):
+            for c in range(4):
+                self.assertAlmostEqual(MS[r][c], float(r == c))
+        # The first 4 of the 8 quick protocol starts, each rigid and Sim(3), one thread each:
+        # x = 0, 0, 0.5, -0.9: the fake finds the truth from all but -0.9.
+        aligns = self.calls_of("align")
+        self.assertEqual(len(aligns), 8)
+        self.assertEqual(sim["starts"], 4)
+        self.assertEqual(sim["scale_mode"], ["free"])
+        self.assertAlmostEqual(sim["right_basin_rate"], 0.75)
+        self.assertAlmostEqual(sim["median_scale_error"], 0.002)
+        self.assertAlmostEqual(sim["median_time_ratio"], 1.25)
+        self.assertEqual(sim["time_ratio_range"], [1.25, 1.25])
+        with open(os.path.join(self.out, "similarity.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(rows[0]["name"], "files_sim3")
+        self.assertEqual(rows[0]["median_time_ratio"], "1.25")
+        with open(os.path.join(self.out, "accuracy.md")) as f:
+            self.assertIn("| files_sim3 | files | 0.5 | 4 | 75% | 75% | 0.200% |", f.read())
+
+    def test_similarity_config_errors_name_the_field(self):
+        for entry, message in [
+                ("{name: x, of: nope, scale: 2}", "similarity[0].of: 'nope'"),
+                ("{name: x, of: files, scale: -1}", "similarity[0].scale: expected a number > 0"),
+                ("{name: x, of: files, scale: 2, yaw: 3}", "unknown key 'yaw'"),
+                ("{name: files, of: files, scale: 2}", "similarity[0].name: 'files' is used")]:
+            with open(self.config, "w") as f:
+                f.write(CONFIG + "similarity:\n  - " + entry + "\n")
+            with self.assertRaises(run_accuracy.BenchError) as e:
+                self.run_driver("--datasets", "files")
+            self.assertIn(message, str(e.exception))
 
     def test_quick_and_selection(self):
         self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",

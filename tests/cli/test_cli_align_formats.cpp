@@ -1,6 +1,7 @@
 // `lmalign align` and `lmalign split` read every format the library reads (issue 19, item 6):
 // the real Bundler reconstruction of Balbianello, aligned onto itself from a known displacement.
 #include <fstream>
+#include <iomanip>
 #include <map>
 #include <sstream>
 #include <string>
@@ -102,6 +103,12 @@ TEST_F(CliAlignFormats, PointCloudsWithoutCovariancesAlign) {
     EXPECT_LT(by_name[name]["rotation_error_deg"].get<double>(), 0.01);
     EXPECT_EQ(by_name[name]["trustworthy"], true);
   }
+  // Point clouds do not say whether they are metric: `auto` estimates the scale, here 1.
+  for (const char* name : {"base", "adaptive"}) {
+    SCOPED_TRACE(name);
+    EXPECT_EQ(by_name[name]["scale_mode"], "free");
+    EXPECT_NEAR(by_name[name]["scale"].get<double>(), 1.0, 1e-3);
+  }
   EXPECT_EQ(by_name["base"]["covariances_assumed"], false);
   EXPECT_EQ(by_name["base"]["trust_reason"], "ok");
   for (const char* name : {"covariance", "adaptive"}) {
@@ -118,6 +125,77 @@ TEST_F(CliAlignFormats, PointCloudsWithoutCovariancesAlign) {
     EXPECT_NE(by_name[name]["trust_reason"].get<std::string>().find("weight 0"), std::string::npos)
         << by_name[name]["trust_reason"];
   }
+}
+
+// `--scale auto` (the default) follows the maps' headers: the real desk map in our format is
+// metric, so it stays rigid; the same map shrunk by 0.4 and marked as of arbitrary scale (our
+// format's `MAP scale arbitrary` record, as COLMAP's and Bundler's maps are read), are aligned with
+// a similarity and the scale is recovered against the similarity given as the ground truth.
+TEST_F(CliAlignFormats, AutoScaleFollowsTheMapsHeaders) {
+  const std::string desk = test::data_file("tum_fr1_desk/map_fr1_desk.txt");
+  LMALIGN_REQUIRE_FILE(desk);
+  const double s = 0.4;
+  {
+    std::ifstream in(desk);
+    std::ofstream out(path("small.txt"));
+    out << "MAP scale arbitrary\n";
+    std::string line;
+    while (std::getline(in, line)) {
+      std::istringstream fields(line);
+      std::string type;
+      fields >> type;
+      if (type == "FRAME") {  // FRAME id x y z qw qx qy qz: the position times s
+        std::string id;
+        double v[7];
+        fields >> id;
+        for (double& x : v) fields >> x;
+        out << "FRAME " << id << std::setprecision(17);
+        for (int i = 0; i < 7; ++i) out << " " << v[i] * (i < 3 ? s : 1.0);
+        out << "\n";
+        continue;
+      }
+      if (type != "LANDMARK") {
+        out << line << "\n";
+        continue;
+      }
+      // LANDMARK id x y z c00..c22 rest: positions times s, covariances times s^2.
+      std::string id;
+      double v[12];
+      fields >> id;
+      for (double& x : v) fields >> x;
+      std::string rest;
+      std::getline(fields, rest);
+      out << "LANDMARK " << id << std::setprecision(17);
+      for (int i = 0; i < 12; ++i) out << " " << v[i] * (i < 3 ? s : s * s);
+      out << rest << "\n";
+    }
+  }
+  // The truth maps the shrunk source back onto the desk map: [I/s 0; 0 1].
+  std::ofstream(path("gt.txt")) << 1.0 / s << " 0 0 0\n0 " << 1.0 / s << " 0 0\n0 0 " << 1.0 / s
+                                << " 0\n0 0 0 1\n";
+  const test::CliRun rigid = run("align " + desk + " " + desk + " --json " + path("r.json"));
+  ASSERT_EQ(rigid.exit_code, 0) << rigid.out << rigid.err;
+  const auto r = nlohmann::json::parse(test::read_text(path("r.json")));
+  EXPECT_EQ(r["results"][0]["scale_mode"], "fixed");
+
+  const test::CliRun sim = run("align " + path("small.txt") + " " + desk + " --ground-truth " +
+                               path("gt.txt") + " --json " + path("s.json"));
+  ASSERT_EQ(sim.exit_code, 0) << sim.out << sim.err;
+  const auto j = nlohmann::json::parse(test::read_text(path("s.json")));
+  const auto& e = j["results"][0];
+  EXPECT_EQ(e["scale_mode"], "free");
+  EXPECT_NEAR(e["scale"].get<double>(), 1.0 / s, 0.01 / s);
+  EXPECT_LT(e["scale_error"].get<double>(), 0.01);
+  EXPECT_LT(e["rotation_error_deg"].get<double>(), 0.5);
+  EXPECT_EQ(e["trustworthy"], true);
+
+  // --scale fixed overrides the header: no scale is estimated.
+  const test::CliRun fixed =
+      run("align " + path("small.txt") + " " + desk + " --scale fixed --json " + path("f.json"));
+  ASSERT_EQ(fixed.exit_code, 0) << fixed.out << fixed.err;
+  const auto f = nlohmann::json::parse(test::read_text(path("f.json")));
+  EXPECT_EQ(f["results"][0]["scale_mode"], "fixed");
+  EXPECT_EQ(f["results"][0]["scale"].get<double>(), 1.0);
 }
 
 }  // namespace

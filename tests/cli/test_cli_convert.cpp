@@ -171,5 +171,44 @@ TEST_F(CliConvert, KeepsLowParallaxLandmarksAndCountsEveryKind) {
   EXPECT_GT(low_sd_m[low_sd_m.size() / 2], 2.0 * other_sd_m[other_sd_m.size() / 2]);
 }
 
+// --transform moves the map by a similarity (positions s R p + t, covariances s^2 R C R^T,
+// frames with it) and --map-scale records the header's scale; bad values are refused in one
+// line naming the option or the file.
+TEST_F(CliConvert, TransformMovesTheMapBySimilarityAndMapScaleMarksIt) {
+  const std::string desk = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt");
+  LMALIGN_REQUIRE_FILE(desk);
+  // s = 2, a quarter turn about z, t = (1, 2, 3).
+  std::ofstream(path("M.txt")) << "0 -2 0 1\n2 0 0 2\n0 0 2 3\n0 0 0 1\n";
+  const test::CliRun r = run("convert " + desk + " " + path("moved.txt") + " --transform " +
+                             path("M.txt") + " --map-scale arbitrary");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const Map in = read_map(desk);
+  const Map out = read_map(path("moved.txt"));
+  EXPECT_EQ(out.header.scale, MapScale::kArbitrary);
+  ASSERT_EQ(out.landmarks.size(), in.landmarks.size());
+  ASSERT_EQ(out.frames.size(), in.frames.size());
+  Mat3 sR;
+  sR << 0, -2, 0, 2, 0, 0, 0, 0, 2;
+  const Vec3 t(1, 2, 3);
+  for (std::size_t i = 0; i < in.landmarks.size(); i += 97) {
+    EXPECT_LT((out.landmarks[i].p_world - (sR * in.landmarks[i].p_world + t)).norm(), 1e-9);
+    EXPECT_LT(
+        (out.landmarks[i].cov_world_m2 - sR * in.landmarks[i].cov_world_m2 * sR.transpose()).norm(),
+        1e-9 * (1.0 + in.landmarks[i].cov_world_m2.norm()));
+  }
+  EXPECT_LT((out.frames[0].p_world_camera - (sR * in.frames[0].p_world_camera + t)).norm(), 1e-9);
+
+  const test::CliRun bad_scale = run("convert " + desk + " " + path("x.txt") + " --map-scale huge");
+  EXPECT_EQ(bad_scale.exit_code, 2);
+  EXPECT_NE(bad_scale.err.find("--map-scale 'huge'"), std::string::npos) << bad_scale.err;
+  std::ofstream(path("shear.txt")) << "1 0.5 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n";
+  const test::CliRun shear =
+      run("convert " + desk + " " + path("y.txt") + " --transform " + path("shear.txt"));
+  EXPECT_EQ(shear.exit_code, 2);
+  EXPECT_NE(shear.err.find(path("shear.txt")), std::string::npos) << shear.err;
+  EXPECT_FALSE(std::filesystem::exists(path("x.txt")));
+  EXPECT_FALSE(std::filesystem::exists(path("y.txt")));
+}
+
 }  // namespace
 }  // namespace lmalign

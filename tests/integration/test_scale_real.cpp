@@ -11,6 +11,7 @@
 
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/similarity.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/map/transform.hpp"
@@ -137,6 +138,47 @@ TEST(ScaleSplitDesk, OverlappingWindowsOneMovedBySimilarity037) {
   EXPECT_LT(e.rotation_deg, 1.0);
   EXPECT_LT(e.translation_m, 0.01 * extent_m(b));
   EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+}
+
+// The three monocular stella_vslam maps of one video
+// (real_formats/stella_openhps_aist_living_lab_1, equirectangular camera, each of its own arbitrary
+// scale), aligned pairwise by the default with the scale mode the CLI uses, auto: their headers say
+// "arbitrary", so the scale is free. Against the similarities that SOURCE.md estimated from
+// matching keyframes (an estimate, not ground truth: its own composition closes to 0.1% in scale):
+// within 1% in scale and 1 deg, and trusted.
+TEST(ScaleStellaReal, ThreeMonocularMapsAlignPairwiseWithinOnePercentOfSourceMd) {
+  const std::string dir = "real_formats/stella_openhps_aist_living_lab_1/";
+  struct Pair {
+    const char* a;
+    const char* b;
+    double scale;
+    Mat3 R;
+  };
+  Mat3 R1, R2, R3;  // SOURCE.md's rotation matrices, row-major
+  R1 << 0.999993, -0.003646, 0.001103, 0.003649, 0.99999, -0.002655, -0.001093, 0.002659, 0.999996;
+  R2 << 0.999826, 0.01738, -0.006787, -0.017191, 0.999489, 0.026942, 0.007252, -0.026821, 0.999614;
+  R3 << 0.999738, 0.021504, -0.007805, -0.021262, 0.999328, 0.029848, 0.008441, -0.029675, 0.999524;
+  for (const Pair& p :
+       {Pair{"356a5a6e", "94eb7149", 0.74196, R1}, Pair{"356a5a6e", "4683e8ac", 0.79165, R2},
+        Pair{"94eb7149", "4683e8ac", 1.06574, R3}}) {
+    SCOPED_TRACE(std::string(p.a) + " -> " + p.b);
+    const std::string a = test::data_file(dir + p.a + "/map.msg");
+    const std::string b = test::data_file(dir + p.b + "/map.msg");
+    LMALIGN_REQUIRE_FILE(a);
+    LMALIGN_REQUIRE_FILE(b);
+    const Map source = read_any_map(a);
+    const Map target = read_any_map(b);
+    ASSERT_EQ(source.header.scale, MapScale::kArbitrary);
+    AlignRequest request;  // scale auto
+    request.describe_maps(source.header, target.header);
+    const SourceLandmarks src = SourceLandmarks::from_map(source);
+    const Summary r = align(recommended_preset(), src.view(), PreparedTarget(target, {}), request);
+    EXPECT_TRUE(r.scale.free);
+    EXPECT_NEAR(r.scale.scale / p.scale, 1.0, 0.01);
+    const Mat3 dR = r.registration.T_target_source.linear() * p.R.transpose();
+    EXPECT_LT(rotation_angle_deg(dR), 1.0);
+    EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  }
 }
 
 }  // namespace

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "lmalign/core/types.hpp"
+#include "lmalign/map/map.hpp"
 #include "lmalign/registration/pipeline.hpp"
 
 namespace lmalign {
@@ -78,8 +79,9 @@ struct AlignRequest {
   /// Per-iteration history of the final refinement (and the fitness score at each).
   bool record_history = false;
   /// Whether the scale is estimated too (Sim(3), PipelineRequest::free_scale). kAuto: free when
-  /// either map has no metric scale (source_metric, target_metric: what the maps' headers say;
-  /// true when the front end does not know), fixed otherwise.
+  /// either map has no metric scale (source_metric, target_metric: what the maps' headers say,
+  /// set by describe_maps(); true when the front end does not know, as for bare arrays), fixed
+  /// otherwise.
   ScaleMode scale = ScaleMode::kAuto;
   bool source_metric = true;
   bool target_metric = true;
@@ -88,6 +90,13 @@ struct AlignRequest {
   /// uses covariances says so in Summary::covariances_assumed and at the end of its verdict's
   /// reason.
   bool covariances_assumed = false;
+
+  /// Fills what the maps say about themselves: source_metric / target_metric (true only for
+  /// MapScale::kMetric: an arbitrary or unknown scale lets kAuto estimate it) and
+  /// covariances_assumed (either header's covariance_assumed). Every front end calls it with
+  /// the two maps it read, so `auto` means the same in the CLI, Python, the experiment runner
+  /// and the merge.
+  void describe_maps(const MapHeader& source, const MapHeader& target);
 };
 
 /// The preset's pipeline spec with the request's k, limits and settings applied. Throws
