@@ -181,6 +181,41 @@ TEST(LocalVote, SnapsAnOffCandidateToTheTrueTranslationAndYaw) {
   EXPECT_GT(before.translation_m, 1.0);
 }
 
+TEST(LocalVote, LandmarksOutsideTheTargetsBoxVoteAsInsideIt) {
+  // Moved by the candidate, the source reaches 0.5 m past the target's box and 100 of its
+  // landmarks lie 27-47 m from it: a moved landmark near the box still votes, one far from it has
+  // no neighbour in the grid. The same vote with four far target landmarks that widen the box
+  // around everything (never among anyone's 16 nearest: 800 landmarks are closer) must agree.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-10.0, 10.0);
+  Points3 target;
+  for (int i = 0; i < 800; ++i) target.push_back(Vec3(u(rng), u(rng), 0.2 * u(rng)));
+  Points3 source = target;
+  for (Vec3& p : source) p.x() += 3.0;
+  for (int i = 0; i < 100; ++i) source.push_back(Vec3(50.0 + u(rng), u(rng), u(rng)));
+  Points3 wide = target;
+  for (double s : {-1.0, 1.0}) {
+    wide.push_back(Vec3(1000.0 * s, 1000.0 * s, 1000.0 * s));
+    wide.push_back(Vec3(1000.0 * s, -1000.0 * s, 1000.0 * s));
+  }
+  const KdTree tree(target), wide_tree(wide);
+  LocalVoteOptions o;
+  o.yaw_half_width_rad = 3.0 * kPi / 180.0;
+  o.yaw_step_rad = 0.75 * kPi / 180.0;
+  o.half_width_m = 2.0;
+  o.cell_m = 1.0 / 3.0;
+  o.neighbours = 16;
+  const Isometry3 T0 = pose_from_xyz_rpy_deg(-2.5, 0.3, 0.0, 0.0, 0.0, 1.0);
+  const YawHypothesis a = local_vote(source, tree, Vec3::UnitZ(), Vec3::Zero(), T0, o);
+  const YawHypothesis b = local_vote(source, wide_tree, Vec3::UnitZ(), Vec3::Zero(), T0, o);
+  ASSERT_GT(a.votes, 0u);
+  EXPECT_EQ(a.votes, b.votes);
+  EXPECT_EQ(a.yaw_rad, b.yaw_rad);
+  EXPECT_TRUE(a.T_target_source.matrix() == b.T_target_source.matrix());
+  // The true translation is 3 m back along x: the snap finds it.
+  EXPECT_NEAR((a.T_target_source * Vec3::Zero() - Vec3(-3.0, 0.0, 0.0)).norm(), 0.0, 1.0 / 3.0);
+}
+
 TEST(DominantPlane, FindsTheFloorUnderClutterAndAWall) {
   // A floor tilted 7 deg, clutter above it and a wall: the dominant plane within 60 deg of the
   // hint is the floor; the best-fitting plane of everything leans with the clutter.

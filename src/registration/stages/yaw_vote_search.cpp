@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 
 #include "lmalign/core/error.hpp"
@@ -35,6 +36,16 @@ Vec3 median_point(const Points3& points) {
     out[d] = *mid;
   }
   return out;
+}
+
+// std::floor(v) as an integer, when it lies strictly between -limit and limit (an integer below
+// 2^52); else false. Exact: the truncation of v, one less when that is above v. Inline because the
+// votes below take three floors each, and the library's floor is a call.
+inline bool floor_within(double v, double limit, std::int64_t* out) {
+  if (!(v < limit && v >= 1.0 - limit)) return false;
+  const auto i = static_cast<std::int64_t>(v);
+  *out = i - static_cast<std::int64_t>(static_cast<double>(i) > v);
+  return true;
 }
 
 std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
@@ -153,8 +164,8 @@ class VoteGrid3 {
     for (int k = 0; k < 3; ++k)
       cells *= static_cast<double>(std::max<std::int64_t>(0, hi[k] - lo[k] + 1));
     // Only the cells the last vote touched are cleared.
-    for (std::size_t i : touched_) dense_counts_[i] = 0;
-    touched_.clear();
+    for (std::size_t t = 0; t < touched_count_; ++t) dense_counts_[touched_[t]] = 0;
+    touched_count_ = 0;
     dense_ = cells >= 1.0 && cells <= kDenseLimit;
     if (!dense_) {
       sparse_.reset(max_votes);
@@ -167,6 +178,9 @@ class VoteGrid3 {
     if (dense_counts_.size() < static_cast<std::size_t>(cells)) {
       dense_counts_.resize(static_cast<std::size_t>(cells), 0);
     }
+    // At most one entry per distinct cell, and one spare: add() writes before it counts.
+    const std::size_t most = std::min(max_votes, static_cast<std::size_t>(cells)) + 1;
+    if (touched_.size() < most) touched_.resize(most);
   }
   void add(std::int64_t a, std::int64_t b, std::int64_t c) {
     if (!dense_) {
@@ -175,8 +189,10 @@ class VoteGrid3 {
     }
     const std::int64_t i = a - lo_[0], j = b - lo_[1], k = c - lo_[2];
     if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return;
-    const std::size_t idx = static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k);
-    if (dense_counts_[idx]++ == 0) touched_.push_back(idx);
+    const auto idx = static_cast<std::uint32_t>((i * n_[1] + j) * n_[2] + k);
+    // Without a branch: a cell's first vote keeps the entry written here, later ones overwrite it.
+    touched_[touched_count_] = idx;
+    touched_count_ += static_cast<std::size_t>(dense_counts_[idx]++ == 0);
   }
   std::uint32_t count(std::int64_t a, std::int64_t b, std::int64_t c) const {
     if (!dense_) return sparse_.count(pack(a, b, c));
@@ -184,19 +200,39 @@ class VoteGrid3 {
     if (i < 0 || j < 0 || k < 0 || i >= n_[0] || j >= n_[1] || k >= n_[2]) return 0;
     return dense_counts_[static_cast<std::size_t>((i * n_[1] + j) * n_[2] + k)];
   }
-  /// visit(count, key) for every cell with votes.
-  template <typename Visit>
-  void for_each_cell(Visit&& visit) const {
+  /// The `keep` cells with the most votes (fewer if fewer have votes) as (count, key), by
+  /// decreasing count, equal counts by increasing key.
+  std::vector<std::pair<std::uint32_t, std::uint64_t>> top(std::size_t keep) const {
+    std::vector<std::pair<std::uint32_t, std::uint64_t>> out;
     if (!dense_) {
-      sparse_.for_each_cell(visit);
-      return;
+      sparse_.for_each_cell([&](std::uint32_t n, std::uint64_t key) { out.emplace_back(n, key); });
+      keep = std::min(keep, out.size());
+      std::partial_sort(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(keep), out.end(),
+                        [](const auto& l, const auto& r) {
+                          return l.first != r.first ? l.first > r.first : l.second < r.second;
+                        });
+      out.resize(keep);
+      return out;
     }
-    for (std::size_t idx : touched_) {
-      const std::int64_t k = static_cast<std::int64_t>(idx) % n_[2];
-      const std::int64_t j = (static_cast<std::int64_t>(idx) / n_[2]) % n_[1];
-      const std::int64_t i = static_cast<std::int64_t>(idx) / (n_[2] * n_[1]);
-      visit(dense_counts_[idx], pack(lo_[0] + i, lo_[1] + j, lo_[2] + k));
+    // The dense index orders cells as their keys do (both are lexicographic in (a, b, c)), so
+    // one integer, the count above the complemented index, sorts them: larger is better.
+    std::vector<std::uint64_t> ranked(touched_count_);
+    for (std::size_t t = 0; t < touched_count_; ++t) {
+      const std::uint32_t idx = touched_[t];
+      ranked[t] = (std::uint64_t{dense_counts_[idx]} << 32) | std::uint64_t{~idx};
     }
+    keep = std::min(keep, ranked.size());
+    std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(keep),
+                      ranked.end(), std::greater<>());
+    for (std::size_t t = 0; t < keep; ++t) {
+      const auto idx = static_cast<std::int64_t>(~static_cast<std::uint32_t>(ranked[t]));
+      const std::int64_t k = idx % n_[2];
+      const std::int64_t j = (idx / n_[2]) % n_[1];
+      const std::int64_t i = idx / (n_[2] * n_[1]);
+      out.emplace_back(static_cast<std::uint32_t>(ranked[t] >> 32),
+                       pack(lo_[0] + i, lo_[1] + j, lo_[2] + k));
+    }
+    return out;
   }
 
  private:
@@ -204,7 +240,8 @@ class VoteGrid3 {
   bool dense_ = false;
   std::int64_t lo_[3] = {0, 0, 0}, n_[3] = {0, 0, 0};
   std::vector<std::uint32_t> dense_counts_;
-  std::vector<std::size_t> touched_;
+  std::vector<std::uint32_t> touched_;  // the first touched_count_ are the cells with votes
+  std::size_t touched_count_ = 0;
   HashCounts sparse_;
 };
 
@@ -426,20 +463,16 @@ std::vector<Peak> vote3d(const Points3& rotated, const Points3& target, double c
         const double v = d.dot(up);
         if (std::abs(v) > window.radius_v || (d - v * up).squaredNorm() > rh2) continue;
       }
-      const double a = std::floor(t[0] * inv), b = std::floor(t[1] * inv),
-                   c = std::floor(t[2] * inv);
-      if (std::abs(a) >= limit || std::abs(b) >= limit || std::abs(c) >= limit) continue;
-      grid.add(static_cast<std::int64_t>(a), static_cast<std::int64_t>(b),
-               static_cast<std::int64_t>(c));
+      std::int64_t a, b, c;
+      if (!floor_within(t[0] * inv, limit, &a) || !floor_within(t[1] * inv, limit, &b) ||
+          !floor_within(t[2] * inv, limit, &c)) {
+        continue;
+      }
+      grid.add(a, b, c);
     }
   }
-  std::vector<std::pair<std::uint32_t, std::uint64_t>> top;
-  grid.for_each_cell([&](std::uint32_t n, std::uint64_t key) { top.emplace_back(n, key); });
-  const std::size_t keep = std::min<std::size_t>(64 * max_peaks, top.size());
-  std::partial_sort(top.begin(), top.begin() + static_cast<std::ptrdiff_t>(keep), top.end(),
-                    [](const auto& l, const auto& r) {
-                      return l.first != r.first ? l.first > r.first : l.second < r.second;
-                    });
+  const std::vector<std::pair<std::uint32_t, std::uint64_t>> top = grid.top(64 * max_peaks);
+  const std::size_t keep = top.size();
   struct Cand {
     std::size_t votes;
     Vec3 t;
@@ -526,7 +559,22 @@ YawHypothesis local_vote(const Points3& points, const KdTree& target_tree, const
   const double inv = 1.0 / o.cell_m;
   const std::int64_t n = 2 * static_cast<std::int64_t>(std::ceil(o.half_width_m * inv)) + 3;
   const std::int64_t off = n / 2;
+  const double cell_limit = static_cast<double>(kCellLimit);
   const std::size_t k = std::min(o.neighbours, target_tree.size());
+  const Points3& q = target_tree.points();
+  // A vote lands in the grid only if each component of t is within reach_m of 0; at yaw y a moved
+  // landmark turns by at most |y| |moved - pivot| about the pivot. So a target landmark farther
+  // than sqrt(3) reach_m + max |y| |moved - pivot| from a moved landmark never votes, and a
+  // moved landmark that far from the targets' bounding box has no neighbour that votes: its query
+  // is skipped (the same votes). The margin covers the rounding of coordinates up to 1e15 m.
+  const double reach_m = static_cast<double>(std::max(off - 1, n - 1 - off)) * o.cell_m;
+  const double yaw_max_rad = half_n * o.yaw_step_rad;
+  Vec3 box_min = q.front(), box_max = q.front();
+  for (const Vec3& p : q) {
+    box_min = box_min.cwiseMin(p);
+    box_max = box_max.cwiseMax(p);
+  }
+  const double box_abs_m = std::max(box_min.cwiseAbs().maxCoeff(), box_max.cwiseAbs().maxCoeff());
   // The neighbours of each moved landmark, once: wide enough for every yaw of the window.
   std::vector<Vec3> moved(points.size());
   std::vector<PointIndex> nbr(points.size() * k);
@@ -534,9 +582,13 @@ YawHypothesis local_vote(const Points3& points, const KdTree& target_tree, const
   std::vector<std::size_t> counts(points.size(), 0);
   for (std::size_t i = 0; i < points.size(); ++i) {
     moved[i] = T0 * points[i];
+    const double votes_within_m = std::sqrt(3.0) * reach_m +
+                                  yaw_max_rad * (moved[i] - pivot).norm() +
+                                  1e-9 * (box_abs_m + moved[i].cwiseAbs().maxCoeff() + reach_m);
+    const Vec3 outside = (box_min - moved[i]).cwiseMax(moved[i] - box_max).cwiseMax(0.0);
+    if (outside.norm() > votes_within_m) continue;
     counts[i] = target_tree.knn(moved[i], k, &nbr[i * k], d2.data());
   }
-  const Points3& q = target_tree.points();
   std::vector<std::uint32_t> grid(static_cast<std::size_t>(n * n * n));
   std::vector<std::uint32_t> box1, box2;
   std::size_t best_votes = 0;
@@ -547,9 +599,16 @@ YawHypothesis local_vote(const Points3& points, const KdTree& target_tree, const
       const Vec3 x = R * (moved[i] - pivot) + pivot;
       for (std::size_t j = 0; j < counts[i]; ++j) {
         const Vec3 t = q[nbr[i * k + j]] - x;
-        const std::int64_t a = static_cast<std::int64_t>(std::floor(t[0] * inv)) + off;
-        const std::int64_t b = static_cast<std::int64_t>(std::floor(t[1] * inv)) + off;
-        const std::int64_t c = static_cast<std::int64_t>(std::floor(t[2] * inv)) + off;
+        // A floor beyond +-kCellLimit is outside the grid (n^3 cells fit in memory) anyway.
+        std::int64_t a, b, c;
+        if (!floor_within(t[0] * inv, cell_limit, &a) ||
+            !floor_within(t[1] * inv, cell_limit, &b) ||
+            !floor_within(t[2] * inv, cell_limit, &c)) {
+          continue;
+        }
+        a += off;
+        b += off;
+        c += off;
         if (a < 1 || b < 1 || c < 1 || a >= n - 1 || b >= n - 1 || c >= n - 1) continue;
         ++grid[static_cast<std::size_t>((a * n + b) * n + c)];
       }
@@ -685,6 +744,19 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     }
   }
   const Vec3 up = up_target.normalized();
+  if (options.vote_3d) {
+    // The 3-D vote's counts do not depend on the order of the target samples; in the order of
+    // their cells (the grid's memory order), one source sample's votes walk the grid nearly in
+    // order, which the cache rewards.
+    const double inv = 1.0 / cell_m;
+    std::stable_sort(tgt.begin(), tgt.end(), [inv](const Vec3& l, const Vec3& r) {
+      const double l0 = std::floor(l[0] * inv), r0 = std::floor(r[0] * inv);
+      if (l0 != r0) return l0 < r0;
+      const double l1 = std::floor(l[1] * inv), r1 = std::floor(r[1] * inv);
+      if (l1 != r1) return l1 < r1;
+      return l[2] < r[2];
+    });
+  }
 
   // The base rotation and the yaw grid.
   Mat3 base;
