@@ -428,6 +428,36 @@ std::vector<std::optional<std::pair<double, bool>>> cycle_check(
   return rejected;
 }
 
+// Breadth-first from each root (its pose set in `start`) along the active edges, in edge order
+// (deterministic): X_wi = X_wj X_ji, with edge_pose(e) = X_ji of edge e (Isometry3 or
+// Similarity3).
+template <typename Pose, typename EdgePose>
+void spanning_start(const std::vector<Edge>& edges, const std::vector<bool>& active,
+                    const std::vector<std::size_t>& roots, const EdgePose& edge_pose,
+                    std::vector<Pose>* start) {
+  std::vector<bool> placed(start->size(), false);
+  for (const std::size_t r : roots) {
+    placed[r] = true;
+    std::vector<std::size_t> queue{r};
+    for (std::size_t h = 0; h < queue.size(); ++h) {
+      const std::size_t a = queue[h];
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (!active[e]) continue;
+        const Edge& ed = edges[e];
+        if (ed.target == a && !placed[ed.source]) {
+          (*start)[ed.source] = (*start)[a] * edge_pose(e);  // T_wi = T_wj T_ji
+          placed[ed.source] = true;
+          queue.push_back(ed.source);
+        } else if (ed.source == a && !placed[ed.target]) {
+          (*start)[ed.target] = (*start)[a] * edge_pose(e).inverse();
+          placed[ed.target] = true;
+          queue.push_back(ed.target);
+        }
+      }
+    }
+  }
+}
+
 // Union-find components; ordered by their lowest map index.
 std::vector<std::size_t> components(std::size_t n,
                                     const std::vector<std::pair<std::size_t, std::size_t>>& links,
@@ -720,30 +750,15 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       if (!root[comp[i]]) root[comp[i]] = i;
     }
     // Breadth-first start from each root along the active edges (edge order: deterministic).
-    std::vector<bool> placed(num_maps, false);
+    std::vector<std::size_t> roots;
     std::vector<Isometry3> start(num_maps, Isometry3::Identity());
     for (std::size_t c = 0; c < ncomp; ++c) {
       const std::size_t r = *root[c];
       start[r] = priors[r] ? priors[r]->T_world_map : Isometry3::Identity();
-      placed[r] = true;
-      std::vector<std::size_t> queue{r};
-      for (std::size_t h = 0; h < queue.size(); ++h) {
-        const std::size_t a = queue[h];
-        for (std::size_t e = 0; e < edges.size(); ++e) {
-          if (!active[e]) continue;
-          const Edge& ed = edges[e];
-          if (ed.target == a && !placed[ed.source]) {
-            start[ed.source] = start[a] * ed.T_target_source;  // T_wi = T_wj T_ji
-            placed[ed.source] = true;
-            queue.push_back(ed.source);
-          } else if (ed.source == a && !placed[ed.target]) {
-            start[ed.target] = start[a] * ed.T_target_source.inverse();
-            placed[ed.target] = true;
-            queue.push_back(ed.target);
-          }
-        }
-      }
+      roots.push_back(r);
     }
+    spanning_start(
+        edges, active, roots, [&](std::size_t e) { return edges[e].T_target_source; }, &start);
     if (sim) {
       // The start with scales: the same breadth-first order, composing similarities.
       std::vector<bool> comp_has_metric(ncomp, false);
@@ -751,28 +766,11 @@ MergeResult solve_pose_graph(std::size_t num_maps,
         if (!free_scale(i)) comp_has_metric[comp[i]] = true;
       }
       std::vector<Similarity3> S(num_maps);
-      std::fill(placed.begin(), placed.end(), false);
+      for (const std::size_t r : roots) S[r] = Similarity3{prior_scale[r], start[r]};
+      spanning_start(
+          edges, active, roots, [&](std::size_t e) { return edge_sim[e]; }, &S);
       for (std::size_t c = 0; c < ncomp; ++c) {
         const std::size_t r = *root[c];
-        S[r] = Similarity3{prior_scale[r], start[r]};
-        placed[r] = true;
-        std::vector<std::size_t> queue{r};
-        for (std::size_t h = 0; h < queue.size(); ++h) {
-          const std::size_t a = queue[h];
-          for (std::size_t e = 0; e < edges.size(); ++e) {
-            if (!active[e]) continue;
-            const Edge& ed = edges[e];
-            if (ed.target == a && !placed[ed.source]) {
-              S[ed.source] = S[a] * edge_sim[e];
-              placed[ed.source] = true;
-              queue.push_back(ed.source);
-            } else if (ed.source == a && !placed[ed.target]) {
-              S[ed.target] = S[a] * edge_sim[e].inverse();
-              placed[ed.target] = true;
-              queue.push_back(ed.target);
-            }
-          }
-        }
         // Without priors, a component with metric maps takes their scale: the start is moved
         // about its root by the mean of their log scales.
         if (!comp_has_prior[c] && comp_has_metric[c]) {
