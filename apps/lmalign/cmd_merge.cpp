@@ -306,14 +306,14 @@ CommandRunner add_merge_command(CLI::App& root) {
       "Merge many mini-maps into one frame (docs/merge.md): candidate pairs (priors, else all\n"
       "pairs or a pre-filter), one adaptive alignment per pair (kept when trusted, with its 6x6\n"
       "covariance; a similarity with its scale where a map has no metric scale, --scale), a\n"
-      "robust SE(3) pose graph (Ceres; Sim(3) with a log scale per map without metric scale) that "
-      "rejects edges inconsistent with the\n"
-      "rest, and the outputs in OUTDIR: poses.yaml/json (T_world_map, p_world = T * p_map, "
-      "metres;\n"
-      "6x6 covariance of xi = (rho m, phi rad), left perturbation in the world frame), edges.csv,\n"
-      "summary.json, merged_map.txt. A graph in several parts is reported part by part, each in\n"
-      "its own frame (its first map's, or its priors'). Finished edges are kept in OUTDIR/edges/\n"
-      "as they finish; Ctrl-C stops after the alignments in flight, and --resume reuses them.");
+      "robust pose graph (Ceres; SE(3), plus a log scale per map without metric scale) that\n"
+      "rejects edges inconsistent with the rest, and the outputs in OUTDIR: poses.yaml/json\n"
+      "(T_world_map and scale: p_world = scale * R * p_map + t, metres, scale = world units per\n"
+      "map unit, 1 for a metric map; 6x6 covariance of xi = (rho m, phi rad), left perturbation\n"
+      "in the world frame), edges.csv, summary.json, merged_map.txt. A graph in several parts is\n"
+      "reported part by part, each in its own frame (its first map's, or its priors'). Finished\n"
+      "edges are kept in OUTDIR/edges/ as they finish; Ctrl-C stops after the alignments in\n"
+      "flight, and --resume reuses them.");
   cmd->add_option("MANIFEST", args->manifest,
                   "YAML manifest: maps with name, path, optional format, session, T_world_map "
                   "prior (4x4) with prior_sigma [rot_deg, trans_m] or prior_covariance (6x6)")

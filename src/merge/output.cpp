@@ -86,6 +86,7 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
   if (landmark_ranges != nullptr) landmark_ranges->assign(maps.size(), {0, 0});
   if (left_out != nullptr) *left_out = 0;
   Map out;
+  bool any_metric = false, held_by_gauge = false;
   Id next_frame = 0;
   // (session, landmark id) -> index in out.landmarks, and the fused information sums.
   std::map<std::pair<std::string, Id>, std::size_t> fused;
@@ -138,7 +139,13 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
       out.landmarks.push_back(std::move(k));
     }
     if (landmark_ranges != nullptr) (*landmark_ranges)[m] = {first_landmark, out.landmarks.size()};
+    any_metric = any_metric || maps[m].header.scale == MapScale::kMetric;
+    held_by_gauge = held_by_gauge || result.maps[m].is_gauge;
+    out.header.covariance_assumed =
+        out.header.covariance_assumed || maps[m].header.covariance_assumed;
   }
+  // Metres when a map of the component has them or priors hold it; else the gauge map's units.
+  out.header.scale = any_metric || !held_by_gauge ? MapScale::kMetric : MapScale::kArbitrary;
   return out;
 }
 

@@ -593,6 +593,9 @@ bool PoseGraphOptions::is_valid(std::string* why) const {
   if (!(floor_translation_m > 0.0) || !(floor_rotation_deg > 0.0)) {
     return bad("floor_translation_m and floor_rotation_deg must be > 0");
   }
+  if (!(floor_log_scale > 0.0) || !std::isfinite(floor_log_scale)) {
+    return bad("floor_log_scale must be > 0");
+  }
   if (max_rounds < 1) return bad("max_rounds must be >= 1");
   if (max_iterations < 1) return bad("max_iterations must be >= 1");
   return true;

@@ -177,6 +177,7 @@ TEST(MergeFleet, FourMapsWithoutMetricScaleOnASim3PoseGraph) {
   // The merged map: landmarks with one id from two maps land on one point (within the noise).
   std::vector<std::pair<std::size_t, std::size_t>> ranges;
   const Map merged = merge_maps(maps, std::vector<std::string>(4), run.result, 0, {}, &ranges);
+  EXPECT_EQ(merged.header.scale, MapScale::kMetric);  // map 2's metres
   std::map<Id, Vec3> first;
   std::size_t shared = 0;
   for (std::size_t i = 0; i < 4; ++i) {
