@@ -38,6 +38,7 @@ struct MergeArgs {
   std::string dask_scheduler;
   bool no_plots = false;
   bool plan_only = false;
+  std::string scale = "auto";  // --scale auto|free|fixed
 };
 
 /// --dask-scheduler: the pairs run on a Dask cluster through the Python package; this process
@@ -142,11 +143,19 @@ bool plot_merge(const std::string& out_dir) {
 }
 
 int run_merge_command(const MergeArgs& a) {
-  if (!a.dask_scheduler.empty()) return exec_python_merge(a);
+  if (!a.dask_scheduler.empty()) {
+    // The Python package merges with the default, auto (maps without metric scale: Sim(3)).
+    if (a.scale != "auto") {
+      throw InvalidArgument("--scale " + a.scale +
+                            ": only auto with --dask-scheduler (the Python package's merge)");
+    }
+    return exec_python_merge(a);
+  }
   if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
   if (a.threads < 0) throw InvalidArgument("--threads must be >= 0 (0 = all)");
   const std::vector<double> thr =
       parse_number_list("--thresholds", a.thresholds, 2, "ROT_DEG,TRANS_M, e.g. 5,0.1");
+  const ScaleMode scale_mode = parse_scale_mode(a.scale);
   const Manifest manifest = read_manifest(a.manifest);
   std::vector<std::string> names, sessions;
   std::vector<std::optional<MapPrior>> priors;
@@ -168,7 +177,7 @@ int run_merge_command(const MergeArgs& a) {
                           "choose another folder");
   }
   for (const std::string& in : inputs) refuse_output_over_input("-o", a.out_dir, {in});
-  std::vector<Isometry3> truth;
+  std::vector<Similarity3> truth;
   std::fprintf(stderr, "lmalign merge: reading %zu maps\n", manifest.maps.size());
   const std::vector<Map> maps = load_manifest_maps(manifest);
   for (std::size_t i = 0; i < maps.size(); ++i) {
@@ -185,14 +194,15 @@ int run_merge_command(const MergeArgs& a) {
   }
   if (!a.ground_truth.empty()) {
     if (a.ground_truth == "identity") {
-      truth.assign(maps.size(), Isometry3::Identity());
+      truth.assign(maps.size(), Similarity3{});
     } else {
-      truth = read_ground_truth(a.ground_truth, names);
+      truth = read_ground_truth_similarities(a.ground_truth, names);
     }
   }
   MergeOptions options;
   options.candidates.max_pairs = static_cast<std::size_t>(a.max_pairs);
   options.threads = a.threads;
+  options.edges.scale = scale_mode;
   options.edge_cache_dir = (fs::path(a.out_dir) / "edges").string();
   if (a.plan_only) return plan_only(maps, names, priors, options, a.out_dir);
   const StopSignals signals;
@@ -224,6 +234,12 @@ int run_merge_command(const MergeArgs& a) {
       maps.size(), run.candidates.size(), run.edges_reused, trusted, used, rejected,
       run.result.num_components, run.result.final_chi2, run.result.edge_covariance_scale);
   std::printf("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    const MapPose& p = run.result.maps[i];
+    if (!p.scale_free && p.scale == 1.0) continue;
+    std::printf("scale of %s: %.6g world units per map unit (sd %.2g)%s\n", names[i].c_str(),
+                p.scale, p.scale_sd, p.scale_free ? "" : " (held)");
+  }
   for (std::size_t e = 0; e < run.edges.size(); ++e) {
     const EdgeReport& r = run.result.edges[e];
     if (!r.rejected) continue;
@@ -251,11 +267,13 @@ int run_merge_command(const MergeArgs& a) {
                     run.result.maps[i].component);
         continue;
       }
-      std::printf("  %-20s component %zu  rotation %.3f deg  translation %.4f m%s\n",
-                  names[i].c_str(), run.result.maps[i].component, e.rotation_deg, e.translation_m,
-                  !e.placed  ? "  (not placed: in a part apart from the others)"
-                  : e.within ? ""
-                             : "  (outside)");
+      std::printf(
+          "  %-20s component %zu  rotation %.3f deg  translation %.4f m  scale error %.2e%s\n",
+          names[i].c_str(), run.result.maps[i].component, e.rotation_deg, e.translation_m,
+          e.scale_error,
+          !e.placed  ? "  (not placed: in a part apart from the others)"
+          : e.within ? ""
+                     : "  (outside)");
     }
     const std::size_t pairs = maps.size() * (maps.size() - 1) / 2;
     char pair_text[96] = "not computed (over 2000 maps)";
@@ -265,9 +283,11 @@ int run_merge_command(const MergeArgs& a) {
     }
     std::printf(
         "  within: %.1f%% of the maps (placed: %zu of %zu); pairs within: %s; edges kept %zu, "
-        "false kept %zu, precision %.3f, recall %.3f\n",
+        "false kept %zu, precision %.3f, recall %.3f; largest scale error: maps %.2e, pairs "
+        "%.2e\n",
         100.0 * ev.fraction_within, ev.placed, maps.size(), pair_text, ev.kept_edges,
-        ev.false_kept_edges, ev.edge_precision, ev.edge_recall);
+        ev.false_kept_edges, ev.edge_precision, ev.edge_recall, ev.max_scale_error,
+        ev.max_pair_scale_error);
   }
   const bool plotted = !a.no_plots && plot_merge(a.out_dir);
   std::printf(
@@ -285,26 +305,38 @@ CommandRunner add_merge_command(CLI::App& root) {
       "merge",
       "Merge many mini-maps into one frame (docs/merge.md): candidate pairs (priors, else all\n"
       "pairs or a pre-filter), one adaptive alignment per pair (kept when trusted, with its 6x6\n"
-      "covariance), a robust SE(3) pose graph (Ceres) that rejects edges inconsistent with the\n"
-      "rest, and the outputs in OUTDIR: poses.yaml/json (T_world_map, p_world = T * p_map, "
-      "metres;\n"
-      "6x6 covariance of xi = (rho m, phi rad), left perturbation in the world frame), edges.csv,\n"
-      "summary.json, merged_map.txt. A graph in several parts is reported part by part, each in\n"
-      "its own frame (its first map's, or its priors'). Finished edges are kept in OUTDIR/edges/\n"
-      "as they finish; Ctrl-C stops after the alignments in flight, and --resume reuses them.");
+      "covariance; a similarity with its scale where a map has no metric scale, --scale), a\n"
+      "robust pose graph (Ceres; SE(3), plus a log scale per map without metric scale) that\n"
+      "rejects edges inconsistent with the rest, and the outputs in OUTDIR: poses.yaml/json\n"
+      "(T_world_map and scale: p_world = scale * R * p_map + t, metres, scale = world units per\n"
+      "map unit, 1 for a metric map; 6x6 covariance of xi = (rho m, phi rad), left perturbation\n"
+      "in the world frame), edges.csv, summary.json, merged_map.txt. A graph in several parts is\n"
+      "reported part by part, each in its own frame (its first map's, or its priors'). Finished\n"
+      "edges are kept in OUTDIR/edges/ as they finish; Ctrl-C stops after the alignments in\n"
+      "flight, and --resume reuses them.");
   cmd->add_option("MANIFEST", args->manifest,
                   "YAML manifest: maps with name, path, optional format, session, T_world_map "
                   "prior (4x4) with prior_sigma [rot_deg, trans_m] or prior_covariance (6x6)")
       ->required();
   cmd->add_option("-o,--output", args->out_dir, "Output folder (created)")->required();
   cmd->add_option("--ground-truth", args->ground_truth,
-                  "YAML 'maps: {name: 4x4 T_world_map (m)}', or 'identity' (all maps share the "
-                  "true frame): per-map errors, edge precision and recall");
+                  "YAML 'maps: {name: 4x4 T_world_map (m)}' (a similarity [sR t; 0 0 0 1] for a "
+                  "map without metric scale, s = world units per map unit), or 'identity' (all "
+                  "maps share the true frame): per-map errors (rotation, translation, relative "
+                  "scale |s_est/s_true - 1|), edge precision and recall");
   cmd->add_option("--thresholds", args->thresholds,
                   "Ground truth: ROT_DEG,TRANS_M within which a map or edge counts as right "
                   "(5,0.1 indoors; 5,1 outdoors)")
       ->capture_default_str();
   cmd->add_option("--max-pairs", args->max_pairs, "At most this many candidate pairs (0 = all)")
+      ->capture_default_str();
+  cmd->add_option("--scale", args->scale,
+                  "auto: a map without metric scale (its header: COLMAP, Bundler, monocular "
+                  "stella_vslam) gets a scale of its own, s = world units per map unit, and its "
+                  "pairs are aligned as similarities (Sim(3), docs/scale.md); maps with metric "
+                  "scale and manifest priors hold the scale. free: every pair's scale is "
+                  "estimated too. fixed: rigid (SE(3)) edges and poses for every map")
+      ->check(CLI::IsMember({"auto", "free", "fixed"}))
       ->capture_default_str();
   cmd->add_flag("--resume", args->resume, "Reuse the finished edges in OUTDIR/edges/");
   cmd->add_option("--threads", args->threads,

@@ -179,6 +179,8 @@ class MapPrior:
     @property
     def T_world_map(self) -> F64: ...  # (4, 4) p_world = T @ p_map, m
     @property
+    def scale(self) -> float: ...  # world units per map unit (1: rigid prior)
+    @property
     def covariance(self) -> F64: ...  # (6, 6) (rho m, phi rad), left, world frame
 
 class ManifestEntry:
@@ -244,6 +246,12 @@ class Edge:
     @property
     def initialisation(self) -> str: ...  # global, prior, given, ...
     @property
+    def scale_free(self) -> bool: ...  # the alignment estimated the scale (Sim(3))
+    @property
+    def scale(self) -> float: ...  # target units per source unit (1: rigid)
+    @property
+    def scale_sd(self) -> float: ...  # NaN when fixed
+    @property
     def summary_json(self) -> str: ...  # AlignmentResult.to_json()'s serialisation
     @property
     def key(self) -> str: ...
@@ -260,6 +268,12 @@ class MapPose:
     def component(self) -> int: ...
     @property
     def is_gauge(self) -> bool: ...
+    @property
+    def scale(self) -> float: ...  # world units per map unit (1: metric)
+    @property
+    def scale_sd(self) -> float: ...  # 0 when held
+    @property
+    def scale_free(self) -> bool: ...
 
 class EdgeReport:
     @property
@@ -337,7 +351,12 @@ def edge_file_path(dir: PathLike, source_name: str, target_name: str) -> str: ..
 def write_edge_file(path: PathLike, edge: Edge) -> None: ...
 def read_edge_file(path: PathLike) -> Optional[Edge]: ...
 def solve_pose_graph(
-    num_maps: int, priors: Optional[Sequence[Optional[MapPrior]]], edges: Sequence[Edge]
+    num_maps: int,
+    priors: Optional[Sequence[Optional[MapPrior]]],
+    edges: Sequence[Edge],
+    *,
+    maps: Optional[Sequence[Map]] = None,  # their headers: which have no metric scale
+    scale: str = "auto",  # auto, free, fixed
 ) -> PoseGraphResult: ...
 def write_merge_outputs(
     out_dir: PathLike,

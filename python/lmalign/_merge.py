@@ -194,7 +194,7 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
         candidates = _c.plan_candidates(maps, priors, max_pairs=int(max_pairs or 0))
         edges, reused = _dask_edges(dask_client, manifest, maps, candidates, edges_dir, None)
         t1 = time.monotonic()
-        graph = _c.solve_pose_graph(len(maps), priors, edges)
+        graph = _c.solve_pose_graph(len(maps), priors, edges, maps=maps)
         s_edges, s_graph = t1 - t0, time.monotonic() - t1
         backend = "dask"
     _c.write_merge_outputs(output_dir, names, [e.session for e in manifest.maps], maps, edges,

@@ -8,6 +8,7 @@
 #include <pybind11/stl/filesystem.h>
 
 #include <Eigen/Cholesky>
+#include <cmath>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -65,6 +66,21 @@ std::vector<Isometry3> transforms_from(const py::handle& obj, const char* name, 
   return out;
 }
 
+// (N, 4, 4) similarities [sR t; 0 0 0 1] (rigid ones: s = 1); one line naming the entry.
+std::vector<Similarity3> similarities_from(const py::handle& obj, const char* name, std::size_t n) {
+  const Array a = as_array(obj, name, {-1, 4, 4}, "(N, 4, 4) with N the number of maps",
+                           static_cast<py::ssize_t>(n));
+  std::vector<Similarity3> out;
+  for (py::ssize_t i = 0; i < a.shape(0); ++i) {
+    Mat4 M;
+    for (int r = 0; r < 4; ++r) {
+      for (int c = 0; c < 4; ++c) M(r, c) = a.at(i, r, c);
+    }
+    out.push_back(similarity_from_matrix(M, std::string(name) + "[" + std::to_string(i) + "]"));
+  }
+  return out;
+}
+
 py::object optional_transform_out(const std::optional<Isometry3>& T) {
   if (!T) return py::none();
   return matrix_out<4, 4>(T->matrix());
@@ -91,14 +107,15 @@ EdgeOptions edge_options(std::optional<int> max_iterations) {
 }
 
 py::tuple edge_state(const Edge& e) {
-  return py::make_tuple(e.source, e.target, matrix_out<4, 4>(e.T_target_source.matrix()),
-                        matrix_out<6, 6>(e.covariance), e.covariance_valid, e.trusted,
-                        e.trust_reason, e.num_inliers, e.inlier_ratio, e.initialisation, e.key,
-                        e.summary_json);
+  return py::make_tuple(
+      e.source, e.target, matrix_out<4, 4>(e.T_target_source.matrix()),
+      matrix_out<6, 6>(e.covariance), e.covariance_valid, e.trusted, e.trust_reason, e.num_inliers,
+      e.inlier_ratio, e.initialisation, e.key, e.summary_json, e.scale_free, e.scale, e.scale_sd,
+      e.covariance_7x7 ? py::object(matrix_out<7, 7>(*e.covariance_7x7)) : py::object(py::none()));
 }
 
 Edge edge_from_state(const py::tuple& t) {
-  if (t.size() != 12) throw InvalidArgument("Edge: pickled state of a different version");
+  if (t.size() != 16) throw InvalidArgument("Edge: pickled state of a different version");
   Edge e;
   e.source = t[0].cast<std::size_t>();
   e.target = t[1].cast<std::size_t>();
@@ -112,16 +129,22 @@ Edge edge_from_state(const py::tuple& t) {
   e.initialisation = t[9].cast<std::string>();
   e.key = t[10].cast<std::string>();
   e.summary_json = t[11].cast<std::string>();
+  e.scale_free = t[12].cast<bool>();
+  e.scale = t[13].cast<double>();
+  e.scale_sd = t[14].cast<double>();
+  if (!t[15].is_none())
+    e.covariance_7x7 = matrix_from<7, 7>(t[15], "Edge.covariance_7x7", "(7, 7)");
   return e;
 }
 
 py::tuple pair_state(const CandidatePair& c) {
   return py::make_tuple(c.source, c.target, c.rank, optional_transform_out(c.initial_guess),
-                        prior_sigma_out(c.prior));
+                        prior_sigma_out(c.prior), c.source_metric, c.target_metric,
+                        c.covariances_assumed);
 }
 
 CandidatePair pair_from_state(const py::tuple& t) {
-  if (t.size() != 5) throw InvalidArgument("CandidatePair: pickled state of a different version");
+  if (t.size() != 8) throw InvalidArgument("CandidatePair: pickled state of a different version");
   CandidatePair c;
   c.source = t[0].cast<std::size_t>();
   c.target = t[1].cast<std::size_t>();
@@ -131,6 +154,9 @@ CandidatePair pair_from_state(const py::tuple& t) {
     const auto v = t[4].cast<std::pair<double, double>>();
     c.prior = PriorSigma{v.first, v.second};
   }
+  c.source_metric = t[5].cast<bool>();
+  c.target_metric = t[6].cast<bool>();
+  c.covariances_assumed = t[7].cast<bool>();
   return c;
 }
 
@@ -187,6 +213,9 @@ void bind_merge(py::module_& m) {
       .def_property_readonly(
           "T_world_map", [](const MapPrior& p) { return matrix_out<4, 4>(p.T_world_map.matrix()); },
           "(4, 4) float64, metres.")
+      .def_readonly("scale", &MapPrior::scale,
+                    "World units per map unit (a similarity prior in the manifest; 1 otherwise): "
+                    "holds the scale of a map without metric scale.")
       .def_property_readonly(
           "covariance", [](const MapPrior& p) { return matrix_out<6, 6>(p.covariance); },
           "(6, 6) float64: (rho m, phi rad), left perturbation, world frame.");
@@ -330,6 +359,11 @@ void bind_merge(py::module_& m) {
           "covariance", [](const Edge& e) { return matrix_out<6, 6>(e.covariance); },
           "(6, 6) float64: xi = (rho m, phi rad), left perturbation in the target frame.")
       .def_readonly("covariance_valid", &Edge::covariance_valid)
+      .def_readonly("scale_free", &Edge::scale_free,
+                    "Whether the alignment estimated the scale (Sim(3)).")
+      .def_readonly("scale", &Edge::scale,
+                    "Target units per source unit: p_target = scale * R @ p_source + t (1: rigid).")
+      .def_readonly("scale_sd", &Edge::scale_sd, "Its standard deviation (NaN when fixed).")
       .def_readonly("trusted", &Edge::trusted, "The strategy's trust verdict.")
       .def_readonly("trust_reason", &Edge::trust_reason, "'ok', or why not trusted.")
       .def_readonly("num_inliers", &Edge::num_inliers)
@@ -358,7 +392,11 @@ void bind_merge(py::module_& m) {
                    a.covariance == b.covariance && a.covariance_valid == b.covariance_valid &&
                    a.trusted == b.trusted && a.trust_reason == b.trust_reason &&
                    a.num_inliers == b.num_inliers && a.inlier_ratio == b.inlier_ratio &&
-                   a.initialisation == b.initialisation && a.key == b.key;
+                   a.initialisation == b.initialisation && a.key == b.key &&
+                   a.scale_free == b.scale_free && a.scale == b.scale &&
+                   (a.scale_sd == b.scale_sd ||
+                    (std::isnan(a.scale_sd) && std::isnan(b.scale_sd))) &&
+                   a.covariance_7x7 == b.covariance_7x7;
           },
           "Every field equal, bit for bit.")
       .def("__repr__", [](const Edge& e) {
@@ -422,8 +460,13 @@ void bind_merge(py::module_& m) {
           "gauge map.")
       .def_readonly("covariance_valid", &MapPose::covariance_valid)
       .def_readonly("component", &MapPose::component, "0-based connected component.")
-      .def_readonly("is_gauge", &MapPose::is_gauge,
-                    "Fixed at identity (component without priors).");
+      .def_readonly("is_gauge", &MapPose::is_gauge, "Fixed at identity (component without priors).")
+      .def_readonly("scale", &MapPose::scale,
+                    "World units per map unit: p_world = scale * R @ p_map + t, (R, t) = "
+                    "T_world_map; 1 for a map with metric scale.")
+      .def_readonly("scale_sd", &MapPose::scale_sd, "Its standard deviation (0 when held).")
+      .def_readonly("scale_free", &MapPose::scale_free,
+                    "Estimated (a map without metric scale that is not held).");
   py::class_<EdgeReport>(m, "EdgeReport", "One edge's fate in the pose graph.")
       .def_readonly("used", &EdgeReport::used, "Trusted with a usable covariance: in the graph.")
       .def_readonly("rejected", &EdgeReport::rejected, "Used, then rejected after optimisation.")
@@ -444,15 +487,24 @@ void bind_merge(py::module_& m) {
   m.def(
       "solve_pose_graph",
       [](std::size_t num_maps, const std::optional<std::vector<std::optional<MapPrior>>>& priors,
-         const std::vector<Edge>& edges) {
+         const std::vector<Edge>& edges, const std::optional<std::vector<Map>>& maps,
+         const std::string& scale) {
         const auto p = priors.value_or(std::vector<std::optional<MapPrior>>(num_maps));
+        std::vector<bool> free;
+        if (maps) {
+          if (maps->size() != num_maps) throw InvalidArgument("maps: one per map expected");
+          free = scale_free_maps(*maps, parse_scale_mode(scale));
+        }
         py::gil_scoped_release release;
-        return solve_pose_graph(num_maps, p, edges);
+        return solve_pose_graph(num_maps, p, edges, {}, free);
       },
-      py::arg("num_maps"), py::arg("priors"), py::arg("edges"),
+      py::arg("num_maps"), py::arg("priors"), py::arg("edges"), py::kw_only(),
+      py::arg("maps") = py::none(), py::arg("scale") = "auto",
       "The robust SE(3) pose graph of the trusted edges and the priors (Ceres; docs/merge.md, "
       "'Pose graph'), as `lmalign merge` solves it; one machine, the GIL released. priors: one "
-      "MapPrior or None per map (None: no priors). Returns a PoseGraphResult. Raises "
+      "MapPrior or None per map (None: no priors). maps: the maps (their headers say which have "
+      "no metric scale; those get a scale of their own, Sim(3), unless scale='fixed'); None: "
+      "every map metric. Returns a PoseGraphResult. Raises "
       "InvalidArgument (sizes, an edge naming a map out of range).");
   m.def(
       "write_merge_outputs",
@@ -474,26 +526,36 @@ void bind_merge(py::module_& m) {
   m.def(
       "read_ground_truth",
       [](const std::filesystem::path& path, const std::vector<std::string>& names) {
-        const std::vector<Isometry3> t = read_ground_truth(path.string(), names);
-        return poses_out(t.size(), [&](std::size_t i) { return t[i]; });
+        const std::vector<Similarity3> t = read_ground_truth_similarities(path.string(), names);
+        const auto n = static_cast<py::ssize_t>(t.size());
+        py::array_t<double> out({n, py::ssize_t(4), py::ssize_t(4)});
+        for (py::ssize_t i = 0; i < n; ++i) {
+          const Mat4 M = t[static_cast<std::size_t>(i)].matrix();
+          for (int r = 0; r < 4; ++r) {
+            for (int c = 0; c < 4; ++c) out.mutable_at(i, r, c) = M(r, c);
+          }
+        }
+        return out;
       },
       py::arg("path"), py::arg("names"),
-      "(N, 4, 4) T_world_map_true per name from YAML 'maps: {name: 4x4 rows}'. Raises ParseError.");
+      "(N, 4, 4) S_world_map_true per name from YAML 'maps: {name: 4x4 rows}' (rigid, or a "
+      "similarity [sR t; 0 0 0 1] for a map without metric scale). Raises ParseError.");
   m.def(
       "evaluate_merge",
       [](const MergeResult& result, const std::vector<Edge>& edges, const py::handle& truth,
          double rotation_deg, double translation_m) {
-        const std::vector<Isometry3> t = transforms_from(truth, "truth", result.maps.size());
+        const std::vector<Similarity3> t = similarities_from(truth, "truth", result.maps.size());
         GroundTruthThresholds th;
         th.rotation_deg = rotation_deg;
         th.translation_m = translation_m;
         const MergeEvaluation ev = evaluate_merge(result, edges, t, th);
         const auto n = static_cast<py::ssize_t>(ev.maps.size());
-        py::array_t<double> rot(n), trans(n);
+        py::array_t<double> rot(n), trans(n), scale_error(n);
         py::array_t<bool> within(n), placed(n), connected(n);
         for (py::ssize_t i = 0; i < n; ++i) {
           rot.mutable_data()[i] = ev.maps[i].rotation_deg;
           trans.mutable_data()[i] = ev.maps[i].translation_m;
+          scale_error.mutable_data()[i] = ev.maps[i].scale_error;
           within.mutable_data()[i] = ev.maps[i].within;
           placed.mutable_data()[i] = ev.maps[i].placed;
           connected.mutable_data()[i] = ev.maps[i].connected;
@@ -501,6 +563,9 @@ void bind_merge(py::module_& m) {
         py::dict d;
         d["rotation_deg"] = rot;
         d["translation_m"] = trans;
+        d["scale_error"] = scale_error;
+        d["max_scale_error"] = ev.max_scale_error;
+        d["max_pair_scale_error"] = ev.max_pair_scale_error;
         d["within"] = within;
         d["placed"] = placed;
         d["connected"] = connected;

@@ -56,6 +56,8 @@ bool CandidateOptions::is_valid(std::string* why) const {
 
 MapSummary summarise_map(const Map& map, const CandidateOptions& options, std::uint64_t seed) {
   MapSummary s;
+  s.metric = map.header.scale == MapScale::kMetric;
+  s.covariance_assumed = map.header.covariance_assumed;
   // The landmarks the edges align (core/supported_range.hpp: those beyond it are left out).
   Points3 p;
   for (const Landmark& l : map.landmarks) {
@@ -198,6 +200,12 @@ std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summar
         out.push_back(CandidatePair{without[k].first, without[k].second, pair_distance[k], {}, {}});
       }
     }
+  }
+  for (CandidatePair& c : out) {
+    c.source_metric = summaries[c.source].metric;
+    c.target_metric = summaries[c.target].metric;
+    c.covariances_assumed =
+        summaries[c.source].covariance_assumed || summaries[c.target].covariance_assumed;
   }
   // Best ranked first (stable: ties keep the (source, target) order), then the budget.
   std::stable_sort(out.begin(), out.end(),

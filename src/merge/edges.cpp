@@ -59,6 +59,10 @@ AlignRequest edge_request(const Preset& preset, const CandidatePair& pair,
   request.max_iterations = options.max_iterations;
   request.settings = options.settings;
   request.initial_guess = pair.initial_guess;
+  request.scale = options.scale;
+  request.source_metric = pair.source_metric;
+  request.target_metric = pair.target_metric;
+  request.covariances_assumed = pair.covariances_assumed;
   if (pair.prior && Pipeline(preset.spec).initialiser().uses_prior()) request.prior = pair.prior;
   return request;
 }
@@ -78,6 +82,10 @@ Edge align_edge(const SourceLandmarks& source, const PreparedTarget& target,
   e.T_target_source = r.registration.T_target_source;
   e.covariance = r.covariance.covariance;
   e.covariance_valid = r.covariance.valid;
+  e.scale_free = r.scale.free;
+  e.scale = r.scale.scale;
+  e.scale_sd = r.scale.scale_sd;
+  e.covariance_7x7 = r.scale.covariance_7x7;
   e.trusted = r.verdict.trustworthy;
   e.trust_reason = r.verdict.reason;
   e.num_inliers = r.verdict.num_inliers;
@@ -111,7 +119,8 @@ std::string map_fingerprint(const Map& map) {
 std::string edge_key(const std::string& source_fingerprint, const std::string& target_fingerprint,
                      const CandidatePair& pair, const EdgeOptions& options) {
   Fnv1a f;
-  f.text("lmalign-merge-edge-v3");  // v3: the preset and every setting of its pipeline
+  // v4: the scale mode (resolved for the pair) and the maps' flags
+  f.text("lmalign-merge-edge-v4");
   f.text(source_fingerprint);
   f.text(target_fingerprint);
   f.integer(pair.source);
@@ -123,6 +132,10 @@ std::string edge_key(const std::string& source_fingerprint, const std::string& t
     f.number(pair.prior->rotation_deg);
     f.number(pair.prior->translation_m);
   }
+  f.text(to_string(resolve_scale_mode(options.scale, pair.source_metric, pair.target_metric)));
+  f.integer(pair.source_metric ? 1 : 0);
+  f.integer(pair.target_metric ? 1 : 0);
+  f.integer(pair.covariances_assumed ? 1 : 0);
   Preset storage;
   const Preset& preset = edge_preset(options, &storage);
   const PipelineSpec spec = resolve_spec(preset, edge_request(preset, pair, options));

@@ -15,8 +15,8 @@
 
 namespace lmalign {
 
-std::vector<Isometry3> read_ground_truth(const std::string& path,
-                                         const std::vector<std::string>& names) {
+std::vector<Similarity3> read_ground_truth_similarities(const std::string& path,
+                                                        const std::vector<std::string>& names) {
   YAML::Node root;
   try {
     root = YAML::LoadFile(path);
@@ -29,7 +29,7 @@ std::vector<Isometry3> read_ground_truth(const std::string& path,
   if (!maps || !maps.IsMap()) {
     throw ParseError(path, 0, "expected 'maps: {name: [[4x4 rows of T_world_map]], ...}'");
   }
-  std::vector<Isometry3> out;
+  std::vector<Similarity3> out;
   for (const std::string& name : names) {
     const YAML::Node m = maps[name];
     if (!m) throw ParseError(path, 0, "maps: no pose for map '" + name + "'");
@@ -47,16 +47,57 @@ std::vector<Isometry3> read_ground_truth(const std::string& path,
         }
       }
     }
-    if (!is_rigid_transform(T) || T.matrix().row(3) != Eigen::RowVector4d(0, 0, 0, 1)) {
+    if (T.matrix().row(3) != Eigen::RowVector4d(0, 0, 0, 1)) {
       throw ParseError(path, line, "maps." + name + ": not a rigid transform");
     }
-    out.push_back(T);
+    if (is_rigid_transform(T)) {
+      out.push_back(Similarity3{1.0, T});
+      continue;
+    }
+    // A similarity [sR t; 0 1] (maps without metric scale).
+    const double s = std::cbrt(T.linear().determinant());
+    if (!std::isfinite(s) || !(s > 0.0)) {
+      throw ParseError(path, line,
+                       "maps." + name + ": scale (cube root of the 3x3 block's determinant) " +
+                           message_number(s) + ", expected finite and > 0");
+    }
+    Isometry3 R = Isometry3::Identity();
+    R.linear() = T.linear() / s;
+    R.translation() = T.translation();
+    if (!is_rigid_transform(R)) {
+      throw ParseError(path, line, "maps." + name + ": not a rigid transform nor a similarity");
+    }
+    out.push_back(Similarity3{s, R});
+  }
+  return out;
+}
+
+std::vector<Isometry3> read_ground_truth(const std::string& path,
+                                         const std::vector<std::string>& names) {
+  const std::vector<Similarity3> S = read_ground_truth_similarities(path, names);
+  std::vector<Isometry3> out;
+  for (std::size_t i = 0; i < S.size(); ++i) {
+    if (S[i].scale != 1.0) {
+      throw ParseError(path, 0,
+                       "maps." + names[i] + ": not a rigid transform (scale " +
+                           message_number(S[i].scale) +
+                           "; read_ground_truth_similarities reads similarities)");
+    }
+    out.push_back(S[i].rigid);
   }
   return out;
 }
 
 MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge>& edges,
                                const std::vector<Isometry3>& truth,
+                               const GroundTruthThresholds& thresholds) {
+  std::vector<Similarity3> S;
+  for (const Isometry3& T : truth) S.push_back(Similarity3{1.0, T});
+  return evaluate_merge(result, edges, S, thresholds);
+}
+
+MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge>& edges,
+                               const std::vector<Similarity3>& truth,
                                const GroundTruthThresholds& thresholds) {
   const std::size_t n = result.maps.size();
   if (truth.size() != n || result.edges.size() != edges.size()) {
@@ -69,37 +110,47 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
   // with the truth: each map's own G_k = T_true_k T_est_k^-1 is a candidate; the one that puts the
   // most maps within the thresholds wins (ties: the lowest map), then G is refitted to those maps
   // (chordal rotation mean of R_true R_est^T, then mean translation) when that keeps as many.
+  // Estimated and true similarities S_world_map (scale 1 for rigid maps).
+  std::vector<Similarity3> est(n);
+  for (std::size_t i = 0; i < n; ++i) est[i] = result.maps[i].similarity();
+  struct Error7 {
+    TransformError pose;
+    double scale = 0.0;
+  };
+  auto error_of = [&](const Similarity3& S_est, const Similarity3& S_true) {
+    return Error7{transform_error(S_est.rigid, S_true.rigid),
+                  std::abs(S_est.scale / S_true.scale - 1.0)};
+  };
+  auto within_thresholds = [&](const Error7& err) {
+    return err.pose.rotation_deg <= thresholds.rotation_deg &&
+           err.pose.translation_m <= thresholds.translation_m && err.scale <= thresholds.scale;
+  };
   auto fit = [&](const std::vector<std::size_t>& members) {
     Mat3 M = Mat3::Zero();
+    double log_g = 0.0;
     for (const std::size_t i : members) {
-      M += truth[i].linear() * result.maps[i].T_world_map.linear().transpose();
+      M += truth[i].rigid.linear() * est[i].rigid.linear().transpose();
+      log_g += std::log(truth[i].scale / est[i].scale);
     }
+    const double g = std::exp(log_g / static_cast<double>(members.size()));
     Eigen::JacobiSVD<Mat3> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
     Mat3 D = Mat3::Identity();
     D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-    Isometry3 G = Isometry3::Identity();
-    G.linear() = svd.matrixU() * D * svd.matrixV().transpose();
+    Similarity3 G{g, Isometry3::Identity()};
+    G.rigid.linear() = svd.matrixU() * D * svd.matrixV().transpose();
     Vec3 t = Vec3::Zero();
     for (const std::size_t i : members) {
-      t += truth[i].translation() - G.linear() * result.maps[i].T_world_map.translation();
+      t += truth[i].rigid.translation() - g * (G.rigid.linear() * est[i].rigid.translation());
     }
-    G.translation() = t / static_cast<double>(members.size());
+    G.rigid.translation() = t / static_cast<double>(members.size());
     return G;
   };
-  auto agreeing = [&](const Isometry3& G, const std::vector<std::size_t>& members) {
+  auto agreeing = [&](const Similarity3& G, const std::vector<std::size_t>& members) {
     std::vector<std::size_t> in;
     for (const std::size_t i : members) {
-      const TransformError err = transform_error(G * result.maps[i].T_world_map, truth[i]);
-      if (err.rotation_deg <= thresholds.rotation_deg &&
-          err.translation_m <= thresholds.translation_m) {
-        in.push_back(i);
-      }
+      if (within_thresholds(error_of(G * est[i], truth[i]))) in.push_back(i);
     }
     return in;
-  };
-  auto within_thresholds = [&](const TransformError& err) {
-    return err.rotation_deg <= thresholds.rotation_deg &&
-           err.translation_m <= thresholds.translation_m;
   };
   const double nan = std::numeric_limits<double>::quiet_NaN();
   // The parts, and which are held by priors (no gauge map: their frame is the priors').
@@ -126,20 +177,21 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
   auto placed_part = [&](std::size_t c) {
     return prior_maps.empty() ? c == largest && parts[c].size() >= 2 : bool(by_priors[c]);
   };
-  auto set_errors = [&](const Isometry3& G, const std::vector<std::size_t>& members) {
+  auto set_errors = [&](const Similarity3& G, const std::vector<std::size_t>& members) {
     for (const std::size_t i : members) {
-      const TransformError err = transform_error(G * result.maps[i].T_world_map, truth[i]);
-      ev.maps[i].rotation_deg = err.rotation_deg;
-      ev.maps[i].translation_m = err.translation_m;
+      const Error7 err = error_of(G * est[i], truth[i]);
+      ev.maps[i].rotation_deg = err.pose.rotation_deg;
+      ev.maps[i].translation_m = err.pose.translation_m;
+      ev.maps[i].scale_error = err.scale;
       ev.maps[i].within = within_thresholds(err);  // cleared below unless placed
     }
   };
   // G fitted to the maps of a group that agree with the truth (docs/merge.md, "Ground truth").
   auto robust_fit = [&](const std::vector<std::size_t>& members) {
-    Isometry3 G = fit(members);
+    Similarity3 G = fit(members);
     std::vector<std::size_t> best = agreeing(G, members);
     for (const std::size_t k : members) {
-      const Isometry3 G_k = truth[k] * result.maps[k].T_world_map.inverse();
+      const Similarity3 G_k = truth[k] * est[k].inverse();
       std::vector<std::size_t> in = agreeing(G_k, members);
       if (in.size() > best.size()) {
         best = std::move(in);
@@ -147,7 +199,7 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
       }
     }
     if (!best.empty()) {
-      const Isometry3 G_fit = fit(best);
+      const Similarity3 G_fit = fit(best);
       if (agreeing(G_fit, members).size() >= best.size()) G = G_fit;
     }
     return G;
@@ -160,6 +212,7 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
     if (members.size() == 1) {  // alone without priors: its frame is its own, nothing to measure
       ev.maps[members[0]].rotation_deg = nan;
       ev.maps[members[0]].translation_m = nan;
+      ev.maps[members[0]].scale_error = nan;
       continue;
     }
     set_errors(robust_fit(members), members);
@@ -188,6 +241,7 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
     if (!std::isnan(e.rotation_deg)) {
       ev.max_rotation_deg = std::max(ev.max_rotation_deg, e.rotation_deg);
       ev.max_translation_m = std::max(ev.max_translation_m, e.translation_m);
+      ev.max_scale_error = std::max(ev.max_scale_error, e.scale_error);
     }
   }
   ev.fraction_within = n ? static_cast<double>(within) / static_cast<double>(n) : 1.0;
@@ -201,10 +255,9 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
         ++pairs;
         const std::size_t ci = result.maps[i].component, cj = result.maps[j].component;
         if (ci != cj && !(by_priors[ci] && by_priors[cj])) continue;
-        const TransformError err =
-            transform_error(result.maps[i].T_world_map.inverse() * result.maps[j].T_world_map,
-                            truth[i].inverse() * truth[j]);
+        const Error7 err = error_of(est[i].inverse() * est[j], truth[i].inverse() * truth[j]);
         ev.pairs_within += within_thresholds(err) ? 1 : 0;
+        ev.max_pair_scale_error = std::max(ev.max_pair_scale_error, err.scale);
       }
     }
     ev.pair_fraction_within =
@@ -214,10 +267,8 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
   ev.edge_true.resize(edges.size());
   for (std::size_t e = 0; e < edges.size(); ++e) {
     const Edge& ed = edges[e];
-    const Isometry3 T_true = truth[ed.target].inverse() * truth[ed.source];
-    const TransformError err = transform_error(ed.T_target_source, T_true);
-    const bool ok = err.rotation_deg <= thresholds.rotation_deg &&
-                    err.translation_m <= thresholds.translation_m;
+    const Similarity3 S_true = truth[ed.target].inverse() * truth[ed.source];
+    const bool ok = within_thresholds(error_of(Similarity3{ed.scale, ed.T_target_source}, S_true));
     ev.edge_true[e] = ok;
     all_true += ok ? 1 : 0;
     const bool kept = result.edges[e].used && !result.edges[e].rejected;

@@ -96,10 +96,24 @@ MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std
   }
   prior.T_world_map.matrix() = T;
   if (!is_rigid_transform(prior.T_world_map)) {
-    fail(file, tn,
-         where +
-             ".T_world_map: not a rigid transform (rotation block must be orthonormal to "
-             "1e-6 with determinant +1)");
+    // A similarity [sR t; 0 1]: the scale of a map without metric scale (pose_graph.hpp).
+    const Mat3 A = T.topLeftCorner<3, 3>();
+    const double s = std::cbrt(A.determinant());
+    if (!std::isfinite(s) || !(s > 0.0)) {
+      fail(file, tn,
+           where + ".T_world_map: scale (cube root of the 3x3 block's determinant) " +
+               message_number(s) + ", expected finite and > 0");
+    }
+    Isometry3 R_only = Isometry3::Identity();
+    R_only.linear() = A / s;
+    if (!is_rigid_transform(R_only)) {
+      fail(file, tn,
+           where +
+               ".T_world_map: not a rigid transform (rotation block must be orthonormal to "
+               "1e-6 with determinant +1) nor a similarity [sR t; 0 0 0 1]");
+    }
+    prior.T_world_map.linear() = R_only.linear();
+    prior.scale = s;
   }
   // The supported range (core/supported_range.hpp): one line naming the field and the value.
   auto in_range = [&](const YAML::Node& node, auto&& check) {
@@ -163,6 +177,10 @@ MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std
 void check_prior_in_supported_range(const MapPrior& prior, const std::string& what) {
   check_supported_translation(what + ".T_world_map", prior.T_world_map.translation());
   check_covariance_in_supported_range(prior.covariance, what + ".covariance");
+  if (!std::isfinite(prior.scale) || !(prior.scale > 0.0)) {
+    throw InvalidArgument(what + ".scale: " + message_number(prior.scale) +
+                          ", expected finite and > 0");
+  }
 }
 
 Manifest parse_manifest(const std::string& yaml_text, const std::string& name,

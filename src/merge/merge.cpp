@@ -36,6 +36,14 @@ bool MergeOptions::is_valid(std::string* why) const {
   return true;
 }
 
+std::vector<bool> scale_free_maps(const std::vector<Map>& maps, ScaleMode mode) {
+  std::vector<bool> out(maps.size(), false);
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    out[i] = mode != ScaleMode::kFixed && maps[i].header.scale != MapScale::kMetric;
+  }
+  return out;
+}
+
 MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>& names,
                    const std::vector<std::optional<MapPrior>>& priors, const MergeOptions& options,
                    const MergeProgress& progress, const std::atomic<bool>* cancel) {
@@ -130,7 +138,9 @@ MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>&
     return run;
   }
   if (progress) progress("graph", 0, 1);
-  run.result = solve_pose_graph(n, priors, run.edges, options.graph);
+  // Maps without metric scale get a scale of their own (Sim(3)), unless the scale is fixed.
+  run.result = solve_pose_graph(n, priors, run.edges, options.graph,
+                                scale_free_maps(maps, options.edges.scale));
   if (progress) progress("graph", 1, 1);
   run.seconds_graph = std::chrono::duration<double>(Clock::now() - t1).count();
   return run;

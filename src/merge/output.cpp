@@ -2,6 +2,7 @@
 #include "lmalign/merge/output.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -15,6 +16,7 @@
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/atomic_file.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "lmalign/map/transform.hpp"
 
 namespace lmalign {
 
@@ -57,7 +59,7 @@ std::string yaml_row(const Eigen::MatrixXd& m, int r) {
 
 // The coordinate-wise median of a map's landmarks moved by T (m): a centre that far landmarks
 // do not drag; null without landmarks.
-json landmark_centre(const Map& map, const Isometry3& T) {
+json landmark_centre(const Map& map, const Similarity3& T) {
   if (map.landmarks.empty()) return json();
   std::vector<double> axis[3];
   for (const Landmark& l : map.landmarks) {
@@ -84,6 +86,7 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
   if (landmark_ranges != nullptr) landmark_ranges->assign(maps.size(), {0, 0});
   if (left_out != nullptr) *left_out = 0;
   Map out;
+  bool any_metric = false, held_by_gauge = false;
   Id next_frame = 0;
   // (session, landmark id) -> index in out.landmarks, and the fused information sums.
   std::map<std::pair<std::string, Id>, std::size_t> fused;
@@ -91,7 +94,10 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
   std::vector<Vec3> info_mean_sum;
   for (std::size_t m = 0; m < maps.size(); ++m) {
     if (result.maps[m].component != component) continue;
-    const Map moved = transform_map(maps[m], result.maps[m].T_world_map);
+    // Maps without metric scale by their similarity (covariances times s^2).
+    const MapPose& pose = result.maps[m];
+    const Map moved = pose.scale == 1.0 ? transform_map(maps[m], pose.T_world_map)
+                                        : transform_map(maps[m], pose.similarity());
     const std::size_t first_landmark = out.landmarks.size();
     std::map<Id, Id> frame_id;
     for (const Frame& f : moved.frames) {
@@ -133,7 +139,13 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
       out.landmarks.push_back(std::move(k));
     }
     if (landmark_ranges != nullptr) (*landmark_ranges)[m] = {first_landmark, out.landmarks.size()};
+    any_metric = any_metric || maps[m].header.scale == MapScale::kMetric;
+    held_by_gauge = held_by_gauge || result.maps[m].is_gauge;
+    out.header.covariance_assumed =
+        out.header.covariance_assumed || maps[m].header.covariance_assumed;
   }
+  // Metres when a map of the component has them or priors hold it; else the gauge map's units.
+  out.header.scale = any_metric || !held_by_gauge ? MapScale::kMetric : MapScale::kArbitrary;
   return out;
 }
 
@@ -172,12 +184,18 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                      {"T_world_map", matrix_json(p.T_world_map.matrix())},
                      {"covariance", matrix_json(p.covariance)},
                      {"covariance_valid", p.covariance_valid},
-                     {"landmark_centre_world", landmark_centre(maps[i], p.T_world_map)},
+                     {"scale", p.scale},
+                     {"scale_sd", p.scale_sd},
+                     {"scale_free", p.scale_free},
+                     {"S_world_map", matrix_json(p.similarity().matrix())},
+                     {"landmark_centre_world", landmark_centre(maps[i], p.similarity())},
                      {"merged_landmarks", {ranges[i].first, ranges[i].second}}});
   }
   json doc = {{"convention",
-               "T_world_map: p_world = T * p_map (m); covariance: 6x6 of xi = (rho m, phi rad), "
-               "T = Exp(xi) T_hat, world frame; each component has its own world frame"},
+               "T_world_map: p_world = scale * R * p_map + t with (R, t) = T (m), S_world_map = "
+               "[scale R, t; 0 0 0 1], scale: world units per map unit (1 for a map with metric "
+               "scale); covariance: 6x6 of xi = (rho m, phi rad), T = Exp(xi) T_hat, world frame; "
+               "each component has its own world frame"},
               {"num_components", result.num_components},
               {"maps", poses}};
   write_file_atomically((dir / "poses.json").string(),
@@ -190,14 +208,16 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
       os << "  - name: \"" << names[i] << "\"\n    component: " << p.component
          << "\n    gauge: " << (p.is_gauge ? "true" : "false") << "\n    T_world_map:\n";
       for (int r = 0; r < 4; ++r) os << "      - " << yaml_row(p.T_world_map.matrix(), r) << "\n";
+      os << std::setprecision(17) << "    scale: " << p.scale << "\n    scale_sd: " << p.scale_sd
+         << "\n    scale_free: " << (p.scale_free ? "true" : "false") << "\n";
       os << "    covariance_valid: " << (p.covariance_valid ? "true" : "false")
          << "\n    covariance:\n";
       for (int r = 0; r < 6; ++r) os << "      - " << yaml_row(p.covariance, r) << "\n";
     }
   });
   write_file_atomically((dir / "edges.csv").string(), [&](std::ostream& os) {
-    os << "source,target,trusted,used,rejected,chi2,inliers,inlier_ratio,initialisation,"
-          "reason\n";
+    os << "source,target,trusted,used,rejected,chi2,inliers,inlier_ratio,initialisation,scale,"
+          "scale_sd,reason\n";
     os << std::setprecision(10);
     for (std::size_t e = 0; e < edges.size(); ++e) {
       const Edge& ed = edges[e];
@@ -211,7 +231,7 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
       }
       os << names[ed.source] << "," << names[ed.target] << "," << ed.trusted << "," << r.used << ","
          << r.rejected << "," << r.chi2 << "," << ed.num_inliers << "," << ed.inlier_ratio << ","
-         << ed.initialisation << "," << reason << "\n";
+         << ed.initialisation << "," << ed.scale << "," << ed.scale_sd << "," << reason << "\n";
     }
   });
   json rejected = json::array();
@@ -261,6 +281,10 @@ void write_edge_file(const std::string& path, const Edge& e) {
                   {"T_target_source", matrix_json(e.T_target_source.matrix())},
                   {"covariance", matrix_json(e.covariance)},
                   {"covariance_valid", e.covariance_valid},
+                  {"scale_free", e.scale_free},
+                  {"scale", e.scale},
+                  {"scale_sd", std::isfinite(e.scale_sd) ? json(e.scale_sd) : json()},
+                  {"covariance_7x7", e.covariance_7x7 ? matrix_json(*e.covariance_7x7) : json()},
                   {"trusted", e.trusted},
                   {"trust_reason", e.trust_reason},
                   {"num_inliers", e.num_inliers},
@@ -284,6 +308,16 @@ std::optional<Edge> read_edge_file(const std::string& path) {
     e.T_target_source.matrix() = json_matrix(j.at("T_target_source"), 4, 4, "T_target_source");
     e.covariance = json_matrix(j.at("covariance"), 6, 6, "covariance");
     e.covariance_valid = j.at("covariance_valid").get<bool>();
+    // Files of a rigid merge written before the scale: no scale fields (a rigid edge).
+    if (j.contains("scale_free")) {
+      e.scale_free = j.at("scale_free").get<bool>();
+      e.scale = j.at("scale").get<double>();
+      if (!(std::isfinite(e.scale) && e.scale > 0.0))
+        throw ParseError(path, 0, "edge file: scale: not finite and > 0");
+      if (!j.at("scale_sd").is_null()) e.scale_sd = j.at("scale_sd").get<double>();
+      if (!j.at("covariance_7x7").is_null())
+        e.covariance_7x7 = Mat7(json_matrix(j.at("covariance_7x7"), 7, 7, "covariance_7x7"));
+    }
     e.trusted = j.at("trusted").get<bool>();
     e.trust_reason = j.at("trust_reason").get<std::string>();
     e.num_inliers = j.at("num_inliers").get<std::size_t>();

@@ -155,6 +155,123 @@ Vec6 prior_twist(const PoseBlock& wi, const PoseBlock& prior) {
   return r;
 }
 
+// ---- Sim(3) (maps without metric scale; pose_graph.hpp) ----
+
+// Edge with scales: S_j_i_pred = S_wj^-1 S_wi against the measured one (rigid block, log scale).
+// residual = W xi, xi = (t_pred - exp(sigma) R_err t_meas, Log(R_err), sigma),
+// R_err = R_pred R_meas^T, sigma = lambda_i - lambda_j - log s_meas.
+struct SimEdgeCost {
+  PoseBlock meas;
+  double log_scale_meas = 0.0;
+  Mat7 W;
+  template <typename T>
+  bool operator()(const T* wi, const T* li, const T* wj, const T* lj, T* residual) const {
+    const T qjc[4] = {wj[3], -wj[4], -wj[5], -wj[6]};
+    T q[4];
+    ceres::QuaternionProduct(qjc, wi + 3, q);
+    const T inv_sj = exp(-lj[0]);
+    const T d[3] = {(wi[0] - wj[0]) * inv_sj, (wi[1] - wj[1]) * inv_sj, (wi[2] - wj[2]) * inv_sj};
+    T t[3];
+    ceres::QuaternionRotatePoint(qjc, d, t);
+    const T sigma = li[0] - lj[0] - T(log_scale_meas);
+    const T qmc[4] = {T(meas[3]), T(-meas[4]), T(-meas[5]), T(-meas[6])};
+    T qe[4];
+    ceres::QuaternionProduct(q, qmc, qe);
+    const T tm[3] = {T(meas[0]), T(meas[1]), T(meas[2])};
+    T r[3];
+    ceres::QuaternionRotatePoint(qe, tm, r);
+    T xi[7];
+    const T es = exp(sigma);
+    for (int k = 0; k < 3; ++k) xi[k] = t[k] - es * r[k];
+    ceres::QuaternionToAngleAxis(qe, xi + 3);
+    xi[6] = sigma;
+    for (int a = 0; a < 7; ++a) {
+      residual[a] = T(0);
+      for (int c = 0; c < 7; ++c) residual[a] += W(a, c) * xi[c];
+    }
+    return true;
+  }
+};
+
+Vec7 sim_edge_twist(const PoseBlock& wi, double li, const PoseBlock& wj, double lj,
+                    const PoseBlock& meas, double log_scale_meas) {
+  const SimEdgeCost cost{meas, log_scale_meas, Mat7::Identity()};
+  Vec7 r;
+  cost(wi.data(), &li, wj.data(), &lj, r.data());
+  return r;
+}
+
+// The adjoint of a similarity S = (s, R, t) on (rho, phi, sigma): S Exp(xi) S^-1 = Exp(Ad xi),
+// rho' = s R rho + [t]x R phi - sigma t, phi' = R phi, sigma' = sigma (se3_adjoint at s = 1).
+Mat7 sim_adjoint(const Similarity3& S) {
+  const Mat3 R = S.rigid.linear();
+  const Vec3 t = S.rigid.translation();
+  Mat3 tx;
+  tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+  Mat7 Ad = Mat7::Zero();
+  Ad.block<3, 3>(0, 0) = S.scale * R;
+  Ad.block<3, 3>(0, 3) = tx * R;
+  Ad.block<3, 1>(0, 6) = -t;
+  Ad.block<3, 3>(3, 3) = R;
+  Ad(6, 6) = 1.0;
+  return Ad;
+}
+
+// xi of A * B^-1 (SimEdgeCost's residual before whitening).
+Vec7 sim_error_twist(const Similarity3& A, const Similarity3& B) {
+  const Mat3 Re = A.rigid.linear() * B.rigid.linear().transpose();
+  const double se = A.scale / B.scale;
+  Vec7 xi;
+  xi.head<3>() = A.rigid.translation() - se * Re * B.rigid.translation();
+  const Eigen::AngleAxisd aa(Re);
+  xi.segment<3>(3) = aa.angle() * aa.axis();
+  xi(6) = std::log(se);
+  return xi;
+}
+
+Mat7 sim_whitening(const Mat7& C) {
+  const Eigen::LLT<Mat7> llt(0.5 * (C + C.transpose()));
+  return llt.matrixL().solve(Mat7::Identity());
+}
+
+double sim_discrepancy_chi2(const Similarity3& measured, const Mat7& C_measured,
+                            const Similarity3& other, const Mat7& C_other) {
+  const Vec7 xi = sim_error_twist(measured, other);
+  const Mat7 C = C_measured + C_other;
+  const Eigen::LDLT<Mat7> ldlt(0.5 * (C + C.transpose()));
+  return xi.dot(ldlt.solve(xi));
+}
+
+// The 7x7 covariance of an edge in the Sim(3) graph: the floored 6x6 block, the log-scale
+// variance (from covariance_7x7, else the scale sd; at least floor^2) and the correlations of
+// the 7x7 between them (dropped when that is not positive definite). Rigid edges: scale 1 with
+// the floor's variance. nullopt: a free scale without a variance.
+std::optional<Mat7> sim_edge_covariance(const Edge& ed, const Mat6& C6, double floor_log_scale) {
+  Mat7 C = Mat7::Zero();
+  C.topLeftCorner<6, 6>() = C6;
+  const double floor2 = floor_log_scale * floor_log_scale;
+  if (!ed.scale_free) {
+    C(6, 6) = floor2;
+    return C;
+  }
+  if (ed.covariance_7x7 && ed.covariance_7x7->allFinite() && (*ed.covariance_7x7)(6, 6) > 0.0) {
+    const Mat7& M = *ed.covariance_7x7;
+    C(6, 6) = std::max(M(6, 6), floor2);
+    Mat7 with = C;
+    for (int k = 0; k < 6; ++k) {
+      if (!(M(k, k) > 0.0)) continue;
+      const double corr = M(k, 6) / std::sqrt(M(k, k) * M(6, 6));
+      with(k, 6) = with(6, k) = corr * std::sqrt(C(k, k) * C(6, 6));
+    }
+    if (Eigen::LLT<Mat7>(with).info() == Eigen::Success) return with;
+    return C;
+  }
+  const double rel = ed.scale_sd / ed.scale;
+  if (!std::isfinite(rel) || !(rel >= 0.0)) return std::nullopt;
+  C(6, 6) = std::max(rel * rel, floor2);
+  return C;
+}
+
 // chi2 of the discrepancy between a measured T_j_i and another estimate of it, both with
 // covariances in j's frame (left perturbation): xi = pose_error_twist(measured, other).
 double discrepancy_chi2(const Isometry3& measured, const Mat6& C_measured, const Isometry3& other,
@@ -165,6 +282,47 @@ double discrepancy_chi2(const Isometry3& measured, const Mat6& C_measured, const
   return xi.dot(ldlt.solve(xi));
 }
 
+// The geometry of the rigid graph's cycle check.
+struct RigidOps {
+  using Pose = Isometry3;
+  using Cov = Mat6;
+  const std::vector<Edge>* edges;
+  const std::vector<std::optional<MapPrior>>* priors;
+  static Pose identity() { return Isometry3::Identity(); }
+  static Cov adjoint(const Pose& T) { return se3_adjoint(T); }
+  static double chi2(const Pose& measured, const Cov& C_measured, const Pose& other,
+                     const Cov& C_other) {
+    return discrepancy_chi2(measured, C_measured, other, C_other);
+  }
+  const Pose& edge(std::size_t e) const { return (*edges)[e].T_target_source; }
+  const Pose& prior(std::size_t i) const { return (*priors)[i]->T_world_map; }
+  const Cov& prior_cov(std::size_t i) const { return (*priors)[i]->covariance; }
+};
+
+// The same with scales: similarities, 7x7 covariances of (rho, phi, log s).
+struct SimOps {
+  using Pose = Similarity3;
+  using Cov = Mat7;
+  const std::vector<Similarity3>* edge_sim;
+  const std::vector<std::optional<MapPrior>>* priors;
+  const std::vector<double>* prior_scale;
+  static Pose identity() { return Similarity3{}; }
+  static Cov adjoint(const Pose& S) { return sim_adjoint(S); }
+  static double chi2(const Pose& measured, const Cov& C_measured, const Pose& other,
+                     const Cov& C_other) {
+    return sim_discrepancy_chi2(measured, C_measured, other, C_other);
+  }
+  const Pose& edge(std::size_t e) const { return (*edge_sim)[e]; }
+  Pose prior(std::size_t i) const {
+    return Similarity3{(*prior_scale)[i], (*priors)[i]->T_world_map};
+  }
+  Cov prior_cov(std::size_t i) const {
+    Mat7 C = Mat7::Zero();
+    C.topLeftCorner<6, 6>() = (*priors)[i]->covariance;
+    return C;
+  }
+};
+
 // The cycle check of PoseGraphOptions::check_cycles. First, an edge between two maps with
 // priors is compared with their relative prior P_j^-1 P_i (covariance Ad(P_j^-1) (C_i + C_j)
 // Ad(P_j^-1)^T in j's frame). Then Kruskal over the remaining usable edges by decreasing
@@ -174,10 +332,16 @@ double discrepancy_chi2(const Isometry3& measured, const Mat6& C_measured, const
 // pose_error_twist(measured, other) and C the sum; above `threshold` the edge is rejected, so in
 // an inconsistent cycle the weakest edge goes. Returns the chi2 of each rejected edge and whether
 // the priors rejected it (nullopt: kept).
+// `Ops` gives the geometry: RigidOps (SE(3), 6x6) or SimOps (Sim(3), 7x7, log scale the seventh;
+// a prior's scale is held, variance 0).
+template <typename Ops>
 std::vector<std::optional<std::pair<double, bool>>> cycle_check(
     const std::vector<Edge>& edges, const std::vector<bool>& usable,
-    const std::vector<Mat6>& edge_cov, const std::vector<std::optional<MapPrior>>& priors,
-    std::size_t num_maps, double threshold) {
+    const std::vector<typename Ops::Cov>& edge_cov,
+    const std::vector<std::optional<MapPrior>>& priors, std::size_t num_maps, double threshold,
+    const Ops& ops) {
+  using Pose = typename Ops::Pose;
+  using Cov = typename Ops::Cov;
   std::vector<std::optional<std::pair<double, bool>>> rejected(edges.size());
   std::vector<std::size_t> order;
   for (std::size_t e = 0; e < edges.size(); ++e) {
@@ -185,11 +349,11 @@ std::vector<std::optional<std::pair<double, bool>>> cycle_check(
     const std::optional<MapPrior>& pi = priors[edges[e].source];
     const std::optional<MapPrior>& pj = priors[edges[e].target];
     if (pi && pj) {
-      const Isometry3 P_jw = pj->T_world_map.inverse();
-      const Mat6 Ad = se3_adjoint(P_jw);
-      const double chi2 =
-          discrepancy_chi2(edges[e].T_target_source, edge_cov[e], P_jw * pi->T_world_map,
-                           Ad * (pi->covariance + pj->covariance) * Ad.transpose());
+      const Pose P_jw = ops.prior(edges[e].target).inverse();
+      const Cov Ad = ops.adjoint(P_jw);
+      const double chi2 = ops.chi2(
+          ops.edge(e), edge_cov[e], P_jw * ops.prior(edges[e].source),
+          Ad * (ops.prior_cov(edges[e].source) + ops.prior_cov(edges[e].target)) * Ad.transpose());
       if (!(chi2 <= threshold)) {
         rejected[e] = std::make_pair(chi2, true);
         continue;
@@ -239,29 +403,59 @@ std::vector<std::optional<std::pair<double, bool>>> cycle_check(
     }
     path.push_back(j);
     // Compose T_j_i along the path, from j outward, with its covariance in j's frame.
-    Isometry3 T_ja = Isometry3::Identity();
-    Mat6 C_path = Mat6::Zero();
+    Pose T_ja = Ops::identity();
+    Cov C_path = Cov::Zero();
     for (std::size_t k = path.size() - 1; k > 0; --k) {
       const std::size_t a = path[k], b = path[k - 1];
       const Edge& t = edges[*via[b]];
-      Isometry3 T_ab;
-      Mat6 C_ab;  // in a's frame
+      Pose T_ab;
+      Cov C_ab;  // in a's frame
       if (t.target == a) {
-        T_ab = t.T_target_source;
+        T_ab = ops.edge(*via[b]);
         C_ab = edge_cov[*via[b]];
       } else {
-        T_ab = t.T_target_source.inverse();
-        const Mat6 Ad = se3_adjoint(T_ab);
+        T_ab = ops.edge(*via[b]).inverse();
+        const Cov Ad = ops.adjoint(T_ab);
         C_ab = Ad * edge_cov[*via[b]] * Ad.transpose();
       }
-      const Mat6 Ad_ja = se3_adjoint(T_ja);
+      const Cov Ad_ja = ops.adjoint(T_ja);
       C_path += Ad_ja * C_ab * Ad_ja.transpose();
       T_ja = T_ja * T_ab;
     }
-    const double chi2 = discrepancy_chi2(edges[e].T_target_source, edge_cov[e], T_ja, C_path);
+    const double chi2 = ops.chi2(ops.edge(e), edge_cov[e], T_ja, C_path);
     if (!(chi2 <= threshold)) rejected[e] = std::make_pair(chi2, false);
   }
   return rejected;
+}
+
+// Breadth-first from each root (its pose set in `start`) along the active edges, in edge order
+// (deterministic): X_wi = X_wj X_ji, with edge_pose(e) = X_ji of edge e (Isometry3 or
+// Similarity3).
+template <typename Pose, typename EdgePose>
+void spanning_start(const std::vector<Edge>& edges, const std::vector<bool>& active,
+                    const std::vector<std::size_t>& roots, const EdgePose& edge_pose,
+                    std::vector<Pose>* start) {
+  std::vector<bool> placed(start->size(), false);
+  for (const std::size_t r : roots) {
+    placed[r] = true;
+    std::vector<std::size_t> queue{r};
+    for (std::size_t h = 0; h < queue.size(); ++h) {
+      const std::size_t a = queue[h];
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (!active[e]) continue;
+        const Edge& ed = edges[e];
+        if (ed.target == a && !placed[ed.source]) {
+          (*start)[ed.source] = (*start)[a] * edge_pose(e);  // T_wi = T_wj T_ji
+          placed[ed.source] = true;
+          queue.push_back(ed.source);
+        } else if (ed.source == a && !placed[ed.target]) {
+          (*start)[ed.target] = (*start)[a] * edge_pose(e).inverse();
+          placed[ed.target] = true;
+          queue.push_back(ed.target);
+        }
+      }
+    }
+  }
 }
 
 // Union-find components; ordered by their lowest map index.
@@ -399,6 +593,9 @@ bool PoseGraphOptions::is_valid(std::string* why) const {
   if (!(floor_translation_m > 0.0) || !(floor_rotation_deg > 0.0)) {
     return bad("floor_translation_m and floor_rotation_deg must be > 0");
   }
+  if (!(floor_log_scale > 0.0) || !std::isfinite(floor_log_scale)) {
+    return bad("floor_log_scale must be > 0");
+  }
   if (max_rounds < 1) return bad("max_rounds must be >= 1");
   if (max_iterations < 1) return bad("max_iterations must be >= 1");
   return true;
@@ -406,13 +603,21 @@ bool PoseGraphOptions::is_valid(std::string* why) const {
 
 MergeResult solve_pose_graph(std::size_t num_maps,
                              const std::vector<std::optional<MapPrior>>& priors,
-                             const std::vector<Edge>& edges, const PoseGraphOptions& options) {
+                             const std::vector<Edge>& edges, const PoseGraphOptions& options,
+                             const std::vector<bool>& scale_free) {
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("pose graph options: " + why);
   if (priors.size() != num_maps) {
     throw InvalidArgument("solve_pose_graph: " + std::to_string(priors.size()) + " priors for " +
                           std::to_string(num_maps) + " maps");
   }
+  if (!scale_free.empty() && scale_free.size() != num_maps) {
+    throw InvalidArgument("solve_pose_graph: " + std::to_string(scale_free.size()) +
+                          " scale flags for " + std::to_string(num_maps) + " maps");
+  }
+  // Sim(3) when any map has no metric scale; else the rigid graph, exactly as without scales.
+  const bool sim = std::find(scale_free.begin(), scale_free.end(), true) != scale_free.end();
+  auto free_scale = [&](std::size_t i) { return sim && scale_free[i]; };
   // The supported range (core/supported_range.hpp): priors and edges beyond it are refused
   // before Ceres sees them (its dense SVD does not return on a non-finite Jacobian).
   for (std::size_t i = 0; i < num_maps; ++i) {
@@ -436,6 +641,9 @@ MergeResult solve_pose_graph(std::size_t num_maps,
   std::vector<Mat6> edge_cov(edges.size());
   std::vector<PoseBlock> edge_meas(edges.size());
   std::vector<bool> usable(edges.size(), false);
+  std::vector<Mat7> edge_cov7(sim ? edges.size() : 0);
+  std::vector<Similarity3> edge_sim(sim ? edges.size() : 0);
+  std::vector<double> edge_log_scale(sim ? edges.size() : 0, 0.0);
   for (std::size_t e = 0; e < edges.size(); ++e) {
     const Edge& ed = edges[e];
     if (ed.source >= num_maps || ed.target >= num_maps || ed.source == ed.target) {
@@ -458,6 +666,21 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       rep.skip_reason = "invalid covariance";
       continue;
     }
+    if (sim) {
+      if (ed.scale_free && !(std::isfinite(ed.scale) && ed.scale > 0.0)) {
+        rep.skip_reason = "invalid scale";
+        continue;
+      }
+      const std::optional<Mat7> C7 = sim_edge_covariance(ed, *C, options.floor_log_scale);
+      if (!C7 || Eigen::LLT<Mat7>(*C7).info() != Eigen::Success) {
+        rep.skip_reason = "invalid covariance";
+        continue;
+      }
+      edge_cov7[e] = *C7;
+      const double s_e = ed.scale_free ? ed.scale : 1.0;
+      edge_sim[e] = Similarity3{s_e, ed.T_target_source};
+      edge_log_scale[e] = std::log(s_e);
+    }
     edge_cov[e] = *C;
     edge_meas[e] = to_block(ed.T_target_source);
     usable[e] = true;
@@ -472,10 +695,19 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       }
     }
   }
-  const double threshold = chi2_quantile(options.reject_quantile, 6);
+  // A map's held log scale: its prior's (maps without metric scale), else 0.
+  std::vector<double> prior_scale(num_maps, 1.0);
+  for (std::size_t i = 0; i < num_maps; ++i) {
+    if (priors[i] && free_scale(i)) prior_scale[i] = priors[i]->scale;
+  }
+  const int dof = sim ? 7 : 6;
+  const double threshold = chi2_quantile(options.reject_quantile, dof);
   std::vector<bool> active = usable;
   if (options.check_cycles) {
-    const auto inconsistent = cycle_check(edges, usable, edge_cov, priors, num_maps, threshold);
+    const auto inconsistent = sim ? cycle_check(edges, usable, edge_cov7, priors, num_maps,
+                                                threshold, SimOps{&edge_sim, &priors, &prior_scale})
+                                  : cycle_check(edges, usable, edge_cov, priors, num_maps,
+                                                threshold, RigidOps{&edges, &priors});
     for (std::size_t e = 0; e < edges.size(); ++e) {
       if (!inconsistent[e]) continue;
       active[e] = false;
@@ -487,6 +719,8 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     }
   }
   std::vector<PoseBlock> pose(num_maps);
+  std::vector<double> log_scale(num_maps, 0.0);  // lambda_i (Sim(3) only)
+  std::vector<bool> scale_held(num_maps, true);
   double scale = options.edge_covariance_scale > 0.0 ? options.edge_covariance_scale : 1.0;
   bool robust = true;
   for (int round = 0; round < options.max_rounds; ++round) {
@@ -519,36 +753,79 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       if (!root[comp[i]]) root[comp[i]] = i;
     }
     // Breadth-first start from each root along the active edges (edge order: deterministic).
-    std::vector<bool> placed(num_maps, false);
+    std::vector<std::size_t> roots;
     std::vector<Isometry3> start(num_maps, Isometry3::Identity());
     for (std::size_t c = 0; c < ncomp; ++c) {
       const std::size_t r = *root[c];
       start[r] = priors[r] ? priors[r]->T_world_map : Isometry3::Identity();
-      placed[r] = true;
-      std::vector<std::size_t> queue{r};
-      for (std::size_t h = 0; h < queue.size(); ++h) {
-        const std::size_t a = queue[h];
-        for (std::size_t e = 0; e < edges.size(); ++e) {
-          if (!active[e]) continue;
-          const Edge& ed = edges[e];
-          if (ed.target == a && !placed[ed.source]) {
-            start[ed.source] = start[a] * ed.T_target_source;  // T_wi = T_wj T_ji
-            placed[ed.source] = true;
-            queue.push_back(ed.source);
-          } else if (ed.source == a && !placed[ed.target]) {
-            start[ed.target] = start[a] * ed.T_target_source.inverse();
-            placed[ed.target] = true;
-            queue.push_back(ed.target);
+      roots.push_back(r);
+    }
+    spanning_start(
+        edges, active, roots, [&](std::size_t e) { return edges[e].T_target_source; }, &start);
+    if (sim) {
+      // The start with scales: the same breadth-first order, composing similarities.
+      std::vector<bool> comp_has_metric(ncomp, false);
+      for (std::size_t i = 0; i < num_maps; ++i) {
+        if (!free_scale(i)) comp_has_metric[comp[i]] = true;
+      }
+      std::vector<Similarity3> S(num_maps);
+      for (const std::size_t r : roots) S[r] = Similarity3{prior_scale[r], start[r]};
+      spanning_start(
+          edges, active, roots, [&](std::size_t e) { return edge_sim[e]; }, &S);
+      for (std::size_t c = 0; c < ncomp; ++c) {
+        const std::size_t r = *root[c];
+        // Without priors, a component with metric maps takes their scale: the start is moved
+        // about its root by the mean of their log scales.
+        if (!comp_has_prior[c] && comp_has_metric[c]) {
+          double sum = 0.0;
+          std::size_t n = 0;
+          for (std::size_t i = 0; i < num_maps; ++i) {
+            if (comp[i] == c && !free_scale(i)) {
+              sum += std::log(S[i].scale);
+              ++n;
+            }
+          }
+          const Similarity3 G{std::exp(-sum / static_cast<double>(n)), Isometry3::Identity()};
+          const Similarity3 S_r = S[r];
+          for (std::size_t i = 0; i < num_maps; ++i) {
+            if (comp[i] == c) S[i] = S_r * G * S_r.inverse() * S[i];
           }
         }
+      }
+      for (std::size_t i = 0; i < num_maps; ++i) {
+        const std::size_t c = comp[i];
+        scale_held[i] = !free_scale(i) || priors[i].has_value() ||
+                        (!comp_has_prior[c] && !comp_has_metric[c] && *root[c] == i);
+        start[i] = S[i].rigid;
+        log_scale[i] = scale_held[i] ? std::log(prior_scale[i]) : std::log(S[i].scale);
       }
     }
     for (std::size_t i = 0; i < num_maps; ++i) pose[i] = to_block(start[i]);
 
     std::vector<Mat6> W(edges.size(), Mat6::Zero());
-    for (std::size_t e = 0; e < edges.size(); ++e) {
-      if (active[e]) W[e] = *whitening(edge_cov[e] * scale);
-    }
+    std::vector<Mat7> W7(sim ? edges.size() : 0, Mat7::Zero());
+    auto whiten_edges = [&] {
+      for (std::size_t e = 0; e < edges.size(); ++e) {
+        if (!active[e]) continue;
+        if (sim)
+          W7[e] = sim_whitening(edge_cov7[e] * scale);
+        else
+          W[e] = *whitening(edge_cov[e] * scale);
+      }
+    };
+    whiten_edges();
+    // Whitened chi^2 of edge e at the current poses.
+    auto edge_chi2 = [&](std::size_t e, double with_scale) {
+      const std::size_t i = edges[e].source, j = edges[e].target;
+      if (!sim) {
+        const Mat6 Wc = with_scale == scale ? W[e] : *whitening(edge_cov[e] * with_scale);
+        return chi2_of(Wc, edge_twist(pose[i], pose[j], edge_meas[e]));
+      }
+      const Mat7 Wc = with_scale == scale ? W7[e] : sim_whitening(edge_cov7[e] * with_scale);
+      return (Wc * sim_edge_twist(pose[i], log_scale[i], pose[j], log_scale[j], edge_meas[e],
+                                  edge_log_scale[e]))
+          .squaredNorm();
+    };
     ceres::AutoDiffManifold<LeftPlus, 7, 6> manifold;
     // One solve from the current poses, with a Cauchy loss of scale `loss_scale` (0: none).
     auto solve = [&](double loss_scale, bool use_priors) {
@@ -557,6 +834,10 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       auto problem = std::make_unique<ceres::Problem>(po);
       for (std::size_t i = 0; i < num_maps; ++i) {
         problem->AddParameterBlock(pose[i].data(), 7, &manifold);
+        if (sim) {
+          problem->AddParameterBlock(&log_scale[i], 1);
+          if (scale_held[i]) problem->SetParameterBlockConstant(&log_scale[i]);
+        }
       }
       for (std::size_t i = 0; i < num_maps; ++i) {
         if (!priors[i] || !use_priors) continue;
@@ -566,11 +847,18 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       }
       for (std::size_t e = 0; e < edges.size(); ++e) {
         if (!active[e]) continue;
+        ceres::LossFunction* loss = loss_scale > 0.0 ? new ceres::CauchyLoss(loss_scale) : nullptr;
+        const std::size_t i = edges[e].source, j = edges[e].target;
+        if (sim) {
+          auto* cost = new ceres::AutoDiffCostFunction<SimEdgeCost, 7, 7, 1, 7, 1>(
+              new SimEdgeCost{edge_meas[e], edge_log_scale[e], W7[e]});
+          problem->AddResidualBlock(cost, loss, pose[i].data(), &log_scale[i], pose[j].data(),
+                                    &log_scale[j]);
+          continue;
+        }
         auto* cost =
             new ceres::AutoDiffCostFunction<EdgeCost, 6, 7, 7>(new EdgeCost{edge_meas[e], W[e]});
-        ceres::LossFunction* loss = loss_scale > 0.0 ? new ceres::CauchyLoss(loss_scale) : nullptr;
-        problem->AddResidualBlock(cost, loss, pose[edges[e].source].data(),
-                                  pose[edges[e].target].data());
+        problem->AddResidualBlock(cost, loss, pose[i].data(), pose[j].data());
       }
       for (std::size_t c = 0; c < ncomp; ++c) {
         if (!comp_has_prior[c] || !use_priors)
@@ -606,8 +894,7 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     std::vector<double> active_chi2;
     for (std::size_t e = 0; e < edges.size(); ++e) {
       if (!active[e]) continue;
-      chi2[e] =
-          chi2_of(W[e], edge_twist(pose[edges[e].source], pose[edges[e].target], edge_meas[e]));
+      chi2[e] = edge_chi2(e, scale);
       active_chi2.push_back(chi2[e]);
     }
     // The edge covariance scale, from the robust solve's residuals (once).
@@ -621,7 +908,7 @@ MergeResult solve_pose_graph(std::size_t num_maps,
                          sorted.end());
         const double med = sorted[sorted.size() / 2];
         const double ratio = redundancy / static_cast<double>(active_chi2.size());
-        const double s = med / (chi2_quantile(0.5, 6) * ratio);
+        const double s = med / (chi2_quantile(0.5, dof) * ratio);
         if (s > 1.0) {
           for (double& v : chi2) v /= s;
           scale *= s;
@@ -631,14 +918,10 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     if (estimate_scale &&
         std::any_of(priors.begin(), priors.end(), [](const auto& p) { return p.has_value(); })) {
       // Back to the priors' gauge with the scaled edges; the chi^2 at that solution decide.
-      for (std::size_t e = 0; e < edges.size(); ++e) {
-        if (active[e]) W[e] = *whitening(edge_cov[e] * scale);
-      }
+      whiten_edges();
       last_problem = solve(options.cauchy_scale, true);
       for (std::size_t e = 0; e < edges.size(); ++e) {
-        if (!active[e]) continue;
-        chi2[e] =
-            chi2_of(W[e], edge_twist(pose[edges[e].source], pose[edges[e].target], edge_meas[e]));
+        if (active[e]) chi2[e] = edge_chi2(e, scale);
       }
     }
     ceres::Problem& problem = *last_problem;
@@ -671,6 +954,7 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       bool finite = std::isfinite(total);
       for (std::size_t i = 0; i < num_maps; ++i) {
         for (double v : pose[i]) finite = finite && std::isfinite(v);
+        finite = finite && std::isfinite(log_scale[i]);
       }
       if (options.compute_covariances && finite) {
         ceres::Covariance::Options co;
@@ -685,9 +969,13 @@ MergeResult solve_pose_graph(std::size_t num_maps,
           if (!problem.IsParameterBlockConstant(pose[i].data())) {
             blocks.emplace_back(pose[i].data(), pose[i].data());
           }
+          if (sim && !scale_held[i]) blocks.emplace_back(&log_scale[i], &log_scale[i]);
         }
         if (cov.Compute(blocks, &problem)) {
           for (std::size_t i = 0; i < num_maps; ++i) {
+            double var = 0.0;
+            if (sim && !scale_held[i] && cov.GetCovarianceBlock(&log_scale[i], &log_scale[i], &var))
+              out.maps[i].scale_sd = std::exp(log_scale[i]) * std::sqrt(std::max(var, 0.0));
             if (problem.IsParameterBlockConstant(pose[i].data())) {
               out.maps[i].covariance_valid = true;  // the gauge: zero by definition
               continue;
@@ -707,12 +995,25 @@ MergeResult solve_pose_graph(std::size_t num_maps,
   out.edge_covariance_scale = scale;
   for (std::size_t e = 0; e < edges.size(); ++e) {
     out.edges[e].used = usable[e];
-    if (usable[e]) {
-      const Vec6 xi = edge_twist(pose[edges[e].source], pose[edges[e].target], edge_meas[e]);
+    if (!usable[e]) continue;
+    const std::size_t i = edges[e].source, j = edges[e].target;
+    if (sim) {
+      out.edges[e].chi2 = (sim_whitening(edge_cov7[e] * scale) *
+                           sim_edge_twist(pose[i], log_scale[i], pose[j], log_scale[j],
+                                          edge_meas[e], edge_log_scale[e]))
+                              .squaredNorm();
+    } else {
+      const Vec6 xi = edge_twist(pose[i], pose[j], edge_meas[e]);
       out.edges[e].chi2 = chi2_of(*whitening(edge_cov[e] * scale), xi);
     }
   }
-  for (std::size_t i = 0; i < num_maps; ++i) out.maps[i].T_world_map = from_block(pose[i]);
+  for (std::size_t i = 0; i < num_maps; ++i) {
+    out.maps[i].T_world_map = from_block(pose[i]);
+    if (sim) {
+      out.maps[i].scale = std::exp(log_scale[i]);
+      out.maps[i].scale_free = !scale_held[i];
+    }
+  }
   return out;
 }
 

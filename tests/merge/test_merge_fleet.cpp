@@ -5,6 +5,8 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <iostream>
+#include <map>
 #include <optional>
 #include <set>
 #include <stdexcept>
@@ -13,10 +15,12 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/map/transform.hpp"
 #include "lmalign/merge/candidates.hpp"
 #include "lmalign/merge/edges.hpp"
 #include "lmalign/merge/evaluation.hpp"
 #include "lmalign/merge/merge.hpp"
+#include "lmalign/merge/output.hpp"
 #include "lmalign/sim/fleet_sim.hpp"
 
 namespace lmalign {
@@ -115,6 +119,85 @@ TEST(MergeFleet, TwelveMapsWithPriorsPlacedAndAPlantedLookAlikeEdgeIsRejected) {
   EXPECT_TRUE(r.edges.back().rejected);
   EXPECT_EQ(ev2.false_kept_edges, 0u);
   EXPECT_DOUBLE_EQ(ev2.fraction_within, 1.0);
+}
+
+// Maps without metric scale (docs/merge.md, "Maps without metric scale"): four fleet maps, each
+// moved by a known similarity of scale 0.3 to 3 and marked arbitrary, except map 2, kept metric.
+// The merge aligns every pair as a similarity and solves the Sim(3) graph: the metric map holds
+// the scale, so every map's scale is recovered absolutely; marked arbitrary too, map 2 is then
+// recovered like the others up to the part's own scale (evaluate_merge fits it). The merged map
+// puts the landmarks two maps share on one point.
+TEST(MergeFleet, FourMapsWithoutMetricScaleOnASim3PoseGraph) {
+  sim::FleetSimOptions o;
+  o.num_maps = 4;
+  o.seed = 11;
+  const sim::FleetScene scene = sim::simulate_fleet(o);
+  const std::vector<double> scales{0.3, 3.0, 1.0, 1.8};
+  std::vector<Map> maps;
+  std::vector<Similarity3> truth;
+  for (std::size_t i = 0; i < scene.maps.size(); ++i) {
+    const Similarity3 S{scales[i], Isometry3::Identity()};  // p_new = s p_old
+    maps.push_back(transform_map(scene.maps[i], S));
+    maps.back().header.scale = i == 2 ? MapScale::kMetric : MapScale::kArbitrary;
+    truth.push_back(Similarity3{1.0, scene.T_world_map[i]} * S.inverse());
+  }
+  // 1% of the fleet's extent: the diagonal of its landmarks' bounding box (world, metres).
+  Eigen::AlignedBox3d box;
+  for (std::size_t i = 0; i < scene.maps.size(); ++i) {
+    for (const Landmark& l : scene.maps[i].landmarks) box.extend(scene.T_world_map[i] * l.p_world);
+  }
+  const double tolerance_m = 0.01 * box.diagonal().norm();
+  const MergeRun run =
+      run_merge(maps, scene.names, std::vector<std::optional<MapPrior>>(4), MergeOptions{});
+  ASSERT_FALSE(run.cancelled);
+  EXPECT_EQ(run.result.num_components, 1u);
+  for (const Edge& e : run.edges) EXPECT_TRUE(e.scale_free);  // each pair has an arbitrary map
+  // World units per map unit: 1 / s for a map whose lengths were multiplied by s.
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_LT(std::abs(run.result.maps[i].scale * scales[i] - 1.0), 0.01)
+        << scene.names[i] << ": " << run.result.maps[i].scale << " for " << 1.0 / scales[i];
+  }
+  EXPECT_EQ(run.result.maps[2].scale, 1.0);
+  const GroundTruthThresholds thresholds{1.0, tolerance_m, 0.01};
+  const MergeEvaluation ev = evaluate_merge(run.result, run.edges, truth, thresholds);
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_TRUE(ev.maps[i].within)
+        << scene.names[i] << ": " << ev.maps[i].rotation_deg << " deg, " << ev.maps[i].translation_m
+        << " m, scale error " << ev.maps[i].scale_error;
+  }
+  EXPECT_EQ(ev.false_kept_edges, 0u);
+  // Without the metric map: the same edges, every scale free, the gauge's scale 1.
+  const MergeResult all_free = solve_pose_graph(4, std::vector<std::optional<MapPrior>>(4),
+                                                run.edges, {}, std::vector<bool>(4, true));
+  EXPECT_EQ(all_free.maps[0].scale, 1.0);
+  const MergeEvaluation ev_free = evaluate_merge(all_free, run.edges, truth, thresholds);
+  EXPECT_DOUBLE_EQ(ev_free.fraction_within, 1.0);
+  EXPECT_LT(ev_free.max_scale_error, 0.01);
+  EXPECT_LT(ev_free.max_pair_scale_error, 0.01);
+  // The merged map: landmarks with one id from two maps land on one point (within the noise).
+  std::vector<std::pair<std::size_t, std::size_t>> ranges;
+  const Map merged = merge_maps(maps, std::vector<std::string>(4), run.result, 0, {}, &ranges);
+  EXPECT_EQ(merged.header.scale, MapScale::kMetric);  // map 2's metres
+  std::map<Id, Vec3> first;
+  std::size_t shared = 0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    for (std::size_t k = ranges[i].first; k < ranges[i].second; ++k) {
+      const Id id = maps[i].landmarks[k - ranges[i].first].id;
+      const auto [it, inserted] = first.emplace(id, merged.landmarks[k].p_world);
+      if (inserted) continue;
+      ++shared;
+      EXPECT_LT((it->second - merged.landmarks[k].p_world).norm(), 2.0 * tolerance_m) << id;
+    }
+  }
+  EXPECT_GT(shared, 100u);
+  std::cout << "  fleet Sim(3): scale errors";
+  for (std::size_t i = 0; i < 4; ++i)
+    std::cout << " " << std::abs(run.result.maps[i].scale * scales[i] - 1.0);
+  std::cout << "; max " << ev.max_rotation_deg << " deg, " << ev.max_translation_m
+            << " m (1% of extent: " << tolerance_m << " m); all free: max scale error "
+            << ev_free.max_scale_error << ", pairs " << ev_free.max_pair_scale_error << ", "
+            << ev_free.max_rotation_deg << " deg, " << ev_free.max_translation_m << " m; edges "
+            << run.seconds_edges << " s, graph " << run.seconds_graph << " s\n";
 }
 
 // The edges are aligned in an OpenMP loop: an exception thrown there (here by the progress

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/merge/evaluation.hpp"
@@ -94,6 +95,60 @@ void expect_placed(const Windows& w, const MergeRun& run, double max_deg, double
 
 const char* kDesk = "tum_fr1_desk/ground_truth_pair/map_fr1_desk_gt.txt";
 const char* kKitti = "kitti_stereo_vo/kitti_vo_full.txt";
+
+// The three stella_vslam maps of one video (real monocular maps, each of its own arbitrary
+// scale; ../shared/data/real_formats/stella_openhps_aist_living_lab_1): merged without priors on
+// the Sim(3) pose graph, against the similarities SOURCE.md estimated from matching keyframes
+// (an estimate: its own cycle closes to 0.1% in scale). World: the frame of 4683e8ac.
+TEST(MergeReal, StellaMapsOfOneVideoMergeOnASim3Graph) {
+  const std::string dir = "real_formats/stella_openhps_aist_living_lab_1/";
+  const std::vector<std::string> names{"356a5a6e", "94eb7149", "4683e8ac"};
+  std::vector<Map> maps;
+  for (const std::string& n : names) {
+    const std::string path = test::data_file(dir + n + "/map.msg");
+    LMALIGN_REQUIRE_FILE(path);
+    maps.push_back(read_any_map(path));
+    ASSERT_NE(maps.back().header.scale, MapScale::kMetric) << n;
+  }
+  auto similarity = [](double s, const Mat3& R, const Vec3& t) {
+    Isometry3 T = Isometry3::Identity();
+    T.linear() = R;
+    T.translation() = t;
+    return Similarity3{s, T};
+  };
+  Mat3 R_356_4683, R_94_4683;
+  R_356_4683 << 0.999826, 0.01738, -0.006787, -0.017191, 0.999489, 0.026942, 0.007252, -0.026821,
+      0.999614;
+  R_94_4683 << 0.999738, 0.021504, -0.007805, -0.021262, 0.999328, 0.029848, 0.008441, -0.029675,
+      0.999524;
+  const std::vector<Similarity3> truth{
+      similarity(0.79165, R_356_4683, Vec3(-0.003697, -0.008522, 0.128970)),
+      similarity(1.06574, R_94_4683, Vec3(-0.005149, -0.005160, 0.153141)), Similarity3{}};
+  const MergeRun run =
+      run_merge(maps, names, std::vector<std::optional<MapPrior>>(maps.size()), {});
+  ASSERT_FALSE(run.cancelled);
+  EXPECT_EQ(run.result.num_components, 1u);
+  for (const Edge& e : run.edges) {
+    EXPECT_TRUE(e.scale_free);
+    EXPECT_TRUE(e.trusted) << e.trust_reason;
+  }
+  // Translations in the world's units: its landmarks' median distance from their centre is
+  // about 1.3, so 0.02 is 1.5% of it.
+  const MergeEvaluation ev = evaluate_merge(run.result, run.edges, truth, {1.0, 0.02, 0.01});
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    EXPECT_TRUE(ev.maps[i].within)
+        << names[i] << ": " << ev.maps[i].rotation_deg << " deg, " << ev.maps[i].translation_m
+        << ", scale error " << ev.maps[i].scale_error;
+  }
+  EXPECT_DOUBLE_EQ(ev.pair_fraction_within, 1.0);
+  EXPECT_LT(ev.max_pair_scale_error, 0.01);
+  std::cout << "  stella: scales";
+  for (const MapPose& p : run.result.maps)
+    std::cout << " " << p.scale << " (sd " << p.scale_sd << ")";
+  std::cout << "; max errors " << ev.max_rotation_deg << " deg, " << ev.max_translation_m
+            << ", scale maps " << ev.max_scale_error << ", pairs " << ev.max_pair_scale_error
+            << "; edges " << run.seconds_edges << " s, graph " << run.seconds_graph << " s\n";
+}
 
 TEST(MergeReal, DeskWindowsWithoutPriors) {
   const std::string path = test::data_file(kDesk);

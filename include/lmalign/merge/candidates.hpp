@@ -35,6 +35,12 @@ struct CandidatePair {
   /// into the target frame by the adjoint; worst axes).
   std::optional<Isometry3> initial_guess;
   std::optional<PriorSigma> prior;
+  /// Whether each map's lengths are metres (MapHeader::scale == MapScale::kMetric), and whether
+  /// either map's covariances are assumed (MapHeader::covariance_assumed): passed to align()
+  /// (AlignRequest::source_metric, target_metric, covariances_assumed).
+  bool source_metric = true;
+  bool target_metric = true;
+  bool covariances_assumed = false;
 };
 
 struct CandidateOptions {
@@ -62,6 +68,8 @@ struct MapSummary {
   double radius_m = 0.0;
   std::vector<double> descriptor;  ///< normalised histograms (see the file comment)
   std::size_t num_landmarks = 0;
+  bool metric = true;               ///< MapHeader::scale == MapScale::kMetric
+  bool covariance_assumed = false;  ///< MapHeader::covariance_assumed
 };
 
 /// The summary of one map (deterministic; `seed` seeds the distance sampling).

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -16,6 +17,7 @@
 #include "lmalign/merge/candidates.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/similarity.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -24,11 +26,22 @@ namespace lmalign {
 struct Edge {
   std::size_t source = 0;  ///< map index
   std::size_t target = 0;  ///< map index
-  /// p_target = T_target_source * p_source (metres).
+  /// p_target = scale * R * p_source + t with (R, t) = T_target_source (target units: metres
+  /// for a map with metric scale).
   Isometry3 T_target_source = Isometry3::Identity();
   /// uncertainty.hpp's convention (left perturbation in the target frame, (rho m, phi rad)).
   Mat6 covariance = Mat6::Zero();
   bool covariance_valid = false;
+  /// Whether the alignment estimated the scale (Sim(3); AlignRequest::scale resolved for the
+  /// two maps). False: a rigid edge, scale exactly 1.
+  bool scale_free = false;
+  /// Target units per source unit (1 for a rigid edge).
+  double scale = 1.0;
+  /// Its standard deviation (same units); NaN when fixed or not determined.
+  double scale_sd = std::numeric_limits<double>::quiet_NaN();
+  /// The 7x7 covariance of (rho [target units], phi [rad], log scale) at the target origin
+  /// (ScaleEstimate::covariance_7x7); nullopt for a rigid edge or when the alignment had none.
+  std::optional<Mat7> covariance_7x7;
   /// The preset's verdict.
   bool trusted = false;
   std::string trust_reason;
@@ -49,6 +62,10 @@ struct EdgeOptions {
   std::optional<int> max_iterations;
   /// Settings by key (AlignRequest::settings).
   std::vector<std::pair<std::string, SettingValue>> settings;
+  /// AlignRequest::scale for every pair: kAuto estimates the scale of a pair where either map
+  /// has no metric scale (CandidatePair::source_metric / target_metric), kFree always, kFixed
+  /// never (rigid edges).
+  ScaleMode scale = ScaleMode::kAuto;
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -71,8 +88,9 @@ Edge align_edge(const Map& source, const Map& target, const CandidatePair& pair,
 std::string map_fingerprint(const Map& map);
 
 /// The cache key of an edge: hex hash of both maps' fingerprints, the pair (indices, guess,
-/// prior), the preset and every setting of the pipeline that runs (Settings::canonical_text),
-/// plus a format version. Throws InvalidArgument for an unknown preset or setting.
+/// prior, the maps' metric and assumed-covariance flags), the scale mode, the preset and every
+/// setting of the pipeline that runs (Settings::canonical_text), plus a format version. Throws
+/// InvalidArgument for an unknown preset or setting.
 std::string edge_key(const std::string& source_fingerprint, const std::string& target_fingerprint,
                      const CandidatePair& pair, const EdgeOptions& options);
 

@@ -12,8 +12,10 @@
 // A map is placed when the merge puts it in the frame of the others: in a part held by priors,
 // or, without priors, in the largest part (the first of equal ones) when that part joins at
 // least two maps. A map alone in its part, or in a smaller part, is not placed, whatever its
-// error within that part. An edge is true when its T_target_source agrees with
-// T_world_target_true^-1 * T_world_source_true within the thresholds.
+// error within that part. An edge is true when its similarity agrees with
+// S_world_target_true^-1 * S_world_source_true within the thresholds.
+// With maps without metric scale (Sim(3) merges) the truths are similarities, G is one too,
+// and the scale errors are reported beside the rotation and translation errors.
 #pragma once
 
 #include <optional>
@@ -29,6 +31,8 @@ namespace lmalign {
 struct GroundTruthThresholds {
   double rotation_deg = 5.0;  ///< indoors 5 deg / 10 cm, outdoors 5 deg / 1 m
   double translation_m = 0.10;
+  /// Relative scale error |s_est / s_true - 1| (maps without metric scale; 0 for rigid ones).
+  double scale = 0.01;
 };
 
 struct MapError {
@@ -36,6 +40,9 @@ struct MapError {
   /// priors, so nothing to measure).
   double rotation_deg = 0.0;
   double translation_m = 0.0;
+  /// |g s_est / s_true - 1| with g the part's own scale fitted to the truth (0 for maps with
+  /// metric scale in a rigid merge; NaN as above).
+  double scale_error = 0.0;
   bool connected = false;  ///< a kept edge joins it to at least one other map
   bool placed = false;     ///< in the frame of the others (see the file comment)
   bool within = false;     ///< placed and its error within the thresholds
@@ -59,6 +66,9 @@ struct MergeEvaluation {
   /// Largest errors over the maps with an error (NaN ones left out).
   double max_rotation_deg = 0.0;
   double max_translation_m = 0.0;
+  double max_scale_error = 0.0;
+  /// Largest relative scale error of the pairs compared (s_i^-1 s_j against the truth's).
+  double max_pair_scale_error = 0.0;
   /// Edges kept by the graph (used, not rejected) that are true / all kept; 1 when none kept.
   double edge_precision = 1.0;
   /// Kept true edges / candidate edges whose alignment is true (trusted or not; an untrusted
@@ -69,13 +79,25 @@ struct MergeEvaluation {
   std::vector<bool> edge_true;  ///< per edge
 };
 
-/// Reads a ground-truth file: YAML `maps: {name: [[4x4 rows]], ...}` (T_world_map, metres),
-/// one entry per name in `names`. Throws ParseError naming the file, line and map.
+/// Reads a ground-truth file: YAML `maps: {name: [[4x4 rows]], ...}` (S_world_map, world units:
+/// a rigid transform, or a similarity [sR t; 0 0 0 1] for a map without metric scale, s = world
+/// units per map unit), one entry per name in `names`. Throws ParseError naming the file, line
+/// and map ("maps.<name>: scale ... expected finite and > 0" for a 3x3 block of non-positive
+/// or non-finite determinant; "not a rigid transform nor a similarity").
+std::vector<Similarity3> read_ground_truth_similarities(const std::string& path,
+                                                        const std::vector<std::string>& names);
+/// The same, rigid transforms only (T_world_map, metres): a similarity is refused as above.
 std::vector<Isometry3> read_ground_truth(const std::string& path,
                                          const std::vector<std::string>& names);
 
-/// Evaluates `result` against `truth` (T_world_map_true per map). Throws InvalidArgument if sizes
-/// do not match.
+/// Evaluates `result` against `truth` (S_world_map_true per map). Each part is aligned to the
+/// truth by a similarity G (its scale g = the geometric mean of s_true / s_est over the fitted
+/// maps; 1 in a rigid merge); scale errors are |g s_est / s_true - 1| per map and
+/// |s_rel_est / s_rel_true - 1| per pair and edge. Throws InvalidArgument if sizes do not match.
+MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge>& edges,
+                               const std::vector<Similarity3>& truth,
+                               const GroundTruthThresholds& thresholds = {});
+/// The same with rigid truths (scale 1).
 MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge>& edges,
                                const std::vector<Isometry3>& truth,
                                const GroundTruthThresholds& thresholds = {});

@@ -8,6 +8,8 @@
 //       session: robot1           # optional: landmarks with the same id in one session are
 //                                 # the same landmark (fused on output, docs/merge.md)
 //       T_world_map: [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]   # optional prior, 4x4 rows
+//                                 # (a similarity [sR t; 0 1] gives the scale of a map
+//                                 # without metric scale: world units per map unit)
 //       prior_sigma: [2.0, 0.5]   # rotation deg, translation m (or `prior_covariance`, 6x6)
 //
 // Prior covariance convention (registration/uncertainty.hpp): left perturbation in the world
@@ -31,6 +33,10 @@ struct MapPrior {
   Isometry3 T_world_map = Isometry3::Identity();
   /// 6x6, symmetric positive definite (see the file comment).
   Mat6 covariance = Mat6::Identity();
+  /// World units per map unit (a similarity T_world_map [sR t; 0 1] in the manifest): holds the
+  /// scale of a map without metric scale (pose_graph.hpp); finite and > 0. A map with metric
+  /// scale keeps scale 1 whatever its prior says.
+  double scale = 1.0;
 };
 
 /// One mini-map of the manifest.
@@ -52,7 +58,8 @@ struct Manifest {
 /// Throws InvalidArgument("<what>.T_world_map: translation ... beyond the supported range", or
 /// "<what>.covariance[i][i]: standard deviation ... beyond the supported range") unless the
 /// prior's translation and standard deviations are within the supported range
-/// (core/supported_range.hpp: 1e15 m; rotation 1e15 degrees) and finite. parse_manifest() checks
+/// (core/supported_range.hpp: 1e15 m; rotation 1e15 degrees) and finite, and its scale is
+/// finite and > 0 ("<what>.scale: ..."). parse_manifest() checks
 /// each field so (naming its line); plan_candidates() and solve_pose_graph() check every prior
 /// they are given.
 void check_prior_in_supported_range(const MapPrior& prior, const std::string& what);
@@ -60,7 +67,8 @@ void check_prior_in_supported_range(const MapPrior& prior, const std::string& wh
 /// Parses manifest text. `name` is used in messages; relative map paths are joined to
 /// `base_dir`. Throws ParseError("<name>:<line>: <field>: <what was expected>") for a YAML
 /// syntax error, a missing or mistyped field, an unknown key, a duplicate map name, a prior
-/// that is not a rigid transform (rotation orthonormal to 1e-6, det +1, last row 0 0 0 1), a
+/// that is neither a rigid transform (rotation orthonormal to 1e-6, det +1, last row 0 0 0 1)
+/// nor a similarity [sR t; 0 0 0 1] with a scale s finite and > 0, a
 /// covariance that is not symmetric (to 1e-9 relative) positive definite, prior_sigma values
 /// that are not finite and > 0, both prior_sigma and prior_covariance, a sigma without a
 /// T_world_map, or an empty `maps` list.

@@ -31,6 +31,10 @@ struct MergeOptions {
   bool is_valid(std::string* why = nullptr) const;
 };
 
+/// Which maps get a scale of their own in the pose graph (solve_pose_graph's scale_free): those
+/// without metric scale (MapHeader::scale not kMetric), none when `mode` is kFixed.
+std::vector<bool> scale_free_maps(const std::vector<Map>& maps, ScaleMode mode);
+
 /// Progress: (stage "edges" / "graph", done, total). Called from one thread at a time.
 using MergeProgress =
     std::function<void(const std::string& stage, std::size_t done, std::size_t total)>;
@@ -45,11 +49,13 @@ struct MergeRun {
   double seconds_graph = 0.0;
 };
 
-/// Runs the merge of `maps` (priors from `priors`, one per map). With `cancel` set (e.g. by a
-/// SIGINT handler), no new edge is started; finished edges are in the cache; returns cancelled.
-/// Throws InvalidArgument on invalid options or sizes, IoError on the cache. An exception thrown
-/// while the edges are aligned in parallel (by an edge or by `progress`) stops the remaining
-/// edges and reaches the caller: std::bad_alloc as itself, other std::exceptions as
+/// Runs the merge of `maps` (priors from `priors`, one per map). A map without metric scale
+/// (MapHeader::scale not kMetric) gets a scale of its own in the pose graph (Sim(3)) unless
+/// options.edges.scale is kFixed; its pairs are aligned with the scale free (kAuto). With `cancel`
+/// set (e.g. by a SIGINT handler), no new edge is started; finished edges are in the cache; returns
+/// cancelled. Throws InvalidArgument on invalid options or sizes, IoError on the cache. An
+/// exception thrown while the edges are aligned in parallel (by an edge or by `progress`) stops the
+/// remaining edges and reaches the caller: std::bad_alloc as itself, other std::exceptions as
 /// InvalidArgument("merge: an edge failed: <what>"), any other type as itself.
 MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>& names,
                    const std::vector<std::optional<MapPrior>>& priors, const MergeOptions& options,

@@ -42,7 +42,10 @@ struct MergeOutputOptions {
 /// [begin, end) of the merged landmark ids that map i added ({0, 0} for a map of another
 /// component; a fused landmark belongs to the map that added it first). Landmarks beyond the
 /// supported range (core/supported_range.hpp), which no edge aligned, are left out; `left_out`,
-/// if given, receives their number.
+/// if given, receives their number. Maps without metric scale are moved by their similarity
+/// (MapPose::similarity(), covariances times s^2). The header: metric when a map of the
+/// component is metric or priors hold the component, else arbitrary (the gauge map's units);
+/// covariances assumed when any map's are.
 /// Throws InvalidArgument if sizes do not match.
 Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& sessions,
                const MergeResult& result, std::size_t component,

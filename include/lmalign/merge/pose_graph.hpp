@@ -16,6 +16,18 @@
 // Gauge: each connected component (of the kept edges) with at least one prior is held by its
 // priors; one without is fixed at its first map (lowest index) = identity, covariance zero.
 // Components are never forced together: each is reported in its own frame.
+//
+// Maps without metric scale (Sim(3), `scale_free`): each such map also has a log scale
+// lambda_i, S_world_map = (exp(lambda_i), T_world_map): p_world = exp(lambda_i) R_i p_map + t_i.
+// The edge factor becomes 7-dimensional: xi = (rho, phi, sigma) of S_j_i_pred * S_j_i_meas^-1
+// with S_j_i_pred = S_wj^-1 S_wi, rho = t_pred - exp(sigma) R_err t_meas (target units),
+// sigma = lambda_i - lambda_j - log s_meas, whitened by the edge's 7x7 covariance (its
+// Edge::covariance 6x6 block, its log-scale variance and their correlations from
+// Edge::covariance_7x7; without one, the 6x6 and the scale sd, uncorrelated). The scale is held
+// where it is known: lambda = 0 for a map with metric scale, log MapPrior::scale for a map with
+// a prior, and, in a component with neither, lambda = 0 at its gauge map. The cycle check and the
+// rejection use chi^2(7) then. Without any map of free scale the graph is the rigid one above,
+// bit for bit.
 #pragma once
 
 #include <cstddef>
@@ -23,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/similarity.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/merge/edges.hpp"
 #include "lmalign/merge/manifest.hpp"
@@ -46,6 +59,9 @@ struct PoseGraphOptions {
   /// in rad^2) before whitening. > 0.
   double floor_translation_m = 1e-3;
   double floor_rotation_deg = 0.01;
+  /// Floor of an edge's log-scale standard deviation (relative scale sd), > 0: the model
+  /// covariance of a 7-DoF step does not see errors the whole map shares (docs/scale.md).
+  double floor_log_scale = 1e-3;
   /// Cycle check before the solve (docs/merge.md, "Pose graph"): an edge between two maps with
   /// priors is rejected when it disagrees with their relative prior; then the edges are taken
   /// by decreasing inliers, Kruskal-fashion, and an edge that closes a cycle is rejected when it
@@ -67,6 +83,14 @@ struct MapPose {
   bool covariance_valid = false;
   std::size_t component = 0;  ///< 0-based, components ordered by their lowest map index
   bool is_gauge = false;      ///< fixed at identity (a component without priors)
+  /// World units per map unit: p_world = scale * R * p_map + t with (R, t) = T_world_map.
+  /// Exactly 1 for a map with metric scale.
+  double scale = 1.0;
+  /// Its standard deviation (world units per map unit); 0 when held (metric, prior or gauge).
+  double scale_sd = 0.0;
+  bool scale_free = false;  ///< estimated (a map without metric scale, not held)
+  /// S_world_map = [scale R, t; 0 0 0 1].
+  Similarity3 similarity() const { return Similarity3{scale, T_world_map}; }
 };
 
 /// One edge's fate in the graph (same order as the edges given).
@@ -90,11 +114,14 @@ struct MergeResult {
 };
 
 /// Solves the graph of `num_maps` maps with `priors` (size num_maps, empty = none) and `edges`.
-/// Throws InvalidArgument on invalid options, sizes that do not match, or an edge naming a map
-/// out of range.
+/// `scale_free[i]`: map i has no metric scale, so its scale is estimated (see the file comment);
+/// empty: every map is metric (the rigid graph). Throws InvalidArgument on invalid options,
+/// sizes that do not match, an edge naming a map out of range, or a prior whose scale is not
+/// finite and > 0.
 MergeResult solve_pose_graph(std::size_t num_maps,
                              const std::vector<std::optional<MapPrior>>& priors,
-                             const std::vector<Edge>& edges, const PoseGraphOptions& options = {});
+                             const std::vector<Edge>& edges, const PoseGraphOptions& options = {},
+                             const std::vector<bool>& scale_free = {});
 
 /// Quantile of the chi^2 distribution with `dof` degrees of freedom (Wilson-Hilferty
 /// approximation, within 1% for dof >= 3 and p in [0.9, 0.9999]).
