@@ -160,7 +160,7 @@ int run_align(const AlignArgs& a) {
   try {
     request.scale = parse_scale_mode(a.scale);
   } catch (const InvalidArgument& e) {
-    throw InvalidArgument(std::string("--") + e.what());
+    throw InvalidArgument(std::string("--scale: ") + e.what());
   }
   request.record_history = a.history;
   for (const std::string& s : a.settings) {

@@ -1,17 +1,26 @@
 // `lmalign options PRESET`: the preset's stages and its table of settings, one setting per line:
-// key, value, unit, bound, doc (docs/cli.md).
+// key, value, unit, bound, doc (docs/cli.md). `lmalign options --markdown`: docs/settings.md,
+// every preset's table and the experiment config's keys.
 #include <cstdio>
 #include <memory>
 #include <string>
 
 #include "commands.hpp"
+#include "lmalign/core/error.hpp"
+#include "lmalign/experiment/config.hpp"
 #include "lmalign/registration/presets.hpp"
 
 namespace lmalign::cli {
 
 namespace {
 
-int run_options(const std::string& name) {
+int run_options(const std::string& name, bool markdown) {
+  if (markdown) {
+    if (!name.empty()) throw InvalidArgument("--markdown prints every preset: give no PRESET");
+    std::fputs(settings_reference_markdown().c_str(), stdout);
+    return 0;
+  }
+  if (name.empty()) throw InvalidArgument("options: give a PRESET, or --markdown");
   const Preset preset = find_preset(name);
   const Pipeline pipeline(preset.spec);
   const PipelineSpec& s = preset.spec;
@@ -38,6 +47,7 @@ int run_options(const std::string& name) {
 
 CommandRunner add_options_command(CLI::App& root) {
   auto name = std::make_shared<std::string>();
+  auto markdown = std::make_shared<bool>(false);
   CLI::App* cmd = root.add_subcommand(
       "options",
       "Print a strategy's stages and its settings, one per line: key, value, unit, bound, doc.\n"
@@ -45,9 +55,11 @@ CommandRunner add_options_command(CLI::App& root) {
       "`settings:` or Python's settings= (docs/cli.md).");
   cmd->add_option("PRESET", *name,
                   "a strategy name (lmalign align --help lists them) or a preset "
-                  "file NAME.yaml")
-      ->required();
-  return [name]() { return run_options(*name); };
+                  "file NAME.yaml");
+  cmd->add_flag("--markdown", *markdown,
+                "print docs/settings.md instead: every preset's settings and the experiment "
+                "config's keys (key, default, unit, bound, doc)");
+  return [name, markdown]() { return run_options(*name, *markdown); };
 }
 
 }  // namespace lmalign::cli

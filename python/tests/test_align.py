@@ -231,7 +231,7 @@ def test_free_scale_recovers_a_similarity_from_arrays(strategy):
                           source_covariances=np.tile(1e-6 * np.eye(3), (len(source), 1, 1)),
                           target_covariances=np.tile(1e-6 * np.eye(3), (len(target), 1, 1)))
     assert fixed.scale == 1.0 and fixed.scale_sd is None and fixed.scale_mode == "fixed"
-    with pytest.raises(lmalign.InvalidArgument, match="expected auto, free or fixed"):
+    with pytest.raises(lmalign.InvalidArgument, match=r"unknown scale mode 'metric' \(known: auto, free, fixed\)"):
         lmalign.align(source, target, strategy=strategy, scale="metric")
 
 

@@ -1,6 +1,12 @@
 // Strict YAML reading of experiment configs (docs/experiments.md, "Config"). Every error names
 // the file, the 1-based line (yaml-cpp's mark) and the key path: "paper.yaml:12:
 // experiments[1].yaw_deg: expected a list of numbers".
+//
+// The schema is one table (config_schema.cpp): one row per key (where it is written, which
+// experiment types take it, the member it fills, its default, bound, unit and doc). The rows
+// give each mapping its known keys, read and check every scalar value, and write the resolved
+// config; docs/settings.md prints them. Only what is not one scalar (paths, lists, poses,
+// strategies, settings) is read here by code of its own.
 #include "lmalign/experiment/config.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -16,6 +22,8 @@
 #include <set>
 #include <sstream>
 
+#include "config_schema.hpp"
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "text_format.hpp"
@@ -44,53 +52,34 @@ bool Quadrant::parse(const std::string& text, Quadrant* out) {
 
 std::vector<Quadrant> Quadrant::all() { return {{1, 1}, {-1, 1}, {-1, -1}, {1, -1}}; }
 
-std::string to_string(ExperimentType type) {
-  switch (type) {
-    case ExperimentType::kNeighbourhood:
-      return "k";
-    case ExperimentType::kYaw:
-      return "yaw";
-    case ExperimentType::kXy:
-      return "xy";
-    case ExperimentType::kXyYaw:
-      return "xy_yaw";
-    case ExperimentType::kPoses:
-      return "poses";
-    case ExperimentType::kBasin:
-      return "basin";
-    case ExperimentType::kRandom:
-      return "random";
-  }
-  return "?";
-}
+std::string to_string(ExperimentType type) { return name_of(detail::kExperimentTypeNames, type); }
+std::string to_string(YawPivot pivot) { return name_of(detail::kYawPivotNames, pivot); }
+std::string to_string(TranslationDirections d) { return name_of(detail::kDirectionNames, d); }
 
-std::string to_string(YawPivot pivot) {
-  switch (pivot) {
-    case YawPivot::kLandmark:
-      return "landmark";
-    case YawPivot::kCentroid:
-      return "centroid";
-    case YawPivot::kOrigin:
-      return "origin";
+ScaleMode ExperimentConfig::scale_of(const std::string& strategy) const {
+  for (const auto& [name, mode] : strategy_scales) {
+    if (name == strategy) return mode;
   }
-  return "?";
-}
-
-std::string to_string(TranslationDirections d) {
-  return d == TranslationDirections::kXy ? "xy" : "xyz";
+  return scale;
 }
 
 namespace {
 
 namespace fs = std::filesystem;
-using detail::shortest;
-
-constexpr int kMaxK = 4096;
-constexpr std::size_t kMaxCasesPerList = 100000;
+using namespace detail;
 
 std::string join(const std::vector<std::string>& items, const std::string& sep = ", ") {
   std::string s;
   for (std::size_t i = 0; i < items.size(); ++i) s += (i ? sep : "") + items[i];
+  return s;
+}
+
+/// "a, b or c".
+std::string join_or(const std::vector<std::string>& items) {
+  std::string s;
+  for (std::size_t i = 0; i < items.size(); ++i) {
+    s += (i == 0 ? "" : (i + 1 == items.size() ? " or " : ", ")) + items[i];
+  }
   return s;
 }
 
@@ -116,7 +105,8 @@ class Parser {
     throw ParseError(file_, line, where.empty() ? what : where + ": " + what);
   }
 
-  /// A mapping with known keys: rejects anything else, unknown keys and duplicates.
+  /// A mapping with the keys of a schema section: rejects anything else, unknown keys (naming
+  /// the nearest known one) and duplicates.
   class MapView {
    public:
     MapView(const Parser& p, const YAML::Node& node, std::string where,
@@ -128,8 +118,10 @@ class Parser {
         if (!key.IsScalar()) p.fail(key, where_, "expected scalar keys");
         const std::string k = key.Scalar();
         if (std::find(allowed.begin(), allowed.end(), k) == allowed.end()) {
+          const std::string near = nearest_name(k, allowed);
           p.fail(key, where_,
-                 "unknown key '" + k + "'" + context + " (expected one of: " + join(allowed) + ")");
+                 "unknown key '" + k + "'" + context + " (expected one of: " + join(allowed) +
+                     (near.empty() ? "" : "; nearest: '" + near + "'") + ")");
         }
         if (fields_.count(k) != 0) {
           p.fail(key, where_,
@@ -146,8 +138,6 @@ class Parser {
       return where_.empty() ? key : where_ + "." + key;
     }
     const YAML::Node& node() const { return node_; }
-    const std::string& where() const { return where_; }
-    std::size_t line() const { return line_of(node_); }
     void require(const std::string& key, const std::string& what) const {
       if (!has(key)) p_.fail(node_, where_, "missing key '" + key + "' (" + what + ")");
     }
@@ -206,14 +196,6 @@ class Parser {
     return v;
   }
 
-  YawPivot pivot(const YAML::Node& n, const std::string& where) const {
-    const std::string s = scalar(n, where, "landmark, centroid or origin");
-    if (s == "landmark") return YawPivot::kLandmark;
-    if (s == "centroid") return YawPivot::kCentroid;
-    if (s != "origin") fail(n, where, "expected landmark, centroid or origin, got '" + s + "'");
-    return YawPivot::kOrigin;
-  }
-
   std::uint64_t seed(const YAML::Node& n, const std::string& where) const {
     const std::string s = scalar(n, where, "a non-negative integer seed");
     std::uint64_t v = 0;
@@ -231,11 +213,68 @@ class Parser {
     fail(n, where, "expected true or false, got '" + s + "'");
   }
 
-  double positive(const YAML::Node& n, const std::string& where, bool allow_inf = false) const {
-    const double v = number(n, where, allow_inf);
-    if (!(v > 0.0)) fail(n, where, "must be > 0, got " + shortest(v));
+  /// One of `names`: "expected a, b or c, got 'd'".
+  std::string name(const YAML::Node& n, const std::string& where,
+                   const std::vector<std::string>& names) const {
+    const std::string s = scalar(n, where, join_or(names));
+    if (std::find(names.begin(), names.end(), s) == names.end()) {
+      fail(n, where, "expected " + join_or(names) + ", got '" + s + "'");
+    }
+    return s;
+  }
+
+  /// A real within a row's bound: "must be > 0, got -1" for a positive value, "expected a number
+  /// in [0, 180] degrees, got 190" for an interval.
+  double real(const YAML::Node& n, const std::string& where, const Row& row) const {
+    const SettingBound& b = row.bound;
+    const double v = number(n, where, b.allow_inf);
+    if (b.lo == 0.0 && b.lo_open && std::isinf(b.hi)) {
+      if (!(v > 0.0)) fail(n, where, "must be > 0, got " + shortest(v));
+    } else if (std::isfinite(b.lo) || std::isfinite(b.hi)) {
+      if (!(v >= b.lo && v <= b.hi)) {
+        fail(n, where,
+             "expected a number in [" + shortest(b.lo) + ", " + shortest(b.hi) + "]" +
+                 unit_word(row.unit) + ", got " + shortest(v));
+      }
+    }
     return v;
   }
+
+  /// The value of a scalar row, read and checked against its bound.
+  SettingValue value(const Row& row, const YAML::Node& n, const std::string& where) const {
+    switch (row.kind) {
+      case Kind::kInt:
+        return integer(n, where, static_cast<long long>(row.bound.lo),
+                       static_cast<long long>(row.bound.hi));
+      case Kind::kReal:
+        return real(n, where, row);
+      case Kind::kBool:
+        return boolean(n, where);
+      case Kind::kChoice:
+        return name(n, where, row.bound.choices);
+      case Kind::kSeed:
+        return std::to_string(seed(n, where));
+      case Kind::kText:
+        return scalar(n, where, row.bound_text.empty() ? "a text" : row.bound_text);
+      case Kind::kStructure:
+        break;
+    }
+    throw Error("experiment config schema: '" + row.key + "' is not a scalar");
+  }
+
+  /// Reads the key of `row` into `target` when the mapping has it.
+  void read(const MapView& m, const Row& row, void* target) const {
+    if (m.has(row.key)) row.set(target, value(row, m.get(row.key), m.path(row.key)));
+  }
+  /// Reads every scalar row of the section (and type) that belongs to `owner`.
+  void read_rows(const MapView& m, const std::string& section, const std::string& type, Owner owner,
+                 void* target) const {
+    for (const Row* r : rows_of(section, type)) {
+      if (r->owner == owner && r->kind != Kind::kStructure && !r->custom) read(m, *r, target);
+    }
+  }
+
+  // --- structures
 
   std::vector<double> number_list(const YAML::Node& n, const std::string& where,
                                   bool non_empty = true) const {
@@ -267,16 +306,7 @@ class Parser {
     std::size_t i = 0;
     for (auto it = n.begin(); it != n.end(); ++it, ++i) {
       const std::string w = where + "[" + std::to_string(i) + "]";
-      const std::string name = scalar(*it, w, expected);
-      if (!is_preset_name(name)) {
-        std::string nearest;
-        try {
-          (void)find_preset(name);
-        } catch (const InvalidArgument& e) {
-          fail(*it, w, e.what());
-        }
-      }
-      const std::string s = find_preset(name).name;  // aliases by their name
+      const std::string s = preset_of(*it, w, expected).name;  // aliases by their name
       if (std::find(out.begin(), out.end(), s) != out.end()) {
         fail(*it, w, "strategy '" + s + "' is listed twice");
       }
@@ -285,16 +315,24 @@ class Parser {
     return out;
   }
 
+  Preset preset_of(const YAML::Node& n, const std::string& where,
+                   const std::string& expected) const {
+    const std::string name = scalar(n, where, expected);
+    try {
+      return find_preset(name);
+    } catch (const InvalidArgument& e) {
+      fail(n, where, e.what());
+    }
+  }
+
   /// settings: {STRATEGY: {KEY: VALUE}}: each key and value checked against that strategy's table.
   std::vector<std::pair<std::string, std::vector<std::pair<std::string, SettingValue>>>> settings(
       const YAML::Node& n, const std::string& where) const {
-    std::vector<std::string> names = preset_names();
-    const MapView m(*this, n, where, names);
+    const MapView m(*this, n, where, preset_names());
     std::vector<std::pair<std::string, std::vector<std::pair<std::string, SettingValue>>>> out;
     for (auto it = n.begin(); it != n.end(); ++it) {
-      const YAML::Node name = it->first;
       const YAML::Node table = it->second;
-      const std::string strategy = name.Scalar();
+      const std::string strategy = it->first.Scalar();
       const std::string w = m.path(strategy);
       if (!table.IsMap()) fail(table, w, "expected a mapping of KEY: VALUE");
       const Pipeline pipeline(find_preset(strategy).spec);
@@ -325,6 +363,27 @@ class Parser {
       out.emplace_back(strategy, std::move(values));
     }
     return out;
+  }
+
+  /// scale: MODE, or {STRATEGY: MODE}.
+  void scale(const YAML::Node& n, ExperimentConfig& c) const {
+    std::vector<std::string> modes;
+    for (const auto& m : kScaleModeNames) modes.push_back(m.name);
+    if (n.IsScalar()) {
+      c.scale = *find_enum(kScaleModeNames, name(n, "scale", modes));
+      return;
+    }
+    if (!n.IsMap())
+      fail(n, "scale", "expected " + join_or(modes) + ", or a mapping STRATEGY: MODE");
+    std::set<std::string> seen;
+    for (auto it = n.begin(); it != n.end(); ++it) {
+      const std::string w = "scale." + (it->first.IsScalar() ? it->first.Scalar() : "?");
+      const std::string strategy = preset_of(it->first, "scale", "a strategy").name;
+      if (!seen.insert(strategy).second)
+        fail(it->first, w, "strategy '" + strategy + "' is given twice");
+      c.strategy_scales.emplace_back(strategy,
+                                     *find_enum(kScaleModeNames, name(it->second, w, modes)));
+    }
   }
 
   std::string path(const YAML::Node& n, const std::string& where) const {
@@ -361,19 +420,14 @@ class Parser {
 
   Pose6 pose(const YAML::Node& n, const std::string& where,
              const std::vector<std::string>& varied) const {
-    static const std::vector<std::string> keys{"x_m",      "y_m",       "z_m",
-                                               "roll_deg", "pitch_deg", "yaw_deg"};
-    MapView m(*this, n, where, keys);
+    MapView m(*this, n, where, keys_of(kPoseSection));
     for (const std::string& v : varied) {
       if (m.has(v)) {
         fail(m.key_node(v), m.path(v), "this experiment varies " + v + "; remove it from the pose");
       }
     }
     Pose6 p;
-    double* fields[] = {&p.x_m, &p.y_m, &p.z_m, &p.roll_deg, &p.pitch_deg, &p.yaw_deg};
-    for (std::size_t i = 0; i < keys.size(); ++i) {
-      if (m.has(keys[i])) *fields[i] = number(m.get(keys[i]), m.path(keys[i]));
-    }
+    read_rows(m, kPoseSection, "", Owner::kPose, &p);
     return p;
   }
 
@@ -385,8 +439,7 @@ class Parser {
     }
     if (!n.IsMap())
       fail(n, where, "expected a map file path, or a mapping with 'map' and optionally 'frames'");
-    MapView m(*this, n, where,
-              {"map", "min_observations", "frames", "retriangulate", "min_parallax_deg"});
+    MapView m(*this, n, where, keys_of(kMapSection));
     m.require("map", "the map file");
     spec.path = path(m.get("map"), m.path("map"));
     if (m.has("frames")) {
@@ -408,23 +461,19 @@ class Parser {
         fail(m.key_node(key), m.path(key), "only applies to a frame window (add 'frames')");
       }
     }
-    if (m.has("retriangulate"))
-      spec.retriangulate = boolean(m.get("retriangulate"), m.path("retriangulate"));
-    if (m.has("min_parallax_deg")) {
-      if (!spec.retriangulate) {
-        fail(m.key_node("min_parallax_deg"), m.path("min_parallax_deg"),
-             "only applies with retriangulate: true");
-      }
-      spec.min_parallax_deg = number(m.get("min_parallax_deg"), m.path("min_parallax_deg"));
-      if (spec.min_parallax_deg < 0.0 || spec.min_parallax_deg > 180.0) {
-        fail(m.get("min_parallax_deg"), m.path("min_parallax_deg"),
-             "must be in [0, 180] degrees, got " + shortest(spec.min_parallax_deg));
-      }
+    read(m, row_of(kMapSection, "", "retriangulate"), &spec);
+    if (m.has("min_parallax_deg") && !spec.retriangulate) {
+      fail(m.key_node("min_parallax_deg"), m.path("min_parallax_deg"),
+           "only applies with retriangulate: true");
     }
+    read(m, row_of(kMapSection, "", "min_parallax_deg"), &spec);
     if (m.has("min_observations")) {
+      // At least 1 observation in a window, 2 to re-triangulate.
+      const Row& row = row_of(kMapSection, "", "min_observations");
       const long long lo = spec.retriangulate ? 2 : (spec.split ? 1 : 0);
-      spec.min_observations = static_cast<std::size_t>(
-          integer(m.get("min_observations"), m.path("min_observations"), lo, 1000000));
+      spec.min_observations =
+          static_cast<std::size_t>(integer(m.get("min_observations"), m.path("min_observations"),
+                                           lo, static_cast<long long>(row.bound.hi)));
     }
     return spec;
   }
@@ -447,6 +496,23 @@ class Parser {
     return out;
   }
 
+  /// A list of levels, each within the row's bound: "levels must be in [0, 180] degrees, got 200".
+  std::vector<double> levels(const MapView& m, const std::string& key, double lo, double hi) const {
+    const Row& row = row_of(kLevels, "", key);
+    std::vector<double> values = number_list(m.get(key), m.path(key));
+    require_distinct(m.get(key), m.path(key), values);
+    for (double v : values) {
+      if (v < lo || v > hi) {
+        fail(m.get(key), m.path(key),
+             "levels must be " +
+                 (std::isinf(hi) ? ">= " + shortest(lo)
+                                 : "in [" + shortest(lo) + ", " + shortest(hi) + "]") +
+                 unit_word(row.unit) + ", got " + shortest(v));
+      }
+    }
+    return values;
+  }
+
   ExperimentSpec experiment(const YAML::Node& n, const std::string& where,
                             const ExperimentConfig& config) const {
     ExperimentSpec e;
@@ -463,42 +529,21 @@ class Parser {
         has_type = true;
       }
     }
-    if (!has_type)
-      fail(n, where, "missing key 'type' (one of: k, yaw, xy, xy_yaw, poses, basin, random)");
+    const std::string types = enum_names(kExperimentTypeNames);
+    if (!has_type) fail(n, where, "missing key 'type' (one of: " + types + ")");
     const std::string type = scalar(tnode, where + ".type", "an experiment type");
-    std::vector<std::string> keys{"name", "type", "strategies"};
-    if (type == "k") {
-      e.type = ExperimentType::kNeighbourhood;
-      keys.insert(keys.end(), {"k_values", "pose"});
-    } else if (type == "yaw") {
-      e.type = ExperimentType::kYaw;
-      keys.insert(keys.end(), {"k", "yaw_deg", "pose"});
-    } else if (type == "xy") {
-      e.type = ExperimentType::kXy;
-      keys.insert(keys.end(), {"k", "offsets_m", "escalate", "quadrants", "pose"});
-    } else if (type == "xy_yaw") {
-      e.type = ExperimentType::kXyYaw;
-      keys.insert(keys.end(), {"k", "offset_m", "yaw_deg", "quadrants", "pose"});
-    } else if (type == "poses") {
-      e.type = ExperimentType::kPoses;
-      keys.insert(keys.end(), {"k", "poses"});
-    } else if (type == "basin") {
-      e.type = ExperimentType::kBasin;
-      keys.insert(keys.end(),
-                  {"k", "levels", "samples", "seed", "yaw_pivot", "translation_directions"});
-    } else if (type == "random") {
-      e.type = ExperimentType::kRandom;
-      keys.insert(keys.end(), {"k", "samples", "seed", "yaw_deg", "translation_m", "roll_pitch_deg",
-                               "pivot", "up_axis"});
-    } else {
+    const std::optional<ExperimentType> t = find_enum(kExperimentTypeNames, type);
+    if (!t) {
       fail(tnode, where + ".type",
-           "unknown experiment type '" + type +
-               "' (expected k, yaw, xy, xy_yaw, poses, basin or random)");
+           "unknown experiment type '" + type + "' (expected " +
+               join_or(row_of(kExperiments, "", "type").bound.choices) + ")");
     }
-    const MapView m(*this, n, where, keys, " for an experiment of type " + type);
+    e.type = *t;
+    const MapView m(*this, n, where, keys_of(kExperiments, type),
+                    " for an experiment of type " + type);
 
     m.require("name", "a unique name of letters, digits, '_', '-' or '.'");
-    e.name = scalar(m.get("name"), m.path("name"), "a name");
+    read_rows(m, kExperiments, type, Owner::kExperiment, &e);
     if (e.name.empty() || e.name.size() > 64 ||
         !std::all_of(e.name.begin(), e.name.end(), [](unsigned char c) {
           return std::isalnum(c) || c == '_' || c == '-' || c == '.';
@@ -507,7 +552,9 @@ class Parser {
            "expected 1-64 letters, digits, '_', '-' or '.', got '" + e.name + "'");
     }
     if (m.has("strategies")) e.strategies = strategies(m.get("strategies"), m.path("strategies"));
-    if (m.has("k")) e.k = static_cast<int>(integer(m.get("k"), m.path("k"), 1, kMaxK));
+    auto pose_without = [&](const std::vector<std::string>& varied) {
+      if (m.has("pose")) e.pose = pose(m.get("pose"), m.path("pose"), varied);
+    };
 
     switch (e.type) {
       case ExperimentType::kNeighbourhood: {
@@ -524,14 +571,14 @@ class Parser {
           }
           e.k_values.push_back(k);
         }
-        if (m.has("pose")) e.pose = pose(m.get("pose"), m.path("pose"), {});
+        pose_without({});
         break;
       }
       case ExperimentType::kYaw: {
         m.require("yaw_deg", "the yaws to try, degrees");
         e.yaw_deg = number_list(m.get("yaw_deg"), m.path("yaw_deg"));
         require_distinct(m.get("yaw_deg"), m.path("yaw_deg"), e.yaw_deg);
-        if (m.has("pose")) e.pose = pose(m.get("pose"), m.path("pose"), {"yaw_deg"});
+        pose_without({"yaw_deg"});
         break;
       }
       case ExperimentType::kXy: {
@@ -567,18 +614,8 @@ class Parser {
           }
         } else {
           e.escalate = true;
-          const MapView em(*this, m.get("escalate"), m.path("escalate"),
-                           {"start_m", "step_m", "max_m", "stop"});
-          if (em.has("stop")) {
-            const std::string st = scalar(em.get("stop"), em.path("stop"), "any or all");
-            if (st != "any" && st != "all")
-              fail(em.get("stop"), em.path("stop"), "expected any or all, got '" + st + "'");
-            e.escalation.stop_when_all_fail = st == "all";
-          }
-          if (em.has("start_m"))
-            e.escalation.start_m = positive(em.get("start_m"), em.path("start_m"));
-          if (em.has("step_m")) e.escalation.step_m = positive(em.get("step_m"), em.path("step_m"));
-          if (em.has("max_m")) e.escalation.max_m = positive(em.get("max_m"), em.path("max_m"));
+          const MapView em(*this, m.get("escalate"), m.path("escalate"), keys_of(kEscalate));
+          read_rows(em, kEscalate, "", Owner::kEscalation, &e.escalation);
           if (e.escalation.max_m < e.escalation.start_m) {
             fail(m.get("escalate"), m.path("escalate"),
                  "max_m (" + shortest(e.escalation.max_m) + ") < start_m (" +
@@ -591,17 +628,16 @@ class Parser {
           e.quadrants = m.has("quadrants") ? quadrants(m.get("quadrants"), m.path("quadrants"))
                                            : Quadrant::all();
         }
-        if (m.has("pose")) e.pose = pose(m.get("pose"), m.path("pose"), {"x_m", "y_m"});
+        pose_without({"x_m", "y_m"});
         break;
       }
       case ExperimentType::kXyYaw: {
         m.require("yaw_deg", "the yaws to combine with each quadrant, degrees");
         e.yaw_deg = number_list(m.get("yaw_deg"), m.path("yaw_deg"));
         require_distinct(m.get("yaw_deg"), m.path("yaw_deg"), e.yaw_deg);
-        if (m.has("offset_m")) e.offset_m = positive(m.get("offset_m"), m.path("offset_m"));
         e.quadrants = m.has("quadrants") ? quadrants(m.get("quadrants"), m.path("quadrants"))
                                          : Quadrant::all();
-        if (m.has("pose")) e.pose = pose(m.get("pose"), m.path("pose"), {"x_m", "y_m", "yaw_deg"});
+        pose_without({"x_m", "y_m", "yaw_deg"});
         break;
       }
       case ExperimentType::kPoses: {
@@ -622,35 +658,19 @@ class Parser {
         BasinSpec& b = e.basin;
         b.seed = config.seed;
         if (m.has("levels")) {
-          const MapView lm(*this, m.get("levels"), m.path("levels"), {"yaw_deg", "translation_m"});
+          const MapView lm(*this, m.get("levels"), m.path("levels"), keys_of(kLevels));
           b.yaw_levels_deg.clear();
           b.translation_levels_m.clear();
-          if (lm.has("yaw_deg")) {
-            b.yaw_levels_deg = number_list(lm.get("yaw_deg"), lm.path("yaw_deg"));
-            require_distinct(lm.get("yaw_deg"), lm.path("yaw_deg"), b.yaw_levels_deg);
-            for (double v : b.yaw_levels_deg) {
-              if (v < 0.0 || v > 180.0) {
-                fail(lm.get("yaw_deg"), lm.path("yaw_deg"),
-                     "levels must be in [0, 180] degrees, got " + shortest(v));
-              }
-            }
-          }
+          if (lm.has("yaw_deg")) b.yaw_levels_deg = levels(lm, "yaw_deg", 0.0, 180.0);
           if (lm.has("translation_m")) {
-            b.translation_levels_m = number_list(lm.get("translation_m"), lm.path("translation_m"));
-            require_distinct(lm.get("translation_m"), lm.path("translation_m"),
-                             b.translation_levels_m);
-            for (double v : b.translation_levels_m) {
-              if (v < 0.0)
-                fail(lm.get("translation_m"), lm.path("translation_m"),
-                     "levels must be >= 0 metres, got " + shortest(v));
-            }
+            b.translation_levels_m =
+                levels(lm, "translation_m", 0.0, std::numeric_limits<double>::infinity());
           }
           if (b.yaw_levels_deg.empty() && b.translation_levels_m.empty()) {
             fail(m.get("levels"), m.path("levels"), "expected yaw_deg and/or translation_m levels");
           }
         }
-        if (m.has("samples"))
-          b.samples = static_cast<int>(integer(m.get("samples"), m.path("samples"), 1, 100000));
+        read_rows(m, kExperiments, type, Owner::kBasin, &b);
         // levels x samples is unbounded otherwise (up to 2e10 cases): cap it like one list
         // (docs/robustness.md; found by fuzz_experiment_config).
         if (const std::size_t cases = (b.yaw_levels_deg.size() + b.translation_levels_m.size()) *
@@ -660,49 +680,11 @@ class Parser {
                "levels x samples = " + std::to_string(cases) + " cases, more than " +
                    std::to_string(kMaxCasesPerList));
         }
-        if (m.has("seed")) b.seed = seed(m.get("seed"), m.path("seed"));
-        if (m.has("yaw_pivot")) b.yaw_pivot = pivot(m.get("yaw_pivot"), m.path("yaw_pivot"));
-        if (m.has("translation_directions")) {
-          const std::string s = scalar(m.get("translation_directions"),
-                                       m.path("translation_directions"), "xy or xyz");
-          if (s == "xy") {
-            b.translation_directions = TranslationDirections::kXy;
-          } else if (s == "xyz") {
-            b.translation_directions = TranslationDirections::kXyz;
-          } else {
-            fail(m.get("translation_directions"), m.path("translation_directions"),
-                 "expected xy or xyz, got '" + s + "'");
-          }
-        }
         break;
       }
       case ExperimentType::kRandom: {
-        RandomStartSpec& r = e.random;
-        r.seed = config.seed;
-        if (m.has("samples"))
-          r.samples = static_cast<int>(integer(m.get("samples"), m.path("samples"), 1,
-                                               static_cast<long long>(kMaxCasesPerList)));
-        if (m.has("seed")) r.seed = seed(m.get("seed"), m.path("seed"));
-        auto bounded = [&](const char* key, double lo, double hi, const std::string& unit) {
-          const double v = number(m.get(key), m.path(key));
-          if (!(v >= lo && v <= hi))
-            fail(m.get(key), m.path(key),
-                 "expected a number in [" + shortest(lo) + ", " +
-                     (std::isinf(hi) ? std::string("inf") : shortest(hi)) + "] " + unit + ", got " +
-                     shortest(v));
-          return v;
-        };
-        if (m.has("yaw_deg")) r.yaw_deg = bounded("yaw_deg", 0.0, 180.0, "degrees");
-        if (m.has("translation_m")) r.translation_m = bounded("translation_m", 0.0, 1e6, "metres");
-        if (m.has("roll_pitch_deg"))
-          r.roll_pitch_deg = bounded("roll_pitch_deg", 0.0, 90.0, "degrees");
-        if (m.has("pivot")) r.pivot = pivot(m.get("pivot"), m.path("pivot"));
-        if (m.has("up_axis")) {
-          const std::string s = scalar(m.get("up_axis"), m.path("up_axis"), "x, y or z");
-          if (s != "x" && s != "y" && s != "z")
-            fail(m.get("up_axis"), m.path("up_axis"), "expected x, y or z, got '" + s + "'");
-          r.up_axis = parse_up_axis(s);
-        }
+        e.random.seed = config.seed;
+        read_rows(m, kExperiments, type, Owner::kRandom, &e.random);
         break;
       }
     }
@@ -716,10 +698,7 @@ class Parser {
     if (!root.IsDefined() || root.IsNull()) {
       fail_line(0, "", "empty config (expected a mapping with source, target and experiments)");
     }
-    const MapView m(*this, root, "",
-                    {"description", "source", "target", "ground_truth", "strategies", "k",
-                     "max_iterations", "max_distance_m", "settings", "covariance_norm", "success",
-                     "seed", "plot_case", "experiments"});
+    const MapView m(*this, root, "", keys_of(kTop));
     if (m.has("description")) scalar(m.get("description"), "description", "a text");
     m.require("source", "the source map: a path, or {map: PATH, frames: [FIRST, LAST]}");
     m.require("target", "the target map: a path, or {map: PATH, frames: [FIRST, LAST]}");
@@ -744,37 +723,12 @@ class Parser {
     }
     if (m.has("strategies")) c.strategies = strategies(m.get("strategies"), "strategies");
     if (m.has("settings")) c.settings = settings(m.get("settings"), "settings");
-    if (m.has("k")) c.k = static_cast<int>(integer(m.get("k"), "k", 1, kMaxK));
-    if (m.has("max_iterations")) {
-      c.max_iterations =
-          static_cast<int>(integer(m.get("max_iterations"), "max_iterations", 1, 1000000));
-    }
-    if (m.has("max_distance_m"))
-      c.max_distance_m = positive(m.get("max_distance_m"), "max_distance_m", true);
-    if (m.has("covariance_norm")) {
-      const std::string s =
-          scalar(m.get("covariance_norm"), "covariance_norm", "spectral or frobenius");
-      if (s == "spectral") {
-        c.covariance_norm = CovarianceNorm::kSpectral;
-      } else if (s == "frobenius") {
-        c.covariance_norm = CovarianceNorm::kFrobenius;
-      } else {
-        fail(m.get("covariance_norm"), "covariance_norm",
-             "expected spectral or frobenius, got '" + s + "'");
-      }
-    }
+    if (m.has("scale")) scale(m.get("scale"), c);
+    read_rows(m, kTop, "", Owner::kConfig, &c);
     if (m.has("success")) {
-      const MapView s(*this, m.get("success"), "success",
-                      {"rotation_deg", "translation_m", "score_m2"});
-      if (s.has("rotation_deg"))
-        c.success.rotation_deg = positive(s.get("rotation_deg"), s.path("rotation_deg"));
-      if (s.has("translation_m"))
-        c.success.translation_m = positive(s.get("translation_m"), s.path("translation_m"));
-      if (s.has("score_m2")) c.success.score_m2 = positive(s.get("score_m2"), s.path("score_m2"));
+      const MapView s(*this, m.get("success"), "success", keys_of(kSuccessSection));
+      read_rows(s, kSuccessSection, "", Owner::kSuccess, &c.success);
     }
-    if (m.has("seed")) c.seed = seed(m.get("seed"), "seed");
-    if (m.has("plot_case"))
-      c.plot_case = scalar(m.get("plot_case"), "plot_case", "a case index or <experiment>/<label>");
 
     const YAML::Node& ex = m.get("experiments");
     if (!ex.IsSequence() || ex.size() == 0)
@@ -829,35 +783,124 @@ void emit_quadrants(YAML::Emitter& e, const std::vector<Quadrant>& q) {
   e << YAML::EndSeq;
 }
 
+/// One scalar row's value of `source` (nothing for an optional not given).
+void emit_row(YAML::Emitter& e, const Row& row, const void* source) {
+  const std::optional<SettingValue> v = row.get(source);
+  if (!v) return;
+  e << YAML::Key << row.key << YAML::Value;
+  if (const double* d = std::get_if<double>(&*v)) {
+    emit_number(e, *d);
+  } else if (row.kind == Kind::kText) {
+    e << YAML::DoubleQuoted << std::get<std::string>(*v);
+  } else {
+    e << value_text(*v);
+  }
+}
+
+/// The rows of a section in table order: scalar rows of `owner` from `source`, the others by
+/// `structure(key)` (which writes them, or nothing).
+void emit_section(YAML::Emitter& e, const std::string& section, const std::string& type,
+                  const std::map<Owner, const void*>& sources,
+                  const std::function<void(const std::string&)>& structure) {
+  for (const Row* r : rows_of(section, type)) {
+    const auto source = sources.find(r->owner);
+    if (r->kind == Kind::kStructure || r->custom || source == sources.end()) {
+      structure(r->key);
+    } else {
+      emit_row(e, *r, source->second);
+    }
+  }
+}
+
 void emit_pose(YAML::Emitter& e, const Pose6& p, const std::vector<std::string>& skip) {
   e << YAML::Flow << YAML::BeginMap;
-  const std::pair<const char*, double> fields[] = {{"x_m", p.x_m},
-                                                   {"y_m", p.y_m},
-                                                   {"z_m", p.z_m},
-                                                   {"roll_deg", p.roll_deg},
-                                                   {"pitch_deg", p.pitch_deg},
-                                                   {"yaw_deg", p.yaw_deg}};
-  for (const auto& [key, value] : fields) {
-    if (std::find(skip.begin(), skip.end(), key) != skip.end()) continue;
-    e << YAML::Key << key << YAML::Value;
-    emit_number(e, value);
+  for (const Row* r : rows_of(kPoseSection)) {
+    if (std::find(skip.begin(), skip.end(), r->key) == skip.end()) emit_row(e, *r, &p);
   }
   e << YAML::EndMap;
 }
 
 void emit_map_spec(YAML::Emitter& e, const MapSpec& s) {
   e << YAML::BeginMap;
-  e << YAML::Key << "map" << YAML::Value << YAML::DoubleQuoted << s.path;
-  e << YAML::Key << "min_observations" << YAML::Value << s.min_observations;
-  if (s.split) {
-    e << YAML::Key << "frames" << YAML::Value << YAML::Flow << YAML::BeginSeq << s.first_frame_id
-      << s.last_frame_id << YAML::EndSeq;
-    e << YAML::Key << "retriangulate" << YAML::Value << (s.retriangulate ? "true" : "false");
-    if (s.retriangulate) {
-      e << YAML::Key << "min_parallax_deg" << YAML::Value;
-      emit_number(e, s.min_parallax_deg);
+  emit_section(e, kMapSection, "", {}, [&](const std::string& key) {
+    if (key == "map") {
+      e << YAML::Key << "map" << YAML::Value << YAML::DoubleQuoted << s.path;
+    } else if (key == "min_observations") {
+      e << YAML::Key << key << YAML::Value << s.min_observations;
+    } else if (key == "frames" && s.split) {
+      e << YAML::Key << "frames" << YAML::Value << YAML::Flow << YAML::BeginSeq << s.first_frame_id
+        << s.last_frame_id << YAML::EndSeq;
+    } else if ((key == "retriangulate" && s.split) ||
+               (key == "min_parallax_deg" && s.retriangulate)) {
+      emit_row(e, row_of(kMapSection, "", key), &s);
     }
-  }
+  });
+  e << YAML::EndMap;
+}
+
+void emit_experiment(YAML::Emitter& e, const ExperimentSpec& x) {
+  const std::string type = to_string(x.type);
+  e << YAML::BeginMap;
+  const std::map<Owner, const void*> sources{
+      {Owner::kExperiment, &x}, {Owner::kBasin, &x.basin}, {Owner::kRandom, &x.random}};
+  emit_section(e, kExperiments, type, sources, [&](const std::string& key) {
+    if (key == "type") {
+      e << YAML::Key << "type" << YAML::Value << type;
+    } else if (key == "strategies") {
+      e << YAML::Key << key << YAML::Value;
+      emit_strategies(e, x.strategies);
+    } else if (key == "k_values") {
+      e << YAML::Key << key << YAML::Value << YAML::Flow << x.k_values;
+    } else if (key == "yaw_deg") {
+      e << YAML::Key << key << YAML::Value;
+      emit_numbers(e, x.yaw_deg);
+    } else if (key == "offsets_m" && !x.escalate) {
+      e << YAML::Key << key << YAML::Value << YAML::BeginMap;
+      for (const auto& [q, offsets] : x.offsets_m) {
+        e << YAML::Key << q.name() << YAML::Value;
+        emit_numbers(e, offsets);
+      }
+      e << YAML::EndMap;
+    } else if (key == "escalate" && x.escalate) {
+      e << YAML::Key << key << YAML::Value << YAML::Flow << YAML::BeginMap;
+      emit_section(e, kEscalate, "", {{Owner::kEscalation, &x.escalation}},
+                   [](const std::string&) {});
+      e << YAML::EndMap;
+    } else if (key == "quadrants" && (x.escalate || x.type == ExperimentType::kXyYaw)) {
+      e << YAML::Key << key << YAML::Value;
+      emit_quadrants(e, x.quadrants);
+    } else if (key == "pose") {
+      e << YAML::Key << key << YAML::Value;
+      switch (x.type) {
+        case ExperimentType::kYaw:
+          emit_pose(e, x.pose, {"yaw_deg"});
+          break;
+        case ExperimentType::kXy:
+          emit_pose(e, x.pose, {"x_m", "y_m"});
+          break;
+        case ExperimentType::kXyYaw:
+          emit_pose(e, x.pose, {"x_m", "y_m", "yaw_deg"});
+          break;
+        default:
+          emit_pose(e, x.pose, {});
+      }
+    } else if (key == "poses") {
+      e << YAML::Key << key << YAML::Value << YAML::BeginSeq;
+      for (const Pose6& p : x.poses) emit_pose(e, p, {});
+      e << YAML::EndSeq;
+    } else if (key == "levels") {
+      e << YAML::Key << key << YAML::Value << YAML::BeginMap;
+      if (!x.basin.yaw_levels_deg.empty()) {
+        e << YAML::Key << "yaw_deg" << YAML::Value;
+        emit_numbers(e, x.basin.yaw_levels_deg);
+      }
+      if (!x.basin.translation_levels_m.empty()) {
+        e << YAML::Key << "translation_m" << YAML::Value;
+        emit_numbers(e, x.basin.translation_levels_m);
+      }
+      e << YAML::EndMap;
+    }
+  });
   e << YAML::EndMap;
 }
 
@@ -908,155 +951,66 @@ std::string resolved_config_yaml(const ExperimentConfig& c) {
                      ": every default filled in, every path absolute.");
   e << YAML::Newline;
   e << YAML::BeginMap;
-  e << YAML::Key << "source" << YAML::Value;
-  emit_map_spec(e, c.source);
-  e << YAML::Key << "target" << YAML::Value;
-  emit_map_spec(e, c.target);
-  e << YAML::Key << "ground_truth" << YAML::Value;
-  switch (c.ground_truth.kind) {
-    case GroundTruthSpec::Kind::kNone:
-      e << "none";
-      break;
-    case GroundTruthSpec::Kind::kIdentity:
-      e << "identity";
-      break;
-    case GroundTruthSpec::Kind::kFile:
-      e << YAML::DoubleQuoted << c.ground_truth.path;
-      break;
-  }
-  e << YAML::Key << "strategies" << YAML::Value;
-  emit_strategies(e, c.strategies);
-  e << YAML::Key << "k" << YAML::Value << c.k;
-  if (c.max_iterations) e << YAML::Key << "max_iterations" << YAML::Value << *c.max_iterations;
-  if (c.max_distance_m) {
-    e << YAML::Key << "max_distance_m" << YAML::Value;
-    emit_number(e, *c.max_distance_m);
-  }
-  if (!c.settings.empty()) {
-    e << YAML::Key << "settings" << YAML::Value << YAML::BeginMap;
-    for (const auto& [strategy, values] : c.settings) {
-      const Pipeline pipeline(find_preset(strategy).spec);
-      e << YAML::Key << strategy << YAML::Value << YAML::BeginMap;
-      for (const auto& [key, value] : values) {
-        const std::string text = pipeline.settings().row(key).text(value);
-        e << YAML::Key << key << YAML::Value;
-        if (std::holds_alternative<std::vector<double>>(value)) {
-          emit_numbers(e, std::get<std::vector<double>>(value));
-        } else if (std::holds_alternative<double>(value)) {
-          emit_number(e, std::get<double>(value));
-        } else {
-          e << text;
-        }
+  emit_section(e, kTop, "", {{Owner::kConfig, &c}}, [&](const std::string& key) {
+    if (key == "source" || key == "target") {
+      e << YAML::Key << key << YAML::Value;
+      emit_map_spec(e, key == "source" ? c.source : c.target);
+    } else if (key == "ground_truth") {
+      e << YAML::Key << key << YAML::Value;
+      switch (c.ground_truth.kind) {
+        case GroundTruthSpec::Kind::kNone:
+          e << "none";
+          break;
+        case GroundTruthSpec::Kind::kIdentity:
+          e << "identity";
+          break;
+        case GroundTruthSpec::Kind::kFile:
+          e << YAML::DoubleQuoted << c.ground_truth.path;
+          break;
       }
-      e << YAML::EndMap;
-    }
-    e << YAML::EndMap;
-  }
-  e << YAML::Key << "covariance_norm" << YAML::Value << to_string(c.covariance_norm);
-  e << YAML::Key << "success" << YAML::Value << YAML::BeginMap;
-  e << YAML::Key << "rotation_deg" << YAML::Value;
-  emit_number(e, c.success.rotation_deg);
-  e << YAML::Key << "translation_m" << YAML::Value;
-  emit_number(e, c.success.translation_m);
-  e << YAML::Key << "score_m2" << YAML::Value;
-  emit_number(e, c.success.score_m2);
-  e << YAML::EndMap;
-  e << YAML::Key << "seed" << YAML::Value << std::to_string(c.seed);
-  if (!c.plot_case.empty())
-    e << YAML::Key << "plot_case" << YAML::Value << YAML::DoubleQuoted << c.plot_case;
-  e << YAML::Key << "experiments" << YAML::Value << YAML::BeginSeq;
-  for (const ExperimentSpec& x : c.experiments) {
-    e << YAML::BeginMap;
-    e << YAML::Key << "name" << YAML::Value << x.name;
-    e << YAML::Key << "type" << YAML::Value << to_string(x.type);
-    e << YAML::Key << "strategies" << YAML::Value;
-    emit_strategies(e, x.strategies);
-    if (x.type != ExperimentType::kNeighbourhood) e << YAML::Key << "k" << YAML::Value << x.k;
-    switch (x.type) {
-      case ExperimentType::kNeighbourhood:
-        e << YAML::Key << "k_values" << YAML::Value << YAML::Flow << x.k_values;
-        e << YAML::Key << "pose" << YAML::Value;
-        emit_pose(e, x.pose, {});
-        break;
-      case ExperimentType::kYaw:
-        e << YAML::Key << "yaw_deg" << YAML::Value;
-        emit_numbers(e, x.yaw_deg);
-        e << YAML::Key << "pose" << YAML::Value;
-        emit_pose(e, x.pose, {"yaw_deg"});
-        break;
-      case ExperimentType::kXy:
-        if (x.escalate) {
-          e << YAML::Key << "escalate" << YAML::Value << YAML::Flow << YAML::BeginMap;
-          e << YAML::Key << "start_m" << YAML::Value;
-          emit_number(e, x.escalation.start_m);
-          e << YAML::Key << "step_m" << YAML::Value;
-          emit_number(e, x.escalation.step_m);
-          e << YAML::Key << "max_m" << YAML::Value;
-          emit_number(e, x.escalation.max_m);
-          e << YAML::Key << "stop" << YAML::Value
-            << (x.escalation.stop_when_all_fail ? "all" : "any");
-          e << YAML::EndMap;
-          e << YAML::Key << "quadrants" << YAML::Value;
-          emit_quadrants(e, x.quadrants);
-        } else {
-          e << YAML::Key << "offsets_m" << YAML::Value << YAML::BeginMap;
-          for (const auto& [q, offsets] : x.offsets_m) {
-            e << YAML::Key << q.name() << YAML::Value;
-            emit_numbers(e, offsets);
-          }
-          e << YAML::EndMap;
-        }
-        e << YAML::Key << "pose" << YAML::Value;
-        emit_pose(e, x.pose, {"x_m", "y_m"});
-        break;
-      case ExperimentType::kXyYaw:
-        e << YAML::Key << "offset_m" << YAML::Value;
-        emit_number(e, x.offset_m);
-        e << YAML::Key << "yaw_deg" << YAML::Value;
-        emit_numbers(e, x.yaw_deg);
-        e << YAML::Key << "quadrants" << YAML::Value;
-        emit_quadrants(e, x.quadrants);
-        e << YAML::Key << "pose" << YAML::Value;
-        emit_pose(e, x.pose, {"x_m", "y_m", "yaw_deg"});
-        break;
-      case ExperimentType::kPoses:
-        e << YAML::Key << "poses" << YAML::Value << YAML::BeginSeq;
-        for (const Pose6& p : x.poses) emit_pose(e, p, {});
-        e << YAML::EndSeq;
-        break;
-      case ExperimentType::kBasin:
-        e << YAML::Key << "levels" << YAML::Value << YAML::BeginMap;
-        if (!x.basin.yaw_levels_deg.empty()) {
-          e << YAML::Key << "yaw_deg" << YAML::Value;
-          emit_numbers(e, x.basin.yaw_levels_deg);
-        }
-        if (!x.basin.translation_levels_m.empty()) {
-          e << YAML::Key << "translation_m" << YAML::Value;
-          emit_numbers(e, x.basin.translation_levels_m);
+    } else if (key == "strategies") {
+      e << YAML::Key << key << YAML::Value;
+      emit_strategies(e, c.strategies);
+    } else if (key == "scale") {
+      e << YAML::Key << key << YAML::Value;
+      if (c.strategy_scales.empty()) {
+        e << to_string(c.scale);
+      } else {
+        e << YAML::Flow << YAML::BeginMap;
+        for (const auto& [s, mode] : c.strategy_scales) {
+          e << YAML::Key << s << YAML::Value << to_string(mode);
         }
         e << YAML::EndMap;
-        e << YAML::Key << "samples" << YAML::Value << x.basin.samples;
-        e << YAML::Key << "seed" << YAML::Value << std::to_string(x.basin.seed);
-        e << YAML::Key << "yaw_pivot" << YAML::Value << to_string(x.basin.yaw_pivot);
-        e << YAML::Key << "translation_directions" << YAML::Value
-          << to_string(x.basin.translation_directions);
-        break;
-      case ExperimentType::kRandom:
-        e << YAML::Key << "samples" << YAML::Value << x.random.samples;
-        e << YAML::Key << "seed" << YAML::Value << std::to_string(x.random.seed);
-        e << YAML::Key << "yaw_deg" << YAML::Value;
-        emit_number(e, x.random.yaw_deg);
-        e << YAML::Key << "translation_m" << YAML::Value;
-        emit_number(e, x.random.translation_m);
-        e << YAML::Key << "roll_pitch_deg" << YAML::Value;
-        emit_number(e, x.random.roll_pitch_deg);
-        e << YAML::Key << "pivot" << YAML::Value << to_string(x.random.pivot);
-        e << YAML::Key << "up_axis" << YAML::Value << to_string(x.random.up_axis);
-        break;
+      }
+    } else if (key == "settings" && !c.settings.empty()) {
+      e << YAML::Key << key << YAML::Value << YAML::BeginMap;
+      for (const auto& [strategy, values] : c.settings) {
+        const Pipeline pipeline(find_preset(strategy).spec);
+        e << YAML::Key << strategy << YAML::Value << YAML::BeginMap;
+        for (const auto& [k, value] : values) {
+          e << YAML::Key << k << YAML::Value;
+          if (std::holds_alternative<std::vector<double>>(value)) {
+            emit_numbers(e, std::get<std::vector<double>>(value));
+          } else if (std::holds_alternative<double>(value)) {
+            emit_number(e, std::get<double>(value));
+          } else {
+            e << pipeline.settings().row(k).text(value);
+          }
+        }
+        e << YAML::EndMap;
+      }
+      e << YAML::EndMap;
+    } else if (key == "success") {
+      e << YAML::Key << key << YAML::Value << YAML::BeginMap;
+      emit_section(e, kSuccessSection, "", {{Owner::kSuccess, &c.success}},
+                   [](const std::string&) {});
+      e << YAML::EndMap;
+    } else if (key == "experiments") {
+      e << YAML::Key << key << YAML::Value << YAML::BeginSeq;
+      for (const ExperimentSpec& x : c.experiments) emit_experiment(e, x);
+      e << YAML::EndSeq;
     }
-    e << YAML::EndMap;
-  }
-  e << YAML::EndSeq;
+  });
   e << YAML::EndMap;
   if (!e.good()) throw Error("resolved_config_yaml: YAML emitter error: " + e.GetLastError());
   return std::string(e.c_str()) + "\n";

@@ -130,6 +130,7 @@ AlignRequest run_request(const ExperimentConfig& config, const std::string& stra
   r.k = k;
   r.max_iterations = config.max_iterations;
   r.max_distance_m = config.max_distance_m;
+  r.scale = config.scale_of(strategy);
   for (const auto& [name, values] : config.settings) {
     if (name == strategy) r.settings = values;
   }
@@ -237,7 +238,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     const std::string& s = c.strategies[t.slot];
     const bool history = options.history_case && *options.history_case == c.index;
     // As `lmalign align` runs it: the source displaced by D, its covariances and up axis with
-    // it (C' = R_D C R_D^T), the config's k, limits and settings.
+    // it (C' = R_D C R_D^T), the config's k, limits, scale and settings.
     SourceLandmarks moved;
     moved.positions = transform_points(c.D, source_points);
     if (options.source_covariances_m2 != nullptr) {
@@ -320,7 +321,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     key += "|" + spec.initialiser + "|" + spec.matcher + "|" + spec.kernel + "|" + spec.estimator +
            "|" + spec.schedule + "|" + spec.scorer + "|" + spec.trust;
     for (const std::string& r : spec.rejectors) key += "|" + r;
-    key += "|" + q.settings().canonical_text();
+    key += "|" + q.settings().canonical_text() + "|scale=" + to_string(config.scale_of(s));
     return key;
   };
 

@@ -11,22 +11,10 @@
 
 namespace lmalign {
 
-std::string map_scale_name(MapScale scale) {
-  switch (scale) {
-    case MapScale::kMetric:
-      return "metric";
-    case MapScale::kArbitrary:
-      return "arbitrary";
-    default:
-      return "unknown";
-  }
-}
+std::string map_scale_name(MapScale scale) { return name_of(kMapScaleNames, scale); }
 
 std::optional<MapScale> map_scale_from_name(const std::string& name) {
-  for (const MapScale scale : {MapScale::kMetric, MapScale::kArbitrary, MapScale::kUnknown}) {
-    if (name == map_scale_name(scale)) return scale;
-  }
-  return std::nullopt;
+  return find_enum(kMapScaleNames, name);
 }
 
 Isometry3 Frame::T_world_camera() const {

@@ -2,28 +2,21 @@
 
 #include <cmath>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/error.hpp"
 
 namespace lmalign {
 
 std::string to_string(TerminationReason reason) {
-  switch (reason) {
-    case TerminationReason::kNotTerminated:
-      return "not_terminated";
-    case TerminationReason::kMaxIterations:
-      return "max_iterations";
-    case TerminationReason::kTransform:
-      return "transform";
-    case TerminationReason::kAbsoluteMse:
-      return "absolute_mse";
-    case TerminationReason::kRelativeMse:
-      return "relative_mse";
-    case TerminationReason::kNoCorrespondences:
-      return "no_correspondences";
-    case TerminationReason::kDegenerate:
-      return "degenerate";
-  }
-  return "?";
+  static constexpr EnumName<TerminationReason> kNames[] = {
+      {TerminationReason::kNotTerminated, "not_terminated"},
+      {TerminationReason::kMaxIterations, "max_iterations"},
+      {TerminationReason::kTransform, "transform"},
+      {TerminationReason::kAbsoluteMse, "absolute_mse"},
+      {TerminationReason::kRelativeMse, "relative_mse"},
+      {TerminationReason::kNoCorrespondences, "no_correspondences"},
+      {TerminationReason::kDegenerate, "degenerate"}};
+  return name_of(kNames, reason);
 }
 
 bool ConvergenceOptions::is_valid(std::string* why) const {

@@ -23,24 +23,9 @@ void axes(UpAxis up, int* u, int* v, int* w) {
 }
 }  // namespace
 
-std::string to_string(UpAxis axis) {
-  switch (axis) {
-    case UpAxis::kX:
-      return "x";
-    case UpAxis::kY:
-      return "y";
-    case UpAxis::kZ:
-      return "z";
-  }
-  return "?";
-}
+std::string to_string(UpAxis axis) { return name_of(kUpAxisNames, axis); }
 
-UpAxis parse_up_axis(const std::string& name) {
-  if (name == "x") return UpAxis::kX;
-  if (name == "y") return UpAxis::kY;
-  if (name == "z") return UpAxis::kZ;
-  throw InvalidArgument("unknown up axis '" + name + "' (expected x, y or z)");
-}
+UpAxis parse_up_axis(const std::string& name) { return parse_enum(kUpAxisNames, "up axis", name); }
 
 Mat3 rotation_about_up(UpAxis axis, double angle_rad) {
   int u, v, w;

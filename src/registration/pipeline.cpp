@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
@@ -116,25 +117,12 @@ bool PriorSigma::is_valid(std::string* why) const {
 }
 
 std::string to_string(Seam seam) {
-  switch (seam) {
-    case Seam::kInitialiser:
-      return "initialiser";
-    case Seam::kMatcher:
-      return "matcher";
-    case Seam::kRejector:
-      return "rejectors";
-    case Seam::kKernel:
-      return "kernel";
-    case Seam::kEstimator:
-      return "estimator";
-    case Seam::kSchedule:
-      return "schedule";
-    case Seam::kScorer:
-      return "scorer";
-    case Seam::kTrustJudge:
-      return "trust";
-  }
-  return "?";
+  static constexpr EnumName<Seam> kNames[] = {
+      {Seam::kInitialiser, "initialiser"}, {Seam::kMatcher, "matcher"},
+      {Seam::kRejector, "rejectors"},      {Seam::kKernel, "kernel"},
+      {Seam::kEstimator, "estimator"},     {Seam::kSchedule, "schedule"},
+      {Seam::kScorer, "scorer"},           {Seam::kTrustJudge, "trust"}};
+  return name_of(kNames, seam);
 }
 
 SourceLandmarks SourceLandmarks::from_map(const Map& map) {

@@ -15,27 +15,10 @@
 
 namespace lmalign {
 
-std::string to_string(RobustKernel kernel) {
-  switch (kernel) {
-    case RobustKernel::kNone:
-      return "none";
-    case RobustKernel::kHuber:
-      return "huber";
-    case RobustKernel::kCauchy:
-      return "cauchy";
-    case RobustKernel::kGemanMcClure:
-      return "geman_mcclure";
-  }
-  return "?";
-}
+std::string to_string(RobustKernel kernel) { return name_of(kRobustKernelNames, kernel); }
 
 RobustKernel parse_robust_kernel(const std::string& name) {
-  if (name == "none") return RobustKernel::kNone;
-  if (name == "huber") return RobustKernel::kHuber;
-  if (name == "cauchy") return RobustKernel::kCauchy;
-  if (name == "geman_mcclure") return RobustKernel::kGemanMcClure;
-  throw InvalidArgument("unknown robust kernel '" + name +
-                        "' (expected none, huber, cauchy or geman_mcclure)");
+  return parse_enum(kRobustKernelNames, "robust kernel", name);
 }
 
 double robust_weight(RobustKernel kernel, double residual_m, double scale_m) {

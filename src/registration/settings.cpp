@@ -403,6 +403,19 @@ bool Settings::is_valid(std::string* why) const {
   return true;
 }
 
+std::string nearest_name(const std::string& name, const std::vector<std::string>& known) {
+  std::string best;
+  std::size_t best_d = std::numeric_limits<std::size_t>::max();
+  for (const std::string& k : known) {
+    const std::size_t d = edit_distance(name, k);
+    if (d < best_d) {
+      best_d = d;
+      best = k;
+    }
+  }
+  return best_d <= std::max<std::size_t>(2, name.size() / 3 + 1) ? best : std::string();
+}
+
 std::string Settings::nearest_key(const std::string& key) const {
   std::string best;
   std::size_t best_d = std::numeric_limits<std::size_t>::max();

@@ -12,25 +12,10 @@
 
 namespace lmalign {
 
-namespace {}  // namespace
-
-std::string to_string(ScaleMode mode) {
-  switch (mode) {
-    case ScaleMode::kAuto:
-      return "auto";
-    case ScaleMode::kFree:
-      return "free";
-    case ScaleMode::kFixed:
-      return "fixed";
-  }
-  return "auto";
-}
+std::string to_string(ScaleMode mode) { return name_of(kScaleModeNames, mode); }
 
 ScaleMode parse_scale_mode(const std::string& name) {
-  if (name == "auto") return ScaleMode::kAuto;
-  if (name == "free") return ScaleMode::kFree;
-  if (name == "fixed") return ScaleMode::kFixed;
-  throw InvalidArgument("scale '" + name + "': expected auto, free or fixed");
+  return parse_enum(kScaleModeNames, "scale mode", name);
 }
 
 ScaleMode resolve_scale_mode(ScaleMode mode, bool source_metric, bool target_metric) {

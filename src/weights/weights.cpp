@@ -67,37 +67,16 @@ std::vector<WeightKind> all_weight_kinds() {
           WeightKind::kMeanDistance};
 }
 
-std::string to_string(WeightKind kind) {
-  switch (kind) {
-    case WeightKind::kUniform:
-      return "uniform";
-    case WeightKind::kCovariance:
-      return "covariance";
-    case WeightKind::kObservations:
-      return "observations";
-    case WeightKind::kMeanDistance:
-      return "distance";
-  }
-  return "?";
-}
+std::string to_string(WeightKind kind) { return name_of(kWeightKindNames, kind); }
 
 WeightKind parse_weight_kind(const std::string& name) {
-  if (name == "uniform" || name == "none") return WeightKind::kUniform;
-  if (name == "covariance") return WeightKind::kCovariance;
-  if (name == "observations") return WeightKind::kObservations;
-  if (name == "distance" || name == "mean_distance") return WeightKind::kMeanDistance;
-  throw InvalidArgument("unknown weight '" + name +
-                        "' (expected uniform|none, covariance, observations, distance)");
+  return parse_enum(kWeightKindNames, "weight", name);
 }
 
-std::string to_string(CovarianceNorm norm) {
-  return norm == CovarianceNorm::kSpectral ? "spectral" : "frobenius";
-}
+std::string to_string(CovarianceNorm norm) { return name_of(kCovarianceNormNames, norm); }
 
 CovarianceNorm parse_covariance_norm(const std::string& name) {
-  if (name == "spectral") return CovarianceNorm::kSpectral;
-  if (name == "frobenius") return CovarianceNorm::kFrobenius;
-  throw InvalidArgument("unknown covariance norm '" + name + "' (expected spectral, frobenius)");
+  return parse_enum(kCovarianceNormNames, "covariance norm", name);
 }
 
 }  // namespace lmalign

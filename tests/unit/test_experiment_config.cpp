@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -11,6 +12,8 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/experiment/cases.hpp"
 #include "lmalign/experiment/config.hpp"
+#include "lmalign/experiment/runner.hpp"
+#include "support/synthetic_scene.hpp"
 
 namespace lmalign {
 namespace {
@@ -269,6 +272,114 @@ experiments:
   } catch (const InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("'four'"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("one, two, three"), std::string::npos);
+  }
+}
+
+// --- the schema as one table: scale, the nearest key, the table itself, the project's configs
+
+const std::string kSchemaHead = "source: a.txt\ntarget: b.txt\nstrategies: [base, observations]\n";
+const std::string kYawExperiment = "experiments: [{name: e, type: yaw, yaw_deg: [0]}]\n";
+
+TEST(ExperimentSchema, ScaleIsGivenPerRunOrPerStrategyAndReachesTheRequest) {
+  const ExperimentConfig none = parse(kSchemaHead + kYawExperiment);
+  EXPECT_EQ(none.scale, ScaleMode::kAuto);
+  EXPECT_EQ(run_request(none, "base", 5).scale, ScaleMode::kAuto);
+
+  const ExperimentConfig all = parse(kSchemaHead + "scale: free\n" + kYawExperiment);
+  EXPECT_EQ(run_request(all, "base", 5).scale, ScaleMode::kFree);
+  EXPECT_EQ(run_request(all, "observations", 5).scale, ScaleMode::kFree);
+
+  const ExperimentConfig each =
+      parse(kSchemaHead + "scale: {observations: fixed, base: free}\n" + kYawExperiment);
+  EXPECT_EQ(run_request(each, "base", 5).scale, ScaleMode::kFree);
+  EXPECT_EQ(run_request(each, "observations", 5).scale, ScaleMode::kFixed);
+  EXPECT_EQ(run_request(each, "covariance", 5).scale, ScaleMode::kAuto);
+
+  // The resolved config keeps it.
+  for (const ExperimentConfig* c : {&all, &each}) {
+    const ExperimentConfig r = parse(resolved_config_yaml(*c));
+    for (const char* s : {"base", "observations", "covariance"}) {
+      EXPECT_EQ(r.scale_of(s), c->scale_of(s)) << s;
+    }
+  }
+
+  EXPECT_EQ(error_of(kSchemaHead + "scale: metric\n" + kYawExperiment)
+                .rfind("cfg.yaml:4: scale: expected auto, free or fixed, got 'metric'", 0),
+            0u);
+  EXPECT_EQ(error_of(kSchemaHead + "scale: {bse: free}\n" + kYawExperiment)
+                .rfind("cfg.yaml:4: scale: unknown strategy 'bse' (nearest: 'base')", 0),
+            0u);
+  EXPECT_EQ(error_of(kSchemaHead + "scale: {base: free, base: fixed}\n" + kYawExperiment)
+                .rfind("cfg.yaml:4: scale.base: strategy 'base' is given twice", 0),
+            0u);
+  EXPECT_EQ(error_of(kSchemaHead + "scale: [free]\n" + kYawExperiment)
+                .rfind("cfg.yaml:4: scale: expected auto, free or fixed, or a mapping", 0),
+            0u);
+}
+
+TEST(ExperimentSchema, AnUnknownKeyNamesTheNearestKnownOne) {
+  const std::string e = error_of(kSchemaHead + "strategis: [base]\n" + kYawExperiment);
+  EXPECT_EQ(e.rfind("cfg.yaml:4: unknown key 'strategis' (expected one of: description", 0), 0u)
+      << e;
+  EXPECT_NE(e.find("; nearest: 'strategies')"), std::string::npos) << e;
+  const std::string x =
+      error_of(kSchemaHead + "experiments: [{name: e, type: random, pivto: origin}]\n");
+  EXPECT_NE(x.find("unknown key 'pivto' for an experiment of type random"), std::string::npos);
+  EXPECT_NE(x.find("nearest: 'pivot'"), std::string::npos) << x;
+  // Far from every key: no nearest.
+  EXPECT_EQ(error_of(kSchemaHead + "zzzzzzzz: 1\n" + kYawExperiment).find("nearest"),
+            std::string::npos);
+}
+
+TEST(ExperimentSchema, EveryKeyOfTheTableIsDocumentedAndUnique) {
+  std::set<std::string> seen;
+  for (const ExperimentConfigKey& k : experiment_config_schema()) {
+    EXPECT_FALSE(k.doc.empty()) << k.key;
+    EXPECT_FALSE(k.value.empty()) << k.key;
+    EXPECT_FALSE(k.bound.empty()) << k.key;
+    // A key appears once per section and experiment type.
+    EXPECT_TRUE(seen.insert(k.section + "/" + k.types + "/" + k.key).second) << k.key;
+  }
+  // The defaults shown are the structs' own.
+  const auto value_of = [](const std::string& section, const std::string& key) {
+    for (const ExperimentConfigKey& k : experiment_config_schema()) {
+      if (k.section == section && k.key == key) return k.value;
+    }
+    return std::string("missing");
+  };
+  EXPECT_EQ(value_of("", "k"), "5");
+  EXPECT_EQ(value_of("success", "score_m2"), "0.0037");
+  EXPECT_EQ(value_of("experiments[].escalate", "stop"), "any");
+  EXPECT_EQ(value_of("", "covariance_norm"), "spectral");
+}
+
+TEST(ExperimentSchema, TheProjectsConfigsParseAndResolveToThemselves) {
+  const std::filesystem::path root = std::filesystem::path(__FILE__).parent_path() / "../..";
+  // (bench/accuracy.yaml is the benchmark's own file: bench/run_accuracy.py writes experiment
+  // configs from it.)
+  std::vector<std::filesystem::path> files;
+  for (const auto& f : std::filesystem::directory_iterator(root / "configs")) {
+    // configs/merge_*.yaml are merge manifests (docs/merge.md), not experiment configs.
+    const std::string name = f.path().filename().string();
+    if (f.path().extension() == ".yaml" && name.rfind("merge_", 0) != 0) files.push_back(f.path());
+  }
+  ASSERT_GE(files.size(), 5u);
+  ConfigLoadOptions o;
+  o.data_dir = "/data";
+  for (const auto& f : files) {
+    SCOPED_TRACE(f.string());
+    const ExperimentConfig c = load_experiment_config(f.string(), o);
+    const std::string yaml = resolved_config_yaml(c);
+    const ExperimentConfig r = parse_experiment_config(yaml, "resolved.yaml", "/elsewhere", o);
+    const auto body = [](const std::string& text) { return text.substr(text.find('\n')); };
+    EXPECT_EQ(body(resolved_config_yaml(r)), body(yaml));
+    const Points3 points = test::room_points(50, 1);
+    const std::vector<Case> a = expand_cases(c, points), b = expand_cases(r, points);
+    ASSERT_EQ(a.size(), b.size());
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      EXPECT_EQ(a[i].id(), b[i].id());
+      EXPECT_TRUE(a[i].D.isApprox(b[i].D, 0.0)) << a[i].id();
+    }
   }
 }
 

@@ -482,5 +482,28 @@ TEST(ExperimentRunner, PresetsRunWithTheSourceCovariancesAndTheConfigsSettingsAn
   EXPECT_THROW(run_cases(c, cases, pair().source, target(), pair().T_true, opt), InvalidArgument);
 }
 
+TEST(ExperimentRunner, ScaleFreeRecoversAScaledSourceWhereFixedCannot) {
+  // The source: the target's landmarks shrunk by 0.8 about the origin (a map with its own scale).
+  const Points3 pts = test::room_points(1200, 11);
+  const Map target_map = test::map_from_points(pts, 12);
+  const PreparedTarget target(target_map);
+  Points3 source;
+  for (const Vec3& p : pts) source.push_back(0.8 * p);
+  const auto run = [&](const std::string& scale) {
+    const ExperimentConfig c = config(
+        "  - {name: e, type: yaw, yaw_deg: [0], strategies: [base]}\n", "scale: " + scale + "\n");
+    RunnerOptions opt;
+    opt.threads = 1;
+    const RunnerOutcome o =
+        run_cases(c, expand_cases(c, source), source, target, Isometry3::Identity(), opt);
+    EXPECT_EQ(o.records.size(), 1u);
+    return o.records.at(0);
+  };
+  const RunRecord free = run("free");
+  const RunRecord fixed = run("fixed");
+  EXPECT_LT(free.final_score_m2, 1e-6);
+  EXPECT_GT(fixed.final_score_m2, 100 * free.final_score_m2);
+}
+
 }  // namespace
 }  // namespace lmalign

@@ -15,6 +15,7 @@
 #include "lmalign/registration/estimation_4dof.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/settings.hpp"
+#include "lmalign/registration/similarity.hpp"
 #include "lmalign/weights/weights.hpp"
 
 namespace lmalign {
@@ -208,6 +209,11 @@ struct ExperimentConfig {
   /// unlimited distance).
   std::optional<int> max_iterations;
   std::optional<double> max_distance_m;
+  /// Whether the strategies estimate the scale too, as `lmalign align --scale` (AlignRequest::
+  /// scale, docs/scale.md): `scale: MODE` for every strategy, or `scale: {STRATEGY: MODE}` per
+  /// strategy (the others keep `scale`, auto).
+  ScaleMode scale = ScaleMode::kAuto;
+  std::vector<std::pair<std::string, ScaleMode>> strategy_scales;
   /// Settings per strategy (`settings: {STRATEGY: {KEY: VALUE}}`), checked against that
   /// strategy's table when the config is read.
   std::vector<std::pair<std::string, std::vector<std::pair<std::string, SettingValue>>>> settings;
@@ -221,7 +227,34 @@ struct ExperimentConfig {
   std::vector<ExperimentSpec> experiments;
 
   bool has_ground_truth() const { return ground_truth.kind != GroundTruthSpec::Kind::kNone; }
+  /// The scale mode of `strategy`: its entry of strategy_scales, else `scale`.
+  ScaleMode scale_of(const std::string& strategy) const;
 };
+
+/// One key of the experiment config's schema, as docs/settings.md prints it. The same table
+/// drives the reading (which keys a mapping accepts, the bound of each value and the message
+/// naming the key, the value and the bound) and resolved_config_yaml().
+struct ExperimentConfigKey {
+  /// Where the key is written: "" (the top level), "source, target", "success",
+  /// "experiments[]", "experiments[].escalate", "experiments[].levels", "pose".
+  std::string section;
+  /// experiments[] keys: the experiment types that take it, separated by spaces ("" = every).
+  std::string types;
+  std::string key;
+  std::string member;  ///< the C++ member it fills, e.g. "SuccessCriteria::rotation_deg"
+  std::string value;   ///< the default, as text ("required" for a required key)
+  std::string bound;   ///< what a value may be: "[1, 4096]", "one of x, y, z", "a list of ..."
+  std::string unit;    ///< "m", "deg", "m^2", "1", "count" ("" for a structure)
+  std::string doc;     ///< one sentence
+};
+/// Every key of the experiment config, section by section, in the order resolved_config_yaml()
+/// writes them.
+std::vector<ExperimentConfigKey> experiment_config_schema();
+
+/// docs/settings.md: every preset's settings (key, value, unit, bound, doc) and the experiment
+/// config's keys, as Markdown (`lmalign options --markdown` prints it; a test compares it with
+/// the file).
+std::string settings_reference_markdown();
 
 struct ConfigLoadOptions {
   /// What "${LMALIGN_DATA}" in a path expands to. Empty: a path that uses it is an error

@@ -12,6 +12,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/map/camera_model.hpp"
 
@@ -68,6 +69,9 @@ enum class MapScale {
   /// The file does not say (a point cloud from another tool).
   kUnknown,
 };
+inline constexpr EnumName<MapScale> kMapScaleNames[] = {{MapScale::kMetric, "metric"},
+                                                        {MapScale::kArbitrary, "arbitrary"},
+                                                        {MapScale::kUnknown, "unknown"}};
 
 /// "metric", "arbitrary", "unknown".
 std::string map_scale_name(MapScale scale);

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/correspondence.hpp"
 
@@ -12,8 +13,10 @@ namespace lmalign {
 
 /// Which map axis points up (against gravity). Both maps must share it.
 enum class UpAxis { kX, kY, kZ };
+inline constexpr EnumName<UpAxis> kUpAxisNames[] = {
+    {UpAxis::kX, "x"}, {UpAxis::kY, "y"}, {UpAxis::kZ, "z"}};
 std::string to_string(UpAxis axis);  ///< "x", "y", "z"
-/// Inverse of to_string. Throws InvalidArgument.
+/// Inverse of to_string. Throws InvalidArgument "unknown up axis 'NAME' (known: x, y, z)".
 UpAxis parse_up_axis(const std::string& name);
 
 /// The rotation by `angle_rad` about `axis` (right-handed), built entrywise so that the up row

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/correspondence.hpp"
 #include "lmalign/registration/estimation_4dof.hpp"
@@ -30,6 +31,11 @@ namespace lmalign {
 /// - kCauchy: 1 / (1 + (r/c)^2)
 /// - kGemanMcClure: 1 / (1 + (r/c)^2)^2
 enum class RobustKernel { kNone, kHuber, kCauchy, kGemanMcClure };
+inline constexpr EnumName<RobustKernel> kRobustKernelNames[] = {
+    {RobustKernel::kNone, "none"},
+    {RobustKernel::kHuber, "huber"},
+    {RobustKernel::kCauchy, "cauchy"},
+    {RobustKernel::kGemanMcClure, "geman_mcclure"}};
 std::string to_string(RobustKernel kernel);  ///< "none", "huber", "cauchy", "geman_mcclure"
 /// Inverse of to_string. Throws InvalidArgument listing the names.
 RobustKernel parse_robust_kernel(const std::string& name);

@@ -71,6 +71,9 @@ struct SettingRow {
 /// The Levenshtein distance between two names (insertions, deletions, substitutions), for the
 /// nearest known key or preset named in refusals.
 std::size_t edit_distance(const std::string& a, const std::string& b);
+/// The name of `known` closest to `name` by edit_distance, when it is close (at most a third of
+/// the name, and at least 2 edits, away); else empty.
+std::string nearest_name(const std::string& name, const std::vector<std::string>& known);
 
 /// Row helpers (the stages' tables are lists of these).
 SettingRow bool_setting(std::string key, std::string member, bool value, std::string doc);

@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/similarity.hpp"
 #include "lmalign/core/types.hpp"
 
@@ -30,9 +31,12 @@ using Mat7 = Eigen::Matrix<double, 7, 7>;
 /// Whether an alignment estimates the scale. kAuto: free when either map has no metric scale
 /// (its header says arbitrary or unknown), fixed otherwise.
 enum class ScaleMode { kAuto, kFree, kFixed };
+inline constexpr EnumName<ScaleMode> kScaleModeNames[] = {
+    {ScaleMode::kAuto, "auto"}, {ScaleMode::kFree, "free"}, {ScaleMode::kFixed, "fixed"}};
 /// "auto", "free", "fixed".
 std::string to_string(ScaleMode mode);
-/// The mode of a name above; throws InvalidArgument naming the value and the known names.
+/// The mode of a name above; throws InvalidArgument "unknown scale mode 'NAME' (known: auto,
+/// free, fixed)".
 ScaleMode parse_scale_mode(const std::string& name);
 /// kFree or kFixed: auto resolved from whether each map's lengths are metres.
 ScaleMode resolve_scale_mode(ScaleMode mode, bool source_metric, bool target_metric);

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/map/map.hpp"
 
 namespace lmalign {
@@ -15,10 +16,20 @@ enum class WeightKind {
   kObservations,  ///< Eq. 2: w = n, the number of observations.
   kMeanDistance,  ///< Eqs. 3-4: w = 1 / (1 + D), D = mean distance to the observing cameras (m).
 };
+/// The names of each kind (the first is to_string's; "none" and "mean_distance" are aliases).
+inline constexpr EnumName<WeightKind> kWeightKindNames[] = {
+    {WeightKind::kUniform, "uniform"},
+    {WeightKind::kCovariance, "covariance"},
+    {WeightKind::kObservations, "observations"},
+    {WeightKind::kMeanDistance, "distance"},
+    {WeightKind::kUniform, "none"},
+    {WeightKind::kMeanDistance, "mean_distance"}};
 
 /// Which matrix norm Eq. 1 uses. The paper says "L2" (spectral: largest singular value); the
 /// authors' code called MRPT's .norm(), the Frobenius norm. On the real map they agree to 3e-4.
 enum class CovarianceNorm { kSpectral, kFrobenius };
+inline constexpr EnumName<CovarianceNorm> kCovarianceNormNames[] = {
+    {CovarianceNorm::kSpectral, "spectral"}, {CovarianceNorm::kFrobenius, "frobenius"}};
 
 struct WeightOptions {
   CovarianceNorm covariance_norm = CovarianceNorm::kSpectral;
