@@ -144,9 +144,23 @@ std::vector<Preset> strategies_of(const AlignArgs& a) {
   return out;
 }
 
-int run_align(const AlignArgs& a) {
+/// Everything `lmalign align` checks before reading a map: the strategies, one request each,
+/// the displacement, the weights and the ground truth. Throws InvalidArgument (one line naming
+/// the option) or what reading the truth and guess files throws.
+struct AlignPlan {
+  std::vector<Preset> strategies;
+  std::vector<AlignRequest> requests;
+  WeightOptions wopt;
+  Isometry3 T_displace = Isometry3::Identity();
+  std::vector<double> disp;         // the --displace numbers, empty without it
+  std::optional<Similarity3> T_gt;  // ground truth for the undisplaced source
+};
+
+AlignPlan plan_align(const AlignArgs& a) {
+  AlignPlan plan;
   // --- validate everything before any work, so bad input fails fast with one line.
-  const std::vector<Preset> strategies = strategies_of(a);
+  plan.strategies = strategies_of(a);
+  const std::vector<Preset>& strategies = plan.strategies;
   AlignRequest request;
   if (a.max_iterations_given) request.max_iterations = a.max_iterations;
   if (a.max_distance_given) {
@@ -170,7 +184,7 @@ int run_align(const AlignArgs& a) {
   }
   // --set values are text: each strategy reads them by its own table (and refuses unknown keys,
   // or values outside their bounds, before any map is read).
-  std::vector<AlignRequest> requests;
+  std::vector<AlignRequest>& requests = plan.requests;
   for (const Preset& p : strategies) {
     AlignRequest r = request;
     const Pipeline base(p.spec);
@@ -185,10 +199,10 @@ int run_align(const AlignArgs& a) {
     requests.push_back(r);
   }
 
-  WeightOptions wopt;
+  WeightOptions& wopt = plan.wopt;
   wopt.covariance_norm = parse_covariance_norm(a.covariance_norm);
-  Isometry3 T_displace = Isometry3::Identity();
-  std::vector<double> disp;
+  Isometry3& T_displace = plan.T_displace;
+  std::vector<double>& disp = plan.disp;
   if (!a.displace.empty()) {
     disp = parse_number_list("--displace", a.displace, 6,
                              "x,y,z,roll,pitch,yaw (m, m, m, deg, deg, deg)");
@@ -239,7 +253,7 @@ int run_align(const AlignArgs& a) {
     for (AlignRequest& r : requests) r.initial_guess = guess;
   }
 
-  std::optional<Similarity3> T_gt;  // ground truth for the undisplaced source
+  std::optional<Similarity3>& T_gt = plan.T_gt;
   if (a.ground_truth == "identity") {
     T_gt = Similarity3{};
   } else if (!a.ground_truth.empty()) {
@@ -247,85 +261,24 @@ int run_align(const AlignArgs& a) {
     check_supported_translation("--ground-truth " + a.ground_truth, T_gt->rigid.translation());
   }
 
-  MapReadOptions ropt;
-  ropt.min_observations = a.min_observations;
-  AnyMapReadOptions any(ropt, parse_map_format(a.format));
-  if (!a.image_size.empty()) any.image_size_px = parse_image_size(a.image_size);
-  const Map source = read_any_map(a.source, any);
-  const Map target = read_any_map(a.target, any);
-  if (source.landmarks.empty())
-    throw InvalidArgument("source map '" + a.source +
-                          "' has no landmarks (after the --min-observations filter)");
-  if (target.landmarks.empty())
-    throw InvalidArgument("target map '" + a.target +
-                          "' has no landmarks (after the --min-observations filter)");
+  return plan;
+}
 
-  // The paper displaces the source about the world origin, then starts ICP at the identity. Its
-  // covariances and up axis move with it (C' = R C R^T).
-  SourceLandmarks src;
-  src.positions = transform_points(T_displace, source.positions());
-  src.covariances_m2 = transform_covariances(T_displace, source.covariances_m2());
-  if (const std::optional<Vec3> up = estimate_up_axis(source)) src.up = T_displace.linear() * *up;
-  // Truth for the displaced source. Errors are measured on the recovered map-to-map transform
-  // T_est * T_displace against T_gt, so they do not depend on the artificial displacement.
-  std::optional<Similarity3> T_true;
-  const Similarity3 S_displace{1.0, T_displace};
-  if (T_gt) T_true = *T_gt * S_displace.inverse();
-
-  const PreparedTarget prepared(target, wopt);
-  for (AlignRequest& r : requests) r.describe_maps(source.header, target.header);
-
-  std::printf("lmalign align: source %s (%zu landmarks) -> target %s (%zu landmarks)\n",
-              a.source.c_str(), source.landmarks.size(), a.target.c_str(), target.landmarks.size());
-  for (const auto& [role, map] : {std::pair<const char*, const Map*>{"source", &source},
-                                  std::pair<const char*, const Map*>{"target", &target}}) {
-    if (map->header.covariance_assumed) {
-      std::printf(
-          "%s: covariances assumed (the map stores none): isotropic, half the median distance to "
-          "the 6 nearest landmarks\n",
-          role);
-    }
-  }
-  if (!disp.empty()) {
-    std::printf(
-        "source displaced about the world origin by x=%g y=%g z=%g m, roll=%g pitch=%g yaw=%g "
-        "deg\n",
-        disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
-  }
-  std::printf(
-      "k=%d (weighted kNN), covariance norm=%s; limits: %s; settings: %s\n", a.k,
-      a.covariance_norm.c_str(),
-      a.max_iterations_given || a.max_distance_given
-          ? ("max iterations " + (a.max_iterations_given ? std::to_string(a.max_iterations) : "-") +
-             ", max distance " +
-             (a.max_distance_given ? message_number(a.max_distance_m) + " m" : "-"))
-                .c_str()
-          : "the strategies' own",
-      a.settings.empty() ? "the strategies' own" : join(a.settings).c_str());
-  if (T_true) {
-    std::printf(
-        "ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
-        a.ground_truth.c_str(), a.success_rotation_deg, a.success_translation_m);
-  }
-  std::printf("\n");
-
+/// The maps read, the runs made, and what their report needs.
+struct AlignOutcome {
+  Map source;
+  Map target;
+  Similarity3 S_displace;
+  std::optional<Similarity3> T_true;  // truth for the displaced source
   std::vector<Run> runs;
-  for (std::size_t i = 0; i < strategies.size(); ++i) {
-    Run run;
-    run.preset = strategies[i];
-    run.summary = align(strategies[i], src.view(), prepared, requests[i]);
-    if (T_true) {
-      run.error = similarity_error(run.summary.similarity() * S_displace, *T_gt);
-      run.right_basin = run.error->rotation_deg < a.success_rotation_deg &&
-                        run.error->translation_m < a.success_translation_m;
-    }
-    runs.push_back(std::move(run));
-  }
+  bool scale_columns = false;  // any run estimated the scale, or the truth has one
+};
 
-  // The scale's columns when any run estimated it or the truth has one.
-  bool scale_columns = T_gt && T_gt->scale != 1.0;
-  for (const Run& r : runs) scale_columns = scale_columns || r.summary.scale.free;
-
+/// The human report on stdout: the table, the trust reasons and the transforms.
+void print_table(const AlignArgs& a, const AlignOutcome& o) {
+  const std::vector<Run>& runs = o.runs;
+  const std::optional<Similarity3>& T_true = o.T_true;
+  const bool scale_columns = o.scale_columns;
   // --- human table
   std::printf("%-17s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score",
               "iters", "termination", "time ms");
@@ -379,7 +332,18 @@ int run_align(const AlignArgs& a) {
         "scale: target units per source unit (p_target = scale * R * p_source + t); the rows "
         "above are R and t\n");
   }
+}
 
+/// The aligned source maps (--aligned-out) and the JSON (--json), each written atomically.
+void write_outputs(const AlignArgs& a, const AlignPlan& plan, const AlignOutcome& o) {
+  const std::vector<Run>& runs = o.runs;
+  const std::optional<Similarity3>& T_true = o.T_true;
+  const bool scale_columns = o.scale_columns;
+  const Map& source = o.source;
+  const Map& target = o.target;
+  const Isometry3& T_displace = plan.T_displace;
+  const Similarity3& S_displace = o.S_displace;
+  const std::vector<double>& disp = plan.disp;
   // --- machine-readable outputs
   if (!a.ply_path.empty()) {
     for (const Run& r : runs) {
@@ -456,6 +420,100 @@ int run_align(const AlignArgs& a) {
     });
     std::printf("JSON written to %s\n", a.json_path.c_str());
   }
+}
+
+int run_align(const AlignArgs& a) {
+  // --- validate everything before any work, so bad input fails fast with one line.
+  AlignPlan plan = plan_align(a);
+  const std::vector<Preset>& strategies = plan.strategies;
+  const std::vector<double>& disp = plan.disp;
+  const Isometry3& T_displace = plan.T_displace;
+  const std::optional<Similarity3>& T_gt = plan.T_gt;
+  AlignOutcome o;
+  MapReadOptions ropt;
+  ropt.min_observations = a.min_observations;
+  AnyMapReadOptions any(ropt, parse_map_format(a.format));
+  if (!a.image_size.empty()) any.image_size_px = parse_image_size(a.image_size);
+  o.source = read_any_map(a.source, any);
+  o.target = read_any_map(a.target, any);
+  const Map& source = o.source;
+  const Map& target = o.target;
+  if (source.landmarks.empty())
+    throw InvalidArgument("source map '" + a.source +
+                          "' has no landmarks (after the --min-observations filter)");
+  if (target.landmarks.empty())
+    throw InvalidArgument("target map '" + a.target +
+                          "' has no landmarks (after the --min-observations filter)");
+
+  // The paper displaces the source about the world origin, then starts ICP at the identity. Its
+  // covariances and up axis move with it (C' = R C R^T).
+  SourceLandmarks src;
+  src.positions = transform_points(T_displace, source.positions());
+  src.covariances_m2 = transform_covariances(T_displace, source.covariances_m2());
+  if (const std::optional<Vec3> up = estimate_up_axis(source)) src.up = T_displace.linear() * *up;
+  // Truth for the displaced source. Errors are measured on the recovered map-to-map transform
+  // T_est * T_displace against T_gt, so they do not depend on the artificial displacement.
+  o.S_displace = Similarity3{1.0, T_displace};
+  const Similarity3& S_displace = o.S_displace;
+  if (T_gt) o.T_true = *T_gt * S_displace.inverse();
+  const std::optional<Similarity3>& T_true = o.T_true;
+
+  const PreparedTarget prepared(target, plan.wopt);
+  for (AlignRequest& r : plan.requests) r.describe_maps(source.header, target.header);
+
+  std::printf("lmalign align: source %s (%zu landmarks) -> target %s (%zu landmarks)\n",
+              a.source.c_str(), source.landmarks.size(), a.target.c_str(), target.landmarks.size());
+  for (const auto& [role, map] : {std::pair<const char*, const Map*>{"source", &source},
+                                  std::pair<const char*, const Map*>{"target", &target}}) {
+    if (map->header.covariance_assumed) {
+      std::printf(
+          "%s: covariances assumed (the map stores none): isotropic, half the median distance to "
+          "the 6 nearest landmarks\n",
+          role);
+    }
+  }
+  if (!disp.empty()) {
+    std::printf(
+        "source displaced about the world origin by x=%g y=%g z=%g m, roll=%g pitch=%g yaw=%g "
+        "deg\n",
+        disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
+  }
+  std::printf(
+      "k=%d (weighted kNN), covariance norm=%s; limits: %s; settings: %s\n", a.k,
+      a.covariance_norm.c_str(),
+      a.max_iterations_given || a.max_distance_given
+          ? ("max iterations " + (a.max_iterations_given ? std::to_string(a.max_iterations) : "-") +
+             ", max distance " +
+             (a.max_distance_given ? message_number(a.max_distance_m) + " m" : "-"))
+                .c_str()
+          : "the strategies' own",
+      a.settings.empty() ? "the strategies' own" : join(a.settings).c_str());
+  if (T_true) {
+    std::printf(
+        "ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
+        a.ground_truth.c_str(), a.success_rotation_deg, a.success_translation_m);
+  }
+  std::printf("\n");
+
+  std::vector<Run>& runs = o.runs;
+  for (std::size_t i = 0; i < strategies.size(); ++i) {
+    Run run;
+    run.preset = strategies[i];
+    run.summary = align(strategies[i], src.view(), prepared, plan.requests[i]);
+    if (T_true) {
+      run.error = similarity_error(run.summary.similarity() * S_displace, *T_gt);
+      run.right_basin = run.error->rotation_deg < a.success_rotation_deg &&
+                        run.error->translation_m < a.success_translation_m;
+    }
+    runs.push_back(std::move(run));
+  }
+
+  // The scale's columns when any run estimated it or the truth has one.
+  o.scale_columns = T_gt && T_gt->scale != 1.0;
+  for (const Run& r : runs) o.scale_columns = o.scale_columns || r.summary.scale.free;
+
+  print_table(a, o);
+  write_outputs(a, plan, o);
   return 0;
 }
 
