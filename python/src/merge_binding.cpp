@@ -58,14 +58,6 @@ Mat6 covariance_from(const py::handle& obj, const char* name) {
   return c;
 }
 
-std::vector<Isometry3> transforms_from(const py::handle& obj, const char* name, std::size_t n) {
-  const Array a = as_array(obj, name, {-1, 4, 4}, "(N, 4, 4) with N the number of maps",
-                           static_cast<py::ssize_t>(n));
-  std::vector<Isometry3> out;
-  for (py::ssize_t i = 0; i < a.shape(0); ++i) out.push_back(transform_from(a[py::int_(i)], name));
-  return out;
-}
-
 // (N, 4, 4) similarities [sR t; 0 0 0 1] (rigid ones: s = 1); one line naming the entry.
 std::vector<Similarity3> similarities_from(const py::handle& obj, const char* name, std::size_t n) {
   const Array a = as_array(obj, name, {-1, 4, 4}, "(N, 4, 4) with N the number of maps",

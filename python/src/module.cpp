@@ -728,6 +728,8 @@ PYBIND11_MODULE(_lmalign, m) {
         ro.threads = threads;
         ro.source_covariances_m2 = &source_covariances;
         ro.source_up = estimate_up_axis(in.source);
+        ro.source_header = in.source.header;
+        ro.target_header = in.target.header;
         RunnerOutcome outcome;
         {
           py::gil_scoped_release release;

@@ -125,8 +125,10 @@ ExperimentInputs load_experiment_inputs(const ExperimentConfig& config) {
   return in;
 }
 
-AlignRequest run_request(const ExperimentConfig& config, const std::string& strategy, int k) {
+AlignRequest run_request(const ExperimentConfig& config, const std::string& strategy, int k,
+                         const RunnerOptions& options) {
   AlignRequest r;
+  r.describe_maps(options.source_header, options.target_header);
   r.k = k;
   r.max_iterations = config.max_iterations;
   r.max_distance_m = config.max_distance_m;
@@ -152,7 +154,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     for (const std::string& s : c.strategies) {
       // Every setting within its bound before any run (the pipeline validates its table).
       try {
-        const Pipeline check(resolve_spec(find_preset(s), run_request(config, s, c.k)));
+        const Pipeline check(resolve_spec(find_preset(s), run_request(config, s, c.k, options)));
       } catch (const InvalidArgument& e) {
         throw InvalidArgument("runner: case " + c.id() + ", " + s + ": " + e.what());
       }
@@ -245,7 +247,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       moved.covariances_m2 = transform_covariances(c.D, *options.source_covariances_m2);
     }
     if (options.source_up) moved.up = c.D.linear() * *options.source_up;
-    AlignRequest request = run_request(config, s, c.k);
+    AlignRequest request = run_request(config, s, c.k, options);
     request.record_history = history;
     const Summary summary = align(preset_of.at(s), moved.view(), target, request);
     const RegistrationResult& r = summary.registration;
@@ -306,7 +308,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     key.assign(reinterpret_cast<const char*>(c.D.matrix().data()), 16 * sizeof(double));
     // The pipeline, stage by stage and setting by setting; Eq. 6 with k = 1 keeps the nearest
     // unless its weight is 0 (select_match), so it counts as the nearest neighbour then.
-    PipelineSpec spec = resolve_spec(preset_of.at(s), run_request(config, s, c.k));
+    PipelineSpec spec = resolve_spec(preset_of.at(s), run_request(config, s, c.k, options));
     const Pipeline p(spec);
     if (spec.matcher == "weighted_knn" && p.settings().integer("match.k") == 1 &&
         all_positive(parse_weight_kind(p.settings().choice("match.confidence")))) {

@@ -489,11 +489,12 @@ TEST(ExperimentRunner, ScaleFreeRecoversAScaledSourceWhereFixedCannot) {
   const PreparedTarget target(target_map);
   Points3 source;
   for (const Vec3& p : pts) source.push_back(0.8 * p);
-  const auto run = [&](const std::string& scale) {
+  const auto run = [&](const std::string& scale, MapScale source_scale = MapScale::kMetric) {
     const ExperimentConfig c = config(
         "  - {name: e, type: yaw, yaw_deg: [0], strategies: [base]}\n", "scale: " + scale + "\n");
     RunnerOptions opt;
     opt.threads = 1;
+    opt.source_header.scale = source_scale;
     const RunnerOutcome o =
         run_cases(c, expand_cases(c, source), source, target, Isometry3::Identity(), opt);
     EXPECT_EQ(o.records.size(), 1u);
@@ -503,6 +504,10 @@ TEST(ExperimentRunner, ScaleFreeRecoversAScaledSourceWhereFixedCannot) {
   const RunRecord fixed = run("fixed");
   EXPECT_LT(free.final_score_m2, 1e-6);
   EXPECT_GT(fixed.final_score_m2, 100 * free.final_score_m2);
+  // auto follows the maps' headers (RunnerOptions::source_header): rigid for metric maps, a
+  // similarity when the source's scale is arbitrary.
+  EXPECT_EQ(run("auto").final_score_m2, fixed.final_score_m2);
+  EXPECT_EQ(run("auto", MapScale::kArbitrary).final_score_m2, free.final_score_m2);
 }
 
 }  // namespace

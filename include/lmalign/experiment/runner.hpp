@@ -123,6 +123,11 @@ struct RunnerOptions {
   /// The undisplaced source map's up axis (source frame; estimate_up_axis()), for the adaptive
   /// strategy's yaw search; each run rotates it by its displacement. None: the pipeline's default.
   std::optional<Vec3> source_up;
+  /// What the two maps' headers say (scale, assumed covariances), passed to every run with
+  /// AlignRequest::describe_maps, so a config's `scale: auto` means what `lmalign align --scale
+  /// auto` means. Default: metric, measured covariances.
+  MapHeader source_header;
+  MapHeader target_header;
   /// Runs whose results are provably those of another run of the same wave are not executed but
   /// take a copy of its record, time_s included (docs/experiments.md, "Running"): the same
   /// displacement D (bit for bit) and the same correspondence rule. Base ignores k, and the
@@ -156,7 +161,10 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
                         const RunnerOptions& options = {});
 
 /// The request of one run of `strategy` at neighbourhood size k: the config's limits (when it
-/// gives them) and its settings for that strategy, as `lmalign align` passes its options.
-AlignRequest run_request(const ExperimentConfig& config, const std::string& strategy, int k);
+/// gives them), its settings and scale mode for that strategy, and what the maps' headers say
+/// (options.source_header, target_header: AlignRequest::describe_maps), as `lmalign align`
+/// passes its options.
+AlignRequest run_request(const ExperimentConfig& config, const std::string& strategy, int k,
+                         const RunnerOptions& options = {});
 
 }  // namespace lmalign
