@@ -17,6 +17,7 @@
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/merge/output.hpp"
 #include "lmalign/merge/pose_graph.hpp"
+#include "support/manifest_error.hpp"
 #include "support/temp_dir.hpp"
 
 namespace lmalign {
@@ -226,15 +227,6 @@ TEST(MergeSim3, AnEdgeWithAWrongScaleIsRejectedByTheCycleCheck) {
   EXPECT_FALSE(ev.edge_true[3]);
 }
 
-std::string manifest_error(const std::string& yaml) {
-  try {
-    parse_manifest(yaml, "m.yaml", "/base");
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
-
 TEST(MergeSim3, ManifestPriorsMayBeSimilaritiesWithAPositiveFiniteScale) {
   const Manifest m = parse_manifest(
       "maps:\n"
@@ -248,14 +240,14 @@ TEST(MergeSim3, ManifestPriorsMayBeSimilaritiesWithAPositiveFiniteScale) {
   EXPECT_TRUE(is_rigid_transform(m.maps[0].prior->T_world_map));
   EXPECT_EQ(m.maps[0].prior->T_world_map.translation(), Vec3(1, 0, 3));
   // A reflection (negative determinant) and a non-finite entry: one line naming file and field.
-  const std::string negative = manifest_error(
+  const std::string negative = test::manifest_error(
       "maps:\n  - {name: a, path: a.txt, T_world_map: [[-1,0,0,0],[0,-1,0,0],[0,0,-1,0],"
       "[0,0,0,1]], prior_sigma: [1, 1]}\n");
   EXPECT_NE(negative.find("m.yaml:2"), std::string::npos) << negative;
   EXPECT_NE(negative.find("maps[0].T_world_map: scale"), std::string::npos) << negative;
   EXPECT_NE(negative.find("expected finite and > 0"), std::string::npos) << negative;
   EXPECT_EQ(negative.find('\n'), std::string::npos);
-  const std::string nan = manifest_error(
+  const std::string nan = test::manifest_error(
       "maps:\n  - {name: a, path: a.txt, T_world_map: [[.nan,0,0,0],[0,1,0,0],[0,0,1,0],"
       "[0,0,0,1]], prior_sigma: [1, 1]}\n");
   EXPECT_NE(nan.find("m.yaml:2"), std::string::npos) << nan;

@@ -19,19 +19,11 @@
 #include "lmalign/merge/output.hpp"
 #include "lmalign/merge/pose_graph.hpp"
 #include "lmalign/registration/adaptive.hpp"
+#include "support/manifest_error.hpp"
 #include "support/temp_dir.hpp"
 
 namespace lmalign {
 namespace {
-
-std::string error_of(const std::string& yaml) {
-  try {
-    parse_manifest(yaml, "m.yaml", "/base");
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
-}
 
 TEST(MergeManifest, ParsesPathsPriorsAndSigma) {
   const Manifest m = parse_manifest(
@@ -80,7 +72,7 @@ TEST(MergeManifest, BadInputGivesOneLineErrorNamingTheField) {
       {"maps:\n  - {name: a}\n", "maps[0].path: missing"},
   };
   for (const Case& c : cases) {
-    const std::string what = error_of(c.yaml);
+    const std::string what = test::manifest_error(c.yaml);
     EXPECT_NE(what.find(c.expected), std::string::npos) << c.yaml << " -> " << what;
     EXPECT_EQ(what.find('\n'), std::string::npos) << what;
   }
@@ -558,13 +550,14 @@ TEST(MergeManifest, ValuesBeyondTheSupportedRangeNameTheLineAndField) {
        "maps[0].prior_covariance[5][5]: standard deviation: 1e+150 rad is outside"},
   };
   for (const Case& c : cases) {
-    const std::string what = error_of(c.yaml);
+    const std::string what = test::manifest_error(c.yaml);
     EXPECT_NE(what.find(c.expected), std::string::npos) << c.yaml << " -> " << what;
     EXPECT_EQ(what.find('\n'), std::string::npos) << what;
   }
   // At the range's edges: accepted.
-  EXPECT_EQ(error_of("maps:\n  - {name: a, path: a.txt, T_world_map: [[1,0,0,1e15],[0,1,0,-1e15],"
-                     "[0,0,1,0],[0,0,0,1]], prior_sigma: [1e-9, 1e15]}\n"),
+  EXPECT_EQ(test::manifest_error(
+                "maps:\n  - {name: a, path: a.txt, T_world_map: [[1,0,0,1e15],[0,1,0,-1e15],"
+                "[0,0,1,0],[0,0,0,1]], prior_sigma: [1e-9, 1e15]}\n"),
             "");
 }
 
