@@ -78,6 +78,10 @@ double mean_squared_distance(const Pairs& pairs, const Points3& target_points) {
   return sum / static_cast<double>(pairs.gated.size());
 }
 
+// The rungs of a free-scale run's scale axis after its initial scale (relative to it), nearest
+// first: concluded without a new search while none is trusted (docs/scale.md, step 5).
+constexpr double kScaleRungs[] = {1.0 / 1.12, 1.12};
+
 // The source rescaled by `scale` (positions times s, covariances times s^2).
 SourceLandmarks rescaled(const SourceView& source, double scale) {
   SourceLandmarks out;
@@ -508,100 +512,93 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   const std::vector<Hypothesis> hypotheses = initialiser_->propose(ic, &s.initialisation);
   if (hypotheses.empty()) throw Error("initialiser '" + spec_.initialiser + "' proposed nothing");
 
-  // --- with a scorer: refine and score every hypothesis on its samples, one per thread
-  Hypothesis best = hypotheses.front();
-  int total_iterations = 0;
-  if (scorer_ != nullptr) {
-    const std::vector<std::uint32_t> samples = scorer_->samples(sp.size());
-    const OwnedPart part = part_of(src, samples);
-    RefineContext sub = all;
-    sub.source = part.view(src);
-    std::vector<RefinedHypothesis> refined(hypotheses.size());
+  // --- with a scorer and a free scale: the scale axis (docs/scale.md, step 5). The initial scale
+  // from the spacings can be off by more than the search absorbs (about 6% either way), and a
+  // search mode at the right pose but the wrong scale refines no better than a wrong mode. So
+  // the hypotheses are concluded at the initial scale, then at each rung of kScaleRungs while
+  // none is trusted: the samples' positions times the rung (covariances as they are, so that no
+  // rung's gate is wider than another's), each pose moved to keep the source centre where the
+  // search put it. Every hypothesis at one rung, so that the trust judge weighs the rivals at the
+  // scale of the best (letting each pick its own rung made a wrong pose at a shrunk scale score
+  // 87% of the right one on the desk pair). None trusted: the first.
+  std::vector<double> rungs{1.0};
+  if (owned && scorer_ != nullptr && request.scale_rungs) {
+    rungs.insert(rungs.end(), std::begin(kScaleRungs), std::end(kScaleRungs));
+  }
+  const std::vector<std::uint32_t> samples =
+      scorer_ != nullptr ? scorer_->samples(sp.size()) : std::vector<std::uint32_t>{};
+  const OwnedPart part = part_of(src, samples);
+  std::vector<OwnedPart> rung_parts(rungs.size());
+  std::vector<Scales> rung_scales(rungs.size());
+  std::vector<RefineContext> rung_context(rungs.size(), all);
+  const Vec3 centre = all.scales != nullptr ? all.scales->source.centre_m : Vec3::Zero();
+  for (std::size_t k = 0; k < rungs.size(); ++k) {
+    rung_parts[k] = part;
+    for (Vec3& p : rung_parts[k].positions) p *= rungs[k];
+    rung_context[k].source = rung_parts[k].view(src);
+    if (all.scales != nullptr) {
+      rung_scales[k] = *all.scales;
+      DataScales& d = rung_scales[k].source;
+      d.centre_m *= rungs[k];
+      d.radius_m *= rungs[k];
+      d.spacing_m *= rungs[k];
+      rung_context[k].scales = &rung_scales[k];
+    }
+  }
+  // The hypotheses at rung k (the pose moved to keep the source centre in place).
+  auto at_rung = [&](std::size_t k) {
+    std::vector<Hypothesis> out = hypotheses;
+    for (Hypothesis& h : out) {
+      h.scale_factor = rungs[k];
+      h.T_target_source.translation() += (1.0 - rungs[k]) * (h.T_target_source.linear() * centre);
+    }
+    return out;
+  };
+  // Refines and scores `tried` at rung k, one per thread.
+  auto refine_all = [&](const std::vector<Hypothesis>& tried, std::size_t k) {
+    std::vector<RefinedHypothesis> refined(tried.size());
     FirstException error;  // an exception may not leave the parallel loop
 #pragma omp parallel for schedule(dynamic, 1)
-    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(hypotheses.size()); ++i) {
+    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(tried.size()); ++i) {
       error.capture([&] {
-        const Hypothesis& h = hypotheses[static_cast<std::size_t>(i)];
-        const Refinement r = refine(sub, h, Phase::kHypothesis);
+        const Hypothesis& h = tried[static_cast<std::size_t>(i)];
+        const Refinement r = refine(rung_context[k], h, Phase::kHypothesis);
         RefinedHypothesis& out = refined[static_cast<std::size_t>(i)];
         out.start = h;
         out.T_refined = r.T;
         out.iterations = r.iterations;
         out.termination = r.termination;
-        out.score = scorer_->score(sub, *this, r.T);
+        out.score = scorer_->score(rung_context[k], *this, r.T);
       });
     }
     error.rethrow();
-    for (const RefinedHypothesis& r : refined) total_iterations += r.iterations;
-    std::stable_sort(
-        refined.begin(), refined.end(),
-        [](const RefinedHypothesis& a, const RefinedHypothesis& b) { return a.score > b.score; });
-    s.hypotheses = std::move(refined);
-    best = s.hypotheses.front().start;
-    best.T_target_source = s.hypotheses.front().T_refined;
-  }
-
-  // --- the best on every landmark
-  const int history = request.record_history ? (request.history_scores ? 2 : 1) : 0;
-  const Schedule::EndPass end = schedule_->end_pass();
-  Refinement fin = refine(all, best, Phase::kFinal, end == Schedule::EndPass::kLastStep, history);
-  if (owned) {
-    // --- the scale as a seventh degree of freedom: one 7-DoF step on the pairs at the estimate
-    // (Umeyama with scale on point pairs, Gauss-Newton on distribution pairs), the source
-    // rescaled by its scale change, and the final refinement again from the step's pose.
-    const Vec3 centre_0 = all.scales != nullptr ? all.scales->source.centre_m : Vec3::Zero();
-    auto pairs_at = [&](const Isometry3& T, const LoopState& at, Pairs* pairs) {
-      LoopState loop = at;
-      loop.final_pass = true;
-      loop.sigma.pivot_m = T * (all.scales != nullptr ? all.scales->source.centre_m : centre_0);
-      std::unique_ptr<StageState> state = matcher_->begin(all);
-      matcher_->match(all, state.get(), T, loop, pairs);
-      for (const auto& rj : rejectors_) rj->reject(all, &loop, pairs);
-      if (pairs->size() > 0) {
-        loop.distribution_step = estimator_->distribution_step(loop);
-        kernel_->weigh(all, loop, *pairs, T, Isometry3::Identity(), &pairs->weights);
-      }
-      return loop.sigma.pivot_m;
+    return refined;
+  };
+  // --- the conclusion at rung k: every hypothesis refined and scored there (with a scorer), the
+  // best refined on every landmark (with the scale free: its 7-DoF rounds), its covariance and
+  // diagnostics, the trust judge's verdict. On copies of the summary and the source, so that
+  // each rung starts from the same state.
+  const Summary base = s;
+  const std::optional<SourceLandmarks> owned_base = owned;
+  const RefineContext all_base = all;
+  const ScaleEstimate base_scale = scale_estimate;
+  auto conclude = [&](std::size_t rung) -> Summary {
+    Summary s = base;
+    std::optional<SourceLandmarks> owned = owned_base;
+    ScaleEstimate scale_estimate = base_scale;
+    const SourceView src = owned ? owned->view() : source;
+    RegistrationResult& reg = s.registration;
+    auto stamp = [&]() {
+      reg.wall_time_s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
     };
-    // The pairs as (moved, target, information) for the 7-DoF step.
-    auto step_at = [&](const Isometry3& T, const LoopState& at,
-                       std::optional<Similarity3>* closed_form) {
-      Pairs pairs;
-      Vec3 pivot = pairs_at(T, at, &pairs);
-      Points3 moved, targets;
-      std::vector<Mat3> information;
-      const Points3& tp = target.points();
-      if (pairs.kind == Pairs::Kind::kPoints) {
-        for (const Correspondence& c : pairs.points) {
-          moved.push_back(pairs.moved[c.source_index]);
-          targets.push_back(tp[c.target_index]);
-        }
-        if (all.scales == nullptr && !moved.empty()) {
-          pivot = Vec3::Zero();
-          for (const Vec3& m : moved) pivot += m;
-          pivot /= static_cast<double>(moved.size());
-        }
-        if (closed_form != nullptr) {
-          *closed_form =
-              umeyama_similarity(moved, targets, pairs.weights.empty() ? nullptr : &pairs.weights);
-        }
-      } else {
-        for (const GatedPair& g : pairs.gated) {
-          moved.push_back(g.moved_source_m);
-          targets.push_back(tp[g.target_index]);
-          information.push_back(g.information);
-        }
-      }
-      const SimilarityStep st = solve_similarity_step(
-          moved, targets, information.empty() ? nullptr : &information, pairs.weights, pivot);
-      return std::make_pair(st, pivot);
-    };
-    // A round: 7-DoF steps, each on the pairs made again at the current similarity (the last
-    // refinement's gate), until the scale settles (at most kStepsPerRound); then the final
-    // refinement again, from the round's pose at its scale.
-    constexpr int kMaxScaleRounds = 20;
-    constexpr int kStepsPerRound = 10;
-    constexpr double kScaleTolerance = 1e-6;
+    RefineContext all = all_base;
+    all.source = src;
+    all.init = &s.initialisation;
+    all.scales = s.scales ? &*s.scales : nullptr;
+    int total_iterations = 0;
+    // The source rescaled in place by `factor` (positions by it, covariances by its square), and
+    // the scales read off it with it.
     auto rescale_by = [&](double factor) {
       rescale_in_place(&*owned, factor);
       scale_estimate.scale *= factor;
@@ -616,124 +613,232 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
         }
       }
     };
-    for (int round = 0; round < kMaxScaleRounds; ++round) {
-      Isometry3 T = fin.T;
-      double round_change = 0.0;  // |log| of the round's scale change
-      bool moved = false;
-      for (int k = 0; k < kStepsPerRound; ++k) {
-        std::optional<Similarity3> closed;
-        const auto [st, pivot] = step_at(T, fin.loop, &closed);
-        Similarity3 dS;
-        if (closed) {
-          dS = *closed;
-        } else if (st.ok) {
-          dS = similarity_increment(st.xi, pivot);
-        } else {
-          break;
+    Hypothesis best = hypotheses.front();
+    if (scorer_ != nullptr) {
+      std::vector<RefinedHypothesis> refined = refine_all(at_rung(rung), rung);
+      for (const RefinedHypothesis& r : refined) total_iterations += r.iterations;
+      std::stable_sort(
+          refined.begin(), refined.end(),
+          [](const RefinedHypothesis& a, const RefinedHypothesis& b) { return a.score > b.score; });
+      s.hypotheses = std::move(refined);
+      best = s.hypotheses.front().start;
+      best.T_target_source = s.hypotheses.front().T_refined;
+      if (best.scale_factor != 1.0) {
+        rescale_by(best.scale_factor);
+        best.scale_factor = 1.0;
+      }
+    }
+
+    // --- the best on every landmark
+    const int history = request.record_history ? (request.history_scores ? 2 : 1) : 0;
+    const Schedule::EndPass end = schedule_->end_pass();
+    Refinement fin = refine(all, best, Phase::kFinal, end == Schedule::EndPass::kLastStep, history);
+    if (owned) {
+      // --- the scale as a seventh degree of freedom: one 7-DoF step on the pairs at the estimate
+      // (Umeyama with scale on point pairs, Gauss-Newton on distribution pairs), the source
+      // rescaled by its scale change, and the final refinement again from the step's pose.
+      const Vec3 centre_0 = all.scales != nullptr ? all.scales->source.centre_m : Vec3::Zero();
+      auto pairs_at = [&](const Isometry3& T, const LoopState& at, Pairs* pairs) {
+        LoopState loop = at;
+        loop.final_pass = true;
+        loop.sigma.pivot_m = T * (all.scales != nullptr ? all.scales->source.centre_m : centre_0);
+        std::unique_ptr<StageState> state = matcher_->begin(all);
+        matcher_->match(all, state.get(), T, loop, pairs);
+        for (const auto& rj : rejectors_) rj->reject(all, &loop, pairs);
+        if (pairs->size() > 0) {
+          loop.distribution_step = estimator_->distribution_step(loop);
+          kernel_->weigh(all, loop, *pairs, T, Isometry3::Identity(), &pairs->weights);
         }
-        if (!(dS.scale > 0.0) || !std::isfinite(dS.scale) || !dS.matrix().allFinite()) break;
-        // p_target = dS (T (s p)) = dR R (ds s p) + ds dR t + dt.
-        Isometry3 next = Isometry3::Identity();
-        next.linear() = dS.rigid.linear() * T.linear();
-        next.translation() =
-            dS.scale * (dS.rigid.linear() * T.translation()) + dS.rigid.translation();
-        T = next;
-        rescale_by(dS.scale);
-        moved = true;
-        round_change += std::log(dS.scale);
-        if (std::abs(std::log(dS.scale)) < kScaleTolerance) break;
+        return loop.sigma.pivot_m;
+      };
+      // The pairs as (moved, target, information) for the 7-DoF step.
+      auto step_at = [&](const Isometry3& T, const LoopState& at,
+                         std::optional<Similarity3>* closed_form) {
+        Pairs pairs;
+        Vec3 pivot = pairs_at(T, at, &pairs);
+        Points3 moved, targets;
+        std::vector<Mat3> information;
+        const Points3& tp = target.points();
+        if (pairs.kind == Pairs::Kind::kPoints) {
+          for (const Correspondence& c : pairs.points) {
+            moved.push_back(pairs.moved[c.source_index]);
+            targets.push_back(tp[c.target_index]);
+          }
+          if (all.scales == nullptr && !moved.empty()) {
+            pivot = Vec3::Zero();
+            for (const Vec3& m : moved) pivot += m;
+            pivot /= static_cast<double>(moved.size());
+          }
+          if (closed_form != nullptr) {
+            *closed_form = umeyama_similarity(moved, targets,
+                                              pairs.weights.empty() ? nullptr : &pairs.weights);
+          }
+        } else {
+          for (const GatedPair& g : pairs.gated) {
+            moved.push_back(g.moved_source_m);
+            targets.push_back(tp[g.target_index]);
+            information.push_back(g.information);
+          }
+        }
+        const SimilarityStep st = solve_similarity_step(
+            moved, targets, information.empty() ? nullptr : &information, pairs.weights, pivot);
+        return std::make_pair(st, pivot);
+      };
+      // A round: 7-DoF steps, each on the pairs made again at the current similarity (the last
+      // refinement's gate), until the scale settles (at most kStepsPerRound); then the final
+      // refinement again, from the round's pose at its scale.
+      constexpr int kMaxScaleRounds = 20;
+      constexpr int kStepsPerRound = 10;
+      constexpr double kScaleTolerance = 1e-6;
+      for (int round = 0; round < kMaxScaleRounds; ++round) {
+        Isometry3 T = fin.T;
+        double round_change = 0.0;  // |log| of the round's scale change
+        bool moved = false;
+        for (int k = 0; k < kStepsPerRound; ++k) {
+          std::optional<Similarity3> closed;
+          const auto [st, pivot] = step_at(T, fin.loop, &closed);
+          Similarity3 dS;
+          if (closed) {
+            dS = *closed;
+          } else if (st.ok) {
+            dS = similarity_increment(st.xi, pivot);
+          } else {
+            break;
+          }
+          if (!(dS.scale > 0.0) || !std::isfinite(dS.scale) || !dS.matrix().allFinite()) break;
+          // p_target = dS (T (s p)) = dR R (ds s p) + ds dR t + dt.
+          Isometry3 next = Isometry3::Identity();
+          next.linear() = dS.rigid.linear() * T.linear();
+          next.translation() =
+              dS.scale * (dS.rigid.linear() * T.translation()) + dS.rigid.translation();
+          T = next;
+          rescale_by(dS.scale);
+          moved = true;
+          round_change += std::log(dS.scale);
+          if (std::abs(std::log(dS.scale)) < kScaleTolerance) break;
+        }
+        if (!moved) break;
+        Hypothesis from = best;
+        from.T_target_source = T;
+        total_iterations += fin.iterations;
+        fin = refine(all, from, Phase::kFinal, end == Schedule::EndPass::kLastStep, history);
+        ++scale_estimate.rounds;
+        if (std::abs(round_change) < kScaleTolerance) break;
       }
-      if (!moved) break;
-      Hypothesis from = best;
-      from.T_target_source = T;
-      total_iterations += fin.iterations;
-      fin = refine(all, from, Phase::kFinal, end == Schedule::EndPass::kLastStep, history);
-      ++scale_estimate.rounds;
-      if (std::abs(round_change) < kScaleTolerance) break;
+      // The best hypothesis scored again at the refined scale, on the same samples: its rung is
+      // up to 6% off, and the trust judge's margin to the rivals (each at its own best rung) must
+      // not count that against it.
+      if (scorer_ != nullptr && !s.hypotheses.empty()) {
+        const OwnedPart part = part_of(src, scorer_->samples(sp.size()));
+        RefineContext sub = all;
+        sub.source = part.view(src);
+        const double at_estimate = scorer_->score(sub, *this, fin.T);
+        RefinedHypothesis& front = s.hypotheses.front();
+        if (at_estimate > front.score) {
+          front.score = at_estimate;
+          front.T_refined = fin.T;
+        }
+      }
+      const auto [st, pivot] = step_at(fin.T, fin.loop, nullptr);
+      scale_estimate.covariance_7x7 = similarity_covariance(st, pivot);
+      if (scale_estimate.covariance_7x7) {
+        scale_estimate.scale_sd =
+            scale_estimate.scale * std::sqrt((*scale_estimate.covariance_7x7)(6, 6));
+      }
     }
-    const auto [st, pivot] = step_at(fin.T, fin.loop, nullptr);
-    scale_estimate.covariance_7x7 = similarity_covariance(st, pivot);
-    if (scale_estimate.covariance_7x7) {
-      scale_estimate.scale_sd =
-          scale_estimate.scale * std::sqrt((*scale_estimate.covariance_7x7)(6, 6));
+    s.scale = scale_estimate;
+    reg.T_target_source = fin.T;
+    reg.termination = fin.termination;
+    reg.converged = fin.termination == TerminationReason::kTransform ||
+                    fin.termination == TerminationReason::kAbsoluteMse ||
+                    fin.termination == TerminationReason::kRelativeMse;
+    reg.iterations = total_iterations + fin.iterations;
+    reg.num_correspondences = fin.num_pairs;
+    reg.history = std::move(fin.history);
+    {
+      // PCL's fitness scores, through the matcher's caches where it keeps them.
+      std::unique_ptr<StageState> state = matcher_->begin(all);
+      reg.initial_score_m2 = matcher_->fitness(all, state.get(), guess, range).mean_sq_m2;
+      reg.final_score_m2 = matcher_->fitness(all, state.get(), fin.T, range).mean_sq_m2;
     }
-  }
-  s.scale = scale_estimate;
-  reg.T_target_source = fin.T;
-  reg.termination = fin.termination;
-  reg.converged = fin.termination == TerminationReason::kTransform ||
-                  fin.termination == TerminationReason::kAbsoluteMse ||
-                  fin.termination == TerminationReason::kRelativeMse;
-  reg.iterations = total_iterations + fin.iterations;
-  reg.num_correspondences = fin.num_pairs;
-  reg.history = std::move(fin.history);
-  {
-    // PCL's fitness scores, through the matcher's caches where it keeps them.
-    std::unique_ptr<StageState> state = matcher_->begin(all);
-    reg.initial_score_m2 = matcher_->fitness(all, state.get(), guess, range).mean_sq_m2;
-    reg.final_score_m2 = matcher_->fitness(all, state.get(), fin.T, range).mean_sq_m2;
-  }
 
-  // --- covariance and diagnostics
-  Pose estimate;
-  estimate.T_target_source = fin.T;
-  if (end == Schedule::EndPass::kAtEstimate) {
-    LoopState loop = fin.loop;
-    loop.final_pass = true;
-    loop.sigma.pivot_m =
-        fin.T * (all.scales != nullptr ? all.scales->source.centre_m : Vec3::Zero());
-    std::unique_ptr<StageState> state = matcher_->begin(all);
-    Pairs pairs;
-    matcher_->match(all, state.get(), fin.T, loop, &pairs);
-    for (const auto& r : rejectors_) r->reject(all, &loop, &pairs);
-    EstimateDiagnostics& d = s.at_estimate;
-    d.computed = true;
-    d.num_pairs = pairs.size();
-    d.max_distance_m = loop.max_distance_m;
-    d.overlap_ratio = fin.loop.overlap_ratio;
-    d.inlier_ratio = static_cast<double>(pairs.size()) / static_cast<double>(sp.size());
-    if (pairs.size() > 0) {
-      loop.distribution_step = estimator_->distribution_step(loop);
-      kernel_->weigh(all, loop, pairs, fin.T, Isometry3::Identity(), &pairs.weights);
-      double wsum = 0.0, wr2 = 0.0;
-      for (std::size_t i = 0; i < pairs.size(); ++i) {
-        const double w = pairs.weights.empty() ? 1.0 : pairs.weights[i];
-        const double d2 =
-            pairs.kind == Pairs::Kind::kPoints
-                ? pairs.points[i].distance_sq_m2
-                : (target.points()[pairs.gated[i].target_index] - pairs.gated[i].moved_source_m)
-                      .squaredNorm();
-        wsum += w;
-        wr2 += w * d2;
+    // --- covariance and diagnostics
+    Pose estimate;
+    estimate.T_target_source = fin.T;
+    if (end == Schedule::EndPass::kAtEstimate) {
+      LoopState loop = fin.loop;
+      loop.final_pass = true;
+      loop.sigma.pivot_m =
+          fin.T * (all.scales != nullptr ? all.scales->source.centre_m : Vec3::Zero());
+      std::unique_ptr<StageState> state = matcher_->begin(all);
+      Pairs pairs;
+      matcher_->match(all, state.get(), fin.T, loop, &pairs);
+      for (const auto& r : rejectors_) r->reject(all, &loop, &pairs);
+      EstimateDiagnostics& d = s.at_estimate;
+      d.computed = true;
+      d.num_pairs = pairs.size();
+      d.max_distance_m = loop.max_distance_m;
+      d.overlap_ratio = fin.loop.overlap_ratio;
+      d.inlier_ratio = static_cast<double>(pairs.size()) / static_cast<double>(sp.size());
+      if (pairs.size() > 0) {
+        loop.distribution_step = estimator_->distribution_step(loop);
+        kernel_->weigh(all, loop, pairs, fin.T, Isometry3::Identity(), &pairs.weights);
+        double wsum = 0.0, wr2 = 0.0;
+        for (std::size_t i = 0; i < pairs.size(); ++i) {
+          const double w = pairs.weights.empty() ? 1.0 : pairs.weights[i];
+          const double d2 =
+              pairs.kind == Pairs::Kind::kPoints
+                  ? pairs.points[i].distance_sq_m2
+                  : (target.points()[pairs.gated[i].target_index] - pairs.gated[i].moved_source_m)
+                        .squaredNorm();
+          wsum += w;
+          wr2 += w * d2;
+        }
+        d.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
+        if (wsum > 0.0) {
+          s.estimator_covariance = estimator_->covariance(all, *this, loop, pairs, estimate,
+                                                          nullptr, &s.num_half_samples);
+        }
       }
-      d.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
-      if (wsum > 0.0) {
-        s.estimator_covariance =
-            estimator_->covariance(all, *this, loop, pairs, estimate, nullptr, &s.num_half_samples);
-      }
+    } else if (end == Schedule::EndPass::kLastStep && fin.has_step && fin.last_step.ok) {
+      s.estimator_covariance = estimator_->covariance(
+          all, *this, fin.loop, fin.last_pairs, estimate, &fin.last_step, &s.num_half_samples);
     }
-  } else if (end == Schedule::EndPass::kLastStep && fin.has_step && fin.last_step.ok) {
-    s.estimator_covariance = estimator_->covariance(all, *this, fin.loop, fin.last_pairs, estimate,
-                                                    &fin.last_step, &s.num_half_samples);
-  }
-  s.covariance = s.estimator_covariance;
-  stamp();  // the alignment's time; the verdict's is in total_time_s
+    s.covariance = s.estimator_covariance;
+    stamp();  // the alignment's time; the verdict's is in total_time_s
 
-  // --- trust
-  if (trust_ != nullptr) {
-    JudgeContext jc;
-    jc.context = all;
-    jc.pipeline = this;
-    jc.final = &fin;
-    jc.hypotheses = &s.hypotheses;
-    jc.init = &s.initialisation;
-    jc.covariance = &s.estimator_covariance;
-    s.verdict = trust_->judge(jc);
-    if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
+    // --- trust
+    if (trust_ != nullptr) {
+      JudgeContext jc;
+      jc.context = all;
+      jc.pipeline = this;
+      jc.final = &fin;
+      jc.hypotheses = &s.hypotheses;
+      jc.init = &s.initialisation;
+      jc.covariance = &s.estimator_covariance;
+      s.verdict = trust_->judge(jc);
+      if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
+    }
+    return s;
+  };
+
+  Summary first;
+  for (std::size_t k = 0; k < rungs.size(); ++k) {
+    Summary tried = conclude(k);
+    tried.scale.attempts = static_cast<int>(k) + 1;
+    const bool done = !owned || trust_ == nullptr || tried.verdict.trustworthy;
+    if (k == 0) first = std::move(tried);
+    if (done) {
+      Summary& out = k == 0 ? first : tried;
+      out.total_time_s =
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+      return out;
+    }
   }
-  s.total_time_s =
+  first.scale.attempts = static_cast<int>(rungs.size());
+  first.total_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  return s;
+  return first;
 }
 
 }  // namespace lmalign

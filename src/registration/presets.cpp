@@ -362,16 +362,21 @@ Summary align(const Preset& preset, const SourceView& source, const PreparedTarg
   Summary out = pipeline.run(source_kept, target_kept, r);
   if (r.free_scale && !out.verdict.trustworthy) {
     // The initial scale from the spacings can be off by more than the search absorbs (maps of
-    // different landmark density: 10-22% measured): the scale axis of the search, steps of 12%
-    // (the search absorbs about 6% either way) out to 25% either side, nearest first, tried
-    // only while none is trusted. The first trusted result wins; none: the first.
+    // different landmark density: 10-30% measured, docs/scale.md). The first run concluded its
+    // search's hypotheses at the initial scale and at 12% either side of it; then the search
+    // itself again, in steps of 12% (the search absorbs about 6% either way) out to 25% either
+    // side, nearest first, each concluded at its own initial scale alone, while none is
+    // trusted. The first trusted result wins; none: the first.
     const double s0 = out.scale.initial_scale;
     double time_s = out.total_time_s;
-    int attempts = 1;
+    int attempts = out.scale.attempts;
+    int searches = 1;
+    r.scale_rungs = false;
     for (const double factor : {1.0 / 1.12, 1.12, 1.0 / 1.2544, 1.2544}) {
       r.initial_scale = s0 * factor;
       Summary alt = pipeline.run(source_kept, target_kept, r);
-      ++attempts;
+      ++searches;
+      attempts += alt.scale.attempts;
       time_s += alt.total_time_s;
       if (alt.verdict.trustworthy) {
         out = std::move(alt);
@@ -379,6 +384,7 @@ Summary align(const Preset& preset, const SourceView& source, const PreparedTarg
       }
     }
     out.scale.attempts = attempts;
+    out.scale.searches = searches;
     out.total_time_s = time_s;
   }
   out.source_left_out = kept.source_left_out;

@@ -104,7 +104,7 @@ std::string Summary::FullReport() const {
                       " target units per source unit (initial " + fmt("%.4g", scale.initial_scale) +
                       " from the spacings, " + std::to_string(scale.rounds) +
                       " rounds of the 7-DoF steps, " + std::to_string(scale.attempts) +
-                      " initial scales tried)");
+                      " scales concluded over " + std::to_string(scale.searches) + " searches)");
   }
   line("initialisation",
        initialisation.initialisation +
@@ -189,6 +189,7 @@ std::string to_json(const Summary& s, int indent) {
     e["scale_report"] = {{"initial_scale", s.scale.initial_scale},
                          {"rounds", s.scale.rounds},
                          {"attempts", s.scale.attempts},
+                         {"searches", s.scale.searches},
                          {"covariance_7x7", c}};
   }
   e["converged"] = r.converged;

@@ -77,6 +77,10 @@ struct PipelineRequest {
   bool free_scale = false;
   /// With free_scale: the initial scale (finite, > 0) instead of the one from the data.
   std::optional<double> initial_scale;
+  /// With free_scale and a scorer: when the hypotheses at the initial scale conclude in no
+  /// trusted verdict, conclude them again at 1/1.12 and 1.12 times it (the scale axis's rungs,
+  /// without a new search) until one is trusted. False: the initial scale alone.
+  bool scale_rungs = true;
 };
 
 /// The scale of a result (Sim(3); all defaults when the scale was fixed).
@@ -91,8 +95,12 @@ struct ScaleEstimate {
   double initial_scale = 1.0;
   /// Rounds of the 7-DoF steps and re-refinement.
   int rounds = 0;
-  /// Initial scales tried (align() of presets.hpp tries more when the first is not trusted).
+  /// Rungs of the scale axis concluded (Pipeline::run: every hypothesis refined at the rung,
+  /// the best on every landmark, the verdict), over every search.
   int attempts = 1;
+  /// Searches run: align() of presets.hpp searches again at other initial scales when no rung
+  /// of the first search is trusted.
+  int searches = 1;
   /// The 7x7 covariance of (rho [target units], phi [rad], log scale) as a left perturbation
   /// about the target origin (similarity_covariance: the normal equations of the 7-DoF step at
   /// the estimate); nullopt when fixed or singular.

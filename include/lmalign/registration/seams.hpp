@@ -148,6 +148,9 @@ struct Hypothesis {
   /// iterations per level. A search that refines many candidates briefly sets them.
   int max_iterations = 0;
   int max_iterations_per_level = 0;
+  /// With a free scale: the source's scale for this hypothesis relative to the run's current
+  /// one (a rung of the scale axis, Pipeline::run); the pose moves the source rescaled by it.
+  double scale_factor = 1.0;
 };
 
 /// What an initialiser tells the rest of the pipeline and the trust judge.
