@@ -67,6 +67,8 @@ int exec_python_merge(const MergeArgs& a) {
                                 std::to_string(a.max_pairs),
                                 "--threads",
                                 std::to_string(a.threads),
+                                "--scale",
+                                a.scale,
                                 "--dask-scheduler",
                                 a.dask_scheduler};
   if (!a.ground_truth.empty()) {
@@ -143,14 +145,7 @@ bool plot_merge(const std::string& out_dir) {
 }
 
 int run_merge_command(const MergeArgs& a) {
-  if (!a.dask_scheduler.empty()) {
-    // The Python package merges with the default, auto (maps without metric scale: Sim(3)).
-    if (a.scale != "auto") {
-      throw InvalidArgument("--scale " + a.scale +
-                            ": only auto with --dask-scheduler (the Python package's merge)");
-    }
-    return exec_python_merge(a);
-  }
+  if (!a.dask_scheduler.empty()) return exec_python_merge(a);
   if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
   if (a.threads < 0) throw InvalidArgument("--threads must be >= 0 (0 = all)");
   const std::vector<double> thr =

@@ -222,6 +222,10 @@ class CandidatePair:
     @property
     def initial_guess(self) -> Optional[F64]: ...  # (4, 4)
     @property
+    def source_metric(self) -> bool: ...
+    @property
+    def target_metric(self) -> bool: ...
+    @property
     def prior_sigma(self) -> Optional[Tuple[float, float]]: ...
 
 class Edge:
@@ -307,6 +311,7 @@ class MergeOutcome:
     names: List[str]
     T_world_map: F64  # (N, 4, 4) p_world = T @ p_map, m
     covariances: F64  # (N, 6, 6) (rho m, phi rad), left, world frame
+    scales: F64  # (N,) world units per map unit (1: metric, or scale='fixed')
     components: I64  # (N,)
     is_gauge: npt.NDArray[np.bool_]  # (N,)
     candidates: List[CandidatePair]
@@ -338,7 +343,12 @@ def plan_candidates(
     all_pairs_max_maps: int = 12,
 ) -> List[CandidatePair]: ...
 def align_edge(
-    source: Map, target: Map, pair: CandidatePair, max_iterations: Optional[int] = None
+    source: Map,
+    target: Map,
+    pair: CandidatePair,
+    max_iterations: Optional[int] = None,
+    *,
+    scale: str = "auto",  # auto, free, fixed
 ) -> Edge: ...
 def map_fingerprint(map: Map) -> str: ...
 def edge_key(
@@ -346,6 +356,8 @@ def edge_key(
     target_fingerprint: str,
     pair: CandidatePair,
     max_iterations: Optional[int] = None,
+    *,
+    scale: str = "auto",  # auto, free, fixed
 ) -> str: ...
 def edge_file_path(dir: PathLike, source_name: str, target_name: str) -> str: ...
 def write_edge_file(path: PathLike, edge: Edge) -> None: ...
@@ -386,4 +398,5 @@ def merge(
     resume: bool = False,
     thresholds: Tuple[float, float] = (5.0, 0.10),  # (rot_deg, trans_m)
     fuse_landmarks: bool = True,
+    scale: str = "auto",  # auto, free, fixed
 ) -> MergeOutcome: ...

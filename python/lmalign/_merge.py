@@ -18,7 +18,8 @@ class MergeOutcome:
     Per map (N maps, manifest order): names (list of str), T_world_map (N, 4, 4) float64
     (p_world = T @ p_map, metres; the world of the map's component), covariances (N, 6, 6)
     float64 (marginal, xi = (rho m, phi rad), left perturbation in the world frame; zero for a
-    gauge map), components (N,) int64 (0-based; parts never forced together), is_gauge (N,) bool.
+    gauge map), scales (N,) float64 (world units per map unit: p_world = scale * R @ p_map + t
+    with (R, t) = T_world_map; 1 for a map with metric scale or with scale='fixed'), components (N,) int64 (0-based; parts never forced together), is_gauge (N,) bool.
     Per candidate edge (E, candidate order): candidates (list of CandidatePair), edges (list of
     Edge: T_target_source, covariance, trusted, ...), trusted, used, rejected (E,) bool, chi2 (E,)
     float64 (whitened, 0 if unused). Graph: num_components, final_chi2, edge_covariance_scale,
@@ -35,6 +36,7 @@ class MergeOutcome:
         self.graph = graph
         self.T_world_map = np.array([p.T_world_map for p in graph.maps]).reshape(-1, 4, 4)
         self.covariances = np.array([p.covariance for p in graph.maps]).reshape(-1, 6, 6)
+        self.scales = np.array([p.scale for p in graph.maps], dtype=np.float64)
         self.components = np.array([p.component for p in graph.maps], dtype=np.int64)
         self.is_gauge = np.array([p.is_gauge for p in graph.maps], dtype=bool)
         self.trusted = np.array([e.trusted for e in self.edges], dtype=bool)
@@ -75,11 +77,13 @@ def _worker_map(entry):
     return m
 
 
-def align_edge_task(source_entry, target_entry, pair, fingerprints, key, max_iterations=None):
+def align_edge_task(source_entry, target_entry, pair, fingerprints, key, max_iterations=None,
+                    scale="auto"):
     """One Dask task: reads the pair's two maps by path (a shared filesystem), checks that they
-    are the maps the client planned with (fingerprints), aligns them (align_edge) and returns
-    the Edge (picklable, bit for bit) with its resume key. Raises InvalidArgument if a map
-    differs from the client's (e.g. a stale copy on the worker's filesystem)."""
+    are the maps the client planned with (fingerprints), aligns them (align_edge, with the
+    merge's scale mode: 'auto', 'free' or 'fixed') and returns the Edge (picklable, bit for bit)
+    with its resume key. Raises InvalidArgument if a map differs from the client's (e.g. a stale
+    copy on the worker's filesystem)."""
     source = _worker_map(source_entry)
     target = _worker_map(target_entry)
     for entry, m, fp in ((source_entry, source, fingerprints[0]),
@@ -89,7 +93,7 @@ def align_edge_task(source_entry, target_entry, pair, fingerprints, key, max_ite
                 "map '%s' (%s) on this worker differs from the client's (fingerprint %s, "
                 "expected %s): the maps must be on a filesystem shared by every worker"
                 % (entry.name, entry.path, _c.map_fingerprint(m), fp))
-    return _c.align_edge(source, target, pair, max_iterations).with_key(key)
+    return _c.align_edge(source, target, pair, max_iterations, scale=scale).with_key(key)
 
 
 # ------------------------------------------------------------------ the merge
@@ -106,7 +110,7 @@ def _check_output_dir(out_dir, resume):
     return edges_dir
 
 
-def _dask_edges(client, manifest, maps, candidates, edges_dir, max_iterations):
+def _dask_edges(client, manifest, maps, candidates, edges_dir, max_iterations, scale):
     """Edges of `candidates` on the Dask cluster of `client`, in candidate order; cached edges
     (same key) are reused, every new edge is written to edges_dir as it arrives."""
     from distributed import as_completed
@@ -117,7 +121,8 @@ def _dask_edges(client, manifest, maps, candidates, edges_dir, max_iterations):
     futures = {}
     reused = 0
     for k, c in enumerate(candidates):
-        key = _c.edge_key(fingerprints[c.source], fingerprints[c.target], c, max_iterations)
+        key = _c.edge_key(fingerprints[c.source], fingerprints[c.target], c, max_iterations,
+                          scale=scale)
         path = _c.edge_file_path(edges_dir, names[c.source], names[c.target])
         cached = _c.read_edge_file(path)
         if (cached is not None and cached.key == key and cached.source == c.source
@@ -127,7 +132,7 @@ def _dask_edges(client, manifest, maps, candidates, edges_dir, max_iterations):
             continue
         future = client.submit(
             align_edge_task, manifest.maps[c.source], manifest.maps[c.target], c,
-            (fingerprints[c.source], fingerprints[c.target]), key, max_iterations,
+            (fingerprints[c.source], fingerprints[c.target]), key, max_iterations, scale,
             key="lmalign-edge-%s-%d-%d" % (key, c.source, c.target), pure=False)
         futures[future] = (k, path)
     for future in as_completed(list(futures)):
@@ -139,7 +144,8 @@ def _dask_edges(client, manifest, maps, candidates, edges_dir, max_iterations):
 
 
 def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threads=None,
-          dask_client=None, resume=False, thresholds=(5.0, 0.10), fuse_landmarks=True):
+          dask_client=None, resume=False, thresholds=(5.0, 0.10), fuse_landmarks=True,
+          scale="auto"):
     """Merge the mini-maps of a manifest into one frame, as `lmalign merge` (docs/merge.md).
 
     manifest_path: YAML manifest (maps with name, path, format, session, optional prior
@@ -160,6 +166,13 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
     resume: reuse the edges in output_dir/edges whose key matches (else an output_dir holding
         edges of an earlier run is refused).
     fuse_landmarks: fuse landmarks with the same id in maps of the same session.
+    scale: as `lmalign merge --scale` (docs/scale.md). 'auto': a pair where either map's header
+        says its lengths are not metres (COLMAP, Bundler, monocular stella_vslam) is aligned as
+        a similarity (Edge.scale = target units per source unit) and such a map gets a scale of
+        its own in the pose graph (MapPose.scale = world units per map unit); maps with metric
+        scale and priors hold the scale. 'free': every pair's scale is estimated too. 'fixed':
+        rigid (SE(3)) edges and poses for every map (every scale exactly 1). The same in
+        process and with Dask, bit for bit; the resume key depends on it.
     Returns a MergeOutcome. Raises ParseError (manifest, ground truth), IoError, InvalidArgument
     (bad option, an unreadable or empty map, output_dir holding an earlier run's edges), and
     with Dask what a task raised.
@@ -171,6 +184,8 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
         raise _c.InvalidArgument("max_pairs must be >= 0 (None or 0 = no limit)")
     if threads is not None and int(threads) < 0:
         raise _c.InvalidArgument("threads must be >= 0 (None or 0 = every core)")
+    if scale not in ("auto", "free", "fixed"):
+        raise _c.InvalidArgument("scale: expected 'auto', 'free' or 'fixed', got %r" % (scale,))
     thresholds = tuple(float(v) for v in thresholds)
     if len(thresholds) != 2:
         raise _c.InvalidArgument("thresholds: expected (rot_deg, trans_m)")
@@ -187,14 +202,15 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
     edges_dir = _check_output_dir(output_dir, resume)
     if dask_client is None:
         candidates, edges, graph, reused, s_edges, s_graph = _c._run_merge(
-            maps, names, priors, int(max_pairs or 0), int(threads or 0), edges_dir)
+            maps, names, priors, int(max_pairs or 0), int(threads or 0), edges_dir, scale)
         backend = "in-process"
     else:
         t0 = time.monotonic()
         candidates = _c.plan_candidates(maps, priors, max_pairs=int(max_pairs or 0))
-        edges, reused = _dask_edges(dask_client, manifest, maps, candidates, edges_dir, None)
+        edges, reused = _dask_edges(dask_client, manifest, maps, candidates, edges_dir, None,
+                                    scale)
         t1 = time.monotonic()
-        graph = _c.solve_pose_graph(len(maps), priors, edges, maps=maps)
+        graph = _c.solve_pose_graph(len(maps), priors, edges, maps=maps, scale=scale)
         s_edges, s_graph = t1 - t0, time.monotonic() - t1
         backend = "dask"
     _c.write_merge_outputs(output_dir, names, [e.session for e in manifest.maps], maps, edges,

@@ -19,6 +19,8 @@ def _parser():
     p.add_argument("--resume", action="store_true")
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--no-fuse", action="store_true")
+    p.add_argument("--scale", choices=("auto", "free", "fixed"), default="auto",
+                   help="as `lmalign merge --scale` (docs/scale.md)")
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
                    help="e.g. tcp://10.0.0.5:8786 (a running `dask scheduler`)")
     return p
@@ -52,7 +54,7 @@ def main(argv=None):
         run = lmalign.merge(args.manifest, args.output, ground_truth=args.ground_truth,
                             max_pairs=args.max_pairs, threads=args.threads, dask_client=client,
                             resume=args.resume, thresholds=thresholds,
-                            fuse_landmarks=not args.no_fuse)
+                            fuse_landmarks=not args.no_fuse, scale=args.scale)
     except lmalign.Error as e:
         sys.exit("lmalign merge: %s" % e)
     finally:
@@ -64,6 +66,10 @@ def main(argv=None):
              run.rejected.sum(), run.num_components, run.final_chi2, run.edge_covariance_scale))
     print("time: edges %.2f s, graph %.2f s (%s)" % (run.seconds_edges, run.seconds_graph,
                                                      run.backend))
+    for name, p in zip(run.names, run.graph.maps):  # as the CLI prints them
+        if p.scale_free or p.scale != 1.0:
+            print("scale of %s: %.6g world units per map unit (sd %.2g)%s"
+                  % (name, p.scale, p.scale_sd, "" if p.scale_free else " (held)"))
     for e, report in zip(run.edges, run.graph.edges):
         if report.rejected:
             why = report.reject_reason or "chi2 %.1f after optimisation" % report.chi2

@@ -92,9 +92,20 @@ std::optional<PriorSigma> prior_sigma_from(const py::handle& obj) {
   return p;
 }
 
-EdgeOptions edge_options(std::optional<int> max_iterations) {
+// A scale mode from Python ("auto", "free", "fixed"); InvalidArgument naming the option.
+ScaleMode scale_mode_from(const std::string& scale) {
+  if (scale != "auto" && scale != "free" && scale != "fixed") {
+    throw InvalidArgument("scale: expected 'auto', 'free' or 'fixed', got '" + scale + "'");
+  }
+  return parse_scale_mode(scale);
+}
+
+// The edges' options from Python's arguments: scale is 'auto', 'free' or 'fixed' (EdgeOptions::
+// scale; InvalidArgument naming the option otherwise).
+EdgeOptions edge_options(std::optional<int> max_iterations, const std::string& scale = "auto") {
   EdgeOptions o;
   o.max_iterations = max_iterations;
+  o.scale = scale_mode_from(scale);
   return o;
 }
 
@@ -303,6 +314,12 @@ void bind_merge(py::module_& m) {
       .def_property_readonly(
           "prior_sigma", [](const CandidatePair& c) { return prior_sigma_out(c.prior); },
           "(rot_deg, trans_m) of the relative prior, or None.")
+      .def_readonly("source_metric", &CandidatePair::source_metric,
+                    "Whether the source map's lengths are metres (its header); with "
+                    "scale='auto' a pair with a map that is not metric is aligned as a "
+                    "similarity.")
+      .def_readonly("target_metric", &CandidatePair::target_metric,
+                    "Whether the target map's lengths are metres (its header).")
       .def(py::pickle([](const CandidatePair& c) { return pair_state(c); },
                       [](const py::tuple& t) { return pair_from_state(t); }))
       .def("__repr__", [](const CandidatePair& c) {
@@ -399,31 +416,36 @@ void bind_merge(py::module_& m) {
   m.def(
       "align_edge",
       [](const Map& source, const Map& target, const CandidatePair& pair,
-         std::optional<int> max_iterations) {
+         std::optional<int> max_iterations, const std::string& scale) {
         with_frame_index(source);
         with_frame_index(target);
-        const EdgeOptions o = edge_options(max_iterations);
+        const EdgeOptions o = edge_options(max_iterations, scale);
         py::gil_scoped_release release;
         return align_edge(source, target, pair, o);
       },
       py::arg("source"), py::arg("target"), py::arg("pair"), py::arg("max_iterations") = py::none(),
+      py::kw_only(), py::arg("scale") = "auto",
       "Aligns the map `source` (pair.source) onto `target` (pair.target) with the recommended "
       "strategy (lmalign.RECOMMENDED_STRATEGY), the pair's initial guess and prior sigma bounding "
-      "its search; "
-      "returns an Edge (key ''). Pure and deterministic (any thread count, any machine with the "
-      "same build). The GIL is released. Raises InvalidArgument.");
+      "its search; returns an Edge (key ''). scale: 'auto' (a similarity, Sim(3), when either "
+      "map has no metric scale: pair.source_metric / pair.target_metric, from the maps' "
+      "headers), 'free' (always a similarity) or 'fixed' (rigid, Edge.scale 1), as `lmalign "
+      "merge --scale`. Pure and deterministic (any thread count, any machine with the same "
+      "build). The GIL is released. Raises InvalidArgument (also for another scale).");
   m.def(
       "map_fingerprint", [](const Map& map) { return map_fingerprint(map); }, py::arg("map"),
       "16 hex digits: FNV-1a of the map's landmark positions and covariances (bit patterns).");
   m.def(
       "edge_key",
       [](const std::string& source_fingerprint, const std::string& target_fingerprint,
-         const CandidatePair& pair, std::optional<int> max_iterations) {
-        return edge_key(source_fingerprint, target_fingerprint, pair, edge_options(max_iterations));
+         const CandidatePair& pair, std::optional<int> max_iterations, const std::string& scale) {
+        return edge_key(source_fingerprint, target_fingerprint, pair,
+                        edge_options(max_iterations, scale));
       },
       py::arg("source_fingerprint"), py::arg("target_fingerprint"), py::arg("pair"),
-      py::arg("max_iterations") = py::none(),
-      "The resume cache key of an edge (both maps' fingerprints, the pair, the options).");
+      py::arg("max_iterations") = py::none(), py::kw_only(), py::arg("scale") = "auto",
+      "The resume cache key of an edge (both maps' fingerprints, the pair, the options, the "
+      "scale mode as align_edge's). Raises InvalidArgument.");
   m.def(
       "edge_file_path",
       [](const std::filesystem::path& dir, const std::string& s, const std::string& t) {
@@ -483,9 +505,10 @@ void bind_merge(py::module_& m) {
          const std::string& scale) {
         const auto p = priors.value_or(std::vector<std::optional<MapPrior>>(num_maps));
         std::vector<bool> free;
+        const ScaleMode mode = scale_mode_from(scale);
         if (maps) {
           if (maps->size() != num_maps) throw InvalidArgument("maps: one per map expected");
-          free = scale_free_maps(*maps, parse_scale_mode(scale));
+          free = scale_free_maps(*maps, mode);
         }
         py::gil_scoped_release release;
         return solve_pose_graph(num_maps, p, edges, {}, free);
@@ -596,9 +619,10 @@ void bind_merge(py::module_& m) {
       "_run_merge",
       [](const std::vector<Map>& maps, const std::vector<std::string>& names,
          const std::vector<std::optional<MapPrior>>& priors, std::size_t max_pairs, int threads,
-         const std::string& edge_cache_dir) {
+         const std::string& edge_cache_dir, const std::string& scale) {
         for (const Map& map : maps) with_frame_index(map);
         MergeOptions o;
+        o.edges.scale = scale_mode_from(scale);
         o.candidates.max_pairs = max_pairs;
         o.threads = threads;
         o.edge_cache_dir = edge_cache_dir;
@@ -611,7 +635,7 @@ void bind_merge(py::module_& m) {
                               run.seconds_edges, run.seconds_graph);
       },
       py::arg("maps"), py::arg("names"), py::arg("priors"), py::arg("max_pairs"),
-      py::arg("threads"), py::arg("edge_cache_dir"));
+      py::arg("threads"), py::arg("edge_cache_dir"), py::arg("scale") = "auto");
 }
 
 }  // namespace lmalign::python

@@ -7,6 +7,7 @@ as tests/support/data_path.hpp).
 import os
 import pathlib
 
+import numpy as np
 import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
@@ -69,3 +70,39 @@ def write_desk_windows(directory, count=4, frames=30, prior_sigma=None):
     manifest = directory / "manifest.yaml"
     manifest.write_text("\n".join(lines) + "\n")
     return manifest
+
+
+# The similarities SOURCE.md of real_formats/stella_openhps_aist_living_lab_1 estimated from
+# matching keyframes (an estimate, not ground truth: its own cycle closes to 0.1% in scale), as
+# S_world_map with the frame of 4683e8ac as the world: p_world = s R p_map + t.
+STELLA_TRUTH = {
+    "356a5a6e": (0.79165, [[0.999826, 0.01738, -0.006787], [-0.017191, 0.999489, 0.026942],
+                           [0.007252, -0.026821, 0.999614]], [-0.003697, -0.008522, 0.128970]),
+    "94eb7149": (1.06574, [[0.999738, 0.021504, -0.007805], [-0.021262, 0.999328, 0.029848],
+                           [0.008441, -0.029675, 0.999524]], [-0.005149, -0.005160, 0.153141]),
+    "4683e8ac": (1.0, np.eye(3).tolist(), [0.0, 0.0, 0.0]),
+}
+
+
+def write_stella_manifest(directory):
+    """A merge manifest of the three real monocular stella_vslam maps of one video (each of its
+    own arbitrary scale; no priors) and a ground-truth YAML of STELLA_TRUTH (rotations
+    re-orthonormalised: SOURCE.md rounds them to 6 digits). Returns (manifest, truth) paths."""
+    base = data_dir() / "real_formats" / "stella_openhps_aist_living_lab_1"
+    directory = pathlib.Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    lines, truth = ["maps:"], ["maps:"]
+    for name, (s, R, t) in STELLA_TRUTH.items():
+        path = require_file(base / name / "map.msg")
+        lines += ["  - name: %s" % name, "    path: %s" % path]
+        u, _, vt = np.linalg.svd(np.array(R))
+        S = np.eye(4)
+        S[:3, :3] = s * (u @ vt)
+        S[:3, 3] = t
+        truth.append("  %s: [%s]" % (name, ", ".join(
+            "[%s]" % ", ".join(repr(float(v)) for v in row) for row in S)))
+    manifest = directory / "manifest.yaml"
+    manifest.write_text("\n".join(lines) + "\n")
+    truth_path = directory / "truth.yaml"
+    truth_path.write_text("\n".join(truth) + "\n")
+    return manifest, truth_path

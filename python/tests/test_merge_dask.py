@@ -1,6 +1,7 @@
 """The merge's pairs on Dask (docs/merge.md, "Scale-out on Dask"): a LocalCluster of 2 worker
 processes on loopback gives the in-process result bit for bit, also when a worker dies in the
-middle of the run, and `lmalign merge --dask-scheduler` (the CLI handing over to Python) too."""
+middle of the run, and `lmalign merge --dask-scheduler` (the CLI handing over to Python) too; with
+scale='free' on three real maps without metric scale, the same similarities as in process."""
 import os
 import pathlib
 import subprocess
@@ -10,7 +11,7 @@ import numpy as np
 import pytest
 
 import lmalign
-from conftest import write_desk_windows
+from conftest import write_desk_windows, write_stella_manifest
 
 pytestmark = pytest.mark.skipif(not lmalign.HAVE_MERGE,
                                 reason="lmalign built without lmalign::merge (no Ceres)")
@@ -95,6 +96,46 @@ def test_the_cli_dask_scheduler_flag_gives_the_in_process_result(desk, cli, tmp_
                               capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     assert "(dask)" in done.stdout, done.stdout
+    for name in OUTPUTS:
+        a, b = out / name, pathlib.Path(reference.output_dir) / name
+        assert a.exists() == b.exists(), name
+        if a.exists():
+            assert a.read_bytes() == b.read_bytes(), name
+
+
+@pytest.fixture(scope="module")
+def stella_free(tmp_path_factory):
+    """(manifest, truth, in-process MergeOutcome with scale='free') of the three real monocular
+    stella_vslam maps (SOURCE.md's similarities as the truth)."""
+    d = tmp_path_factory.mktemp("stella")
+    manifest, truth = write_stella_manifest(d / "maps")
+    return manifest, truth, lmalign.merge(manifest, d / "in_process", ground_truth=truth,
+                                          scale="free")
+
+
+def test_a_local_cluster_gives_the_in_process_similarities(stella_free, tmp_path):
+    manifest, truth, reference = stella_free
+    with local_cluster() as cluster, distributed.Client(cluster) as client:
+        run = lmalign.merge(manifest, tmp_path / "dask", ground_truth=truth, dask_client=client,
+                            scale="free")
+        assert run.backend == "dask" and len(run.edges) == 3
+    assert_same_merge(run, reference)
+    assert np.array_equal(run.scales, reference.scales)
+    # The similarities themselves: every edge estimated a scale, the scales match SOURCE.md.
+    assert all(e.scale_free for e in run.edges)
+    assert run.evaluation["max_pair_scale_error"] < 0.01
+    assert run.evaluation["max_pair_scale_error"] == reference.evaluation["max_pair_scale_error"]
+
+
+def test_the_cli_passes_scale_on_to_dask(stella_free, cli, tmp_path):
+    manifest, truth, reference = stella_free
+    out = tmp_path / "cli"
+    with local_cluster() as cluster:
+        done = subprocess.run([cli, "merge", str(manifest), "-o", str(out), "--dask-scheduler",
+                               cluster.scheduler_address, "--scale", "free", "--ground-truth",
+                               str(truth)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "(dask)" in done.stdout and "scale of 356a5a6e" in done.stdout, done.stdout
     for name in OUTPUTS:
         a, b = out / name, pathlib.Path(reference.output_dir) / name
         assert a.exists() == b.exists(), name
