@@ -434,8 +434,15 @@ int run_align(const AlignArgs& a) {
   ropt.min_observations = a.min_observations;
   AnyMapReadOptions any(ropt, parse_map_format(a.format));
   if (!a.image_size.empty()) any.image_size_px = parse_image_size(a.image_size);
-  o.source = read_any_map(a.source, any);
-  o.target = read_any_map(a.target, any);
+  MapReadStats source_stats, target_stats;
+  o.source = read_any_map(a.source, any, &source_stats);
+  o.target = read_any_map(a.target, any, &target_stats);
+  for (const auto& [path, stats] :
+       {std::pair{&a.source, &source_stats}, {&a.target, &target_stats}}) {
+    if (stats->camera_centres_left_out == 0) continue;
+    std::printf("%s: left out %zu vertices that are OpenMVG's camera centres, not landmarks (%s)\n",
+                path->c_str(), stats->camera_centres_left_out, stats->camera_centres_rule.c_str());
+  }
   const Map& source = o.source;
   const Map& target = o.target;
   if (source.landmarks.empty())

@@ -98,6 +98,11 @@ int run_convert(const ConvertArgs& args) {
   line("dropped", stats.dropped_below_min_parallax,
        "with parallax below " + number_text(args.min_parallax_deg) + " deg (--min-parallax)");
   line("dropped", stats.dropped_unknown, "flagged covariance_known = 0 in the file");
+  if (stats.camera_centres_left_out > 0) {
+    std::cout << "  left out " << stats.camera_centres_left_out
+              << " vertices that are OpenMVG's camera centres, not landmarks ("
+              << stats.camera_centres_rule << ")\n";
+  }
   return 0;
 }
 

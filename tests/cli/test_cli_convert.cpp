@@ -174,6 +174,29 @@ TEST_F(CliConvert, KeepsLowParallaxLandmarksAndCountsEveryKind) {
 // --transform moves the map by a similarity (positions s R p + t, covariances s^2 R C R^T,
 // frames with it) and --map-scale records the header's scale; bad values are refused in one
 // line naming the option or the file.
+// OpenMVG's camera centres (docs/map-format.md): convert and align say how many vertices they
+// left out and why; the converted map holds the 365 landmarks of the real colorized.ply.
+TEST_F(CliConvert, SaysWhichOpenMvgCameraCentresItLeftOut) {
+  const std::string ply =
+      test::data_file("real_formats/ply_openmvg_kapture_maupertuis/colorized.ply");
+  LMALIGN_REQUIRE_FILE(ply);
+  const test::CliRun convert =
+      run("convert " + shell_quote(ply) + " " + shell_quote(path("c.ply")));
+  ASSERT_EQ(convert.exit_code, 0) << convert.err;
+  EXPECT_NE(convert.out.find("landmarks: 365 of 365 kept"), std::string::npos) << convert.out;
+  EXPECT_NE(convert.out.find("left out 4 vertices that are OpenMVG's camera centres, not "
+                             "landmarks (at the camera centres of the sfm_data.json beside it)"),
+            std::string::npos)
+      << convert.out;
+  EXPECT_EQ(read_ply_map(path("c.ply")).landmarks.size(), 365u);
+  const test::CliRun align =
+      run("align " + shell_quote(ply) + " " + shell_quote(ply) + " --strategy base");
+  ASSERT_EQ(align.exit_code, 0) << align.err;
+  EXPECT_NE(align.out.find(ply + ": left out 4 vertices that are OpenMVG's camera centres"),
+            std::string::npos)
+      << align.out;
+}
+
 TEST_F(CliConvert, TransformMovesTheMapBySimilarityAndMapScaleMarksIt) {
   const std::string desk = test::data_file("tum_fr1_desk/ground_truth_pair/desk_gt_a.txt");
   LMALIGN_REQUIRE_FILE(desk);

@@ -16,6 +16,7 @@
 
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
+#include <nlohmann/json.hpp>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/map/formats/bundler.hpp"
@@ -472,16 +473,16 @@ TEST(FormatsReal, EachFileRecordsItsScale) {
 // Every map file in ../shared/data/real_formats reads through read_any_map, found by walking the
 // folder (a file added there is covered without editing this list): the three stella_vslam maps,
 // the COLMAP model and OpenMVG's three PLYs (two binary with double coordinates, one ASCII; the
-// four camera centres OpenMVG appends are vertices like the others; no covariances, so they are
-// assumed from the spacing). The one model without a 3-D
+// four camera centres OpenMVG adds as green vertices are left out, OpenMVGCameraCentresLeftOut;
+// no covariances, so they are assumed from the spacing). The one model without a 3-D
 // point is refused in one line naming it. Counts from each folder's SOURCE.md.
 TEST(FormatsReal, EveryRealFileReads) {
   const std::string root = test::data_file("real_formats");
   LMALIGN_REQUIRE_FILE(root);
   const std::map<std::string, std::size_t> expected_vertices = {
-      {"ply_openmvg_kapture_maupertuis/cloud_and_poses.ply", 369},
-      {"ply_openmvg_kapture_maupertuis/colorized.ply", 369},
-      {"ply_openmvg_kapture_maupertuis/robust.ply", 527}};
+      {"ply_openmvg_kapture_maupertuis/cloud_and_poses.ply", 365},
+      {"ply_openmvg_kapture_maupertuis/colorized.ply", 365},
+      {"ply_openmvg_kapture_maupertuis/robust.ply", 523}};
   const std::string empty_model = "colmap_txt_kapture_t265_nonstandard";
   std::map<std::string, std::size_t> read;  // relative path -> landmarks
   std::vector<std::string> refused;
@@ -532,15 +533,85 @@ TEST(FormatsReal, EveryRealFileReads) {
     EXPECT_LE(n, c.landmarks);
   }
   // The binary PLY (double coordinates, camera centres first) and the ASCII one (camera centres
-  // last) hold the same 369 vertices to the ASCII's 16 digits.
+  // last) hold the same 365 landmarks to the ASCII's 16 digits.
   const Map binary = read_ply_map(root + "/ply_openmvg_kapture_maupertuis/cloud_and_poses.ply");
   const Map ascii = read_ply_map(root + "/ply_openmvg_kapture_maupertuis/colorized.ply");
-  ASSERT_EQ(binary.landmarks.size(), 369u);
-  ASSERT_EQ(ascii.landmarks.size(), 369u);
-  for (std::size_t i = 0; i < 369; ++i) {
-    const Vec3& b = binary.landmarks[(i + 4) % 369].p_world;
+  ASSERT_EQ(binary.landmarks.size(), 365u);
+  ASSERT_EQ(ascii.landmarks.size(), 365u);
+  for (std::size_t i = 0; i < 365; ++i) {
+    const Vec3& b = binary.landmarks[i].p_world;
     ASSERT_LT((b - ascii.landmarks[i].p_world).norm(), 1e-12 * (1.0 + b.norm())) << i;
   }
+}
+
+// OpenMVG's camera centres (ply.hpp, docs/map-format.md): checked against sfm_data.json, read
+// here on its own with nlohmann::json (its 4 poses' centres are exact, its 365 structure points
+// are the final cloud). Each of the three PLYs loses exactly its 4 green vertices at those
+// centres and keeps every other vertex; the final clouds are sfm_data.json's structure. Copied
+// alone into a folder, the binary files are still recognised by OpenMVG's comment; the ASCII
+// colorized.ply (no comment) then keeps them (the rule does not guess from the colour alone).
+TEST(FormatsReal, OpenMvgCameraCentresLeftOut) {
+  const std::string dir = test::data_file("real_formats/ply_openmvg_kapture_maupertuis");
+  LMALIGN_REQUIRE_FILE(dir + "/sfm_data.json");
+  std::ifstream in(dir + "/sfm_data.json");
+  const nlohmann::json scene = nlohmann::json::parse(in);
+  std::vector<Vec3> centres, structure;
+  for (const auto& e : scene.at("extrinsics")) {
+    const auto& c = e.at("value").at("center");
+    centres.emplace_back(c[0].get<double>(), c[1].get<double>(), c[2].get<double>());
+  }
+  for (const auto& s : scene.at("structure")) {
+    const auto& X = s.at("value").at("X");
+    structure.emplace_back(X[0].get<double>(), X[1].get<double>(), X[2].get<double>());
+  }
+  ASSERT_EQ(centres.size(), 4u);
+  ASSERT_EQ(structure.size(), 365u);
+  const auto nearest = [](const Vec3& p, const std::vector<Vec3>& set) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const Vec3& q : set) best = std::min(best, (p - q).norm());
+    return best;
+  };
+  test::ScratchDir alone("openmvg_alone");
+  const std::vector<std::tuple<std::string, std::size_t, bool>> files = {
+      {"cloud_and_poses.ply", 365, true}, {"colorized.ply", 365, false}, {"robust.ply", 523, true}};
+  for (const auto& [file, landmarks, has_comment] : files) {
+    SCOPED_TRACE(file);
+    PlyReadReport report;
+    const Map map = read_ply_map(dir + "/" + file, &report);
+    EXPECT_EQ(report.vertices, landmarks + 4);
+    EXPECT_EQ(report.camera_centres_left_out, 4u);
+    EXPECT_NE(report.camera_centres_rule.find("sfm_data.json"), std::string::npos);
+    ASSERT_EQ(map.landmarks.size(), landmarks);
+    // None at a camera centre (the nearest is > 1 cm away in a scene of about 1 unit).
+    for (const Landmark& l : map.landmarks) ASSERT_GT(nearest(l.p_world, centres), 1e-3) << l.id;
+    // The final clouds are the structure, point for point (16 digits in the ASCII file).
+    if (landmarks == 365) {
+      for (const Landmark& l : map.landmarks) {
+        ASSERT_LT(nearest(l.p_world, structure), 1e-12 * (1.0 + l.p_world.norm())) << l.id;
+      }
+    }
+    // Every centre was a vertex of the file: read without the rules they are all there.
+    std::ifstream raw(dir + "/" + file, std::ios::binary);
+    const std::vector<Vec3> none;
+    const Map all = read_ply_map(raw, file, nullptr, &none);
+    ASSERT_EQ(all.landmarks.size(), landmarks + 4);
+    for (const Vec3& c : centres) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const Landmark& l : all.landmarks) best = std::min(best, (l.p_world - c).norm());
+      EXPECT_LT(best, 1e-12 * (1.0 + c.norm()));
+    }
+    // Without sfm_data.json beside it: the comment rule, or nothing left out.
+    std::filesystem::copy_file(dir + "/" + file, alone.file(file));
+    PlyReadReport alone_report;
+    const Map copy = read_ply_map(alone.file(file), &alone_report);
+    EXPECT_EQ(copy.landmarks.size(), has_comment ? landmarks : landmarks + 4);
+    EXPECT_EQ(alone_report.camera_centres_left_out, has_comment ? 4u : 0u);
+  }
+  // read_any_map (convert, align) reports them apart from the landmarks.
+  MapReadStats stats;
+  read_any_map(dir + "/colorized.ply", {}, &stats);
+  EXPECT_EQ(stats.landmarks_in_file, 365u);
+  EXPECT_EQ(stats.camera_centres_left_out, 4u);
 }
 
 // Balbianello without an image size (the file has none): the same frames and landmarks, its

@@ -99,8 +99,14 @@ Map read_colmap_text(const std::string& path, const AnyMapReadOptions& o, MapFil
 Map read_colmap_binary(const std::string& path, const AnyMapReadOptions& o, MapFileExtras* extras) {
   return read_colmap_model(path, o, extras, true);
 }
-Map read_ply_file(const std::string& path, const AnyMapReadOptions&, MapFileExtras*) {
-  return read_ply_map(path);
+Map read_ply_file(const std::string& path, const AnyMapReadOptions&, MapFileExtras* extras) {
+  PlyReadReport report;
+  Map map = read_ply_map(path, &report);
+  if (extras != nullptr) {
+    extras->camera_centres_left_out = report.camera_centres_left_out;
+    extras->camera_centres_rule = report.camera_centres_rule;
+  }
+  return map;
 }
 Map read_stella_file(const std::string& path, const AnyMapReadOptions&, MapFileExtras*) {
   return read_stella_vslam(path);
@@ -368,6 +374,8 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options,
     if (map.landmarks.empty()) refuse_empty(path, format, map);
     refuse_degenerate(path, map);
     stats.landmarks_in_file = map.landmarks.size();
+    stats.camera_centres_left_out = extras.camera_centres_left_out;
+    stats.camera_centres_rule = extras.camera_centres_rule;
     const bool any_known = std::any_of(map.landmarks.begin(), map.landmarks.end(),
                                        [](const Landmark& l) { return !l.covariance_unknown; });
     if (!any_known) {

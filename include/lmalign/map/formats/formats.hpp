@@ -131,6 +131,11 @@ struct MapReadStats {
   std::size_t dropped_not_triangulated = 0;    ///< triangulation failed
   std::size_t dropped_below_min_parallax = 0;  ///< parallax below confidence.min_parallax_deg
   std::size_t dropped_unknown = 0;             ///< a PLY vertex flagged covariance_known = 0
+  // Not landmarks, so not in landmarks_in_file: OpenMVG's camera centres, which OpenMVG writes
+  // into its PLYs as pure green vertices (read_ply_map, formats/ply.hpp), and how they were
+  // recognised (PlyReadReport::camera_centres_rule; "" when none).
+  std::size_t camera_centres_left_out = 0;
+  std::string camera_centres_rule;
 
   std::size_t kept() const {
     return kept_stored + kept_triangulated + kept_low_parallax + kept_assumed + kept_unknown;
@@ -196,6 +201,9 @@ struct MapFileExtras {
   std::vector<double> sigma_px;
   /// Our format: landmarks dropped for fewer than min_observations observations.
   std::size_t dropped_min_observations = 0;
+  /// PLY: OpenMVG's camera centres left out (PlyReadReport).
+  std::size_t camera_centres_left_out = 0;
+  std::string camera_centres_rule;
 };
 
 /// One format: one row of map_formats(). Every list of formats (the CLI's help, Python's
