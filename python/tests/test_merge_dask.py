@@ -135,7 +135,7 @@ def test_the_cli_passes_scale_on_to_dask(stella_free, cli, tmp_path):
                                cluster.scheduler_address, "--scale", "free", "--ground-truth",
                                str(truth)], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
-    assert "(dask)" in done.stdout and "scale of 356a5a6e" in done.stdout, done.stdout
+    assert "(dask)" in done.stdout and "scale of 94eb7149" in done.stdout, done.stdout
     for name in OUTPUTS:
         a, b = out / name, pathlib.Path(reference.output_dir) / name
         assert a.exists() == b.exists(), name

@@ -718,8 +718,15 @@ MergeResult solve_pose_graph(std::size_t num_maps,
           " (chi2 " + message_number(inconsistent[e]->first) + ")";
     }
   }
-  std::vector<PoseBlock> pose(num_maps);
-  std::vector<double> log_scale(num_maps, 0.0);  // lambda_i (Sim(3) only)
+  // Every map's parameter blocks in one allocation, in map order: ceres::Covariance orders its
+  // columns by block address, so poses and log scales in two allocations gave the Sim(3)
+  // graph's covariances an order, and last bits, that depended on the heap (two solves of the
+  // same edges differed by 1e-24).
+  struct MapBlocks {
+    PoseBlock pose{};
+    double log_scale = 0.0;  // lambda_i (Sim(3) only)
+  };
+  std::vector<MapBlocks> map_blocks(num_maps);
   std::vector<bool> scale_held(num_maps, true);
   double scale = options.edge_covariance_scale > 0.0 ? options.edge_covariance_scale : 1.0;
   bool robust = true;
@@ -797,10 +804,10 @@ MergeResult solve_pose_graph(std::size_t num_maps,
         scale_held[i] = !free_scale(i) || priors[i].has_value() ||
                         (!comp_has_prior[c] && !comp_has_metric[c] && *root[c] == i);
         start[i] = S[i].rigid;
-        log_scale[i] = scale_held[i] ? std::log(prior_scale[i]) : std::log(S[i].scale);
+        map_blocks[i].log_scale = scale_held[i] ? std::log(prior_scale[i]) : std::log(S[i].scale);
       }
     }
-    for (std::size_t i = 0; i < num_maps; ++i) pose[i] = to_block(start[i]);
+    for (std::size_t i = 0; i < num_maps; ++i) map_blocks[i].pose = to_block(start[i]);
 
     std::vector<Mat6> W(edges.size(), Mat6::Zero());
     std::vector<Mat7> W7(sim ? edges.size() : 0, Mat7::Zero());
@@ -819,11 +826,11 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       const std::size_t i = edges[e].source, j = edges[e].target;
       if (!sim) {
         const Mat6 Wc = with_scale == scale ? W[e] : *whitening(edge_cov[e] * with_scale);
-        return chi2_of(Wc, edge_twist(pose[i], pose[j], edge_meas[e]));
+        return chi2_of(Wc, edge_twist(map_blocks[i].pose, map_blocks[j].pose, edge_meas[e]));
       }
       const Mat7 Wc = with_scale == scale ? W7[e] : sim_whitening(edge_cov7[e] * with_scale);
-      return (Wc * sim_edge_twist(pose[i], log_scale[i], pose[j], log_scale[j], edge_meas[e],
-                                  edge_log_scale[e]))
+      return (Wc * sim_edge_twist(map_blocks[i].pose, map_blocks[i].log_scale, map_blocks[j].pose,
+                                  map_blocks[j].log_scale, edge_meas[e], edge_log_scale[e]))
           .squaredNorm();
     };
     ceres::AutoDiffManifold<LeftPlus, 7, 6> manifold;
@@ -833,17 +840,17 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
       auto problem = std::make_unique<ceres::Problem>(po);
       for (std::size_t i = 0; i < num_maps; ++i) {
-        problem->AddParameterBlock(pose[i].data(), 7, &manifold);
+        problem->AddParameterBlock(map_blocks[i].pose.data(), 7, &manifold);
         if (sim) {
-          problem->AddParameterBlock(&log_scale[i], 1);
-          if (scale_held[i]) problem->SetParameterBlockConstant(&log_scale[i]);
+          problem->AddParameterBlock(&map_blocks[i].log_scale, 1);
+          if (scale_held[i]) problem->SetParameterBlockConstant(&map_blocks[i].log_scale);
         }
       }
       for (std::size_t i = 0; i < num_maps; ++i) {
         if (!priors[i] || !use_priors) continue;
         auto* cost = new ceres::AutoDiffCostFunction<PriorCost, 6, 7>(
             new PriorCost{to_block(priors[i]->T_world_map), *prior_w[i]});
-        problem->AddResidualBlock(cost, nullptr, pose[i].data());
+        problem->AddResidualBlock(cost, nullptr, map_blocks[i].pose.data());
       }
       for (std::size_t e = 0; e < edges.size(); ++e) {
         if (!active[e]) continue;
@@ -852,17 +859,17 @@ MergeResult solve_pose_graph(std::size_t num_maps,
         if (sim) {
           auto* cost = new ceres::AutoDiffCostFunction<SimEdgeCost, 7, 7, 1, 7, 1>(
               new SimEdgeCost{edge_meas[e], edge_log_scale[e], W7[e]});
-          problem->AddResidualBlock(cost, loss, pose[i].data(), &log_scale[i], pose[j].data(),
-                                    &log_scale[j]);
+          problem->AddResidualBlock(cost, loss, map_blocks[i].pose.data(), &map_blocks[i].log_scale,
+                                    map_blocks[j].pose.data(), &map_blocks[j].log_scale);
           continue;
         }
         auto* cost =
             new ceres::AutoDiffCostFunction<EdgeCost, 6, 7, 7>(new EdgeCost{edge_meas[e], W[e]});
-        problem->AddResidualBlock(cost, loss, pose[i].data(), pose[j].data());
+        problem->AddResidualBlock(cost, loss, map_blocks[i].pose.data(), map_blocks[j].pose.data());
       }
       for (std::size_t c = 0; c < ncomp; ++c) {
         if (!comp_has_prior[c] || !use_priors)
-          problem->SetParameterBlockConstant(pose[*root[c]].data());
+          problem->SetParameterBlockConstant(map_blocks[*root[c]].pose.data());
       }
       ceres::Solver::Options so;
       so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
@@ -946,15 +953,16 @@ MergeResult solve_pose_graph(std::size_t num_maps,
       for (std::size_t e = 0; e < edges.size(); ++e) total += active[e] ? chi2[e] : 0.0;
       for (std::size_t i = 0; i < num_maps; ++i) {
         if (priors[i])
-          total += chi2_of(*prior_w[i], prior_twist(pose[i], to_block(priors[i]->T_world_map)));
+          total += chi2_of(*prior_w[i],
+                           prior_twist(map_blocks[i].pose, to_block(priors[i]->T_world_map)));
       }
       out.final_chi2 = total;
       // Ceres' dense SVD must not see a non-finite Jacobian (Eigen's SVD does not return on
       // one); a solve that left the finite numbers has no covariance to report.
       bool finite = std::isfinite(total);
       for (std::size_t i = 0; i < num_maps; ++i) {
-        for (double v : pose[i]) finite = finite && std::isfinite(v);
-        finite = finite && std::isfinite(log_scale[i]);
+        for (double v : map_blocks[i].pose) finite = finite && std::isfinite(v);
+        finite = finite && std::isfinite(map_blocks[i].log_scale);
       }
       if (options.compute_covariances && finite) {
         ceres::Covariance::Options co;
@@ -966,22 +974,25 @@ MergeResult solve_pose_graph(std::size_t num_maps,
         ceres::Covariance cov(co);
         std::vector<std::pair<const double*, const double*>> blocks;
         for (std::size_t i = 0; i < num_maps; ++i) {
-          if (!problem.IsParameterBlockConstant(pose[i].data())) {
-            blocks.emplace_back(pose[i].data(), pose[i].data());
+          if (!problem.IsParameterBlockConstant(map_blocks[i].pose.data())) {
+            blocks.emplace_back(map_blocks[i].pose.data(), map_blocks[i].pose.data());
           }
-          if (sim && !scale_held[i]) blocks.emplace_back(&log_scale[i], &log_scale[i]);
+          if (sim && !scale_held[i])
+            blocks.emplace_back(&map_blocks[i].log_scale, &map_blocks[i].log_scale);
         }
         if (cov.Compute(blocks, &problem)) {
           for (std::size_t i = 0; i < num_maps; ++i) {
             double var = 0.0;
-            if (sim && !scale_held[i] && cov.GetCovarianceBlock(&log_scale[i], &log_scale[i], &var))
-              out.maps[i].scale_sd = std::exp(log_scale[i]) * std::sqrt(std::max(var, 0.0));
-            if (problem.IsParameterBlockConstant(pose[i].data())) {
+            if (sim && !scale_held[i] &&
+                cov.GetCovarianceBlock(&map_blocks[i].log_scale, &map_blocks[i].log_scale, &var))
+              out.maps[i].scale_sd =
+                  std::exp(map_blocks[i].log_scale) * std::sqrt(std::max(var, 0.0));
+            if (problem.IsParameterBlockConstant(map_blocks[i].pose.data())) {
               out.maps[i].covariance_valid = true;  // the gauge: zero by definition
               continue;
             }
             Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
-            if (cov.GetCovarianceMatrixInTangentSpace({pose[i].data()}, c.data())) {
+            if (cov.GetCovarianceMatrixInTangentSpace({map_blocks[i].pose.data()}, c.data())) {
               out.maps[i].covariance = c;
               out.maps[i].covariance_valid = c.allFinite();
             }
@@ -998,19 +1009,20 @@ MergeResult solve_pose_graph(std::size_t num_maps,
     if (!usable[e]) continue;
     const std::size_t i = edges[e].source, j = edges[e].target;
     if (sim) {
-      out.edges[e].chi2 = (sim_whitening(edge_cov7[e] * scale) *
-                           sim_edge_twist(pose[i], log_scale[i], pose[j], log_scale[j],
-                                          edge_meas[e], edge_log_scale[e]))
-                              .squaredNorm();
+      out.edges[e].chi2 =
+          (sim_whitening(edge_cov7[e] * scale) *
+           sim_edge_twist(map_blocks[i].pose, map_blocks[i].log_scale, map_blocks[j].pose,
+                          map_blocks[j].log_scale, edge_meas[e], edge_log_scale[e]))
+              .squaredNorm();
     } else {
-      const Vec6 xi = edge_twist(pose[i], pose[j], edge_meas[e]);
+      const Vec6 xi = edge_twist(map_blocks[i].pose, map_blocks[j].pose, edge_meas[e]);
       out.edges[e].chi2 = chi2_of(*whitening(edge_cov[e] * scale), xi);
     }
   }
   for (std::size_t i = 0; i < num_maps; ++i) {
-    out.maps[i].T_world_map = from_block(pose[i]);
+    out.maps[i].T_world_map = from_block(map_blocks[i].pose);
     if (sim) {
-      out.maps[i].scale = std::exp(log_scale[i]);
+      out.maps[i].scale = std::exp(map_blocks[i].log_scale);
       out.maps[i].scale_free = !scale_held[i];
     }
   }
