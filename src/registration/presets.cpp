@@ -372,7 +372,9 @@ Summary align(const Preset& preset, const SourceView& source, const PreparedTarg
     int attempts = out.scale.attempts;
     int searches = 1;
     r.scale_rungs = false;
-    for (const double factor : {1.0 / 1.12, 1.12, 1.0 / 1.2544, 1.2544}) {
+    // The side the first result's refined scale leans to first.
+    const double up = out.scale.scale > s0 ? 1.12 : 1.0 / 1.12;
+    for (const double factor : {up, 1.0 / up, up * up, 1.0 / (up * up)}) {
       r.initial_scale = s0 * factor;
       Summary alt = pipeline.run(source_kept, target_kept, r);
       ++searches;
