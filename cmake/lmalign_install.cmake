@@ -50,6 +50,11 @@ lmalign_install_component(lmalign_merge merge merge lmalignMergeTargets LMALIGN_
 # --- the command-line tool (and its build-map helper, found beside it)
 if(TARGET lmalign_cli)
   install(TARGETS lmalign_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+  # Its plotting scripts (lmalign experiment, lmalign merge), found at <bin>/../share/lmalign/
+  # scripts (apps/lmalign/cli_util.cpp, find_script).
+  install(FILES ${PROJECT_SOURCE_DIR}/scripts/plot_experiment.py
+                ${PROJECT_SOURCE_DIR}/scripts/plot_merge.py
+          DESTINATION ${CMAKE_INSTALL_DATADIR}/lmalign/scripts)
 endif()
 if(TARGET lmalign_build_map_cli)
   install(TARGETS lmalign_build_map_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})

@@ -305,6 +305,9 @@ def main():
     parser.add_argument("--case", help="case of the history/alignment plots (index or "
                         "<experiment>/<label>)")
     parser.add_argument("--quiet", action="store_true", help="print only the plots folder")
+    parser.add_argument("--plots-dir", help="where the PNGs go (default OUTDIR/plots; lmalign "
+                        "draws into a temporary folder and writes each PNG through its output "
+                        "writer)")
     args = parser.parse_args()
 
     try:
@@ -325,7 +328,7 @@ def main():
     if os.path.isfile(summary_path):
         with open(summary_path) as f:
             summary = json.load(f)
-    plots_dir = os.path.join(args.outdir, "plots")
+    plots_dir = args.plots_dir or os.path.join(args.outdir, "plots")
     os.makedirs(plots_dir, exist_ok=True)
 
     written = []

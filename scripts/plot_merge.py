@@ -133,6 +133,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("outdir")
     parser.add_argument("--quiet", action="store_true")
+    parser.add_argument("--plots-dir", help="where the PNGs go (default OUTDIR)")
     args = parser.parse_args()
     try:
         import matplotlib
@@ -217,7 +218,8 @@ def main():
     if norm is not None:
         sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
         fig.colorbar(sm, ax=axes[0].tolist(), label="edge residual chi^2 (dashed: rejected)")
-    save(fig, os.path.join(out, "merge_graph.png"))
+    plots = args.plots_dir or out
+    save(fig, os.path.join(plots, "merge_graph.png"))
     plt.close(fig)
 
     # The merged landmarks, top-down, one colour per map: ten distinct hues, then their light
@@ -252,11 +254,11 @@ def main():
             else ""), fontsize=9)
         ax.set_xlabel("m (principal axis 1)")
         ax.set_ylabel("m (principal axis 2)")
-    save(fig, os.path.join(out, "merged_landmarks.png"))
+    save(fig, os.path.join(plots, "merged_landmarks.png"))
     plt.close(fig)
     if not args.quiet:
-        print("wrote %s, %s" % (os.path.join(out, "merge_graph.png"),
-                                os.path.join(out, "merged_landmarks.png")))
+        print("wrote %s, %s" % (os.path.join(plots, "merge_graph.png"),
+                                os.path.join(plots, "merged_landmarks.png")))
 
 
 if __name__ == "__main__":

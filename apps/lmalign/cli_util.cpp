@@ -3,15 +3,21 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/io/output_file.hpp"
 
 namespace lmalign::cli {
 
@@ -60,6 +66,56 @@ void refuse_output_over_input(const std::string& option, const std::string& outp
       throw InvalidArgument(option + " '" + output +
                             "' is an input file; refusing to overwrite it");
     }
+  }
+}
+
+namespace {
+bool g_stdout_claimed = false;
+}  // namespace
+
+bool standard_output_claimed() { return g_stdout_claimed; }
+std::FILE* human_file() { return g_stdout_claimed ? stderr : stdout; }
+std::ostream& human() { return g_stdout_claimed ? std::cerr : std::cout; }
+
+void say(const char* format, ...) {
+  std::va_list args;
+  va_start(args, format);
+  std::vfprintf(human_file(), format, args);
+  va_end(args);
+}
+
+std::string output_name(const std::string& path) {
+  return path == "-" ? "the standard output" : path;
+}
+
+void check_outputs(const std::vector<OutputOption>& outputs,
+                   const std::vector<std::string>& inputs) {
+  std::string on_stdout;
+  for (const auto& [option, path] : outputs) {
+    if (path.empty()) continue;
+    const OutputTarget t = check_output_path(path);
+    if (t.kind == OutputKind::kStandardOutput) {
+      if (!on_stdout.empty()) {
+        throw InvalidArgument(option + " '" + path + "': " + on_stdout +
+                              " already writes to the standard output; at most one output "
+                              "may be '-'");
+      }
+      on_stdout = option;
+      continue;
+    }
+    refuse_output_over_input(option, path, inputs);
+  }
+  if (!on_stdout.empty()) {
+    std::cout.flush();
+    std::fflush(stdout);
+    g_stdout_claimed = true;
+  }
+}
+
+void refuse_standard_output_folder(const std::string& option, const std::string& folder) {
+  if (folder == "-" || names_standard_output(folder)) {
+    throw InvalidArgument(option + " '" + folder +
+                          "': an output folder cannot be the standard output");
   }
 }
 
@@ -129,16 +185,68 @@ StopSignals::~StopSignals() {
   ::sigaction(SIGTERM, &old_term_, nullptr);
 }
 
-std::filesystem::path repository_root() {
+std::filesystem::path source_checkout() {
+#ifdef LMALIGN_SOURCE_DIR
+  std::error_code ec;
+  const std::filesystem::path root(LMALIGN_SOURCE_DIR);
+  if (std::filesystem::is_directory(root / "scripts", ec)) return root;
+#endif
+  return {};
+}
+
+std::string find_script(const std::string& name, const char* env_var) {
   namespace fs = std::filesystem;
+  if (const char* env = std::getenv(env_var); env != nullptr && *env != '\0') return env;
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-  if (ec) return {};
-  for (fs::path p = exe.parent_path(); !p.empty(); p = p.parent_path()) {
-    if (fs::exists(p / "scripts" / "plot_experiment.py", ec)) return p;
-    if (p == p.root_path()) break;
+  if (!ec) {
+    const fs::path installed =
+        exe.parent_path().parent_path() / "share" / "lmalign" / "scripts" / name;
+    if (fs::is_regular_file(installed, ec)) return installed.string();
+  }
+  if (const fs::path root = source_checkout(); !root.empty()) {
+    if (fs::is_regular_file(root / "scripts" / name, ec)) return (root / "scripts" / name).string();
   }
   return {};
+}
+
+int draw_plots(const std::string& script, const std::vector<std::string>& args,
+               const std::string& plots_dir) {
+  namespace fs = std::filesystem;
+  create_output_folder(plots_dir);
+  std::string pattern = (fs::path(plots_dir) / ".lmalign-plots.XXXXXX").string();
+  if (::mkdtemp(pattern.data()) == nullptr) {
+    throw IoError("cannot write into '" + plots_dir + "': " + std::strerror(errno));
+  }
+  const fs::path temp(pattern);
+  struct Remove {
+    fs::path path;
+    ~Remove() {
+      std::error_code ec;
+      fs::remove_all(path, ec);
+    }
+  } remove{temp};
+  std::vector<std::string> argv{python_interpreter(), script};
+  argv.insert(argv.end(), args.begin(), args.end());
+  argv.insert(argv.end(), {"--plots-dir", temp.string()});
+  const int rc = run_process(argv);
+  if (rc != 0) return rc;
+  std::vector<fs::path> drawn;
+  for (const auto& entry : fs::directory_iterator(temp)) {
+    if (entry.is_regular_file()) drawn.push_back(entry.path());
+  }
+  std::sort(drawn.begin(), drawn.end());
+  for (const fs::path& file : drawn) {
+    std::ifstream in(file, std::ios::binary);
+    std::ostringstream bytes;
+    bytes << in.rdbuf();
+    if (!in && !in.eof()) throw IoError("cannot read the plot '" + file.string() + "'");
+    const std::string data = bytes.str();
+    write_output((fs::path(plots_dir) / file.filename()).string(), [&](std::ostream& out) {
+      out.write(data.data(), static_cast<std::streamsize>(data.size()));
+    });
+  }
+  return 0;
 }
 
 std::string python_interpreter() {
@@ -156,6 +264,9 @@ int run_process(const std::vector<std::string>& argv) {
   const pid_t pid = ::fork();
   if (pid < 0) return -1;
   if (pid == 0) {
+    // The child's own output belongs to the human summary: on standard error when an output
+    // file has standard output.
+    if (g_stdout_claimed) ::dup2(STDERR_FILENO, STDOUT_FILENO);
     ::execvp(args[0], args.data());
     std::fprintf(stderr, "lmalign: cannot run %s\n", args[0]);
     ::_exit(127);

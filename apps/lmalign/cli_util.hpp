@@ -5,8 +5,11 @@
 
 #include <array>
 #include <atomic>
+#include <cstdio>
 #include <filesystem>
+#include <iosfwd>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -30,6 +33,31 @@ bool same_file(const std::string& a, const std::string& b);
 /// Throws InvalidArgument if `output` names one of `inputs` (an output must never clobber input).
 void refuse_output_over_input(const std::string& option, const std::string& output,
                               const std::vector<std::string>& inputs);
+
+/// An output file named by an option: {option, path}; an empty path is not given.
+using OutputOption = std::pair<std::string, std::string>;
+
+/// Checks a command's output files before any work (io/output_file.hpp check_output_path: a
+/// missing directory, a directory, a block device are one-line errors naming the path), refuses
+/// one that is an input, and when one is the standard output ("-", /dev/stdout) sends the human
+/// summary to standard error from then on (human()). At most one output may be the standard
+/// output. Throws InvalidArgument or IoError.
+void check_outputs(const std::vector<OutputOption>& outputs,
+                   const std::vector<std::string>& inputs = {});
+
+/// Refuses "-" (or a path naming the standard output) for an output folder (-o OUTDIR).
+void refuse_standard_output_folder(const std::string& option, const std::string& folder);
+
+/// Where the human summary goes: standard output, or standard error once an output file has
+/// claimed standard output (check_outputs).
+std::FILE* human_file();
+std::ostream& human();
+/// printf to human_file().
+void say(const char* format, ...) __attribute__((format(printf, 1, 2)));
+/// How a "written to" line names an output: "the standard output" for "-", else the path.
+std::string output_name(const std::string& path);
+/// True once an output file has claimed standard output.
+bool standard_output_claimed();
 
 /// A double as JSON: a number, or null if not finite (JSON has no inf/NaN).
 nlohmann::json json_number(double v);
@@ -59,9 +87,22 @@ class StopSignals {
   struct sigaction old_term_ {};
 };
 
-/// The source checkout this executable was built in (the folder holding scripts/), found by
-/// walking up from /proc/self/exe; empty when not found (e.g. an installed binary).
-std::filesystem::path repository_root();
+/// The source checkout this executable was built from (LMALIGN_SOURCE_DIR, set by CMake),
+/// when it still exists; empty otherwise (e.g. a package installed on another machine).
+std::filesystem::path source_checkout();
+
+/// A plotting script shipped with lmalign (scripts/NAME): $ENV_VAR if set, else the installed
+/// copy (<bin>/../share/lmalign/scripts/NAME, as `make install`, the .deb and pip put it), else
+/// the source checkout's (any build folder of it). Empty when none exists.
+std::string find_script(const std::string& name, const char* env_var);
+
+/// Runs `script` (with python_interpreter()) with `args` plus `--plots-dir TEMP`, a temporary
+/// folder inside `plots_dir` (created if missing), then writes each file it drew into
+/// `plots_dir` through the one output writer (io/output_file.hpp) and removes the folder.
+/// Returns the script's exit status (-1 if it could not run); on a non-zero status nothing is
+/// written. Throws IoError when a plot cannot be written.
+int draw_plots(const std::string& script, const std::vector<std::string>& args,
+               const std::string& plots_dir);
 
 /// $LMALIGN_PYTHON, else /usr/bin/python3 if executable, else python3 (PATH).
 std::string python_interpreter();

@@ -19,7 +19,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/similarity.hpp"
 #include "lmalign/core/supported_range.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/io/ply.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/formats/formats.hpp"
@@ -49,6 +49,7 @@ struct AlignArgs {
   double success_translation_m = 0.10;
   std::string json_path;
   std::string ply_path;
+  std::string aligned_format = "auto";
   std::string format = "auto";  // --format: the reader of SOURCE and TARGET
   bool history = false;
   std::string initial_guess;   // 4x4 file; empty: none
@@ -215,18 +216,30 @@ AlignPlan plan_align(const AlignArgs& a) {
   if (!(a.success_rotation_deg > 0) || !(a.success_translation_m > 0)) {
     throw InvalidArgument("--success-rotation-deg and --success-translation-m must be > 0");
   }
-  if (!a.json_path.empty()) refuse_output_over_input("--json", a.json_path, {a.source, a.target});
+  // Every output checked before any work: a missing directory, a directory or a block device is
+  // an error naming it; "-" (or /dev/stdout) writes there and sends this summary to stderr.
+  std::vector<OutputOption> outputs{{"--json", a.json_path}};
   if (!a.ply_path.empty()) {
-    refuse_output_over_input("--aligned-out", a.ply_path, {a.source, a.target});
+    if (names_standard_output(a.ply_path) && strategies.size() > 1) {
+      throw InvalidArgument("--aligned-out '" + a.ply_path +
+                            "': " + std::to_string(strategies.size()) +
+                            " strategies write one map each; the standard output takes one");
+    }
     // With several strategies the files are NAME_<strategy>.ply: none may be an input either.
     for (const Preset& s : strategies) {
       const std::string path = ply_path_for(a.ply_path, s.name, strategies.size() > 1);
-      refuse_output_over_input("--aligned-out", path, {a.source, a.target});
-      if (!a.json_path.empty() && same_file(path, a.json_path)) {
+      if (written_map_format(path, parse_map_format(a.aligned_format)) == MapFormat::kColmapText) {
+        refuse_standard_output_folder("--aligned-out", path);
+        refuse_output_over_input("--aligned-out", path, {a.source, a.target});
+      } else {
+        outputs.emplace_back("--aligned-out", path);
+      }
+      if (!a.json_path.empty() && !names_standard_output(path) && same_file(path, a.json_path)) {
         throw InvalidArgument("--aligned-out '" + path + "' and --json name the same file");
       }
     }
   }
+  check_outputs(outputs, {a.source, a.target});
 
   if (!a.prior_sigma.empty()) {
     const std::vector<double> v =
@@ -280,56 +293,52 @@ void print_table(const AlignArgs& a, const AlignOutcome& o) {
   const std::optional<Similarity3>& T_true = o.T_true;
   const bool scale_columns = o.scale_columns;
   // --- human table
-  std::printf("%-17s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score",
-              "iters", "termination", "time ms");
-  if (T_true) std::printf(" %8s %8s %6s", "rot deg", "trans m", "basin");
-  if (scale_columns) std::printf(" %10s %8s", "scale", "scale sd");
-  if (scale_columns && T_true) std::printf(" %9s", "scale err");
-  std::printf(" %6s\n", "trust");
+  say("%-17s %3s %12s %12s %6s %-19s %9s", "strategy", "k", "init score", "final score", "iters",
+      "termination", "time ms");
+  if (T_true) say(" %8s %8s %6s", "rot deg", "trans m", "basin");
+  if (scale_columns) say(" %10s %8s", "scale", "scale sd");
+  if (scale_columns && T_true) say(" %9s", "scale err");
+  say(" %6s\n", "trust");
   for (const Run& r : runs) {
     const RegistrationResult& g = r.summary.registration;
-    std::printf("%-17s %3s %12s %12s %6d %-19s %9.2f", r.preset.name.c_str(),
-                r.preset.uses_k() ? std::to_string(a.k).c_str() : "-",
-                fmt_score(g.initial_score_m2).c_str(), fmt_score(g.final_score_m2).c_str(),
-                g.iterations, to_string(g.termination).c_str(), g.wall_time_s * 1e3);
+    say("%-17s %3s %12s %12s %6d %-19s %9.2f", r.preset.name.c_str(),
+        r.preset.uses_k() ? std::to_string(a.k).c_str() : "-",
+        fmt_score(g.initial_score_m2).c_str(), fmt_score(g.final_score_m2).c_str(), g.iterations,
+        to_string(g.termination).c_str(), g.wall_time_s * 1e3);
     if (r.error) {
-      std::printf(" %8.3f %8.4f %6s", r.error->rotation_deg, r.error->translation_m,
-                  r.right_basin ? "yes" : "NO");
+      say(" %8.3f %8.4f %6s", r.error->rotation_deg, r.error->translation_m,
+          r.right_basin ? "yes" : "NO");
     }
     if (scale_columns) {
-      std::printf(" %10.6g %8.2g", r.summary.scale.scale, r.summary.scale.scale_sd);
-      if (r.error) std::printf(" %9.2e", r.error->scale_error);
+      say(" %10.6g %8.2g", r.summary.scale.scale, r.summary.scale.scale_sd);
+      if (r.error) say(" %9.2e", r.error->scale_error);
     }
-    std::printf(" %6s\n", r.summary.verdict.trustworthy ? "yes" : "NO");
+    say(" %6s\n", r.summary.verdict.trustworthy ? "yes" : "NO");
   }
-  std::printf("\nscores are PCL fitness scores (mean squared nearest-neighbour distance, m^2)\n");
-  std::printf(
-      "trust: the verdict without ground truth (docs/accuracy.md), by each strategy's trust "
+  say("\nscores are PCL fitness scores (mean squared nearest-neighbour distance, m^2)\n");
+  say("trust: the verdict without ground truth (docs/accuracy.md), by each strategy's trust "
       "judge (lmalign options NAME)\n");
   for (const Run& r : runs) {
     if (!r.summary.verdict.trustworthy) {
-      std::printf("  %-17s not trusted: %s\n", r.preset.name.c_str(),
-                  r.summary.verdict.reason.c_str());
+      say("  %-17s not trusted: %s\n", r.preset.name.c_str(), r.summary.verdict.reason.c_str());
     } else if (r.summary.source_left_out + r.summary.target_left_out > 0 ||
                r.summary.covariances_assumed) {
-      std::printf("  %-17s trusted: %s\n", r.preset.name.c_str(), r.summary.verdict.reason.c_str());
+      say("  %-17s trusted: %s\n", r.preset.name.c_str(), r.summary.verdict.reason.c_str());
     }
   }
-  std::printf(
-      "\nestimated T_target_source (p_target = T * p_source): x y z [m], roll pitch yaw [deg]\n");
+  say("\nestimated T_target_source (p_target = T * p_source): x y z [m], roll pitch yaw [deg]\n");
   for (const Run& r : runs) {
     const auto v = xyz_rpy_deg_from_pose(r.summary.registration.T_target_source);
-    std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", r.preset.name.c_str(), v[0],
-                v[1], v[2], v[3], v[4], v[5]);
+    say("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", r.preset.name.c_str(), v[0], v[1], v[2],
+        v[3], v[4], v[5]);
   }
   if (T_true) {
     const auto v = xyz_rpy_deg_from_pose(T_true->rigid);
-    std::printf("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2],
-                v[3], v[4], v[5]);
+    say("  %-17s %9.4f %9.4f %9.4f   %9.3f %9.3f %9.3f\n", "(truth)", v[0], v[1], v[2], v[3], v[4],
+        v[5]);
   }
   if (scale_columns) {
-    std::printf(
-        "scale: target units per source unit (p_target = scale * R * p_source + t); the rows "
+    say("scale: target units per source unit (p_target = scale * R * p_source + t); the rows "
         "above are R and t\n");
   }
 }
@@ -350,10 +359,12 @@ void write_outputs(const AlignArgs& a, const AlignPlan& plan, const AlignOutcome
       const std::string path = ply_path_for(a.ply_path, r.preset.name, runs.size() > 1);
       // The writer by extension: .ply (with covariances), a folder (COLMAP text), else ours.
       write_any_map(
-          path, r.summary.scale.free
-                    ? transform_map(source, r.summary.similarity() * S_displace)
-                    : transform_map(source, r.summary.registration.T_target_source * T_displace));
-      std::printf("aligned source (%s) written to %s\n", r.preset.name.c_str(), path.c_str());
+          path,
+          r.summary.scale.free
+              ? transform_map(source, r.summary.similarity() * S_displace)
+              : transform_map(source, r.summary.registration.T_target_source * T_displace),
+          parse_map_format(a.aligned_format));
+      say("aligned source (%s) written to %s\n", r.preset.name.c_str(), output_name(path).c_str());
     }
   }
   if (!a.json_path.empty()) {
@@ -405,20 +416,11 @@ void write_outputs(const AlignArgs& a, const AlignPlan& plan, const AlignOutcome
       results.push_back(e);
     }
     j["results"] = results;
-    const std::filesystem::path jp(a.json_path);
-    if (jp.has_parent_path()) {
-      std::error_code ec;
-      std::filesystem::create_directories(jp.parent_path(), ec);
-      if (ec) {
-        throw IoError("cannot write '" + a.json_path +
-                      "': cannot create its folder: " + ec.message());
-      }
-    }
     // Paths need not be UTF-8 (JSON text must be): invalid bytes become U+FFFD.
-    write_file_atomically(a.json_path, [&](std::ostream& out) {
+    write_output(a.json_path, [&](std::ostream& out) {
       out << j.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) << "\n";
     });
-    std::printf("JSON written to %s\n", a.json_path.c_str());
+    say("JSON written to %s\n", output_name(a.json_path).c_str());
   }
 }
 
@@ -440,8 +442,8 @@ int run_align(const AlignArgs& a) {
   for (const auto& [path, stats] :
        {std::pair{&a.source, &source_stats}, {&a.target, &target_stats}}) {
     if (stats->camera_centres_left_out == 0) continue;
-    std::printf("%s: left out %zu vertices that are OpenMVG's camera centres, not landmarks (%s)\n",
-                path->c_str(), stats->camera_centres_left_out, stats->camera_centres_rule.c_str());
+    say("%s: left out %zu vertices that are OpenMVG's camera centres, not landmarks (%s)\n",
+        path->c_str(), stats->camera_centres_left_out, stats->camera_centres_rule.c_str());
   }
   const Map& source = o.source;
   const Map& target = o.target;
@@ -468,25 +470,22 @@ int run_align(const AlignArgs& a) {
   const PreparedTarget prepared(target, plan.wopt);
   for (AlignRequest& r : plan.requests) r.describe_maps(source.header, target.header);
 
-  std::printf("lmalign align: source %s (%zu landmarks) -> target %s (%zu landmarks)\n",
-              a.source.c_str(), source.landmarks.size(), a.target.c_str(), target.landmarks.size());
+  say("lmalign align: source %s (%zu landmarks) -> target %s (%zu landmarks)\n", a.source.c_str(),
+      source.landmarks.size(), a.target.c_str(), target.landmarks.size());
   for (const auto& [role, map] : {std::pair<const char*, const Map*>{"source", &source},
                                   std::pair<const char*, const Map*>{"target", &target}}) {
     if (map->header.covariance_assumed) {
-      std::printf(
-          "%s: covariances assumed (the map stores none): isotropic, half the median distance to "
+      say("%s: covariances assumed (the map stores none): isotropic, half the median distance to "
           "the 6 nearest landmarks\n",
           role);
     }
   }
   if (!disp.empty()) {
-    std::printf(
-        "source displaced about the world origin by x=%g y=%g z=%g m, roll=%g pitch=%g yaw=%g "
+    say("source displaced about the world origin by x=%g y=%g z=%g m, roll=%g pitch=%g yaw=%g "
         "deg\n",
         disp[0], disp[1], disp[2], disp[3], disp[4], disp[5]);
   }
-  std::printf(
-      "k=%d (weighted kNN), covariance norm=%s; limits: %s; settings: %s\n", a.k,
+  say("k=%d (weighted kNN), covariance norm=%s; limits: %s; settings: %s\n", a.k,
       a.covariance_norm.c_str(),
       a.max_iterations_given || a.max_distance_given
           ? ("max iterations " + (a.max_iterations_given ? std::to_string(a.max_iterations) : "-") +
@@ -496,11 +495,10 @@ int run_align(const AlignArgs& a) {
           : "the strategies' own",
       a.settings.empty() ? "the strategies' own" : join(a.settings).c_str());
   if (T_true) {
-    std::printf(
-        "ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
+    say("ground truth: %s; right basin = rotation error < %g deg and translation error < %g m\n",
         a.ground_truth.c_str(), a.success_rotation_deg, a.success_translation_m);
   }
-  std::printf("\n");
+  say("\n");
 
   std::vector<Run>& runs = o.runs;
   for (std::size_t i = 0; i < strategies.size(); ++i) {
@@ -591,11 +589,19 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option("--success-translation-m", args->success_translation_m,
                   "right-basin threshold on the translation error, metres")
       ->capture_default_str();
-  cmd->add_option("--json", args->json_path, "also write the results as JSON to this file");
+  cmd->add_option("--json", args->json_path,
+                  "also write the results as JSON to this file; '-' writes it to the standard "
+                  "output (this table then goes to the standard error). A symlink is written "
+                  "through, a FIFO or device in place; its directory must exist");
   cmd->add_option("--aligned-out", args->ply_path,
                   "write the aligned source map (target frame): FILE.ply as PLY with "
                   "covariances, a folder as COLMAP text, any other name as an lmalign map; with "
-                  "several strategies, one each: NAME_<strategy>.ply");
+                  "several strategies, one each: NAME_<strategy>.ply; '-' (one strategy): the "
+                  "standard output");
+  cmd->add_option(
+         "--aligned-format", args->aligned_format,
+         "writer of --aligned-out: auto (by its form, as above), " + written_map_format_names())
+      ->capture_default_str();
   cmd->add_option("--format", args->format,
                   "reader of SOURCE and TARGET: " + map_format_names() +
                       " (auto: by content; docs/map-format.md)");

@@ -17,6 +17,7 @@
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/eval/trajectory.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/vo/map_builder.hpp"
 
@@ -47,6 +48,10 @@ std::string default_trajectory_path(const std::string& map_path) {
 }
 
 int run_build(const BuildArgs& args, const CLI::App& cmd) {
+  if (args.trajectory.empty() && names_standard_output(args.output)) {
+    throw InvalidArgument("-o '" + args.output +
+                          "' is the standard output: give the trajectory's file with --trajectory");
+  }
   const std::string trajectory =
       args.trajectory.empty() ? default_trajectory_path(args.output) : args.trajectory;
   if (same_file(args.output, trajectory)) {
@@ -61,9 +66,9 @@ int run_build(const BuildArgs& args, const CLI::App& cmd) {
   vo::TumSequenceOptions seq_options;
   seq_options.max_difference_s = args.max_difference_s;
   const vo::TumSequence seq = vo::load_tum_sequence(args.sequence, seq_options);
-  refuse_output_over_input("-o", args.output,
-                           {args.sequence + "/rgb.txt", args.sequence + "/depth.txt",
-                            args.sequence + "/groundtruth.txt"});
+  check_outputs({{"-o", args.output}, {"--trajectory", trajectory}},
+                {args.sequence + "/rgb.txt", args.sequence + "/depth.txt",
+                 args.sequence + "/groundtruth.txt"});
 
   vo::MapBuilderOptions options;
   if (!args.camera_file.empty()) {
@@ -97,27 +102,27 @@ int run_build(const BuildArgs& args, const CLI::App& cmd) {
   write_tum_trajectory(trajectory, result.keyframe_trajectory);
 
   const auto& s = result.stats;
-  std::printf("lmalign build-map: %s (%zu associated RGB-D frames)\n", args.sequence.c_str(),
-              seq.frames.size());
-  std::printf("  frames processed: %zu (%zu not tracked)\n", s.frames, s.frames_lost);
-  std::printf("  keyframes:        %zu\n", s.keyframes);
-  std::printf("  landmarks:        %zu (%zu with >= 2 observations; %zu covariances from BA)\n",
-              s.landmarks, s.landmarks_two_plus, s.landmarks_ba_covariance);
-  std::printf("  observations per landmark: %.2f\n", s.mean_observations);
-  std::printf("  time:             %.1f s (%.1f ms per frame)\n", seconds,
-              1000.0 * seconds / static_cast<double>(std::max<std::size_t>(s.frames, 1)));
+  say("lmalign build-map: %s (%zu associated RGB-D frames)\n", args.sequence.c_str(),
+      seq.frames.size());
+  say("  frames processed: %zu (%zu not tracked)\n", s.frames, s.frames_lost);
+  say("  keyframes:        %zu\n", s.keyframes);
+  say("  landmarks:        %zu (%zu with >= 2 observations; %zu covariances from BA)\n",
+      s.landmarks, s.landmarks_two_plus, s.landmarks_ba_covariance);
+  say("  observations per landmark: %.2f\n", s.mean_observations);
+  say("  time:             %.1f s (%.1f ms per frame)\n", seconds,
+      1000.0 * seconds / static_cast<double>(std::max<std::size_t>(s.frames, 1)));
   if (seq.ground_truth && result.keyframe_trajectory.size() >= 3) {
     try {
       const AteResult ate =
           absolute_trajectory_error(result.keyframe_trajectory, *seq.ground_truth);
-      std::printf("  keyframe ATE vs groundtruth.txt: rmse %.4f m, max %.4f m (%zu poses)\n",
-                  ate.translation_m.rmse, ate.translation_m.max, ate.pairs.size());
+      say("  keyframe ATE vs groundtruth.txt: rmse %.4f m, max %.4f m (%zu poses)\n",
+          ate.translation_m.rmse, ate.translation_m.max, ate.pairs.size());
     } catch (const InvalidArgument&) {
-      std::printf("  keyframe ATE: too few keyframes associate with groundtruth.txt\n");
+      say("  keyframe ATE: too few keyframes associate with groundtruth.txt\n");
     }
   }
-  std::printf("  wrote map:        %s\n  wrote trajectory: %s\n", args.output.c_str(),
-              trajectory.c_str());
+  say("  wrote map:        %s\n  wrote trajectory: %s\n", output_name(args.output).c_str(),
+      trajectory.c_str());
   return 0;
 }
 

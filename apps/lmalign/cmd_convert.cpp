@@ -29,6 +29,7 @@ struct ConvertArgs {
   std::string input;
   std::string output;
   std::string format = "auto";
+  std::string output_format = "auto";
   std::string image_size;  // "W,H"
   double pixel_sigma_px = 0.0;
   double min_parallax_deg = 0.0;
@@ -39,7 +40,14 @@ struct ConvertArgs {
 };
 
 int run_convert(const ConvertArgs& args) {
-  refuse_output_over_input("OUT", args.output, {args.input});
+  const MapFormat out_format =
+      written_map_format(args.output, parse_map_format(args.output_format));
+  if (out_format == MapFormat::kColmapText) {
+    refuse_standard_output_folder("OUT", args.output);
+    refuse_output_over_input("OUT", args.output, {args.input});
+  } else {
+    check_outputs({{"OUT", args.output}}, {args.input});
+  }
   AnyMapReadOptions options;
   options.format = parse_map_format(args.format);
   options.map.min_observations = args.min_observations;
@@ -47,7 +55,7 @@ int run_convert(const ConvertArgs& args) {
   options.confidence.pixel_sigma_px = args.pixel_sigma_px;
   options.confidence.min_parallax_deg = args.min_parallax_deg;
   options.keep_unknown_covariance = args.keep_unknown;
-  if (args.keep_unknown && written_map_format(args.output) == MapFormat::kLmalign) {
+  if (args.keep_unknown && out_format == MapFormat::kLmalign) {
     throw InvalidArgument(
         "--keep-unknown-covariance: the lmalign map format cannot hold an unknown covariance; "
         "use it only when OUT is a folder (COLMAP text) or a .ply");
@@ -70,14 +78,14 @@ int run_convert(const ConvertArgs& args) {
   Map map = read_any_map(args.input, options, &stats);
   if (S_out_in) map = transform_map(map, *S_out_in);
   if (scale) map.header.scale = *scale;
-  write_any_map(args.output, map);
-  std::cout << "convert " << args.input << " (" << map_format_name(format) << ") -> " << args.output
-            << " (" << map_format_name(written_map_format(args.output)) << ")"
-            << "\n  frames:    " << map.frames.size() << "\n  landmarks: " << map.landmarks.size()
-            << " of " << stats.landmarks_in_file << " kept, " << stats.dropped() << " dropped\n";
+  write_any_map(args.output, map, out_format);
+  human() << "convert " << args.input << " (" << map_format_name(format) << ") -> "
+          << output_name(args.output) << " (" << map_format_name(out_format) << ")"
+          << "\n  frames:    " << map.frames.size() << "\n  landmarks: " << map.landmarks.size()
+          << " of " << stats.landmarks_in_file << " kept, " << stats.dropped() << " dropped\n";
   // Every kind that occurs, kept then dropped (MapReadStats).
   const auto line = [](const char* verb, std::size_t n, const std::string& what) {
-    if (n > 0) std::cout << "    " << verb << " " << n << " " << what << "\n";
+    if (n > 0) human() << "    " << verb << " " << n << " " << what << "\n";
   };
   const std::string low = number_text(kLowParallaxDeg);
   line("kept", stats.kept_stored, "with the covariance the file stores");
@@ -99,9 +107,9 @@ int run_convert(const ConvertArgs& args) {
        "with parallax below " + number_text(args.min_parallax_deg) + " deg (--min-parallax)");
   line("dropped", stats.dropped_unknown, "flagged covariance_known = 0 in the file");
   if (stats.camera_centres_left_out > 0) {
-    std::cout << "  left out " << stats.camera_centres_left_out
-              << " vertices that are OpenMVG's camera centres, not landmarks ("
-              << stats.camera_centres_rule << ")\n";
+    human() << "  left out " << stats.camera_centres_left_out
+            << " vertices that are OpenMVG's camera centres, not landmarks ("
+            << stats.camera_centres_rule << ")\n";
   }
   return 0;
 }
@@ -123,8 +131,12 @@ CommandRunner add_convert_command(CLI::App& root) {
   cmd->add_option("IN", args->input, "input map (file or COLMAP model folder)")->required();
   cmd->add_option("OUT", args->output,
                   "output: a file (lmalign map text), FILE.ply (PLY) or a folder ending in / "
-                  "(COLMAP text)")
+                  "(COLMAP text); '-' writes the map to the standard output (this summary then "
+                  "goes to the standard error). A symlink is written through, a FIFO in place")
       ->required();
+  cmd->add_option("--output-format", args->output_format,
+                  "writer of OUT: auto (by its form, as above), " + written_map_format_names())
+      ->capture_default_str();
   cmd->add_option(
       "--format", args->format,
       "reader of IN: " + map_format_names() + " (auto: by content; docs/map-format.md)");

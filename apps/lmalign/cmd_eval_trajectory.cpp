@@ -13,7 +13,7 @@
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/eval/trajectory.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/map/map_io.hpp"
 
 namespace lmalign::cli {
@@ -68,7 +68,7 @@ void write_svg_plot(const std::string& path, const Trajectory& gt, const Traject
     os << "\"/>\n";
     return os.str();
   };
-  write_file_atomically(path, [&](std::ostream& os) {
+  write_output(path, [&](std::ostream& os) {
     const double w = size + 2 * margin;
     os << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << w + 20
        << "\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
@@ -89,9 +89,7 @@ int run_eval(const EvalArgs& args) {
   }
   if (!std::isfinite(args.offset_s)) throw InvalidArgument("--offset must be finite");
   const std::vector<std::string> inputs{args.estimate, args.ground_truth, args.frame_times};
-  if (!args.plot.empty()) refuse_output_over_input("--plot", args.plot, inputs);
-  if (!args.aligned_out.empty())
-    refuse_output_over_input("--aligned-out", args.aligned_out, inputs);
+  check_outputs({{"--aligned-out", args.aligned_out}, {"--plot", args.plot}}, inputs);
 
   Trajectory estimate;
   if (!args.frame_times.empty()) {
@@ -116,32 +114,32 @@ int run_eval(const EvalArgs& args) {
   rpe_options.delta_tolerance_s = std::min(0.1, 0.5 * args.delta_s);
   const RpeResult rpe = relative_pose_error(estimate, gt, rpe_options);
 
-  std::cout << "lmalign eval-trajectory: estimate " << args.estimate;
-  if (!args.frame_times.empty()) std::cout << " (map, times from " << args.frame_times << ")";
-  std::cout << " (" << estimate.size() << " poses) vs ground truth " << args.ground_truth << " ("
-            << gt.size() << " poses)\n"
-            << "associated pairs: " << ate.pairs.size() << " (max difference "
-            << args.max_difference_s << " s)\n";
+  human() << "lmalign eval-trajectory: estimate " << args.estimate;
+  if (!args.frame_times.empty()) human() << " (map, times from " << args.frame_times << ")";
+  human() << " (" << estimate.size() << " poses) vs ground truth " << args.ground_truth << " ("
+          << gt.size() << " poses)\n"
+          << "associated pairs: " << ate.pairs.size() << " (max difference "
+          << args.max_difference_s << " s)\n";
   auto row = [](const std::string& name, const ErrorStats& s, const char* unit, double scale,
                 int precision) {
-    std::cout << "  " << name << " rmse " << fmt(s.rmse * scale, precision) << "  mean "
-              << fmt(s.mean * scale, precision) << "  median " << fmt(s.median * scale, precision)
-              << "  std " << fmt(s.std_dev * scale, precision) << "  max "
-              << fmt(s.max * scale, precision) << " " << unit << "\n";
+    human() << "  " << name << " rmse " << fmt(s.rmse * scale, precision) << "  mean "
+            << fmt(s.mean * scale, precision) << "  median " << fmt(s.median * scale, precision)
+            << "  std " << fmt(s.std_dev * scale, precision) << "  max "
+            << fmt(s.max * scale, precision) << " " << unit << "\n";
   };
-  std::cout << "ATE (" << (args.no_align ? "no alignment" : "after rigid alignment, no scale")
-            << ", " << ate.pairs.size() << " poses):\n";
+  human() << "ATE (" << (args.no_align ? "no alignment" : "after rigid alignment, no scale") << ", "
+          << ate.pairs.size() << " poses):\n";
   row("translation", ate.translation_m, "m", 1.0, 4);
   row("rotation   ", ate.rotation_deg, "deg", 1.0, 3);
   if (!args.no_align) {
     const Quat q(ate.T_gt_est.rotation());
     const double angle = 2.0 * std::atan2(q.vec().norm(), std::abs(q.w())) * 180.0 / M_PI;
-    std::cout << "  alignment T_gt_est: rotation " << fmt(angle, 3) << " deg, translation "
-              << fmt(ate.T_gt_est.translation().norm(), 4) << " m\n";
+    human() << "  alignment T_gt_est: rotation " << fmt(angle, 3) << " deg, translation "
+            << fmt(ate.T_gt_est.translation().norm(), 4) << " m\n";
   }
-  std::cout << "RPE (delta " << args.delta_s << " s, " << rpe.translation_m.count << " pairs):\n";
+  human() << "RPE (delta " << args.delta_s << " s, " << rpe.translation_m.count << " pairs):\n";
   if (rpe.translation_m.count == 0) {
-    std::cout << "  no pose pair spans " << args.delta_s << " s\n";
+    human() << "  no pose pair spans " << args.delta_s << " s\n";
   } else {
     row("translation", rpe.translation_m, "m", 1.0, 4);
     row("rotation   ", rpe.rotation_deg, "deg", 1.0, 3);
@@ -154,11 +152,11 @@ int run_eval(const EvalArgs& args) {
   }
   if (!args.aligned_out.empty()) {
     write_tum_trajectory(args.aligned_out, aligned);
-    std::cout << "wrote aligned estimate: " << args.aligned_out << "\n";
+    human() << "wrote aligned estimate: " << output_name(args.aligned_out) << "\n";
   }
   if (!args.plot.empty()) {
     write_svg_plot(args.plot, gt, aligned);
-    std::cout << "wrote plot: " << args.plot << "\n";
+    human() << "wrote plot: " << output_name(args.plot) << "\n";
   }
   return 0;
 }

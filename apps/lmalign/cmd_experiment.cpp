@@ -30,7 +30,7 @@
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/experiment/report.hpp"
 #include "lmalign/experiment/runner.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 
 namespace lmalign::cli {
@@ -80,24 +80,15 @@ std::string read_whole_file(const std::string& path) {
   return os.str();
 }
 
-/// The repository holding this executable (the first ancestor with scripts/plot_experiment.py),
-/// or empty.
-/// $LMALIGN_DATA, else ../shared/data beside the repository (as the Makefile), else empty.
+/// $LMALIGN_DATA, else ../shared/data beside the source checkout (as the Makefile), else empty.
 std::string data_dir() {
   if (const char* env = std::getenv("LMALIGN_DATA"); env != nullptr && *env != '\0') return env;
-  const fs::path root = repository_root();
+  const fs::path root = source_checkout();
   std::error_code ec;
   if (!root.empty() && fs::is_directory(root.parent_path() / "shared" / "data", ec)) {
     return (root.parent_path() / "shared" / "data").lexically_normal().string();
   }
   return {};
-}
-
-std::string plot_script() {
-  if (const char* env = std::getenv("LMALIGN_PLOT_SCRIPT"); env != nullptr && *env != '\0')
-    return env;
-  const fs::path root = repository_root();
-  return root.empty() ? std::string() : (root / "scripts" / "plot_experiment.py").string();
 }
 
 std::string duration_text(double seconds) {
@@ -163,27 +154,27 @@ void print_summary(const ReportSummary& summary) {
   std::size_t name_width = 10;
   for (const ExperimentSummary& e : summary.experiments)
     name_width = std::max(name_width, e.name.size());
-  std::printf("\nsuccess (%s) per strategy:\n", summary.has_ground_truth
-                                                    ? "right basin against the ground truth"
-                                                    : "score below the threshold");
-  std::printf("  %-*s", static_cast<int>(name_width), "experiment");
-  for (const std::string& s : strategies) std::printf(" %13s", s.c_str());
-  std::printf("\n");
+  say("\nsuccess (%s) per strategy:\n", summary.has_ground_truth
+                                            ? "right basin against the ground truth"
+                                            : "score below the threshold");
+  say("  %-*s", static_cast<int>(name_width), "experiment");
+  for (const std::string& s : strategies) say(" %13s", s.c_str());
+  say("\n");
   auto row = [&](const std::string& name, const std::vector<StrategySummary>& v, auto cell) {
-    std::printf("  %-*s", static_cast<int>(name_width), name.c_str());
+    say("  %-*s", static_cast<int>(name_width), name.c_str());
     for (const std::string& s : strategies) {
       std::string text = "-";
       for (const StrategySummary& x : v) {
         if (x.strategy == s) text = cell(x);
       }
-      std::printf(" %13s", text.c_str());
+      say(" %13s", text.c_str());
     }
-    std::printf("\n");
+    say("\n");
   };
   for (const ExperimentSummary& e : summary.experiments) row(e.name, e.strategies, rate_cell);
   row("all", summary.overall, rate_cell);
   if (summary.has_ground_truth) {
-    std::printf("accuracy (median over successful runs), rotation deg / translation cm:\n");
+    say("accuracy (median over successful runs), rotation deg / translation cm:\n");
     row("all", summary.overall, [](const StrategySummary& s) {
       if (std::isnan(s.median_rotation_error_deg)) return std::string("-");
       char buf[48];
@@ -197,6 +188,8 @@ void print_summary(const ReportSummary& summary) {
 int run_experiment(ExperimentArgs a) {
   const auto t0 = std::chrono::steady_clock::now();
   const bool resuming = !a.resume.empty();
+  if (!a.output.empty()) refuse_standard_output_folder("--output", a.output);
+  if (resuming) refuse_standard_output_folder("--resume", a.resume);
   std::string stored_config;  // resume: the resolved config.yaml of the interrupted run
   if (resuming) {
     if (!a.output.empty() &&
@@ -285,28 +278,26 @@ int run_experiment(ExperimentArgs a) {
   for (const Case& c : cases) runs += c.strategies.size();
   const int threads = a.threads > 0 ? a.threads : std::max(1, omp_get_num_procs());
 
-  std::printf("lmalign experiment: %s -> %s\n", a.config.c_str(), out_dir.c_str());
-  std::printf("  source %s (%zu landmarks), target %s (%zu landmarks)\n",
-              config.source.path.c_str(), in.source.landmarks.size(), config.target.path.c_str(),
-              in.target.landmarks.size());
+  say("lmalign experiment: %s -> %s\n", a.config.c_str(), out_dir.c_str());
+  say("  source %s (%zu landmarks), target %s (%zu landmarks)\n", config.source.path.c_str(),
+      in.source.landmarks.size(), config.target.path.c_str(), in.target.landmarks.size());
   if (in.source_left_out + in.target_left_out > 0) {
-    std::printf("  %s\n", left_out_message(in.source_left_out, in.target_left_out).c_str());
+    say("  %s\n", left_out_message(in.source_left_out, in.target_left_out).c_str());
   }
   if (config.has_ground_truth()) {
-    std::printf(
-        "  ground truth: %s; success = rotation error < %g deg and translation error < %g m\n",
+    say("  ground truth: %s; success = rotation error < %g deg and translation error < %g m\n",
         config.ground_truth.kind == GroundTruthSpec::Kind::kIdentity
             ? "identity"
             : config.ground_truth.path.c_str(),
         config.success.rotation_deg, config.success.translation_m);
   } else {
-    std::printf("  no ground truth; success = final score < %g m^2\n", config.success.score_m2);
+    say("  no ground truth; success = final score < %g m^2\n", config.success.score_m2);
   }
-  std::printf("  %zu experiments, %zu cases, %zu runs (case x strategy), %d threads\n",
-              config.experiments.size(), cases.size(), runs, threads);
+  say("  %zu experiments, %zu cases, %zu runs (case x strategy), %d threads\n",
+      config.experiments.size(), cases.size(), runs, threads);
   if (resuming) {
-    std::printf("  resuming: %zu cases (%zu runs) already finished in %s are not run again\n",
-                cases_already_finished, already_finished.size(), csv_path.c_str());
+    say("  resuming: %zu cases (%zu runs) already finished in %s are not run again\n",
+        cases_already_finished, already_finished.size(), csv_path.c_str());
   }
   std::fflush(stdout);
 
@@ -317,8 +308,7 @@ int run_experiment(ExperimentArgs a) {
       plot_case && std::any_of(already_finished.begin(), already_finished.end(),
                                [&](const RunRecord& r) { return r.case_index == *plot_case; });
   std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec) throw IoError("cannot create the output folder '" + out_dir + "': " + ec.message());
+  create_output_folder(out_dir);
   for (const char* name : {"summary.json", "tables.md"}) fs::remove(out / name, ec);
   if (!plot_case_finished) {
     for (const char* name : {"history.csv", "alignment_points.csv"}) fs::remove(out / name, ec);
@@ -329,10 +319,9 @@ int run_experiment(ExperimentArgs a) {
     }
   }
   if (!resuming) {
-    write_file_atomically((out / "config.yaml").string(), [&](std::ostream& o) { o << resolved; });
+    write_output((out / "config.yaml").string(), [&](std::ostream& o) { o << resolved; });
   }
-  write_file_atomically(csv_path,
-                        [&](std::ostream& o) { write_results_csv(o, cases, already_finished); });
+  write_output(csv_path, [&](std::ostream& o) { write_results_csv(o, cases, already_finished); });
 
   const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
 
@@ -348,15 +337,15 @@ int run_experiment(ExperimentArgs a) {
   ro.on_progress = [&](const RunnerProgress& p) { bar.update(p); };
   ro.on_case_finished = [&](const Case& c, const std::vector<RunRecord>& records) {
     finished[c.index] = records;
-    write_file_atomically(csv_path, [&](std::ostream& o) {
+    write_output(csv_path, [&](std::ostream& o) {
       std::vector<RunRecord> rows;
       for (const auto& [index, recs] : finished) rows.insert(rows.end(), recs.begin(), recs.end());
       write_results_csv(o, cases, rows);
     });
     if (plot_case && c.index == *plot_case) {
-      write_file_atomically((out / "history.csv").string(),
-                            [&](std::ostream& o) { write_history_csv(o, c, records); });
-      write_file_atomically((out / "alignment_points.csv").string(), [&](std::ostream& o) {
+      write_output((out / "history.csv").string(),
+                   [&](std::ostream& o) { write_history_csv(o, c, records); });
+      write_output((out / "alignment_points.csv").string(), [&](std::ostream& o) {
         write_alignment_points_csv(o, c, source_points, target.points(), records);
       });
     }
@@ -376,21 +365,18 @@ int run_experiment(ExperimentArgs a) {
     bar.finish();
   }
 
-  write_file_atomically(csv_path,
-                        [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
+  write_output(csv_path, [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
   const ReportSummary summary = summarize(config, cases, outcome);
-  write_file_atomically((out / "summary.json").string(),
-                        [&](std::ostream& o) { write_summary_json(o, config, summary); });
-  write_file_atomically((out / "tables.md").string(), [&](std::ostream& o) {
-    write_tables_markdown(o, config, cases, outcome, summary);
-  });
+  write_output((out / "summary.json").string(),
+               [&](std::ostream& o) { write_summary_json(o, config, summary); });
+  write_output((out / "tables.md").string(),
+               [&](std::ostream& o) { write_tables_markdown(o, config, cases, outcome, summary); });
   const bool have_plot_case = plot_case && finished.count(*plot_case) != 0 &&
                               fs::exists(out / "history.csv", ec) &&
                               fs::exists(out / "alignment_points.csv", ec);
 
   if (outcome.cancelled) {
-    std::printf(
-        "interrupted: %zu of %zu cases finished; results.csv holds them (%s); finish "
+    say("interrupted: %zu of %zu cases finished; results.csv holds them (%s); finish "
         "with: lmalign experiment --resume %s\n",
         outcome.cases_finished, outcome.cases_planned, csv_path.c_str(), out_dir.c_str());
     std::fflush(stdout);
@@ -400,43 +386,42 @@ int run_experiment(ExperimentArgs a) {
   print_summary(summary);
   const double elapsed =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("\n%zu cases, %zu runs in %.1f s", outcome.cases_finished, outcome.records.size(),
-              elapsed);
+  say("\n%zu cases, %zu runs in %.1f s", outcome.cases_finished, outcome.records.size(), elapsed);
   if (outcome.runs_shared > 0)
-    std::printf(" (%zu identical to another run: run once)", outcome.runs_shared);
-  if (outcome.cases_skipped > 0)
-    std::printf(" (%zu escalation levels not needed)", outcome.cases_skipped);
-  std::printf("\n");
+    say(" (%zu identical to another run: run once)", outcome.runs_shared);
+  if (outcome.cases_skipped > 0) say(" (%zu escalation levels not needed)", outcome.cases_skipped);
+  say("\n");
 
   bool plotted = false;
   if (!a.no_plots) {
-    const std::string script = plot_script();
+    const std::string script = find_script("plot_experiment.py", "LMALIGN_PLOT_SCRIPT");
     if (script.empty() || !fs::exists(script, ec)) {
       std::fprintf(stderr,
-                   "lmalign: warning: no plots: scripts/plot_experiment.py not found beside this "
-                   "executable (set LMALIGN_PLOT_SCRIPT); the report is complete without them\n");
+                   "lmalign: warning: no plots: plot_experiment.py is neither installed beside "
+                   "this executable (../share/lmalign/scripts) nor in its source checkout (set "
+                   "LMALIGN_PLOT_SCRIPT); the report is complete without them\n");
     } else {
-      std::vector<std::string> argv{python_interpreter(), script, out_dir, "--quiet"};
+      std::vector<std::string> argv{out_dir, "--quiet"};
       if (have_plot_case) {
         argv.push_back("--case");
         argv.push_back(std::to_string(*plot_case));
       }
-      const int rc = run_process(argv);
+      const int rc = draw_plots(script, argv, (out / "plots").string());
       if (rc != 0) {
         std::fprintf(stderr,
                      "lmalign: warning: plotting failed (%s %s exited with %d; it needs matplotlib "
                      "and numpy; set LMALIGN_PYTHON to choose the interpreter). The report is "
                      "complete without plots; rerun: %s %s %s\n",
-                     argv[0].c_str(), script.c_str(), rc, argv[0].c_str(), script.c_str(),
-                     out_dir.c_str());
+                     python_interpreter().c_str(), script.c_str(), rc, python_interpreter().c_str(),
+                     script.c_str(), out_dir.c_str());
       } else {
         plotted = true;
-        std::printf("plots: %s\n", (out / "plots").string().c_str());
+        say("plots: %s (drawn by %s)\n", (out / "plots").string().c_str(), script.c_str());
       }
     }
   }
-  std::printf("report: %s (results.csv, summary.json, tables.md%s)\n", out_dir.c_str(),
-              plotted ? ", plots/" : "");
+  say("report: %s (results.csv, summary.json, tables.md%s)\n", out_dir.c_str(),
+      plotted ? ", plots/" : "");
   return 0;
 }
 

@@ -15,7 +15,7 @@
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/supported_range.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/merge/evaluation.hpp"
 #include "lmalign/merge/merge.hpp"
 #include "lmalign/merge/output.hpp"
@@ -77,6 +77,7 @@ int exec_python_merge(const MergeArgs& a) {
   }
   if (a.resume) args.push_back("--resume");
   if (a.no_fuse) args.push_back("--no-fuse");
+  if (a.no_plots) args.push_back("--no-plots");
   std::vector<char*> argv;
   for (std::string& s : args) argv.push_back(s.data());
   argv.push_back(nullptr);
@@ -100,39 +101,32 @@ int plan_only(const std::vector<Map>& maps, const std::vector<std::string>& name
     summaries.push_back(summarise_map(maps[i], options.candidates, i + 1));  // as run_merge
   }
   const std::vector<CandidatePair> pairs = plan_candidates(summaries, priors, options.candidates);
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throw IoError("cannot create '" + out_dir + "': " + ec.message());
+  create_output_folder(out_dir);
   const std::string path = (fs::path(out_dir) / "candidates.csv").string();
-  write_file_atomically(path, [&](std::ostream& os) {
+  write_output(path, [&](std::ostream& os) {
     os << "source,target,rank,prior\n";
     for (const CandidatePair& c : pairs) {
       os << names[c.source] << "," << names[c.target] << "," << c.rank << "," << (c.prior ? 1 : 0)
          << "\n";
     }
   });
-  std::printf("%zu maps: %zu candidate pairs; wrote %s\n", maps.size(), pairs.size(), path.c_str());
+  say("%zu maps: %zu candidate pairs; wrote %s\n", maps.size(), pairs.size(), path.c_str());
   return 0;
 }
 
 // The PNGs of docs/merge.md ("Plots"), drawn by scripts/plot_merge.py (matplotlib), as
 // `lmalign experiment` does; without the script or matplotlib: a warning, no plots.
 bool plot_merge(const std::string& out_dir) {
-  std::string script;
-  if (const char* env = std::getenv("LMALIGN_MERGE_PLOT_SCRIPT"); env != nullptr && *env) {
-    script = env;
-  } else if (const fs::path root = repository_root(); !root.empty()) {
-    script = (root / "scripts" / "plot_merge.py").string();
-  }
+  const std::string script = find_script("plot_merge.py", "LMALIGN_MERGE_PLOT_SCRIPT");
   std::error_code ec;
   if (script.empty() || !fs::exists(script, ec)) {
     std::fprintf(stderr,
-                 "lmalign merge: warning: no plots: scripts/plot_merge.py not found beside this "
-                 "executable (set LMALIGN_MERGE_PLOT_SCRIPT); the outputs are complete without "
-                 "them\n");
+                 "lmalign merge: warning: no plots: plot_merge.py is neither installed beside "
+                 "this executable (../share/lmalign/scripts) nor in its source checkout (set "
+                 "LMALIGN_MERGE_PLOT_SCRIPT); the outputs are complete without them\n");
     return false;
   }
-  const int rc = run_process({python_interpreter(), script, out_dir, "--quiet"});
+  const int rc = draw_plots(script, {out_dir, "--quiet"}, out_dir);
   if (rc != 0) {
     std::fprintf(stderr,
                  "lmalign merge: warning: no plots (%s exited with %d; it needs matplotlib and "
@@ -161,6 +155,7 @@ int run_merge_command(const MergeArgs& a) {
     priors.push_back(e.prior);
     inputs.push_back(e.path);
   }
+  refuse_standard_output_folder("-o", a.out_dir);
   std::error_code ec;
   if (fs::exists(a.out_dir, ec) && !fs::is_directory(a.out_dir, ec)) {
     throw InvalidArgument("-o " + a.out_dir + ": exists and is not a folder");
@@ -223,27 +218,26 @@ int run_merge_command(const MergeArgs& a) {
     used += run.result.edges[e].used ? 1 : 0;
     rejected += run.result.edges[e].rejected ? 1 : 0;
   }
-  std::printf(
-      "merged %zu maps: %zu candidate pairs (%zu reused), %zu trusted, %zu in the graph, %zu "
+  say("merged %zu maps: %zu candidate pairs (%zu reused), %zu trusted, %zu in the graph, %zu "
       "rejected by it; %zu component(s); final chi2 %.3f (edge covariance scale %.3g)\n",
       maps.size(), run.candidates.size(), run.edges_reused, trusted, used, rejected,
       run.result.num_components, run.result.final_chi2, run.result.edge_covariance_scale);
-  std::printf("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
+  say("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
   for (std::size_t i = 0; i < maps.size(); ++i) {
     const MapPose& p = run.result.maps[i];
     if (!p.scale_free && p.scale == 1.0) continue;
-    std::printf("scale of %s: %.6g world units per map unit (sd %.2g)%s\n", names[i].c_str(),
-                p.scale, p.scale_sd, p.scale_free ? "" : " (held)");
+    say("scale of %s: %.6g world units per map unit (sd %.2g)%s\n", names[i].c_str(), p.scale,
+        p.scale_sd, p.scale_free ? "" : " (held)");
   }
   for (std::size_t e = 0; e < run.edges.size(); ++e) {
     const EdgeReport& r = run.result.edges[e];
     if (!r.rejected) continue;
     if (r.reject_reason.empty()) {
-      std::printf("rejected edge: %s -> %s (chi2 %.1f after optimisation)\n",
-                  names[run.edges[e].source].c_str(), names[run.edges[e].target].c_str(), r.chi2);
+      say("rejected edge: %s -> %s (chi2 %.1f after optimisation)\n",
+          names[run.edges[e].source].c_str(), names[run.edges[e].target].c_str(), r.chi2);
     } else {
-      std::printf("rejected edge: %s -> %s (%s)\n", names[run.edges[e].source].c_str(),
-                  names[run.edges[e].target].c_str(), r.reject_reason.c_str());
+      say("rejected edge: %s -> %s (%s)\n", names[run.edges[e].source].c_str(),
+          names[run.edges[e].target].c_str(), r.reject_reason.c_str());
     }
   }
   if (!truth.empty()) {
@@ -251,19 +245,17 @@ int run_merge_command(const MergeArgs& a) {
     t.rotation_deg = thr[0];
     t.translation_m = thr[1];
     const MergeEvaluation ev = evaluate_merge(run.result, run.edges, truth, t);
-    std::printf(
-        "ground truth (within %g deg / %g m): %zu part(s), the largest of %zu map(s); the kept "
+    say("ground truth (within %g deg / %g m): %zu part(s), the largest of %zu map(s); the kept "
         "edges join the maps into %zu piece(s)\n",
         t.rotation_deg, t.translation_m, ev.num_parts, ev.largest_part, ev.num_edge_parts);
     for (std::size_t i = 0; i < maps.size(); ++i) {
       const MapError& e = ev.maps[i];
       if (std::isnan(e.rotation_deg)) {
-        std::printf("  %-20s component %zu  not placed: alone in its part\n", names[i].c_str(),
-                    run.result.maps[i].component);
+        say("  %-20s component %zu  not placed: alone in its part\n", names[i].c_str(),
+            run.result.maps[i].component);
         continue;
       }
-      std::printf(
-          "  %-20s component %zu  rotation %.3f deg  translation %.4f m  scale error %.2e%s\n",
+      say("  %-20s component %zu  rotation %.3f deg  translation %.4f m  scale error %.2e%s\n",
           names[i].c_str(), run.result.maps[i].component, e.rotation_deg, e.translation_m,
           e.scale_error,
           !e.placed  ? "  (not placed: in a part apart from the others)"
@@ -276,8 +268,7 @@ int run_merge_command(const MergeArgs& a) {
       std::snprintf(pair_text, sizeof pair_text, "%zu of %zu (%.1f%%)", ev.pairs_within, pairs,
                     100.0 * ev.pair_fraction_within);
     }
-    std::printf(
-        "  within: %.1f%% of the maps (placed: %zu of %zu); pairs within: %s; edges kept %zu, "
+    say("  within: %.1f%% of the maps (placed: %zu of %zu); pairs within: %s; edges kept %zu, "
         "false kept %zu, precision %.3f, recall %.3f; largest scale error: maps %.2e, pairs "
         "%.2e\n",
         100.0 * ev.fraction_within, ev.placed, maps.size(), pair_text, ev.kept_edges,
@@ -285,8 +276,7 @@ int run_merge_command(const MergeArgs& a) {
         ev.max_pair_scale_error);
   }
   const bool plotted = !a.no_plots && plot_merge(a.out_dir);
-  std::printf(
-      "wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map%s, edges/%s)\n",
+  say("wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map%s, edges/%s)\n",
       a.out_dir.c_str(), run.result.num_components > 1 ? "s per component" : "",
       plotted ? ", merge_graph.png, merged_landmarks.png" : "");
   return 0;

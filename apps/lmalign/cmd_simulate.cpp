@@ -10,7 +10,7 @@
 #include "commands.hpp"
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/sim/fleet_sim.hpp"
@@ -79,20 +79,18 @@ int run_simulate_fleet(const SimulateArgs& a) {
   }
   const sim::FleetScene scene = sim::simulate_fleet(o);
   const std::filesystem::path dir(a.output);
-  std::error_code ec;
-  std::filesystem::create_directories(dir / "maps", ec);
-  if (ec) throw IoError("cannot create output folder '" + a.output + "': " + ec.message());
+  create_output_folder((dir / "maps").string());
   const bool priors = !scene.prior_T_world_map.empty();
   for (std::size_t i = 0; i < scene.maps.size(); ++i) {
     write_map((dir / "maps" / (scene.names[i] + ".txt")).string(), scene.maps[i]);
   }
-  write_file_atomically((dir / "ground_truth.yaml").string(), [&](std::ostream& os) {
+  write_output((dir / "ground_truth.yaml").string(), [&](std::ostream& os) {
     os << "# lmalign simulate --scene fleet --seed " << a.seed << ": true T_world_map (m)\nmaps:\n";
     for (std::size_t i = 0; i < scene.maps.size(); ++i) {
       os << "  " << scene.names[i] << ": " << yaml_rows(scene.T_world_map[i].matrix()) << "\n";
     }
   });
-  write_file_atomically((dir / "overlaps.csv").string(), [&](std::ostream& os) {
+  write_output((dir / "overlaps.csv").string(), [&](std::ostream& os) {
     os << "source,target,kind,shared_fraction\n";
     for (const sim::FleetOverlap& v : scene.overlaps) {
       os << scene.names[v.i] << "," << scene.names[v.j] << ",overlap," << v.shared_fraction << "\n";
@@ -102,7 +100,7 @@ int run_simulate_fleet(const SimulateArgs& a) {
     }
   });
   // The manifest last: its presence marks a complete scene.
-  write_file_atomically((dir / "manifest.yaml").string(), [&](std::ostream& os) {
+  write_output((dir / "manifest.yaml").string(), [&](std::ostream& os) {
     os << "# lmalign simulate --scene fleet --maps " << a.maps << " --seed " << a.seed
        << " (docs/merge.md)\nmaps:\n";
     for (std::size_t i = 0; i < scene.maps.size(); ++i) {
@@ -115,13 +113,13 @@ int run_simulate_fleet(const SimulateArgs& a) {
   });
   std::size_t landmarks = 0;
   for (const Map& m : scene.maps) landmarks += m.landmarks.size();
-  std::cout << "simulated fleet, seed " << a.seed << ": " << scene.maps.size() << " maps ("
-            << landmarks / scene.maps.size() << " landmarks on average), " << scene.overlaps.size()
-            << " truly overlapping pairs, " << scene.twins.size() << " planted look-alike pairs"
-            << (priors ? ", noisy priors" : ", no priors")
-            << "\n  wrote: " << (dir / "manifest.yaml").string() << ", "
-            << (dir / "ground_truth.yaml").string() << ", " << (dir / "overlaps.csv").string()
-            << ", " << (dir / "maps").string() << "/\n";
+  human() << "simulated fleet, seed " << a.seed << ": " << scene.maps.size() << " maps ("
+          << landmarks / scene.maps.size() << " landmarks on average), " << scene.overlaps.size()
+          << " truly overlapping pairs, " << scene.twins.size() << " planted look-alike pairs"
+          << (priors ? ", noisy priors" : ", no priors")
+          << "\n  wrote: " << (dir / "manifest.yaml").string() << ", "
+          << (dir / "ground_truth.yaml").string() << ", " << (dir / "overlaps.csv").string() << ", "
+          << (dir / "maps").string() << "/\n";
   return 0;
 }
 
@@ -158,15 +156,13 @@ int run_simulate_street_windows(const SimulateArgs& a, bool overlap_given) {
   const sim::StreetSimOptions o = street_options(a, overlap_given, Isometry3::Identity());
   const sim::StreetWindows w = sim::simulate_street_windows(o, static_cast<std::size_t>(a.windows));
   const std::filesystem::path dir(a.output);
-  std::error_code ec;
-  std::filesystem::create_directories(dir / "maps", ec);
-  if (ec) throw IoError("cannot create output folder '" + a.output + "': " + ec.message());
+  create_output_folder((dir / "maps").string());
   std::vector<std::string> names;
   for (std::size_t i = 0; i < w.maps.size(); ++i) {
     names.push_back("w" + std::to_string(i));
     write_map((dir / "maps" / (names[i] + ".txt")).string(), w.maps[i]);
   }
-  write_file_atomically((dir / "ground_truth.yaml").string(), [&](std::ostream& os) {
+  write_output((dir / "ground_truth.yaml").string(), [&](std::ostream& os) {
     os << "# lmalign simulate --scene street --windows " << a.windows << " --seed " << a.seed
        << ": true T_world_map (m)\nmaps:\n";
     for (std::size_t i = 0; i < w.maps.size(); ++i) {
@@ -174,21 +170,22 @@ int run_simulate_street_windows(const SimulateArgs& a, bool overlap_given) {
     }
   });
   // The manifest last: its presence marks a complete scene.
-  write_file_atomically((dir / "manifest.yaml").string(), [&](std::ostream& os) {
+  write_output((dir / "manifest.yaml").string(), [&](std::ostream& os) {
     os << "# lmalign simulate --scene street --windows " << a.windows << " --seed " << a.seed
        << " (docs/merge.md): no priors\nmaps:\n";
     for (const std::string& n : names)
       os << "  - name: " << n << "\n    path: maps/" << n << ".txt\n";
   });
-  std::cout << "simulated street, seed " << a.seed << ": " << w.maps.size() << " windows of "
-            << o.window_frames << " keyframes (" << std::llround(o.overlap * o.window_frames)
-            << " shared with the next), " << o.num_landmarks
-            << " landmarks each\n  wrote: " << (dir / "manifest.yaml").string() << ", "
-            << (dir / "ground_truth.yaml").string() << ", " << (dir / "maps").string() << "/\n";
+  human() << "simulated street, seed " << a.seed << ": " << w.maps.size() << " windows of "
+          << o.window_frames << " keyframes (" << std::llround(o.overlap * o.window_frames)
+          << " shared with the next), " << o.num_landmarks
+          << " landmarks each\n  wrote: " << (dir / "manifest.yaml").string() << ", "
+          << (dir / "ground_truth.yaml").string() << ", " << (dir / "maps").string() << "/\n";
   return 0;
 }
 
 int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
+  refuse_standard_output_folder("--out", a.output);
   if (a.scene == "fleet") return run_simulate_fleet(a);
   const bool overlap_given = cmd.count("--overlap") > 0;
   if (a.scene != "street" && (cmd.count("--windows") > 0 || cmd.count("--frames") > 0)) {
@@ -237,19 +234,17 @@ int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
     throw InvalidArgument("--scene '" + a.scene + "': expected road, street, corridor or fleet");
   }
 
-  std::error_code ec;
-  std::filesystem::create_directories(a.output, ec);
-  if (ec) throw IoError("cannot create output folder '" + a.output + "': " + ec.message());
+  create_output_folder(a.output);
   const std::filesystem::path dir(a.output);
   // Each file is written atomically; the transform last, so its presence marks a complete pair.
   write_map((dir / "source.txt").string(), pair.source);
   write_map((dir / "target.txt").string(), pair.target);
   write_transform((dir / "T_target_source.txt").string(), pair.T_target_source);
-  std::cout << "simulated " << a.scene << " pair, seed " << a.seed << ": source "
-            << pair.source.landmarks.size() << " landmarks, target " << pair.target.landmarks.size()
-            << " landmarks\n  wrote: " << (dir / "source.txt").string() << ", "
-            << (dir / "target.txt").string() << ", " << (dir / "T_target_source.txt").string()
-            << " (p_target = T_target_source * p_source)\n";
+  human() << "simulated " << a.scene << " pair, seed " << a.seed << ": source "
+          << pair.source.landmarks.size() << " landmarks, target " << pair.target.landmarks.size()
+          << " landmarks\n  wrote: " << (dir / "source.txt").string() << ", "
+          << (dir / "target.txt").string() << ", " << (dir / "T_target_source.txt").string()
+          << " (p_target = T_target_source * p_source)\n";
   return 0;
 }
 

@@ -84,7 +84,7 @@ int run_split(const SplitArgs& args, const CLI::App& cmd) {
       }
     }
   }
-  refuse_output_over_input("-o", args.output, {args.input});
+  check_outputs({{"-o", args.output}}, {args.input});
 
   SplitOptions options;
   options.first_frame_id = first;
@@ -112,20 +112,19 @@ int run_split(const SplitArgs& args, const CLI::App& cmd) {
   }
   write_map(args.output, out);
 
-  std::cout << "split " << args.input << " frames " << first << "-" << last << " ("
-            << (args.retriangulate ? "retriangulated" : "stored positions") << ")\n"
-            << "  frames kept:    " << stats.frames_kept << " of " << map.frames.size() << "\n"
-            << "  landmarks kept: " << stats.landmarks_kept << " of " << map.landmarks.size()
-            << "\n"
-            << "  not in window:  " << stats.landmarks_outside_window << "\n"
-            << "  dropped:        " << stats.dropped_too_few_observations << " with fewer than "
-            << options.min_observations << " window observations";
+  human() << "split " << args.input << " frames " << first << "-" << last << " ("
+          << (args.retriangulate ? "retriangulated" : "stored positions") << ")\n"
+          << "  frames kept:    " << stats.frames_kept << " of " << map.frames.size() << "\n"
+          << "  landmarks kept: " << stats.landmarks_kept << " of " << map.landmarks.size() << "\n"
+          << "  not in window:  " << stats.landmarks_outside_window << "\n"
+          << "  dropped:        " << stats.dropped_too_few_observations << " with fewer than "
+          << options.min_observations << " window observations";
   if (args.retriangulate) {
-    std::cout << ", " << stats.dropped_low_parallax << " with parallax below "
-              << options.min_parallax_deg << " deg, " << stats.dropped_triangulation_failed
-              << " failed triangulation";
+    human() << ", " << stats.dropped_low_parallax << " with parallax below "
+            << options.min_parallax_deg << " deg, " << stats.dropped_triangulation_failed
+            << " failed triangulation";
   }
-  std::cout << "\n  wrote:          " << args.output << "\n";
+  human() << "\n  wrote:          " << output_name(args.output) << "\n";
   return 0;
 }
 

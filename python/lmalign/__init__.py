@@ -165,15 +165,17 @@ def _data_dir():
     return _os.environ.get("LMALIGN_DATA", "")
 
 
-def experiment(config, output_dir, only=None, threads=0, data_dir=None):
+def experiment(config, output_dir, only=None, threads=0, data_dir=None, plots=False):
     """Run an experiment protocol (YAML, docs/experiments.md), as `lmalign experiment`.
 
     Writes config.yaml (resolved), results.csv, summary.json and tables.md into output_dir (the
-    same files as the CLI's, without plots, --resume or history files) and returns a dict:
-    output_dir, results_csv, summary_json, tables_md (paths), cases, runs (counts), and
-    summary (summary.json, parsed). only: experiment names to run (default all). threads: worker
-    threads (0: every core). data_dir: what ${LMALIGN_DATA} in the config expands to (default
-    $LMALIGN_DATA). The GIL is released while the cases run.
+    same files as the CLI's, without --resume or history files) and returns a dict:
+    output_dir, results_csv, summary_json, tables_md (paths), cases, runs (counts), plots (the
+    PNG paths), and summary (summary.json, parsed). only: experiment names to run (default
+    all). threads: worker threads (0: every core). data_dir: what ${LMALIGN_DATA} in the config
+    expands to (default $LMALIGN_DATA). plots: also draw the CLI's violin and basin plots into
+    output_dir/plots with the script shipped in the package (needs matplotlib; without it a
+    RuntimeWarning and no plots). The GIL is released while the cases run.
     Raises ParseError (config file, line), InvalidArgument, IoError.
     """
     output_dir = _os.fspath(output_dir)
@@ -183,6 +185,11 @@ def experiment(config, output_dir, only=None, threads=0, data_dir=None):
              for name, ext in (("results", "csv"), ("summary", "json"), ("tables", "md"))}
     with open(paths["summary"], encoding="utf-8") as f:
         summary = _json.load(f)
+    drawn = []
+    if plots:
+        from . import _plots
+        drawn = _plots.draw("plot_experiment.py", [output_dir],
+                            _os.path.join(output_dir, "plots"))
     return {"output_dir": output_dir, "results_csv": paths["results"],
             "summary_json": paths["summary"], "tables_md": paths["tables"], "cases": cases,
-            "runs": runs, "summary": summary}
+            "runs": runs, "plots": drawn, "summary": summary}

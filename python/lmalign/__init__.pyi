@@ -154,6 +154,7 @@ def experiment(
     only: Optional[Sequence[str]] = None,
     threads: int = 0,
     data_dir: Optional[PathLike] = None,
+    plots: bool = False,
 ) -> Dict[str, Any]: ...
 def read_tum_trajectory(path: PathLike) -> Tuple[F64, F64]: ...  # (N,) s, (N, 4, 4) T_world_camera
 def evaluate_trajectory(
@@ -399,4 +400,5 @@ def merge(
     thresholds: Tuple[float, float] = (5.0, 0.10),  # (rot_deg, trans_m)
     fuse_landmarks: bool = True,
     scale: str = "auto",  # auto, free, fixed
+    plots: bool = False,  # merge_graph.png, merged_landmarks.png (matplotlib)
 ) -> MergeOutcome: ...

@@ -145,7 +145,7 @@ def _dask_edges(client, manifest, maps, candidates, edges_dir, max_iterations, s
 
 def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threads=None,
           dask_client=None, resume=False, thresholds=(5.0, 0.10), fuse_landmarks=True,
-          scale="auto"):
+          scale="auto", plots=False):
     """Merge the mini-maps of a manifest into one frame, as `lmalign merge` (docs/merge.md).
 
     manifest_path: YAML manifest (maps with name, path, format, session, optional prior
@@ -173,6 +173,9 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
         scale and priors hold the scale. 'free': every pair's scale is estimated too. 'fixed':
         rigid (SE(3)) edges and poses for every map (every scale exactly 1). The same in
         process and with Dask, bit for bit; the resume key depends on it.
+    plots: also draw merge_graph.png and merged_landmarks.png into output_dir, as `lmalign
+        merge` does, with the script shipped in the package (needs matplotlib; without it a
+        RuntimeWarning and no plots).
     Returns a MergeOutcome. Raises ParseError (manifest, ground truth), IoError, InvalidArgument
     (bad option, an unreadable or empty map, output_dir holding an earlier run's edges), and
     with Dask what a task raised.
@@ -215,6 +218,9 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
         backend = "dask"
     _c.write_merge_outputs(output_dir, names, [e.session for e in manifest.maps], maps, edges,
                            graph, fuse_landmarks)
+    if plots:
+        from . import _plots
+        _plots.draw("plot_merge.py", [output_dir], output_dir)
     evaluation = None
     if truth is not None:
         evaluation = _c.evaluate_merge(graph, edges, truth, *thresholds)

@@ -19,6 +19,7 @@ def _parser():
     p.add_argument("--resume", action="store_true")
     p.add_argument("--threads", type=int, default=0)
     p.add_argument("--no-fuse", action="store_true")
+    p.add_argument("--no-plots", action="store_true")
     p.add_argument("--scale", choices=("auto", "free", "fixed"), default="auto",
                    help="as `lmalign merge --scale` (docs/scale.md)")
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
@@ -54,7 +55,8 @@ def main(argv=None):
         run = lmalign.merge(args.manifest, args.output, ground_truth=args.ground_truth,
                             max_pairs=args.max_pairs, threads=args.threads, dask_client=client,
                             resume=args.resume, thresholds=thresholds,
-                            fuse_landmarks=not args.no_fuse, scale=args.scale)
+                            fuse_landmarks=not args.no_fuse, scale=args.scale,
+                            plots=not args.no_plots)
     except lmalign.Error as e:
         sys.exit("lmalign merge: %s" % e)
     finally:

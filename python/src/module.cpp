@@ -26,7 +26,7 @@
 #include "lmalign/experiment/config.hpp"
 #include "lmalign/experiment/report.hpp"
 #include "lmalign/experiment/runner.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
@@ -263,8 +263,28 @@ PYBIND11_MODULE(_lmalign, m) {
         write_map(path.string(), map);
       },
       py::arg("path"), py::arg("map"),
-      "Writes a map file atomically (temporary file, then rename); write -> read is exact.\n"
-      "Raises IoError, InvalidArgument (map invalid).");
+      "Writes a map file through lmalign's one output writer (docs/robustness.md, \"Outputs\"): "
+      "a regular file or a new path atomically (temporary file, then rename), through a "
+      "symlink to its target, a FIFO or character device in place, '-' to the standard "
+      "output; write -> read is exact.\n"
+      "Raises IoError (naming the path: a missing directory, a directory, a write error), "
+      "InvalidArgument (map invalid).");
+  m.def(
+      "_write_output",
+      [](const std::filesystem::path& path, const py::bytes& data) {
+        const std::string bytes = data;
+        py::gil_scoped_release release;
+        write_output(path.string(), [&](std::ostream& out) {
+          out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+        });
+      },
+      py::arg("path"), py::arg("data"),
+      "The one output writer (io/output_file.hpp) for bytes: the package's own files (plots). "
+      "Raises IoError naming the path.");
+  m.def(
+      "_create_output_folder",
+      [](const std::filesystem::path& folder) { create_output_folder(folder.string()); },
+      py::arg("folder"), "Creates an output folder (io/output_file.hpp). Raises IoError.");
 
   // ------------------------------------------------------------ geometry helpers
   m.def(
@@ -716,13 +736,9 @@ PYBIND11_MODULE(_lmalign, m) {
         const Points3 source_points = in.source.positions();
         const std::vector<Case> cases = expand_cases(config, source_points);
         const fs::path& out = output_dir;
-        std::error_code ec;
-        fs::create_directories(out, ec);
-        if (ec)
-          throw IoError("cannot create the output folder '" + output_dir.string() +
-                        "': " + ec.message());
-        write_file_atomically((out / "config.yaml").string(),
-                              [&](std::ostream& o) { o << resolved_config_yaml(config); });
+        create_output_folder(output_dir.string());
+        write_output((out / "config.yaml").string(),
+                     [&](std::ostream& o) { o << resolved_config_yaml(config); });
         const std::vector<Mat3> source_covariances = in.source.covariances_m2();
         RunnerOptions ro;
         ro.threads = threads;
@@ -736,13 +752,12 @@ PYBIND11_MODULE(_lmalign, m) {
           const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
           outcome = run_cases(config, cases, source_points, target, in.ground_truth, ro);
         }
-        write_file_atomically((out / "results.csv").string(), [&](std::ostream& o) {
-          write_results_csv(o, cases, outcome.records);
-        });
+        write_output((out / "results.csv").string(),
+                     [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
         const ReportSummary summary = summarize(config, cases, outcome);
-        write_file_atomically((out / "summary.json").string(),
-                              [&](std::ostream& o) { write_summary_json(o, config, summary); });
-        write_file_atomically((out / "tables.md").string(), [&](std::ostream& o) {
+        write_output((out / "summary.json").string(),
+                     [&](std::ostream& o) { write_summary_json(o, config, summary); });
+        write_output((out / "tables.md").string(), [&](std::ostream& o) {
           write_tables_markdown(o, config, cases, outcome, summary);
         });
         return py::make_tuple(outcome.cases_finished, outcome.records.size());

@@ -16,7 +16,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 
 namespace lmalign {
 
@@ -121,7 +121,7 @@ void write_tum_trajectory(const std::string& path, const Trajectory& trajectory)
                             shortest(p.timestamp_s) + " is not finite");
     }
   }
-  write_file_atomically(path, [&](std::ostream& os) {
+  write_output(path, [&](std::ostream& os) {
     os << "# timestamp tx ty tz qx qy qz qw (T_world_camera)\n";
     for (const auto& p : trajectory) {
       Quat q(p.T_world_camera.rotation());

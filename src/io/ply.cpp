@@ -4,7 +4,7 @@
 #include <ostream>
 
 #include "lmalign/core/error.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 
 namespace lmalign {
 
@@ -14,7 +14,7 @@ void write_ply(const std::string& path, const Points3& points,
     throw InvalidArgument("write_ply: " + std::to_string(rgb.size()) + " colours for " +
                           std::to_string(points.size()) + " points");
   }
-  write_file_atomically(path, [&](std::ostream& out) {
+  write_output(path, [&](std::ostream& out) {
     out << "ply\nformat ascii 1.0\ncomment lmalign point cloud, metres\n"
         << "element vertex " << points.size() << "\n"
         << "property double x\nproperty double y\nproperty double z\n";

@@ -10,7 +10,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/similarity.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 
 namespace lmalign {
 
@@ -105,7 +105,7 @@ Similarity3 read_similarity(const std::string& path) {
 }
 
 void write_transform(const std::string& path, const Isometry3& T) {
-  write_file_atomically(path, [&](std::ostream& out) {
+  write_output(path, [&](std::ostream& out) {
     for (int r = 0; r < 4; ++r) {
       for (int c = 0; c < 4; ++c) out << (c ? " " : "") << shortest(T.matrix()(r, c));
       out << "\n";

@@ -25,7 +25,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 
 namespace lmalign {
 namespace {
@@ -552,7 +552,7 @@ void write_map(const std::string& path, const Map& map) {
       throw InvalidArgument("LANDMARK " + std::to_string(landmark.id) + ": " + problem);
     }
   }
-  write_file_atomically(path, [&map](std::ostream& out) { write_map(out, map); });
+  write_output(path, [&map](std::ostream& out) { write_map(out, map); });
 }
 
 }  // namespace lmalign

@@ -14,7 +14,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/supported_range.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/transform.hpp"
 
@@ -157,9 +157,7 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
       result.edges.size() != edges.size()) {
     throw InvalidArgument("write_merge_outputs: names, maps, poses and edges differ in number");
   }
-  std::error_code ec;
-  fs::create_directories(out_dir, ec);
-  if (ec) throw IoError("cannot create '" + out_dir + "': " + ec.message());
+  create_output_folder(out_dir);
   const fs::path dir(out_dir);
   // The merged maps first: which of their landmarks each map added (for the plots), and how many
   // they leave out (summary.json).
@@ -198,9 +196,8 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                "each component has its own world frame"},
               {"num_components", result.num_components},
               {"maps", poses}};
-  write_file_atomically((dir / "poses.json").string(),
-                        [&](std::ostream& os) { os << doc.dump(2) << "\n"; });
-  write_file_atomically((dir / "poses.yaml").string(), [&](std::ostream& os) {
+  write_output((dir / "poses.json").string(), [&](std::ostream& os) { os << doc.dump(2) << "\n"; });
+  write_output((dir / "poses.yaml").string(), [&](std::ostream& os) {
     os << "# lmalign merge: " << doc["convention"].get<std::string>() << "\n";
     os << "num_components: " << result.num_components << "\nmaps:\n";
     for (std::size_t i = 0; i < maps.size(); ++i) {
@@ -215,7 +212,7 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
       for (int r = 0; r < 6; ++r) os << "      - " << yaml_row(p.covariance, r) << "\n";
     }
   });
-  write_file_atomically((dir / "edges.csv").string(), [&](std::ostream& os) {
+  write_output((dir / "edges.csv").string(), [&](std::ostream& os) {
     os << "source,target,trusted,used,rejected,chi2,inliers,inlier_ratio,initialisation,scale,"
           "scale_sd,reason\n";
     os << std::setprecision(10);
@@ -252,8 +249,8 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                         {"rounds", result.rounds},
                         {"converged", result.converged},
                         {"landmarks_left_out", left_out}};
-  write_file_atomically((dir / "summary.json").string(),
-                        [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
+  write_output((dir / "summary.json").string(),
+               [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
   for (std::size_t c = 0; c < result.num_components; ++c) {
     const std::string file = result.num_components == 1
                                  ? "merged_map.txt"
@@ -291,7 +288,7 @@ void write_edge_file(const std::string& path, const Edge& e) {
                   {"inlier_ratio", e.inlier_ratio},
                   {"initialisation", e.initialisation},
                   {"summary", e.summary_json.empty() ? json() : json::parse(e.summary_json)}};
-  write_file_atomically(path, [&](std::ostream& os) { os << j.dump() << "\n"; });
+  write_output(path, [&](std::ostream& os) { os << j.dump() << "\n"; });
 }
 
 std::optional<Edge> read_edge_file(const std::string& path) {

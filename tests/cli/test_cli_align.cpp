@@ -37,7 +37,9 @@ class CliAlign : public test::CliTest {
 
 TEST_F(CliAlign, PrintsOneRowPerStrategyAndWritesJson) {
   write_transform(path("gt.txt"), T_true_);
-  // The paper's four, asked for explicitly (the default is the recommended strategy).
+  // The paper's four, asked for explicitly (the default is the recommended strategy). The JSON's
+  // folder must exist (an output never creates folders: docs/robustness.md, "Outputs").
+  std::filesystem::create_directories(path("out"));
   const test::CliRun r = run("align " + source_ + " " + target_ + " --weight all --ground-truth " +
                              path("gt.txt") + " --json " + path("out/result.json") + " --history");
   ASSERT_EQ(r.exit_code, 0) << r.err;

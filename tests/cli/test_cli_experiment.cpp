@@ -189,6 +189,27 @@ TEST_F(CliExperiment, WritesTheWholeReport) {
   EXPECT_EQ(rc, 0);
 }
 
+TEST_F(CliExperiment, ABinaryOutsideTheCheckoutAndItsBuildFolderStillPlots) {
+  if (!has_matplotlib()) GTEST_SKIP() << "/usr/bin/python3 has no matplotlib";
+  // A build folder anywhere (cmake -B ../elsewhere) puts the binary away from scripts/: the
+  // binary knows its source checkout.
+  fs::create_directories(path("elsewhere/bin"));
+  fs::copy_file(LMALIGN_CLI_PATH, path("elsewhere/bin/lmalign"));
+  const std::string cfg = config("one.yaml", "  - {name: yaws, type: yaw, yaw_deg: [0, 10]}\n");
+  const std::string command = test::shell_quote(path("elsewhere/bin/lmalign")) + " experiment " +
+                              test::shell_quote(cfg) + " -o " + test::shell_quote(path("out")) +
+                              " >" + test::shell_quote(path("log.txt")) + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << test::read_text(path("log.txt"));
+  const std::string log = test::read_text(path("log.txt"));
+  EXPECT_EQ(log.find("no plots"), std::string::npos) << log;
+  EXPECT_NE(log.find("(drawn by " + plot_script() + ")"), std::string::npos) << log;
+  EXPECT_TRUE(is_png(path("out/plots/yaws_violin.png"))) << log;
+  // The plots went through the one writer: no temporary folder is left.
+  for (const auto& e : fs::directory_iterator(path("out/plots"))) {
+    EXPECT_EQ(e.path().filename().string().rfind(".lmalign-plots", 0), std::string::npos);
+  }
+}
+
 TEST_F(CliExperiment, OnlyRunsTheNamedExperiments) {
   const std::string cfg = config("only.yaml",
                                  "  - {name: ks, type: k, k_values: [1, 5]}\n  - {name: yaws, "

@@ -8,7 +8,9 @@ an empty folder.
 - lmalign.__version__ is V, and with --metadata so is the installed distribution's version;
 - with --data, it aligns the real TUM fr1/desk pair (the truth is the identity), displaced by
   the paper's Table 1 pose, with the recommended strategy, and checks the result against the
-  truth. Exit code 77 (after every other check passed) when the data is missing.
+  truth, then runs a small protocol on it with lmalign.experiment(plots=True): the plots come
+  from the script inside the installed package (when the interpreter has matplotlib). Exit
+  code 77 (after every other check passed) when the data is missing.
 """
 import argparse
 import ast
@@ -68,3 +70,24 @@ print("desk pair, %s: %.3f deg, %.4f m from the truth; trustworthy %s"
 # The truth itself is known to about 0.7 deg and 1 cm (docs/method.md section 6).
 assert result.trustworthy, result.trust_reason
 assert rotation_deg < 2.0 and translation_m < 0.05, (rotation_deg, translation_m)
+
+# The plots of the protocol, drawn by the script shipped inside the installed package.
+try:
+    import matplotlib  # noqa: F401
+except ImportError:
+    print("no matplotlib for %s: the packaged plots are not checked" % sys.executable)
+    sys.exit(0)
+import tempfile
+
+from lmalign import _plots
+
+assert prefix in pathlib.Path(_plots.script_path("plot_experiment.py")).resolve().parents
+with tempfile.TemporaryDirectory() as out:
+    config = pathlib.Path(out) / "protocol.yaml"
+    config.write_text("source: %s\ntarget: %s\nground_truth: identity\nstrategies: [base]\n"
+                      "experiments:\n  - {name: yaws, type: yaw, yaw_deg: [0, 10]}\n"
+                      % tuple(paths))
+    report = lmalign.experiment(config, pathlib.Path(out) / "report", plots=True)
+    names = sorted(pathlib.Path(p).name for p in report["plots"])
+    assert "yaws_violin.png" in names, names
+    print("plots from the installed package:", ", ".join(names))

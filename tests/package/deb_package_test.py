@@ -7,8 +7,10 @@
    the library, headers, CMake and pkg-config files, the CLI and the Python package.
 2. Only as root (CI runs as root; otherwise exit 77, skipped, with a message), and only when no
    package lmalign is installed already: `apt-get install ./lmalign_*.deb`; then
-   /usr/bin/lmalign --version, Debian's python3 imports the package from /usr (isolated mode)
-   and aligns the real desk pair against the truth, and the consumer project finds it with
+   /usr/bin/lmalign --version, /usr/bin/lmalign experiment on a simulated pair draws its plots
+   with the installed script (/usr/share/lmalign/scripts), Debian's python3 imports the package
+   from /usr (isolated mode), aligns the real desk pair against the truth and draws the same
+   plots with the script inside the package, and the consumer project finds it with
    find_package(lmalign V) and pkg-config, builds and runs; `apt-get remove lmalign` then removes
    every file it installed. The package is removed even when a step fails.
 """
@@ -64,7 +66,10 @@ def check_deb(deb, version, arch):
               "/usr/lib/cmake/lmalign/lmalignConfig.cmake",
               "/usr/lib/cmake/lmalign/lmalignConfigVersion.cmake",
               "/usr/lib/pkgconfig/lmalign.pc", python_dir + "__init__.py",
-              python_dir + "__init__.pyi", python_dir + "py.typed"):
+              python_dir + "__init__.pyi", python_dir + "py.typed",
+              "/usr/share/lmalign/scripts/plot_experiment.py",
+              "/usr/share/lmalign/scripts/plot_merge.py",
+              python_dir + "scripts/plot_experiment.py", python_dir + "scripts/plot_merge.py"):
         assert f in files, "%s not in the package:\n%s" % (f, contents)
     assert any(f.startswith(python_dir + "_lmalign.") for f in files), contents
     print("package checked: %d entries" % len(files))
@@ -74,6 +79,18 @@ def check_installed(args, env):
     check_call(["dpkg", "-s", "lmalign"], env=env, stdout=subprocess.DEVNULL)
     cli = output(["/usr/bin/lmalign", "--version"]).strip()
     assert cli == "lmalign " + args.version, cli
+    # The protocol from the installed package, with its plots (issue: "no plots: scripts/
+    # plot_experiment.py not found beside this executable").
+    protocol = args.work / "protocol"
+    check_call(["/usr/bin/lmalign", "simulate", "--scene", "road", "--landmarks", "200", "-o",
+                protocol / "sim"], env=env, stdout=subprocess.DEVNULL)
+    (protocol / "protocol.yaml").write_text(
+        "source: sim/source.txt\ntarget: sim/target.txt\nground_truth: sim/T_target_source.txt\n"
+        "strategies: [base]\nexperiments:\n  - {name: yaws, type: yaw, yaw_deg: [0, 10]}\n")
+    ran = output(["/usr/bin/lmalign", "experiment", protocol / "protocol.yaml", "-o",
+                  protocol / "out"])
+    assert "drawn by /usr/share/lmalign/scripts/plot_experiment.py" in ran, ran
+    assert (protocol / "out" / "plots" / "yaws_violin.png").is_file(), ran
     with tempfile.TemporaryDirectory() as empty:
         # -I: no PYTHONPATH, no user site, not the current folder: only the installed package.
         command = [PYTHON, "-I", HERE / "check_python_install.py",

@@ -7,7 +7,9 @@
 # 3. runs both executables (each recovers a known transform), a user of the merge component
 #    when it is built, and, when PCL is found, a user of
 #    the pcl component (find_package(lmalign COMPONENTS pcl), lmalign::pcl);
-# 4. with PYTHON: imports the installed Python module from another directory and aligns.
+# 4. runs the installed `lmalign experiment` on a simulated pair: its plots are drawn by the
+#    installed script (<prefix>/share/lmalign/scripts), when /usr/bin/python3 has matplotlib;
+# 5. with PYTHON: imports the installed Python module from another directory and aligns.
 function(run)
   execute_process(COMMAND ${ARGN} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
                   WORKING_DIRECTORY ${WORK_DIR})
@@ -51,6 +53,29 @@ endif()
 run(${prefix}/bin/lmalign --version)
 if(NOT out STREQUAL "lmalign ${VERSION}\n")
   message(FATAL_ERROR "package test: lmalign --version says '${out}', the project is ${VERSION}")
+endif()
+foreach(f share/lmalign/scripts/plot_experiment.py share/lmalign/scripts/plot_merge.py)
+  if(NOT EXISTS ${prefix}/${f})
+    message(FATAL_ERROR "package test: ${f} was not installed")
+  endif()
+endforeach()
+execute_process(COMMAND /usr/bin/python3 -c "import matplotlib, numpy" RESULT_VARIABLE no_mpl
+                OUTPUT_QUIET ERROR_QUIET)
+if(no_mpl)
+  message(STATUS "package test: /usr/bin/python3 has no matplotlib: the plots are not tested")
+else()
+  run(${prefix}/bin/lmalign simulate --scene road --landmarks 200 -o ${WORK_DIR}/sim)
+  file(WRITE ${WORK_DIR}/protocol.yaml "source: sim/source.txt\ntarget: sim/target.txt\n"
+       "ground_truth: sim/T_target_source.txt\nstrategies: [base]\nexperiments:\n"
+       "  - {name: yaws, type: yaw, yaw_deg: [0, 10]}\n")
+  run(${prefix}/bin/lmalign experiment ${WORK_DIR}/protocol.yaml -o ${WORK_DIR}/protocol)
+  if(NOT out MATCHES "drawn by ${prefix}/share/lmalign/scripts/plot_experiment.py")
+    message(FATAL_ERROR "package test: the installed experiment did not plot with the installed "
+                        "script:\n${out}")
+  endif()
+  if(NOT EXISTS ${WORK_DIR}/protocol/plots/yaws_violin.png)
+    message(FATAL_ERROR "package test: no plots/yaws_violin.png from the installed lmalign")
+  endif()
 endif()
 if(PYTHON)
   set(ENV{PYTHONPATH} ${prefix}/${PYTHON_DIR})

@@ -18,7 +18,7 @@
 #include <gtest/gtest.h>
 
 #include "lmalign/core/error.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/map/map_io.hpp"
 
 namespace lmalign {

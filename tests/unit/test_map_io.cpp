@@ -19,7 +19,7 @@
 #include <gtest/gtest.h>
 
 #include "lmalign/core/error.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "lmalign/map/map.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "support/map_compare.hpp"
@@ -438,7 +438,7 @@ TEST(AtomicFile, CallbackExceptionLeavesTargetUnchangedAndNoTempFiles) {
   const std::string path = dir.file("target.txt");
   write_text(path, "original\n");
   try {
-    write_file_atomically(path, [](std::ostream& out) {
+    write_output(path, [](std::ostream& out) {
       out << "partial output that must never be seen\n";
       throw CallbackFailure{7};
     });
@@ -451,7 +451,7 @@ TEST(AtomicFile, CallbackExceptionLeavesTargetUnchangedAndNoTempFiles) {
 
   // A std exception passes through with its own type and message.
   try {
-    write_file_atomically(path, [](std::ostream&) { throw std::out_of_range("boom"); });
+    write_output(path, [](std::ostream&) { throw std::out_of_range("boom"); });
     ADD_FAILURE() << "the callback's exception was swallowed";
   } catch (const std::out_of_range& e) {
     EXPECT_STREQ(e.what(), "boom");
@@ -464,9 +464,9 @@ TEST(AtomicFile, ReplacesTargetOnSuccess) {
   TempDir dir;
   const std::string path = dir.file("target.txt");
   write_text(path, "original\n");
-  write_file_atomically(path, [](std::ostream& out) { out << "new content\n"; });
+  write_output(path, [](std::ostream& out) { out << "new content\n"; });
   EXPECT_EQ(slurp(path), "new content\n");
-  write_file_atomically(dir.file("fresh.txt"), [](std::ostream& out) { out << "x"; });
+  write_output(dir.file("fresh.txt"), [](std::ostream& out) { out << "x"; });
   EXPECT_EQ(slurp(dir.file("fresh.txt")), "x");
   auto entries = dir.entries();
   std::sort(entries.begin(), entries.end());
@@ -477,10 +477,11 @@ TEST(AtomicFile, MissingDirectoryIsAnIoErrorNamingThePath) {
   TempDir dir;
   const std::string path = dir.file("no_such_dir/out.txt");
   try {
-    write_file_atomically(path, [](std::ostream& out) { out << "x"; });
+    write_output(path, [](std::ostream& out) { out << "x"; });
     ADD_FAILURE() << "expected an IoError";
   } catch (const IoError& e) {
-    EXPECT_EQ(std::string(e.what()), "cannot write '" + path + "': " + std::strerror(ENOENT));
+    EXPECT_EQ(std::string(e.what()), "cannot write '" + path + "': the directory '" +
+                                         dir.file("no_such_dir") + "' does not exist");
   }
   EXPECT_FALSE(fs::exists(path));
   EXPECT_THROW(write_map(path, awkward_map()), IoError);

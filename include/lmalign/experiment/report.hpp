@@ -1,6 +1,6 @@
 // The report of an experiment run (docs/experiments.md, "Output"): results.csv, summary.json,
 // tables.md, and the per-case files the plotting script reads. Functions here produce text on a
-// stream; the caller writes each file atomically (write_file_atomically()).
+// stream; the caller writes each file atomically (write_output()).
 #pragma once
 
 #include <cstddef>

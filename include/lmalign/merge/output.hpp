@@ -1,5 +1,5 @@
 // Outputs of a merge (docs/merge.md, "Outputs"), every file written atomically
-// (io/atomic_file.hpp):
+// (io/output_file.hpp):
 //   poses.yaml, poses.json   per map: name, component, gauge flag, T_world_map (4x4 rows),
 //                            6x6 covariance (uncertainty.hpp's convention, world frame);
 //                            poses.json also the map's landmark centre in the world frame

@@ -15,7 +15,7 @@
 #include <unordered_set>
 
 #include "lmalign/core/error.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "text_tokens.hpp"
 
 namespace lmalign {
@@ -413,9 +413,9 @@ void write_colmap_text(const std::string& dir, const Map& map, const PinholeIntr
       points2d[f].emplace_back(&obs, map.landmarks[l].id);
     }
   }
-  std::filesystem::create_directories(dir);
+  create_output_folder(dir);
   const std::filesystem::path folder(dir);
-  write_file_atomically((folder / "cameras.txt").string(), [&](std::ostream& out) {
+  write_output((folder / "cameras.txt").string(), [&](std::ostream& out) {
     out << "# Camera list with one line of data per camera:\n"
            "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
            "# Number of cameras: "
@@ -427,7 +427,7 @@ void write_colmap_text(const std::string& dir, const Map& map, const PinholeIntr
       out << '\n';
     }
   });
-  write_file_atomically((folder / "images.txt").string(), [&](std::ostream& out) {
+  write_output((folder / "images.txt").string(), [&](std::ostream& out) {
     out << "# Image list with two lines of data per image:\n"
            "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
            "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
@@ -450,7 +450,7 @@ void write_colmap_text(const std::string& dir, const Map& map, const PinholeIntr
       out << '\n';
     }
   });
-  write_file_atomically((folder / "points3D.txt").string(), [&](std::ostream& out) {
+  write_output((folder / "points3D.txt").string(), [&](std::ostream& out) {
     out << "# 3D point list with one line of data per point:\n"
            "#   POINT3D_ID, X, Y, Z, R, G, B, ERROR, TRACK[] as (IMAGE_ID, POINT2D_IDX)\n"
            "# Number of points: "

@@ -454,7 +454,23 @@ bool writes_colmap_text(const std::string& path) {
   return (!path.empty() && path.back() == '/') || std::filesystem::is_directory(path, ec);
 }
 
-MapFormat written_map_format(const std::string& path) {
+std::string written_map_format_names() {
+  std::string names;
+  for (const MapFormatInfo& f : map_formats()) {
+    if (f.write != nullptr) names += (names.empty() ? "" : ", ") + std::string(f.name);
+  }
+  return names;
+}
+
+MapFormat written_map_format(const std::string& path, MapFormat format) {
+  if (format != MapFormat::kAuto) {
+    if (map_format_info(format).write == nullptr) {
+      throw InvalidArgument(std::string("lmalign does not write the format '") +
+                            map_format_info(format).name + "' (it writes " +
+                            written_map_format_names() + ")");
+    }
+    return format;
+  }
   if (writes_colmap_text(path)) return MapFormat::kColmapText;
   std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
@@ -462,8 +478,8 @@ MapFormat written_map_format(const std::string& path) {
   return ext == ".ply" ? MapFormat::kPly : MapFormat::kLmalign;
 }
 
-void write_any_map(const std::string& path, const Map& map) {
-  map_format_info(written_map_format(path)).write(path, map);
+void write_any_map(const std::string& path, const Map& map, MapFormat format) {
+  map_format_info(written_map_format(path, format)).write(path, map);
 }
 
 }  // namespace lmalign

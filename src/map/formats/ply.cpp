@@ -17,7 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lmalign/core/error.hpp"
-#include "lmalign/io/atomic_file.hpp"
+#include "lmalign/io/output_file.hpp"
 #include "text_tokens.hpp"
 
 namespace lmalign {
@@ -465,7 +465,7 @@ Map read_ply_map(const std::string& path, PlyReadReport* report) {
 }
 
 void write_ply_map(const std::string& path, const Map& map) {
-  write_file_atomically(path, [&map](std::ostream& out) {
+  write_output(path, [&map](std::ostream& out) {
     out << "ply\nformat ascii 1.0\ncomment lmalign landmark map (docs/map-format.md)\n"
         << "obj_info lmalign_scale " << map_scale_name(map.header.scale) << "\n"
         << "obj_info lmalign_covariance "

@@ -166,15 +166,20 @@ Map read_any_map(const std::string& path, const AnyMapReadOptions& options = {},
 /// True if write_any_map() writes a COLMAP text model to `path`: it ends in '/' or is an
 /// existing folder.
 bool writes_colmap_text(const std::string& path);
-/// The format write_any_map() writes to `path`: kColmapText (a folder), kPly (extension .ply,
-/// any case) or kLmalign (anything else).
-MapFormat written_map_format(const std::string& path);
+/// The format write_any_map() writes to `path`: `format` when it is not kAuto (a format lmalign
+/// writes, else InvalidArgument naming those it writes), else by the form of the path:
+/// kColmapText (a folder), kPly (extension .ply, any case) or kLmalign (anything else, "-"
+/// included).
+MapFormat written_map_format(const std::string& path, MapFormat format = MapFormat::kAuto);
+/// "lmalign, ply, colmap-text": the formats lmalign writes (rows with a writer).
+std::string written_map_format_names();
 
-/// Writes `map` by the form of `path` (written_map_format): a folder (ending in '/' or existing)
-/// gets a COLMAP text model (write_colmap_text, formats/colmap.hpp), a `.ply` path a PLY with
-/// the covariances as properties (write_ply_map, formats/ply.hpp), any other path our text
-/// format (write_map; see there for what is refused). Each file is written atomically.
-void write_any_map(const std::string& path, const Map& map);
+/// Writes `map` in written_map_format(path, format): a folder (ending in '/' or existing) gets a
+/// COLMAP text model (write_colmap_text, formats/colmap.hpp), a `.ply` path a PLY with the
+/// covariances as properties (write_ply_map, formats/ply.hpp), any other path our text format
+/// (write_map; see there for what is refused). Each file goes through the one output writer
+/// (io/output_file.hpp: "-" is the standard output, links are followed, FIFOs written in place).
+void write_any_map(const std::string& path, const Map& map, MapFormat format = MapFormat::kAuto);
 
 /// What detect_map_format() looks at, read once from a path.
 struct MapProbe {
