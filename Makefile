@@ -45,6 +45,11 @@ DEB_PACKAGES += python3-venv python3-pip python3-setuptools python3-wheel python
 # OpenMP, for `make fuzz`.
 DEB_PACKAGES += clang libclang-rt-14-dev libomp-dev
 
+# ccache: the install tests build the library again (pip, the wheel: setup.py drives CMake) with
+# the Release build's exact compile commands, so a fresh clone compiles it once
+# (docs/robustness.md, "CI time").
+DEB_PACKAGES += ccache
+
 # `make test` also runs the whole suite under ASan + UBSan here; `make fuzz` builds and runs the
 # libFuzzer targets there, FUZZ_SECONDS per target.
 ASAN_BUILD_DIR ?= build-asan
@@ -72,11 +77,19 @@ deps:
 	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing; \
 	fi
 
+# (ccache is looked up again after deps, which may have just installed it.)
 configure: deps
-	cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=Release
+	cmake -S . -B $(BUILD_DIR) -DCMAKE_BUILD_TYPE=Release \
+	  $(if $(shell command -v ccache 2>/dev/null),-DCMAKE_CXX_COMPILER_LAUNCHER=$(shell command -v ccache))
 
 build: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+# What `make demo` runs: the library, the CLI (and its build-map helper) and the Python module;
+# no test suite, no benchmark (those build in `make test` and `make bench`).
+.PHONY: build-front-ends
+build-front-ends: configure
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target lmalign_front_ends
 
 test: build
 	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
@@ -163,10 +176,11 @@ bench-merge-real: build
 	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_kitti_retri.yaml --build-dir $(BUILD_DIR)
 	LMALIGN_DATA=$(LMALIGN_DATA) $(PYTHON) bench/merge_real.py configs/merge_streets.yaml --build-dir $(BUILD_DIR)
 
-demo: build
+demo: build-front-ends
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign demo: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; \
 	  echo "  (set LMALIGN_DATA to the folder that holds tum_fr1_desk/)" >&2; exit 1; fi
+	@mkdir -p $(BUILD_DIR)/demo
 	@echo "== lmalign demo: align desk_gt_a onto desk_gt_b (indoor RGB-D; true transform: identity)"
 	@echo "== source displaced by the paper's Table 1 pose: x=0 y=1 z=0.4 m, roll=10 pitch=0 yaw=22.5 deg"
 	@echo "== adaptive (the recommended default: no initial guess) next to the paper's four strategies"
