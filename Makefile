@@ -91,32 +91,54 @@ build: configure
 build-front-ends: configure
 	cmake --build $(BUILD_DIR) -j $(JOBS) --target lmalign_front_ends
 
-test: build
-	cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS)
-	$(MAKE) --no-print-directory test-sanitize
+# Each phase's time goes to $(PHASES) ("PHASE<TAB>seconds"); `make test` ends with the 20 slowest
+# tests of each suite and the time of each phase (scripts/test_times.py; docs/robustness.md,
+# "CI time"), and `make fuzz` adds its phases to the same table.
+PHASES = $(abspath $(BUILD_DIR))/phases.tsv
+# $(call timed,PHASE,COMMAND): runs COMMAND, appends its time to $(PHASES), keeps its exit code.
+timed = s=$$(date +%s); ( $(2) ); rc=$$?; printf '%s\t%s\n' '$(1)' $$(( $$(date +%s) - s )) >> $(PHASES); exit $$rc
+TEST_TIMES = $(PYTHON) scripts/test_times.py
+
+test:
+	@mkdir -p $(BUILD_DIR) && : > $(PHASES)
+	@$(call timed,Debian packages,$(MAKE) --no-print-directory deps)
+	@$(call timed,Release: configure + build,$(MAKE) --no-print-directory build)
+	@$(call timed,Release: tests,cd $(BUILD_DIR) && ctest --output-on-failure -j $(JOBS) --output-junit junit.xml)
+	@$(call timed,ASan+UBSan: configure + build,$(MAKE) --no-print-directory build-sanitize)
+	@$(call timed,ASan+UBSan: tests,$(MAKE) --no-print-directory run-sanitize)
+	@$(TEST_TIMES) --junit Release=$(BUILD_DIR)/junit.xml \
+	  --junit ASan+UBSan=$(ASAN_BUILD_DIR)/junit.xml --phases $(PHASES)
 
 # The whole suite again under AddressSanitizer + UndefinedBehaviorSanitizer (every label, leaks
 # included), in its own build directory, -O1; the second half of `make test`. Measured time and
 # coverage: docs/robustness.md.
-.PHONY: test-sanitize
-test-sanitize: deps
+.PHONY: test-sanitize build-sanitize run-sanitize
+test-sanitize: run-sanitize
+build-sanitize: deps
 	cmake -S . -B $(ASAN_BUILD_DIR) -DCMAKE_BUILD_TYPE=Release -DCMAKE_CXX_FLAGS_RELEASE=-O1 \
 	  -DLMALIGN_SANITIZE=ON \
 	  -DLMALIGN_BUILD_BENCH=OFF
 	cmake --build $(ASAN_BUILD_DIR) -j $(JOBS)
+run-sanitize: build-sanitize
 	cd $(ASAN_BUILD_DIR) && ASAN_OPTIONS=detect_leaks=1:strict_string_checks=1 \
-	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS)
+	  UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 ctest --output-on-failure -j $(JOBS) \
+	  --output-junit junit.xml
 
 .PHONY: fuzz
 # libFuzzer targets (fuzz/), clang with ASan + UBSan; fails on any finding.
 fuzz: deps
+	@mkdir -p $(BUILD_DIR)
+	@$(call timed,fuzz: configure + build,$(MAKE) --no-print-directory build-fuzz)
+	@$(call timed,fuzz: run,FUZZ_BUILD_DIR=$(FUZZ_BUILD_DIR) fuzz/run_fuzzers.sh $(FUZZ_SECONDS))
+	@$(TEST_TIMES) --phases $(PHASES)
+.PHONY: build-fuzz
+build-fuzz:
 	cmake -S . -B $(FUZZ_BUILD_DIR) -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=Release \
 	  -DLMALIGN_FUZZ=ON -DLMALIGN_BUILD_TESTS=OFF -DLMALIGN_BUILD_APPS=OFF -DLMALIGN_BUILD_VO=OFF \
 	  -DLMALIGN_BUILD_BENCH=OFF -DLMALIGN_WITH_PCL=OFF
 	cmake --build $(FUZZ_BUILD_DIR) -j $(JOBS) --target fuzz_map_reader fuzz_experiment_config \
 	  fuzz_bundler_reader fuzz_colmap_reader fuzz_ply_reader fuzz_stella_vslam_reader \
 	  fuzz_default_alignment fuzz_merge_manifest fuzz_cli_options
-	FUZZ_BUILD_DIR=$(FUZZ_BUILD_DIR) fuzz/run_fuzzers.sh $(FUZZ_SECONDS)
 
 # `make bench`: lmalign against PCL and Open3D on the real pair, in one script run (each
 # configuration in its own process for clean peak memory, interleaved in rounds), then the paper
