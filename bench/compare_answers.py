@@ -12,7 +12,8 @@ default on the dataset's Sim(3) variants of bench/accuracy.yaml; from the first 
 displacements (method.md §5; default 2). `record` writes each run's JSON into DIR; `compare`
 runs the same with BIN and reports every difference of the whole JSON except the times
 (wall_time_s, total_time_s, time_ms and the like): exit 0 when every run is identical, 1 when
-any differs (each difference named: dataset, run, JSON path, both values).
+any differs (each difference named: dataset, run, JSON path, both values). --new-keys-ok:
+keys that only the new JSON has (a setting or a field added) are not differences.
 """
 import argparse
 import json
@@ -36,21 +37,23 @@ def strip_times(value):
     return value
 
 
-def differences(a, b, path="", out=None, limit=20):
+def differences(a, b, path="", out=None, limit=20, new_keys_ok=False):
     out = [] if out is None else out
     if len(out) >= limit:
         return out
     if isinstance(a, dict) and isinstance(b, dict):
         for k in sorted(set(a) | set(b)):
+            if k not in a and new_keys_ok:
+                continue
             if k not in a or k not in b:
                 out.append("%s/%s: only in %s" % (path, k, "the reference" if k in a else "this"))
             else:
-                differences(a[k], b[k], path + "/" + k, out, limit)
+                differences(a[k], b[k], path + "/" + k, out, limit, new_keys_ok)
     elif isinstance(a, list) and isinstance(b, list):
         if len(a) != len(b):
             out.append("%s: %d items against %d" % (path, len(a), len(b)))
         for i, (x, y) in enumerate(zip(a, b)):
-            differences(x, y, "%s[%d]" % (path, i), out, limit)
+            differences(x, y, "%s[%d]" % (path, i), out, limit, new_keys_ok)
     elif a != b:
         out.append("%s: %r against %r" % (path, a, b))
     return out
@@ -107,6 +110,9 @@ def main(argv=None):
     parser.add_argument("--starts", type=int, default=2)
     parser.add_argument("--similarity", action="store_true")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
+    parser.add_argument("--new-keys-ok", action="store_true",
+                        help="keys only in the new JSON (a new setting, a new field) are no "
+                        "difference")
     args = parser.parse_args(argv)
     data_dir = os.environ.get("LMALIGN_DATA") or os.path.join(os.path.dirname(ROOT), "shared",
                                                               "data")
@@ -137,7 +143,7 @@ def main(argv=None):
             a = strip_times(json.load(f))
         with open(new) as f:
             b = strip_times(json.load(f))
-        diff = differences(a, b)
+        diff = differences(a, b, new_keys_ok=args.new_keys_ok)
         if diff:
             changed += 1
             print("%s: %d difference(s)" % (name, len(diff)))

@@ -15,9 +15,14 @@
 
 namespace lmalign {
 
-Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& target_points,
-                                   const Correspondences& correspondences,
-                                   const std::vector<double>* weights, EstimationReport* report) {
+namespace {
+
+// The one closed form (Umeyama 1991): rigid when kScale is false (eqs. 40-41 with c = 1), with
+// the scale of eq. 42 when true (*scale receives it).
+template <bool kScale>
+Isometry3 umeyama(const Points3& source_points, const Points3& target_points,
+                  const Correspondences& correspondences, const std::vector<double>* weights,
+                  EstimationReport* report, double* scale) {
   const std::size_t n = correspondences.size();
   if (n == 0) throw InvalidArgument("estimate_rigid_transform: no correspondences");
   if (weights != nullptr && weights->size() != n) {
@@ -48,6 +53,7 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
     double w_sum = 0.0;
     Vec3 s = Vec3::Zero(), t = Vec3::Zero();
     Mat3 H = Mat3::Zero();
+    double var_s = 0.0;  // sum w |s - mu_s|^2 (kScale)
   };
   std::array<Partial, kMaxBlocks> partial;
   const bool parallel = n >= kParallelMin && blocks > 1 && !omp_in_parallel();
@@ -97,13 +103,16 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
   for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(blocks); ++b) {
     error.capture([&] {
       Mat3 Hb = Mat3::Zero();
+      double vb = 0.0;
       const std::size_t end = std::min(n, (static_cast<std::size_t>(b) + 1) * block);
       for (std::size_t i = static_cast<std::size_t>(b) * block; i < end; ++i) {
         const Correspondence& c = correspondences[i];
         Hb.noalias() += w(i) * (source_points[c.source_index] - mu_s) *
                         (target_points[c.target_index] - mu_t).transpose();
+        if constexpr (kScale) vb += w(i) * (source_points[c.source_index] - mu_s).squaredNorm();
       }
       partial[static_cast<std::size_t>(b)].H = Hb;
+      partial[static_cast<std::size_t>(b)].var_s = vb;
     });
   }
   error.rethrow();
@@ -145,13 +154,42 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
 
   Isometry3 T = Isometry3::Identity();
   T.linear() = R;
-  T.translation() = mu_t - R * mu_s;
+  if constexpr (kScale) {
+    // Eq. 42: c = trace(D Sigma) / sigma_s^2 (the weights' sum cancels); undetermined (1) when
+    // the source points coincide.
+    double var_s = 0.0;
+    for (std::size_t b = 0; b < blocks; ++b) var_s += partial[b].var_s;
+    const double d = !degenerate && (V * U.transpose()).determinant() < 0.0 ? -1.0 : 1.0;
+    const double c = var_s > 0.0 ? (sigma(0) + sigma(1) + d * sigma(2)) / var_s : 1.0;
+    *scale = c > 0.0 && std::isfinite(c) ? c : 1.0;
+    T.translation() = mu_t - *scale * (R * mu_s);
+  } else {
+    T.translation() = mu_t - R * mu_s;
+  }
   if (!T.matrix().allFinite()) {
     throw InvalidArgument(
         "estimate_rigid_transform: the estimate is not finite (coordinates too "
         "large)");
   }
   return T;
+}
+
+}  // namespace
+
+Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& target_points,
+                                   const Correspondences& correspondences,
+                                   const std::vector<double>* weights, EstimationReport* report) {
+  return umeyama<false>(source_points, target_points, correspondences, weights, report, nullptr);
+}
+
+Similarity3 estimate_similarity_transform(const Points3& source_points,
+                                          const Points3& target_points,
+                                          const Correspondences& correspondences,
+                                          const std::vector<double>* weights,
+                                          EstimationReport* report) {
+  Similarity3 S;
+  S.rigid = umeyama<true>(source_points, target_points, correspondences, weights, report, &S.scale);
+  return S;
 }
 
 }  // namespace lmalign

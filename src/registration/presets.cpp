@@ -357,63 +357,11 @@ Summary align(const Preset& preset, const SourceView& source, const PreparedTarg
   r.history_scores = request.record_history;
   r.free_scale = resolve_scale_mode(request.scale, request.source_metric, request.target_metric) ==
                  ScaleMode::kFree;
-  const SourceView source_kept = kept.source ? kept.source->view() : source;
-  const PreparedTarget& target_kept = kept.target ? *kept.target : target;
-  Summary out = pipeline.run(source_kept, target_kept, r);
-  if (r.free_scale && !out.verdict.trustworthy) {
-    // The initial scale from the spacings can be off by more than the search absorbs (maps of
-    // different landmark density: 10-30% measured, docs/scale.md). The first run concluded its
-    // search's hypotheses at the initial scale and at 12% either side of it; then the search
-    // itself again, in steps of 12% (the search absorbs about 6% either way) out to 25% either
-    // side, nearest first, each concluded at its own initial scale alone, while none is
-    // trusted. The first trusted result wins; none: the first.
-    const double s0 = out.scale.initial_scale;
-    double time_s = out.total_time_s;
-    int attempts = out.scale.attempts;
-    int searches = 1;
-    r.scale_rungs = false;
-    // The side the first result's refined scale leans to first.
-    const double up = out.scale.scale > s0 ? 1.12 : 1.0 / 1.12;
-    for (const double factor : {up, 1.0 / up, up * up, 1.0 / (up * up)}) {
-      r.initial_scale = s0 * factor;
-      Summary alt = pipeline.run(source_kept, target_kept, r);
-      ++searches;
-      attempts += alt.scale.attempts;
-      time_s += alt.total_time_s;
-      if (alt.verdict.trustworthy) {
-        out = std::move(alt);
-        break;
-      }
-    }
-    out.scale.attempts = attempts;
-    out.scale.searches = searches;
-    out.total_time_s = time_s;
-  }
-  out.source_left_out = kept.source_left_out;
-  out.target_left_out = kept.target_left_out;
-  // A confidence that is 0 everywhere (Eqs. 2-3 on a target without observations) never picks a
-  // neighbour (Eq. 6) and zeroes every pair's weight: say why rather than judge the unmoved start.
-  for (WeightKind kind : pipeline.confidences()) {
-    const std::vector<double>& w = target_kept.weights(kind);
-    if (!w.empty() && std::all_of(w.begin(), w.end(), [](double x) { return x == 0.0; })) {
-      out.verdict.trustworthy = false;
-      out.verdict.reason = "every target landmark has " + to_string(kind) +
-                           " weight 0 (it has no observations: a point cloud), so the strategy "
-                           "weighs every pair by 0 (method.md Eqs. 2-3, 6): nothing was "
-                           "aligned; use base, covariance or adaptive";
-      break;
-    }
-  }
-  std::string note = left_out_message(kept.source_left_out, kept.target_left_out);
-  if (request.covariances_assumed && pipeline.uses_covariances()) {
-    out.covariances_assumed = true;
-    note = (note.empty() ? "" : note + "; ") +
-           "covariances assumed from the landmark spacing (isotropic, half the median distance "
-           "to the 6 nearest landmarks: the map stores none), so the covariance weights and "
-           "gates measure agreement with that assumption";
-  }
-  if (!note.empty()) out.verdict.reason += "; " + note;
-  return out;
+  r.source_left_out = kept.source_left_out;
+  r.target_left_out = kept.target_left_out;
+  r.covariances_assumed = request.covariances_assumed;
+  return pipeline.run(kept.source ? kept.source->view() : source,
+                      kept.target ? *kept.target : target, r);
 }
 
 }  // namespace lmalign

@@ -103,7 +103,7 @@ std::string Summary::FullReport() const {
     line("scale", "free: " + fmt("%.6g", scale.scale) + " +- " + fmt("%.2g", scale.scale_sd) +
                       " target units per source unit (initial " + fmt("%.4g", scale.initial_scale) +
                       " from the spacings, " + std::to_string(scale.rounds) +
-                      " rounds of the 7-DoF steps, " + std::to_string(scale.attempts) +
+                      " 7-DoF refinements kept, " + std::to_string(scale.attempts) +
                       " scales concluded over " + std::to_string(scale.searches) + " searches)");
   }
   line("initialisation",

@@ -35,9 +35,15 @@ double PoseCovariance::rotation_sd_deg() const {
                                                  .maxCoeff()));
 }
 
-PoseCovariance point_to_point_covariance(const Points3& moved_source, const Points3& target_points,
-                                         const Correspondences& correspondences,
-                                         const std::vector<double>* weights) {
+namespace {
+
+// point_to_point_covariance in N unknowns: 6 (rho, phi) or 7 (with sigma = log scale, whose
+// column of the Jacobian of x -> exp(sigma) x is x).
+template <int N>
+PoseCovariance point_to_point_n(const Points3& moved_source, const Points3& target_points,
+                                const Correspondences& correspondences,
+                                const std::vector<double>* weights) {
+  using MatN = Eigen::Matrix<double, N, N>;
   PoseCovariance out;
   const std::size_t n = correspondences.size();
   out.num_correspondences = n;
@@ -52,7 +58,7 @@ PoseCovariance point_to_point_covariance(const Points3& moved_source, const Poin
     if (!(wsum > 0.0)) return out;
     norm = static_cast<double>(n) / wsum;
   }
-  Mat6 H = Mat6::Zero();
+  MatN H = MatN::Zero();
   double sum_sq = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const Correspondence& c = correspondences[i];
@@ -62,25 +68,57 @@ PoseCovariance point_to_point_covariance(const Points3& moved_source, const Poin
     }
     const Vec3& x = moved_source[c.source_index];
     const Vec3 r = target_points[c.target_index] - x;
-    Eigen::Matrix<double, 3, 6> J;
-    J.leftCols<3>() = Mat3::Identity();
-    J.rightCols<3>() = -skew(x);
+    Eigen::Matrix<double, 3, N> J;
+    J.template leftCols<3>() = Mat3::Identity();
+    J.template block<3, 3>(0, 3) = -skew(x);
+    if constexpr (N == 7) J.col(6) = x;
     H.noalias() += w * J.transpose() * J;
     sum_sq += w * r.squaredNorm();
   }
   if (n < 3) return out;
-  const Eigen::SelfAdjointEigenSolver<Mat6> eig(H);
+  const Eigen::SelfAdjointEigenSolver<MatN> eig(H);
   const double lmax = eig.eigenvalues().maxCoeff();
   if (!(eig.eigenvalues().minCoeff() > 1e-12 * lmax)) return out;  // singular: a line
-  const double dof = 3.0 * static_cast<double>(n) - 6.0;
+  const double dof = 3.0 * static_cast<double>(n) - static_cast<double>(N);
   const double sigma2 = sum_sq / dof;
   out.sigma_m = std::sqrt(sigma2);
-  const Mat6 cov = sigma2 * (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
+  const MatN cov = sigma2 * (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
                              eig.eigenvectors().transpose());
-  out.covariance = 0.5 * (cov + cov.transpose());  // exactly symmetric
-  out.valid = out.covariance.allFinite();
-  if (!out.valid) out.covariance.setZero();
+  const MatN symmetric = 0.5 * (cov + cov.transpose());  // exactly symmetric
+  if constexpr (N == 7) {
+    out.has_scale = true;
+    out.covariance_7x7 = symmetric;
+    out.covariance = symmetric.template topLeftCorner<6, 6>();
+  } else {
+    out.covariance = symmetric;
+  }
+  out.valid = symmetric.allFinite();
+  if (!out.valid) {
+    out.covariance.setZero();
+    out.covariance_7x7.setZero();
+  }
   return out;
+}
+
+}  // namespace
+
+PoseCovariance point_to_point_covariance(const Points3& moved_source, const Points3& target_points,
+                                         const Correspondences& correspondences,
+                                         const std::vector<double>* weights, bool with_scale) {
+  return with_scale ? point_to_point_n<7>(moved_source, target_points, correspondences, weights)
+                    : point_to_point_n<6>(moved_source, target_points, correspondences, weights);
+}
+
+Vec7 similarity_error_twist(const Isometry3& T_est, double scale_est, const Isometry3& T_true) {
+  // S_est S_true^-1 (x) = s R_e R_t^T (x - t_t) + t_e: sigma = log s, phi = log(R_e R_t^T),
+  // rho = t_e - s R_e R_t^T t_t.
+  const Mat3 dR = T_est.linear() * T_true.linear().transpose();
+  const Eigen::AngleAxisd aa(dR);
+  Vec7 xi;
+  xi.head<3>() = T_est.translation() - scale_est * (dR * T_true.translation());
+  xi.segment<3>(3) = aa.axis() * aa.angle();
+  xi(6) = std::log(scale_est);
+  return xi;
 }
 
 Vec6 pose_error_twist(const Isometry3& T_est, const Isometry3& T_true) {
@@ -92,19 +130,27 @@ Vec6 pose_error_twist(const Isometry3& T_est, const Isometry3& T_true) {
   return xi;
 }
 
-Mat6 covariance_max(const Mat6& floor, const Mat6& other) {
-  const Eigen::LLT<Mat6> llt(floor);
+namespace {
+template <typename M>
+M covariance_max_n(const M& floor, const M& other) {
+  const Eigen::LLT<M> llt(floor);
   if (llt.info() != Eigen::Success) return floor;
-  const Mat6 L = llt.matrixL();
-  const Mat6 L_inv = L.inverse();
-  Mat6 K = L_inv * other * L_inv.transpose();
+  const M L = llt.matrixL();
+  const M L_inv = L.inverse();
+  M K = L_inv * other * L_inv.transpose();
   K = (0.5 * (K + K.transpose())).eval();
-  const Eigen::SelfAdjointEigenSolver<Mat6> eig(K);
-  const Vec6 d = eig.eigenvalues().cwiseMax(1.0);
-  const Mat6 raised =
+  const Eigen::SelfAdjointEigenSolver<M> eig(K);
+  const typename Eigen::SelfAdjointEigenSolver<M>::RealVectorType d =
+      eig.eigenvalues().cwiseMax(1.0);
+  const M raised =
       L * eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose() * L.transpose();
   return raised.allFinite() ? raised : floor;
 }
+}  // namespace
+
+Mat6 covariance_max(const Mat6& floor, const Mat6& other) { return covariance_max_n(floor, other); }
+
+Mat7 covariance_max(const Mat7& floor, const Mat7& other) { return covariance_max_n(floor, other); }
 
 double nees(const Vec6& error, const PoseCovariance& covariance) {
   if (!covariance.valid) return std::numeric_limits<double>::infinity();

@@ -647,15 +647,15 @@ TEST(P2DStep, AFewStepsRecoverAKnownSmallTransform) {
 
 TEST(P2DStep, ApplyStepRotatesAboutThePivot) {
   const Isometry3 T0 = pose_from_xyz_rpy_deg(1, 2, 3, 10, 20, 30);
-  Vec6 xi;
-  xi << 0.0, 0.0, 0.0, 0.0, 0.0, kPi / 2;  // a quarter turn about z, no translation
+  Vec7 xi;
+  xi << 0.0, 0.0, 0.0, 0.0, 0.0, kPi / 2, 0.0;  // a quarter turn about z, no translation
   const Vec3 pivot(5, 0, 0);
   const Isometry3 T = apply_step(T0, xi, pivot);
   // A point that T0 puts at the pivot stays there; one 1 m further along x goes to +y.
   const Vec3 p_at_pivot = T0.inverse() * pivot;
   EXPECT_LT((T * p_at_pivot - pivot).norm(), 1e-12);
   EXPECT_LT((T * (T0.inverse() * Vec3(6, 0, 0)) - Vec3(5, 1, 0)).norm(), 1e-12);
-  xi << 0.3, -0.2, 0.1, 0.0, 0.0, 0.0;
+  xi << 0.3, -0.2, 0.1, 0.0, 0.0, 0.0, 0.0;
   const Isometry3 Tt = apply_step(T0, xi, pivot);
   EXPECT_TRUE(Tt.linear().isApprox(T0.linear(), 1e-14));
   EXPECT_LT((Tt.translation() - T0.translation() - Vec3(0.3, -0.2, 0.1)).norm(), 1e-12);
@@ -669,17 +669,17 @@ TEST(P2DStep, FourDofStepsChangeOnlyYawAboutTheUpAxisAndTranslation) {
   const Isometry3 T0 = pose_from_xyz_rpy_deg(0.02, 0.01, 0.0, 0.5, 0.3, -1.0);
   const std::vector<GatedPair> pairs = make_pairs(s.src, s.tgt, T0, s.info);
   const Vec3 pivot = T0 * centroid(s.src);
-  const P2DStep step =
-      solve_p2d_step(pairs, s.tgt, pivot, cauchy_weights(pairs, kChi2Dof3P99), &up);
+  const P2DStep step = solve_p2d_step(pairs, s.tgt, pivot, cauchy_weights(pairs, kChi2Dof3P99),
+                                      {P2DBasis::Kind::k4, up});
   ASSERT_TRUE(step.ok);
-  EXPECT_LT(step.xi.tail<3>().cross(up).norm(), 1e-12);
-  EXPECT_GT(std::abs(step.xi.tail<3>().dot(up)), 1e-3);  // it did rotate
+  EXPECT_LT(step.xi.segment<3>(3).cross(up).norm(), 1e-12);
+  EXPECT_GT(std::abs(step.xi.segment<3>(3).dot(up)), 1e-3);  // it did rotate
   const Isometry3 T1 = apply_step(T0, step.xi, pivot);
   const Mat3 dR = T1.linear() * T0.linear().transpose();
   EXPECT_LT((dR * up - up).norm(), 1e-12);  // a rotation about up only
   // The Hessian has nothing in the rotations orthogonal to up.
   const Vec3 side = up.unitOrthogonal();
-  EXPECT_LT((step.hessian * (Vec6() << Vec3::Zero(), side).finished()).norm(),
+  EXPECT_LT((step.hessian_6x6() * (Vec6() << Vec3::Zero(), side).finished()).norm(),
             1e-9 * step.hessian.norm());
 
   // A pure yaw-about-up plus translation truth is recovered exactly by 4-DoF steps.
@@ -692,7 +692,8 @@ TEST(P2DStep, FourDofStepsChangeOnlyYawAboutTheUpAxisAndTranslation) {
     const Vec3 c = T * centroid(s4.src);
     const P2DStep st = [&] {
       const auto pr = make_pairs(s4.src, s4.tgt, T, s4.info);
-      return solve_p2d_step(pr, s4.tgt, c, cauchy_weights(pr, kChi2Dof3P99), &up);
+      return solve_p2d_step(pr, s4.tgt, c, cauchy_weights(pr, kChi2Dof3P99),
+                            {P2DBasis::Kind::k4, up});
     }();
     ASSERT_TRUE(st.ok);
     T = apply_step(T, st.xi, c);
@@ -711,9 +712,12 @@ TEST(P2DStep, TooFewPairsOrDegenerateGeometryAreNotOk) {
   const Vec3 up = Vec3::UnitZ();
   EXPECT_FALSE(solve_p2d_step({}, s.tgt, pivot, {}).ok);
   EXPECT_FALSE(solve_p2d_step(two, s.tgt, pivot, cauchy_weights(two, kChi2Dof3P99)).ok);
-  EXPECT_TRUE(solve_p2d_step(two, s.tgt, pivot, cauchy_weights(two, kChi2Dof3P99), &up)
-                  .ok);  // 4 unknowns, 6 rows
-  EXPECT_FALSE(solve_p2d_step(one, s.tgt, pivot, cauchy_weights(one, kChi2Dof3P99), &up).ok);
+  EXPECT_TRUE(
+      solve_p2d_step(two, s.tgt, pivot, cauchy_weights(two, kChi2Dof3P99), {P2DBasis::Kind::k4, up})
+          .ok);  // 4 unknowns, 6 rows
+  EXPECT_FALSE(
+      solve_p2d_step(one, s.tgt, pivot, cauchy_weights(one, kChi2Dof3P99), {P2DBasis::Kind::k4, up})
+          .ok);
   // Five pairs all at the pivot: no rotation is observable.
   std::vector<GatedPair> same(all.begin(), all.begin() + 5);
   for (GatedPair& g : same) g.moved_source_m = pivot;

@@ -1,5 +1,6 @@
-// Similarity transforms and estimation with scale (core/similarity.hpp,
-// registration/similarity.hpp, map/transform.hpp, io/transform_io.hpp's read_similarity).
+// Similarity transforms and estimation with scale (core/similarity.hpp, the scale modes of
+// registration/scale_search.hpp, Umeyama with scale in registration/estimation.hpp, the 7-DoF basis
+// of stages/p2d_step.hpp, map/transform.hpp, io/transform_io.hpp's read_similarity).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -13,8 +14,11 @@
 #include "lmalign/core/similarity.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/transform.hpp"
+#include "lmalign/registration/estimation.hpp"
 #include "lmalign/registration/presets.hpp"
-#include "lmalign/registration/similarity.hpp"
+#include "lmalign/registration/scale_search.hpp"
+#include "lmalign/registration/stages/p2d_step.hpp"
+#include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
 namespace {
@@ -88,47 +92,82 @@ TEST(Similarity, ErrorMeasuresScaleRotationAndTranslation) {
   EXPECT_NEAR(e.translation_m, 0.1, 1e-12);
 }
 
+Correspondences one_to_one(std::size_t n) {
+  Correspondences c(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    c[i].source_index = static_cast<PointIndex>(i);
+    c[i].target_index = static_cast<PointIndex>(i);
+  }
+  return c;
+}
+
 TEST(Similarity, UmeyamaWithScaleRecoversTheSimilarityExactly) {
   const Points3 src = random_points(50, 1);
   for (const double s : {0.37, 3.0}) {
     const Similarity3 S = sim(s, 0.5, -1, 2, 20, -30, 120);
-    const auto est = umeyama_similarity(src, moved_by(S, src));
-    ASSERT_TRUE(est.has_value());
-    EXPECT_NEAR(est->scale, s, 1e-12 * s);
-    EXPECT_LT((est->matrix() - S.matrix()).norm(), 1e-10);
+    const Similarity3 est = estimate_similarity_transform(src, moved_by(S, src), one_to_one(50));
+    EXPECT_NEAR(est.scale, s, 1e-12 * s);
+    EXPECT_LT((est.matrix() - S.matrix()).norm(), 1e-10);
   }
   // Weights: a pair with weight 0 is ignored (an outlier moved far).
   Points3 tgt = moved_by(sim(0.37, 0, 0, 0, 0, 0, 10), src);
   tgt[0] += Vec3(5, 5, 5);
   std::vector<double> w(src.size(), 1.0);
   w[0] = 0.0;
-  const auto est = umeyama_similarity(src, tgt, &w);
-  ASSERT_TRUE(est.has_value());
-  EXPECT_NEAR(est->scale, 0.37, 1e-12);
-  // Fewer than 3 pairs, or coincident source points: none.
-  const Points3 two(2, Vec3::Ones());
+  EXPECT_NEAR(estimate_similarity_transform(src, tgt, one_to_one(50), &w).scale, 0.37, 1e-12);
+  // The rotation is the rigid estimate's, bit for bit, when the scale is 1.
+  const Points3 rigid = moved_by(sim(1.0, 0.1, 0.2, 0.3, 5, 6, 7), src);
+  EXPECT_TRUE((estimate_similarity_transform(src, rigid, one_to_one(50)).rigid.linear() -
+               estimate_rigid_transform(src, rigid, one_to_one(50)).linear())
+                  .isZero(0.0));
+  // Coincident source points: degenerate, scale 1 (undetermined).
   const Points3 same(5, Vec3::Ones());
-  EXPECT_FALSE(umeyama_similarity(two, two).has_value());
-  EXPECT_FALSE(umeyama_similarity(same, random_points(5, 2)).has_value());
-  EXPECT_THROW(umeyama_similarity(src, Points3(3)), InvalidArgument);
+  EstimationReport report;
+  const Similarity3 d =
+      estimate_similarity_transform(same, random_points(5, 2), one_to_one(5), nullptr, &report);
+  EXPECT_TRUE(report.degenerate);
+  EXPECT_EQ(d.scale, 1.0);
+  EXPECT_THROW(estimate_similarity_transform(src, tgt, {}), InvalidArgument);
 }
 
-TEST(Similarity, GaussNewtonStepsConvergeToTheSimilarity) {
+// Gated pairs of `moved` onto `targets`, pair i to target i, identity information.
+std::vector<GatedPair> identity_pairs(const Points3& moved) {
+  std::vector<GatedPair> pairs(moved.size());
+  for (std::size_t i = 0; i < moved.size(); ++i) {
+    pairs[i].source_index = static_cast<std::uint32_t>(i);
+    pairs[i].target_index = static_cast<PointIndex>(i);
+    pairs[i].moved_source_m = moved[i];
+    pairs[i].information = Mat3::Identity();
+  }
+  return pairs;
+}
+
+Vec3 centroid_of(const Points3& p) {
+  Vec3 c = Vec3::Zero();
+  for (const Vec3& v : p) c += v;
+  return c / static_cast<double>(p.size());
+}
+
+TEST(Similarity, SevenDofStepsOfThePointToDistributionSolverConvergeToTheSimilarity) {
   const Points3 src = random_points(200, 3);
   const Similarity3 truth = sim(3.0, 0.2, -0.1, 0.3, 2, -1, 4);
   const Points3 tgt = moved_by(truth, src);
-  Similarity3 est;  // identity
+  Isometry3 T = Isometry3::Identity();
+  double scale = 1.0;
+  P2DBasis seven;
+  seven.kind = P2DBasis::Kind::k7;
   for (int it = 0; it < 20; ++it) {
-    const Points3 moved = moved_by(est, src);
-    Vec3 pivot = Vec3::Zero();
-    for (const Vec3& m : moved) pivot += m;
-    pivot /= static_cast<double>(moved.size());
-    const SimilarityStep st = solve_similarity_step(moved, tgt, nullptr, {}, pivot);
+    const Points3 moved = moved_by(Similarity3{scale, T}, src);
+    const Vec3 pivot = centroid_of(moved);
+    const P2DStep st = solve_p2d_step(identity_pairs(moved), tgt, pivot, {}, seven);
     ASSERT_TRUE(st.ok);
-    est = similarity_increment(st.xi, pivot) * est;
+    EXPECT_EQ(st.dof, 7);
+    double ds = 1.0;
+    T = apply_step(T, st.xi, pivot, &ds);
+    scale *= ds;
   }
-  EXPECT_NEAR(est.scale, 3.0, 1e-9);
-  EXPECT_LT((est.matrix() - truth.matrix()).norm(), 1e-8);
+  EXPECT_NEAR(scale, 3.0, 1e-9);
+  EXPECT_LT((Similarity3{scale, T}.matrix() - truth.matrix()).norm(), 1e-8);
 }
 
 TEST(Similarity, CovarianceOfScaleGrowsWithTheNoise) {
@@ -139,21 +178,65 @@ TEST(Similarity, CovarianceOfScaleGrowsWithTheNoise) {
   std::normal_distribution<double> n01(0.0, 1.0);
   Points3 noise(src.size());
   for (Vec3& v : noise) v = Vec3(n01(rng), n01(rng), n01(rng));
+  P2DBasis seven;
+  seven.kind = P2DBasis::Kind::k7;
   double sd[2];
   for (int k = 0; k < 2; ++k) {
     Points3 tgt = src;
     for (std::size_t i = 0; i < src.size(); ++i) tgt[i] += (k + 1) * 0.01 * noise[i];
-    const SimilarityStep st = solve_similarity_step(src, tgt, nullptr, {}, Vec3::Zero());
-    const auto cov = similarity_covariance(st, Vec3::Zero());
-    ASSERT_TRUE(cov.has_value());
-    EXPECT_TRUE(cov->allFinite());
-    sd[k] = std::sqrt((*cov)(6, 6));
+    const P2DStep st = solve_p2d_step(identity_pairs(src), tgt, Vec3::Zero(), {}, seven);
+    const PoseCovariance cov = p2d_covariance(st, src.size(), Vec3::Zero());
+    ASSERT_TRUE(cov.valid);
+    ASSERT_TRUE(cov.has_scale);
+    EXPECT_TRUE(cov.covariance_7x7.allFinite());
+    EXPECT_TRUE((cov.covariance - cov.covariance_7x7.topLeftCorner<6, 6>()).isZero(0.0));
+    sd[k] = std::sqrt(cov.covariance_7x7(6, 6));
     // sd of log scale ~ sigma / sqrt(sum |p - c|^2) for isotropic noise: about 1e-2 / sqrt(400
     // * 2.9) = 3e-4.
     EXPECT_GT(sd[k], 1e-4 * (k + 1));
     EXPECT_LT(sd[k], 1e-3 * (k + 1));
+    // The point-to-point 7x7 of the paper's estimator agrees.
+    const PoseCovariance p2p =
+        point_to_point_covariance(src, tgt, one_to_one(src.size()), nullptr, true);
+    ASSERT_TRUE(p2p.has_scale);
+    EXPECT_NEAR(std::sqrt(p2p.covariance_7x7(6, 6)), sd[k], 0.02 * sd[k]);
   }
   EXPECT_NEAR(sd[1] / sd[0], 2.0, 0.05);
+}
+
+TEST(Similarity, TheSevenDofStepLowersTheMahalanobisDistanceAsTheScoreMeasuresIt) {
+  // Pairs whose source covariances are large: growing the source grows its covariances, which
+  // lowers every d^2 the gated score sums. The step's scale must account for it: from the scale
+  // where the residuals alone are least, it moves on up to where d^2 (with the covariances at
+  // the moved scale) is least.
+  const Points3 src = random_points(300, 6);
+  Points3 tgt = src;  // the truth: scale 1, with noise
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n01(0.0, 0.05);
+  for (Vec3& p : tgt) p += Vec3(n01(rng), n01(rng), n01(rng));
+  const Mat3 C_s = 0.05 * Mat3::Identity();
+  const Mat3 C_t = 1e-4 * Mat3::Identity();
+  auto d2_sum = [&](double s) {
+    double sum = 0.0;
+    const Vec3 c = centroid_of(src);
+    for (std::size_t i = 0; i < src.size(); ++i) {
+      const Vec3 r = tgt[i] - (c + s * (src[i] - c));
+      sum += r.dot((s * s * C_s + C_t).inverse() * r);
+    }
+    return sum;
+  };
+  std::vector<GatedPair> pairs = identity_pairs(src);
+  std::vector<Mat3> covariances(src.size(), C_s);
+  for (GatedPair& g : pairs) g.information = (C_s + C_t).inverse();
+  P2DBasis seven;
+  seven.kind = P2DBasis::Kind::k7;
+  seven.source_covariances_m2 = &covariances;
+  const P2DStep with = solve_p2d_step(pairs, tgt, centroid_of(src), {}, seven);
+  seven.source_covariances_m2 = nullptr;
+  const P2DStep without = solve_p2d_step(pairs, tgt, centroid_of(src), {}, seven);
+  ASSERT_TRUE(with.ok && without.ok);
+  EXPECT_GT(with.xi(6), without.xi(6) + 1e-3);  // d^2 falls as the source grows
+  EXPECT_LT(d2_sum(std::exp(with.xi(6))), d2_sum(1.0));
 }
 
 TEST(Similarity, ScaleModes) {

@@ -19,6 +19,10 @@ using Vec3 = Eigen::Vector3d;
 using Mat3 = Eigen::Matrix3d;
 using Mat4 = Eigen::Matrix4d;
 using Mat6 = Eigen::Matrix<double, 6, 6>;
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+/// A pose perturbation with scale, (rho, phi, sigma = log scale), and its 7x7 covariance.
+using Vec7 = Eigen::Matrix<double, 7, 1>;
+using Mat7 = Eigen::Matrix<double, 7, 7>;
 using Quat = Eigen::Quaterniond;
 using Isometry3 = Eigen::Isometry3d;
 

@@ -14,8 +14,8 @@
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/estimation_4dof.hpp"
 #include "lmalign/registration/presets.hpp"
+#include "lmalign/registration/scale_search.hpp"
 #include "lmalign/registration/settings.hpp"
-#include "lmalign/registration/similarity.hpp"
 #include "lmalign/weights/weights.hpp"
 
 namespace lmalign {

@@ -17,7 +17,7 @@
 #include "lmalign/merge/candidates.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/registration.hpp"
-#include "lmalign/registration/similarity.hpp"
+#include "lmalign/registration/scale_search.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {

@@ -1,8 +1,10 @@
-// Closed-form rigid transformation estimation (method.md §3, step 3).
+// Closed-form transformation estimation (method.md §3, step 3): Umeyama (1991) without scale, as
+// the paper and PCL's TransformationEstimationSVD, and with scale (Sim(3), docs/scale.md).
 #pragma once
 
 #include <vector>
 
+#include "lmalign/core/similarity.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/correspondence.hpp"
 
@@ -39,5 +41,16 @@ Isometry3 estimate_rigid_transform(const Points3& source_points, const Points3& 
                                    const Correspondences& correspondences,
                                    const std::vector<double>* weights = nullptr,
                                    EstimationReport* report = nullptr);
+
+/// The same with the scale (Sim(3)): the similarity p_target = c R p_source + t minimising
+/// sum_i w_i |c R s_i + t - t_i|^2, Umeyama's eq. 42 c = trace(D Sigma) / sigma_s^2 (as COLMAP's
+/// model_aligner estimates its Sim3d). The rotation is estimate_rigid_transform's (the same
+/// reflection guard and degenerate cases); the scale is 1 when the source points coincide.
+/// Throws as estimate_rigid_transform.
+Similarity3 estimate_similarity_transform(const Points3& source_points,
+                                          const Points3& target_points,
+                                          const Correspondences& correspondences,
+                                          const std::vector<double>* weights = nullptr,
+                                          EstimationReport* report = nullptr);
 
 }  // namespace lmalign

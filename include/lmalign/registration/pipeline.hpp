@@ -24,11 +24,12 @@
 #include <utility>
 #include <vector>
 
+#include "lmalign/core/similarity.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/scale_search.hpp"
 #include "lmalign/registration/seams.hpp"
 #include "lmalign/registration/settings.hpp"
-#include "lmalign/registration/similarity.hpp"
 
 namespace lmalign {
 
@@ -67,20 +68,25 @@ struct PipelineRequest {
   /// the fitness score at every iteration when history_scores is set.
   bool record_history = false;
   bool history_scores = false;
-  /// Estimate the scale too (Sim(3), registration/similarity.hpp): the source is rescaled by an
-  /// initial scale from the data (initial_scale_from_spacing), the pipeline runs on it (an
-  /// initial guess and a prior apply to the rescaled source), then rounds of one 7-DoF step on
-  /// the final pairs (Umeyama with scale for point pairs, the 7-DoF point-to-distribution
-  /// Gauss-Newton step for distribution pairs) and a final refinement at the new scale, until
-  /// the scale changes by less than 1e-6 (relative) or after 20 rounds. Needs a 6-DoF
-  /// estimator. False: rigid, as before (the scale stays exactly 1).
+  /// Estimate the scale too (Sim(3), registration/scale_search.hpp): the source is rescaled by
+  /// an initial scale from the data (initial_scale_from_spacing), the initialiser searches on it
+  /// (an initial guess and a prior apply to the rescaled source), the best hypothesis is refined
+  /// on every landmark, then again in 7 DoF by the estimator (Umeyama with scale for point
+  /// pairs, the 7-DoF point-to-distribution step for distribution pairs), kept when the
+  /// scorer's score at the similarity is at least that of the rigid refinement. Without a
+  /// trusted verdict the ScaleSearch concludes the hypotheses again at its rungs, then searches
+  /// again at other initial scales (settings scale.*). Needs a 6-DoF estimator that estimates
+  /// the scale. False: rigid, as before (the scale stays exactly 1).
   bool free_scale = false;
   /// With free_scale: the initial scale (finite, > 0) instead of the one from the data.
   std::optional<double> initial_scale;
-  /// With free_scale and a scorer: when the hypotheses at the initial scale conclude in no
-  /// trusted verdict, conclude them again at 1/1.12 and 1.12 times it (the scale axis's rungs,
-  /// without a new search) until one is trusted. False: the initial scale alone.
-  bool scale_rungs = true;
+  /// What the judging phase adds to the verdict's reason (presets.hpp's align() fills them):
+  /// landmarks of each side left out for being beyond the supported range (counted; the reason
+  /// ends with left_out_message()), and whether either map's covariances are assumed (noted when
+  /// the pipeline uses covariances).
+  std::size_t source_left_out = 0;
+  std::size_t target_left_out = 0;
+  bool covariances_assumed = false;
 };
 
 /// The scale of a result (Sim(3); all defaults when the scale was fixed).
@@ -93,17 +99,20 @@ struct ScaleEstimate {
   double scale_sd = std::numeric_limits<double>::quiet_NaN();
   /// The initial scale from the data (target / source median landmark spacing, in [1/10, 10]).
   double initial_scale = 1.0;
-  /// Rounds of the 7-DoF steps and re-refinement.
+  /// 7-DoF refinements kept (their score was at least the rigid refinement's), over every
+  /// concluded scale.
   int rounds = 0;
   /// Rungs of the scale axis concluded (Pipeline::run: every hypothesis refined at the rung,
   /// the best on every landmark, the verdict), over every search.
   int attempts = 1;
-  /// Searches run: align() of presets.hpp searches again at other initial scales when no rung
-  /// of the first search is trusted.
+  /// Searches run: the first, and the ScaleSearch's searches again at other initial scales when
+  /// no rung of the first is trusted.
   int searches = 1;
   /// The 7x7 covariance of (rho [target units], phi [rad], log scale) as a left perturbation
-  /// about the target origin (similarity_covariance: the normal equations of the 7-DoF step at
-  /// the estimate); nullopt when fixed or singular.
+  /// about the target origin: the estimator's 7-DoF covariance at the estimate (for the adaptive
+  /// default the cluster-robust sandwich raised to the half-sample covariance, each half
+  /// re-aligned with its own scale), times the verdict's covariance scale; nullopt when fixed or
+  /// singular.
   std::optional<Mat7> covariance_7x7;
 };
 
@@ -195,7 +204,7 @@ struct StageInfo {
 const std::vector<StageInfo>& stage_registry();
 /// Nullptr when no stage of that seam has that name.
 const StageInfo* find_stage(Seam seam, const std::string& name);
-/// The engine's own settings (the scales, the fitness score's range).
+/// The engine's own settings: the fitness score's range and the scale search's (scale.*).
 std::vector<SettingRow> engine_settings();
 
 class Pipeline {
@@ -222,6 +231,7 @@ class Pipeline {
   const Settings& settings() const { return settings_; }
   const Initialiser& initialiser() const { return *initialiser_; }
   const Matcher& matcher() const { return *matcher_; }
+  const std::vector<std::unique_ptr<Rejector>>& rejectors() const { return rejectors_; }
   const Kernel& kernel() const { return *kernel_; }
   const Estimator& estimator() const { return *estimator_; }
   const Schedule& schedule() const { return *schedule_; }

@@ -80,10 +80,14 @@ struct Scales {
   Vec3 up_target = Vec3::UnitZ();
 };
 
-/// A pose the estimator works on. A struct so that a scale (a 7th degree of freedom) can join
-/// T_target_source without changing any seam.
+/// A pose the estimator works on: the rigid transform of the source the refinement works on,
+/// and, with a free scale (Sim(3)), the factor by which that source is to be rescaled for it:
+/// p_target = T_target_source * (scale * p_source). A 7-DoF step returns scale != 1; the
+/// refinement then rescales its source by it (positions times scale, covariances times
+/// scale^2) and goes on from scale 1.
 struct Pose {
   Isometry3 T_target_source = Isometry3::Identity();
+  double scale = 1.0;
 };
 
 // ----------------------------------------------------------------------------- stages
@@ -229,6 +233,8 @@ struct LoopState {
   /// The estimator's cost this iteration uses the pair covariances (kernels then may measure
   /// residuals in their metric).
   bool distribution_step = false;
+  /// The scale is estimated too (Sim(3)): an estimator that estimates_scale() solves 7 DoF.
+  bool free_scale = false;
 };
 
 /// The pairs of one iteration. Point matchers fill `moved` and `points`; distribution matchers
@@ -252,6 +258,9 @@ struct RefineContext {
   const PreparedTarget* target = nullptr;
   const Scales* scales = nullptr;
   const InitialiserReport* init = nullptr;
+  /// The run estimates the scale (PipelineRequest::free_scale): final and resampled refinements
+  /// then solve 7 DoF with an estimator that can, rescaling a copy of their source as it goes.
+  bool free_scale = false;
 };
 
 class Matcher : public Stage {
@@ -292,15 +301,18 @@ struct Step {
   bool ok = true;
   Pose estimate;                                ///< the new estimate
   Isometry3 increment = Isometry3::Identity();  ///< the step as a left increment
-  /// The step's own parameters about `pivot_m` (rho [m], phi [rad]) when the estimator has them.
+  /// The step's own parameters about `pivot_m` (rho [m], phi [rad], sigma = log scale [1]; sigma
+  /// 0 unless the scale is free) when the estimator has them.
   bool has_xi = false;
-  Vec6 xi = Vec6::Zero();
+  Vec7 xi = Vec7::Zero();
   Vec3 pivot_m = Vec3::Zero();
   /// A minimiser among many (rank-deficient cross-covariance, singular point-to-distribution).
   bool degenerate = false;
-  /// The normal equations the step solved, about pivot_m (for the covariance): sum w J^T W J, and
-  /// the weighted chi-square before the step.
-  Mat6 hessian = Mat6::Zero();
+  /// The normal equations the step solved, about pivot_m (for the covariance): sum w J^T W J in
+  /// the step's unknowns (the scale's row and column zero when it is fixed), and the weighted
+  /// chi-square before the step.
+  Mat7 hessian = Mat7::Zero();
+  int dof = 6;
   double chi2 = 0.0;
 };
 
@@ -309,15 +321,18 @@ class Estimator : public Stage {
   /// Pairs it needs at least (fewer: the loop stops with kNoCorrespondences).
   virtual std::size_t min_pairs() const { return 1; }
   virtual Pairs::Kind needs() const = 0;
-  /// 6, or 4 for x, y, z and yaw.
+  /// 6, or 4 for x, y, z and yaw (without the scale).
   virtual int degrees_of_freedom() const { return 6; }
+  /// True when it also solves the scale (7 DoF) in a loop whose free_scale is set.
+  virtual bool estimates_scale() const { return false; }
   /// True when this iteration's cost uses the pair covariances.
   virtual bool distribution_step(const LoopState&) const { return false; }
   /// The step from `pairs` (weighted) at `current`; `increment` is the re-weighting's estimate
   /// so far (identity at the first), from which a Gauss-Newton solver may start.
   virtual Step solve(const RefineContext& context, const LoopState& loop, const Pairs& pairs,
                      const Pose& current, const Isometry3& increment) const = 0;
-  /// The 6x6 covariance of the estimate (uncertainty.hpp's convention), from `pairs` (weighted):
+  /// The 6x6 covariance of the estimate (uncertainty.hpp's convention; with loop.free_scale also
+  /// the 7x7 with the scale, PoseCovariance::covariance_7x7), from `pairs` (weighted):
   /// the pairs at the estimate, or those the last step was solved on (then `last_step` is that
   /// step). An estimator may re-run refinements of the pipeline on parts of the landmarks (a
   /// half-sample covariance) and count them in *num_resamples.
@@ -366,7 +381,10 @@ class Schedule : public Stage {
 
 /// One refinement, as the engine ran it.
 struct Refinement {
+  /// The estimate: p_target = T * (scale * p_source) for the refinement's source (scale = 1
+  /// unless the refinement estimated it).
   Isometry3 T = Isometry3::Identity();
+  double scale = 1.0;
   TerminationReason termination = TerminationReason::kNotTerminated;
   int iterations = 0;
   std::size_t num_pairs = 0;  ///< pairs of the last iteration

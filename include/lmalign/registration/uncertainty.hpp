@@ -20,12 +20,15 @@
 
 namespace lmalign {
 
-using Vec6 = Eigen::Matrix<double, 6, 1>;
-
 /// The 6x6 covariance of a transform estimate (see the file comment).
 struct PoseCovariance {
   /// Covariance of xi = (rho [m], phi [rad]), rows/cols 0-2 translation, 3-5 rotation.
   Mat6 covariance = Mat6::Zero();
+  /// With a free scale (Sim(3)): the 7x7 covariance of (rho [target units], phi [rad], sigma =
+  /// log scale [1]) as a left perturbation about the target origin; `covariance` is then its
+  /// top-left 6x6 block (the marginal of the rotation and translation).
+  bool has_scale = false;
+  Mat7 covariance_7x7 = Mat7::Zero();
   double sigma_m = 0.0;  ///< per-axis residual standard deviation, metres
   std::size_t num_correspondences = 0;
   /// False when the normal equations are singular (fewer than 3 correspondences, or all
@@ -40,23 +43,30 @@ struct PoseCovariance {
 /// the estimate, metres, target frame) onto `target_points[c.target_index]`, from the
 /// correspondences of the final iteration. With `weights` (one per correspondence, >= 0, e.g. the
 /// final IRLS weights), they are normalised to mean 1 and enter both H = sum w J^T J and
-/// sigma^2 = sum w |r|^2 / (3n - 6). Throws InvalidArgument if an index is out of range or the
-/// weights do not match the correspondences.
+/// sigma^2 = sum w |r|^2 / (3n - 6). `with_scale`: the 7x7 with sigma = log scale too
+/// (covariance_7x7; sigma^2 over 3n - 7). Throws InvalidArgument if an index is out of range or
+/// the weights do not match the correspondences.
 PoseCovariance point_to_point_covariance(const Points3& moved_source, const Points3& target_points,
                                          const Correspondences& correspondences,
-                                         const std::vector<double>* weights = nullptr);
+                                         const std::vector<double>* weights = nullptr,
+                                         bool with_scale = false);
 
 /// The left-perturbation error of an estimate: xi with T_est = Exp(xi) T_true, to first order
 /// (rho = translation of T_est T_true^-1, phi = its rotation vector).
 Vec6 pose_error_twist(const Isometry3& T_est, const Isometry3& T_true);
+/// The same for a similarity: the estimate p -> T_est (scale_est p) against T_true (scale 1),
+/// xi = (rho, phi, sigma = log scale_est) of S_est S_true^-1 about the target origin.
+Vec7 similarity_error_twist(const Isometry3& T_est, double scale_est, const Isometry3& T_true);
 
 /// The larger of two covariances, direction by direction (a Loewner upper bound of both that
 /// keeps `floor` wherever `other` is smaller): with floor = L L^T, the eigenvalues of
 /// L^-1 other L^-T are raised to at least 1 and mapped back. Used to widen a model covariance by
 /// an empirical one without ever narrowing it (p2d_cluster_covariance, the adaptive default's
 /// half-sample covariance). Returns `floor` unchanged when it is not positive definite or the
-/// result is not finite. Both 6x6, any units as long as they agree.
+/// result is not finite. Both 6x6 (or both 7x7, with the scale), any units as long as they
+/// agree.
 Mat6 covariance_max(const Mat6& floor, const Mat6& other);
+Mat7 covariance_max(const Mat7& floor, const Mat7& other);
 
 /// Normalised estimation error squared e^T Cov^-1 e (6 dof: its mean is 6 when the covariance
 /// is calibrated). +inf when the covariance is not valid.

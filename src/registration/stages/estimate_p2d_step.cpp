@@ -1,9 +1,10 @@
 // Estimator "p2d_step": one Gauss-Newton step of the point-to-distribution cost on the gated
-// pairs per iteration, about the source centre's image (stages/p2d_step.hpp; 6 DoF, or 4 about
-// the target's up axis). Its covariance: the last step's normal equations (p2d_covariance), for 6
-// DoF the cluster-robust sandwich over spatial blocks (p2d_cluster_covariance), raised to the
-// half-sample covariance (balanced repeated replication over spatial halves of the overlap,
-// docs/accuracy.md, "Uncertainty of the adaptive default").
+// pairs per iteration, about the source centre's image (stages/p2d_step.hpp; 6 DoF, 4 about the
+// target's up axis, or 7 with the scale when the loop frees it). Its covariance: the last step's
+// normal equations (p2d_covariance), for 6 and 7 DoF the cluster-robust sandwich over spatial
+// blocks (p2d_cluster_covariance), raised to the half-sample covariance (balanced repeated
+// replication over spatial halves of the overlap, each re-aligned alone, its scale free when the
+// run's is; docs/accuracy.md, "Uncertainty of the adaptive default").
 #include <optional>
 
 #include <Eigen/Eigenvalues>
@@ -33,52 +34,71 @@ class P2DStepEstimator : public Estimator {
   Pairs::Kind needs() const override { return Pairs::Kind::kDistributions; }
   std::size_t min_pairs() const override { return o_.four_dof ? 2 : 3; }
   int degrees_of_freedom() const override { return o_.four_dof ? 4 : 6; }
+  bool estimates_scale() const override { return !o_.four_dof; }
   bool distribution_step(const LoopState&) const override { return true; }
 
   Step solve(const RefineContext& c, const LoopState& loop, const Pairs& pairs, const Pose& current,
              const Isometry3&) const override {
     const Vec3& pivot = loop.sigma.pivot_m;
-    const P2DStep s = solve_p2d_step(pairs.gated, c.target->points(), pivot, pairs.weights,
-                                     o_.four_dof ? &c.scales->up_target : nullptr);
+    std::vector<Mat3> rotated;
+    const P2DBasis basis = this->basis(c, loop, pairs, current.T_target_source, &rotated);
+    const P2DStep s =
+        solve_p2d_step(pairs.gated, c.target->points(), pivot, weights(loop, pairs), basis);
     Step step;
     step.ok = s.ok;
     step.has_xi = true;
     step.xi = s.xi;
     step.pivot_m = pivot;
     step.hessian = s.hessian;
+    step.dof = s.dof;
     step.chi2 = s.chi2;
     step.estimate = current;
     if (s.ok) {
-      step.estimate.T_target_source = apply_step(current.T_target_source, s.xi, pivot);
+      step.estimate.T_target_source =
+          apply_step(current.T_target_source, s.xi, pivot, &step.estimate.scale);
       step.increment = step.estimate.T_target_source * current.T_target_source.inverse();
     }
     return step;
   }
 
-  PoseCovariance covariance(const RefineContext& c, const Pipeline& pipeline, const LoopState&,
+  PoseCovariance covariance(const RefineContext& c, const Pipeline& pipeline, const LoopState& loop,
                             const Pairs& pairs, const Pose& estimate, const Step* last_step,
                             std::size_t* num_resamples) const override {
     if (last_step == nullptr) return {};
+    // The normal equations of the last step (or, with the scale free, those of a 7-DoF step on
+    // the same pairs: the step may have been a rigid one); validity, and with it the trust
+    // verdict, as they say.
     P2DStep s;
     s.ok = last_step->ok;
     s.xi = last_step->xi;
     s.hessian = last_step->hessian;
+    s.dof = last_step->dof;
     s.chi2 = last_step->chi2;
-    // Validity (and with it the trust verdict) as the normal equations of the last step say.
+    std::vector<Mat3> rotated;
+    const P2DBasis basis = this->basis(c, loop, pairs, estimate.T_target_source, &rotated);
+    const std::vector<double>& w = weights(loop, pairs);
+    if (basis.kind == P2DBasis::Kind::k7 && s.dof != 7) {
+      s = solve_p2d_step(pairs.gated, c.target->points(), last_step->pivot_m, w, basis);
+    }
     PoseCovariance cov = p2d_covariance(s, pairs.size(), last_step->pivot_m);
     if (!cov.valid || o_.four_dof) return cov;
     const PoseCovariance robust =
-        p2d_cluster_covariance(pairs.gated, c.target->points(), last_step->pivot_m, pairs.weights,
-                               o_.block_factor * c.scales->source.radius_m);
+        p2d_cluster_covariance(pairs.gated, c.target->points(), last_step->pivot_m, w,
+                               o_.block_factor * c.scales->source.radius_m, basis);
     if (robust.valid) cov = robust;
     if (o_.half_sample_planes > 0) {
-      const std::vector<Vec6> deviations = half_sample_deviations(c, pipeline, estimate);
+      const std::vector<Vec7> deviations = half_sample_deviations(c, pipeline, estimate);
       const std::size_t halves = 2 * static_cast<std::size_t>(o_.half_sample_planes + 1);
       if (2 * deviations.size() >= halves) {
-        Mat6 B = Mat6::Zero();
-        for (const Vec6& d : deviations) B.noalias() += d * d.transpose();
+        Mat7 B = Mat7::Zero();
+        for (const Vec7& d : deviations) B.noalias() += d * d.transpose();
         B /= static_cast<double>(deviations.size());
-        cov.covariance = covariance_max(cov.covariance, B);
+        if (cov.has_scale) {
+          cov.covariance_7x7 = covariance_max(cov.covariance_7x7, B);
+          cov.covariance = cov.covariance_7x7.topLeftCorner<6, 6>();
+        } else {
+          cov.covariance = covariance_max(cov.covariance, Mat6(B.topLeftCorner<6, 6>()));
+        }
         if (num_resamples != nullptr) *num_resamples = deviations.size();
       }
     }
@@ -90,10 +110,43 @@ class P2DStepEstimator : public Estimator {
   // uncertainty at the estimate) are cut by half_sample_planes vertical planes through their
   // centroid (at k x 180 deg / n about the source's up axis from their widest horizontal
   // direction) and one horizontal plane; each side of each plane is refined again from the
-  // estimate (the gate at its floor), and its deviation is pose_error_twist against the
+  // estimate (the gate at its floor, its scale free when the run's is), and its deviation is
+  // pose_error_twist (similarity_error_twist) against the
   // estimate. Halves with fewer than half_sample_min_landmarks landmarks, and refinements that
   // do not end settled or at their budget, are left out. One slot per half: deterministic.
-  std::vector<Vec6> half_sample_deviations(const RefineContext& c, const Pipeline& pipeline,
+  // The pairs' weights in the step: the kernel's, except with the scale free. Then the step
+  // minimises what the gated score measures (gated_inlier_score: the sum of 1 - d^2 / chi2 over
+  // the gated pairs, each counting alike), so that a similarity never scores below the rigid
+  // answer it refines from; with the kernel's weights its scale settled up to 1% away from the
+  // score's best on real pairs (docs/scale.md).
+  const std::vector<double>& weights(const LoopState& loop, const Pairs& pairs) const {
+    static const std::vector<double> kAlike;
+    return loop.free_scale ? kAlike : pairs.weights;
+  }
+
+  // The basis of a step at T: 4 DoF, 7 with the loop's free scale (each pair's source covariance
+  // rotated into the target frame, in *rotated), else 6.
+  P2DBasis basis(const RefineContext& c, const LoopState& loop, const Pairs& pairs,
+                 const Isometry3& T, std::vector<Mat3>* rotated) const {
+    P2DBasis b;
+    if (o_.four_dof) {
+      b.kind = P2DBasis::Kind::k4;
+      b.up = c.scales->up_target;
+    } else if (loop.free_scale) {
+      b.kind = P2DBasis::Kind::k7;
+      if (c.source.has_covariances()) {
+        const Mat3& R = T.linear();
+        rotated->reserve(pairs.gated.size());
+        for (const GatedPair& g : pairs.gated) {
+          rotated->push_back(R * (*c.source.covariances_m2)[g.source_index] * R.transpose());
+        }
+        b.source_covariances_m2 = rotated;
+      }
+    }
+    return b;
+  }
+
+  std::vector<Vec7> half_sample_deviations(const RefineContext& c, const Pipeline& pipeline,
                                            const Pose& estimate) const {
     const Isometry3& T = estimate.T_target_source;
     const Vec3& up = c.scales->up_source;
@@ -107,7 +160,7 @@ class P2DStepEstimator : public Estimator {
     for (const GatedPair& g : near.gated) overlap.push_back(g.source_index);
 
     const Points3& p = *c.source.positions;
-    std::vector<Vec6> out;
+    std::vector<Vec7> out;
     if (overlap.size() < 2 * o_.half_sample_min_landmarks) return out;
     Vec3 centre = Vec3::Zero();
     for (std::uint32_t i : overlap) centre += p[i];
@@ -128,7 +181,7 @@ class P2DStepEstimator : public Estimator {
     for (int k = 0; k < n; ++k) normals.push_back(Eigen::AngleAxisd(kPi * k / n, up) * widest);
     normals.push_back(up);
     const std::size_t slots = 2 * normals.size();
-    std::vector<std::optional<Vec6>> dev(slots);
+    std::vector<std::optional<Vec7>> dev(slots);
     Hypothesis from;
     from.T_target_source = T;
     FirstException error;  // an exception may not leave the parallel loop
@@ -147,7 +200,13 @@ class P2DStepEstimator : public Estimator {
             r.termination != TerminationReason::kMaxIterations) {
           return;
         }
-        dev[static_cast<std::size_t>(s)] = pose_error_twist(r.T, T);
+        if (c.free_scale) {
+          dev[static_cast<std::size_t>(s)] = similarity_error_twist(r.T, r.scale, T);
+        } else {
+          Vec7 d = Vec7::Zero();
+          d.head<6>() = pose_error_twist(r.T, T);
+          dev[static_cast<std::size_t>(s)] = d;
+        }
       });
     }
     error.rethrow();

@@ -60,14 +60,17 @@ class SigmaSchedule : public Schedule {
     const double floor = c.scales->floor_m;
     const double settle_t = o_.settle_ratio * floor;
     const double settle_r = settle_t / c.scales->source.radius_m;
-    Vec6 xi = step.xi;
+    Vec6 xi = step.xi.head<6>();
     if (!step.has_xi) xi = pose_error_twist(step.increment, Isometry3::Identity());
     PoseSigma& sigma = loop->sigma;
     const bool at_zero = sigma.translation_m == 0.0 && sigma.rotation_rad == 0.0;
-    // While the gate is wider than the floor, a step well below its width is settled enough.
+    // While the gate is wider than the floor, a step well below its width is settled enough. A
+    // scale step moves a landmark at the source's radius by |sigma| times it: a translation.
+    const double scale_move = std::abs(step.xi(6)) * c.scales->source.radius_m;
     const bool settled =
         xi.head<3>().norm() < std::max(settle_t, o_.level_settle_ratio * sigma.translation_m) &&
-        xi.tail<3>().norm() < std::max(settle_r, o_.level_settle_ratio * sigma.rotation_rad);
+        xi.tail<3>().norm() < std::max(settle_r, o_.level_settle_ratio * sigma.rotation_rad) &&
+        scale_move < std::max(settle_t, o_.level_settle_ratio * sigma.translation_m);
     if (settled && at_zero) return TerminationReason::kTransform;
     const int per_level =
         loop->max_iterations_per_level > 0

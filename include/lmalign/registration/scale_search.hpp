@@ -1,0 +1,89 @@
+// The scale of an alignment (Sim(3), docs/scale.md): whether it is estimated (ScaleMode), and,
+// when it is, where its search starts and how it goes on (ScaleSearch). The engine owns one
+// ScaleSearch per free-scale run (Pipeline::run): the initial scale from the data, the rungs of
+// the scale axis at which the search's hypotheses are concluded again without a new search, the
+// searches again at other initial scales, and when a refinement's scale has settled. The scale
+// itself is estimated by the Estimator seam in 7 DoF (seams.hpp, Pose::scale). Its settings are
+// the rows `scale.*` of every pipeline (scale_search_settings()).
+//
+// Frames: p_target = scale * R * p_source + t; scale is target units per source unit.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "lmalign/core/enum_names.hpp"
+#include "lmalign/registration/settings.hpp"
+
+namespace lmalign {
+
+/// Whether an alignment estimates the scale. kAuto: free when either map has no metric scale
+/// (its header says arbitrary or unknown), fixed otherwise.
+enum class ScaleMode { kAuto, kFree, kFixed };
+inline constexpr EnumName<ScaleMode> kScaleModeNames[] = {
+    {ScaleMode::kAuto, "auto"}, {ScaleMode::kFree, "free"}, {ScaleMode::kFixed, "fixed"}};
+/// "auto", "free", "fixed".
+std::string to_string(ScaleMode mode);
+/// The mode of a name above; throws InvalidArgument "unknown scale mode 'NAME' (known: auto,
+/// free, fixed)".
+ScaleMode parse_scale_mode(const std::string& name);
+/// kFree or kFixed: auto resolved from whether each map's lengths are metres.
+ScaleMode resolve_scale_mode(ScaleMode mode, bool source_metric, bool target_metric);
+
+/// The settings of the scale search (rows scale.*; defaults here, read by the rows).
+struct ScaleSearchOptions {
+  /// The initial scale from the data (target / source median landmark spacing) is clamped to
+  /// [initial_min, initial_max].
+  double initial_min = 0.1;
+  double initial_max = 10.0;
+  /// The rungs of the scale axis: the first search's hypotheses are concluded again, without a
+  /// new search, at rung_ratio^k times the initial scale for k = -rungs ... rungs (nearest
+  /// first) while none is trusted. The search absorbs about 6% either way; 1.12 leaves no gap.
+  double rung_ratio = 1.12;
+  int rungs = 1;
+  /// Searches again at rung_ratio^k times the initial scale, k = 1 ... researches on each side
+  /// (the side the first result's refined scale leans to first), each concluded at its own
+  /// initial scale alone, while none is trusted.
+  int researches = 2;
+  /// A free-scale refinement goes on while its last step changed the scale by more than this
+  /// (relative), within its schedule's budget.
+  double settle = 1e-6;
+};
+
+/// The rows scale.* (settings.hpp) of ScaleSearchOptions.
+std::vector<SettingRow> scale_search_settings();
+/// The options from a pipeline's table (with the rows above).
+ScaleSearchOptions scale_search_options(const Settings& settings);
+
+/// One place on the scale axis where the engine concludes its hypotheses: the initial scale of
+/// its search times `factor`; `new_search` when the initialiser proposes again at that scale
+/// (otherwise the first search's hypotheses are concluded there).
+struct ScaleAttempt {
+  double factor = 1.0;
+  bool new_search = false;
+};
+
+class ScaleSearch {
+ public:
+  /// `initial_scale`: the data's (initial_scale_from_spacing) or the caller's (finite, > 0).
+  ScaleSearch(const ScaleSearchOptions& options, double initial_scale);
+
+  double initial_scale() const { return initial_scale_; }
+  /// The rungs of the first search, in order: factor 1 first, then the rungs nearest first.
+  std::vector<ScaleAttempt> rungs() const;
+  /// The searches again, in order, after the first search's result refined to `refined_scale`
+  /// (its side first).
+  std::vector<ScaleAttempt> researches(double refined_scale) const;
+
+ private:
+  ScaleSearchOptions o_;
+  double initial_scale_;
+};
+
+/// The scale that brings the source's typical landmark spacing (median nearest-neighbour
+/// distance) to the target's: target_spacing / source_spacing, clamped to [min_scale,
+/// max_scale]. Both spacings > 0; throws InvalidArgument otherwise.
+double initial_scale_from_spacing(double source_spacing, double target_spacing,
+                                  double min_scale = 0.1, double max_scale = 10.0);
+
+}  // namespace lmalign

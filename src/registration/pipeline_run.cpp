@@ -1,0 +1,511 @@
+// The phases of one run of a Pipeline (pipeline_run.hpp).
+#include "pipeline_run.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/first_exception.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/core/supported_range.hpp"
+#include "lmalign/registration/score.hpp"
+
+namespace lmalign::detail {
+
+// ----------------------------------------------------------------------------- sources
+
+bool floor_is_a_setting(const Settings& settings) {
+  return settings.has("scales.floor_m") && settings.real("scales.floor_m") > 0.0;
+}
+
+OwnedPart part_of(const SourceView& source, const std::vector<std::uint32_t>& indices) {
+  OwnedPart p;
+  p.positions.reserve(indices.size());
+  for (std::uint32_t i : indices) p.positions.push_back((*source.positions)[i]);
+  if (source.has_covariances()) {
+    p.covariances_m2.reserve(indices.size());
+    for (std::uint32_t i : indices) p.covariances_m2.push_back((*source.covariances_m2)[i]);
+  }
+  return p;
+}
+
+ScaledSource::ScaledSource(const SourceView& original, const Scales* scales, bool floor_fixed,
+                           double scale)
+    : original_(original), floor_fixed_(floor_fixed) {
+  if (scales != nullptr) original_scales_ = *scales;
+  set_scale(scale);
+}
+
+void ScaledSource::set_scale(double scale) {
+  scale_ = scale;
+  const Points3& p = *original_.positions;
+  positions_.resize(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) positions_[i] = scale * p[i];
+  if (original_.has_covariances()) {
+    const std::vector<Mat3>& c = *original_.covariances_m2;
+    covariances_.resize(c.size());
+    for (std::size_t i = 0; i < c.size(); ++i) covariances_[i] = scale * scale * c[i];
+  }
+  if (original_scales_) {
+    scales_ = original_scales_;
+    DataScales& d = scales_->source;
+    d.spacing_m *= scale;
+    d.floor_m *= scale;
+    d.radius_m *= scale;
+    d.centre_m *= scale;
+    if (!floor_fixed_) scales_->floor_m = std::max(d.floor_m, scales_->target.floor_m);
+  }
+}
+
+RefineContext ScaledSource::context(const RefineContext& of) const {
+  RefineContext c = of;
+  c.source = view();
+  c.scales = scales();
+  return c;
+}
+
+// ----------------------------------------------------------------------------- the run
+
+struct PipelineRun::Conclusion {
+  Summary s;
+  double scale = 1.0;  ///< of the source the conclusion works on, over the original's
+  std::unique_ptr<ScaledSource> source;  ///< free scale: the source at `scale`
+  RefineContext all;                     ///< every landmark of that source
+  Hypothesis best;
+  Refinement fin;
+  int iterations = 0;  ///< of the refinements before the final one
+  /// With the scale free: the 7x7 covariance the scale's standard deviation comes from.
+  std::optional<PoseCovariance> scale_covariance;
+};
+
+PipelineRun::PipelineRun(const Pipeline& pipeline, const SourceView& source,
+                         const PreparedTarget& target, const PipelineRequest& request)
+    : pipeline_(pipeline),
+      settings_(pipeline.settings()),
+      source_(source),
+      target_(target),
+      request_(request),
+      start_(std::chrono::steady_clock::now()),
+      guess_(request.initial_guess.value_or(Isometry3::Identity())) {}
+
+void PipelineRun::validate() const {
+  if (source_.positions == nullptr || source_.positions->empty()) {
+    throw InvalidArgument("registration: the source has no landmarks");
+  }
+  if (target_.size() == 0) throw InvalidArgument("registration: the target has no landmarks");
+  const Points3& sp = *source_.positions;
+  // The supported range (core/supported_range.hpp; align() of presets.hpp leaves such
+  // landmarks out).
+  for (const auto& [side, points] :
+       {std::pair<const char*, const Points3*>{"source", &sp}, {"target", &target_.points()}}) {
+    for (std::size_t i = 0; i < points->size(); ++i) {
+      if (!within_supported_range((*points)[i])) {
+        throw InvalidArgument(std::string("registration: ") + side + " landmark " +
+                              std::to_string(i) + " is not finite or beyond " +
+                              message_number(kMaxCoordinateM) + " m");
+      }
+    }
+  }
+  if (source_.has_covariances() && source_.covariances_m2->size() != sp.size()) {
+    throw InvalidArgument("registration: " + std::to_string(source_.covariances_m2->size()) +
+                          " source covariances for " + std::to_string(sp.size()) + " landmarks");
+  }
+  const PipelineSpec& spec = pipeline_.spec();
+  std::string why;
+  if (request_.prior && !request_.prior->is_valid(&why)) throw InvalidArgument(why);
+  if (request_.prior && !pipeline_.initialiser().uses_prior()) {
+    throw InvalidArgument("prior sigma: the initialiser '" + spec.initialiser + "' of '" +
+                          spec.name + "' uses no prior");
+  }
+  if (request_.initial_guess && !is_finite(*request_.initial_guess)) {
+    throw InvalidArgument("initial guess: not finite");
+  }
+  if (request_.initial_guess) {
+    check_supported_translation("initial guess", request_.initial_guess->translation());
+  }
+  if (!request_.free_scale) return;
+  const Estimator& e = pipeline_.estimator();
+  if (e.degrees_of_freedom() != 6 || !e.estimates_scale()) {
+    throw InvalidArgument("scale free: the estimator '" + spec.estimator + "' of '" + spec.name +
+                          "' estimates " + std::to_string(e.degrees_of_freedom()) +
+                          " degrees of freedom without the scale; a free scale needs a 6-DoF "
+                          "estimator that estimates it");
+  }
+  if (sp.size() < 3 || target_.size() < 3) {
+    throw InvalidArgument("scale free: fewer than 3 landmarks in a map");
+  }
+  if (request_.initial_scale &&
+      (!std::isfinite(*request_.initial_scale) || !(*request_.initial_scale > 0.0))) {
+    throw InvalidArgument("initial scale " + message_number(*request_.initial_scale) +
+                          ": expected finite and > 0");
+  }
+}
+
+bool PipelineRun::begin_search(double factor) {
+  const std::vector<Mat3>* target_cov =
+      target_.has_covariances() ? &target_.covariances_m2() : nullptr;
+  if (request_.free_scale && !scale_search_) {
+    // The initial scale from the data: the spacings of the source as given and of the target.
+    const ScaleSearchOptions o = scale_search_options(settings_);
+    const DataScales a = estimate_data_scales(*source_.positions, source_.covariances_m2);
+    const DataScales b = estimate_data_scales(target_.points(), target_cov, 4096, &target_.tree());
+    scale_search_.emplace(o, request_.initial_scale.value_or(initial_scale_from_spacing(
+                                 a.spacing_m, b.spacing_m, o.initial_min, o.initial_max)));
+  }
+  Summary& s = base_;
+  s = Summary{};
+  s.preset = pipeline_.spec().name;
+  s.stages = pipeline_.spec();
+  for (const SettingRow& row : settings_.table()) {
+    s.settings.emplace_back(row.key, row.text(settings_.value(row.key)));
+  }
+  s.registration.T_target_source = guess_;
+  search_source_.reset();
+  if (scale_search_) {
+    search_source_ = std::make_unique<ScaledSource>(source_, nullptr, true,
+                                                    scale_search_->initial_scale() * factor);
+  }
+  const SourceView src = search_source_ ? search_source_->view() : source_;
+  if (pipeline_.needs_scales()) {
+    if (src.size() < 3 || target_.size() < 3) return false;
+    Scales scales;
+    scales.source = estimate_data_scales(*src.positions, src.covariances_m2);
+    scales.target = estimate_data_scales(target_.points(), target_cov, 4096, &target_.tree());
+    const double floor_setting = settings_.real("scales.floor_m");
+    scales.floor_m = floor_setting > 0.0 ? floor_setting
+                                         : std::max(scales.source.floor_m, scales.target.floor_m);
+    const std::vector<double>& up = settings_.reals("scales.default_up");
+    const Vec3 default_up(up[0], up[1], up[2]);
+    scales.up_source = src.up.value_or(default_up).normalized();
+    scales.up_target = target_.up_axis().value_or(default_up).normalized();
+    s.scales = scales;
+  }
+  RefineContext all;
+  all.source = src;
+  all.target = &target_;
+  all.init = &s.initialisation;
+  all.scales = s.scales ? &*s.scales : nullptr;
+  InitialiserContext ic;
+  ic.source = src;
+  ic.target = &target_;
+  ic.scales = all.scales;
+  ic.initial_guess = request_.initial_guess;
+  if (request_.prior) {
+    ic.prior_sigma_deg_m =
+        std::make_pair(request_.prior->rotation_deg, request_.prior->translation_m);
+  }
+  ic.pipeline = &pipeline_;
+  ic.refine_context = &all;
+  hypotheses_ = pipeline_.initialiser().propose(ic, &s.initialisation);
+  if (hypotheses_.empty()) {
+    throw Error("initialiser '" + pipeline_.spec().initialiser + "' proposed nothing");
+  }
+  return true;
+}
+
+Summary PipelineRun::too_few_landmarks() const {
+  Summary s = base_;
+  s.registration.termination = TerminationReason::kNoCorrespondences;
+  s.verdict.reason = "fewer than 3 landmarks in a map";
+  add_caveats(&s);
+  s.registration.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  s.total_time_s = s.registration.wall_time_s;
+  return s;
+}
+
+Summary PipelineRun::conclude(double rung) const {
+  Conclusion c;
+  c.s = base_;
+  c.all.target = &target_;
+  c.all.init = &c.s.initialisation;
+  c.all.source = source_;
+  c.all.scales = c.s.scales ? &*c.s.scales : nullptr;
+  c.best = hypotheses_.front();
+  if (pipeline_.scorer() != nullptr) {
+    c.s.hypotheses = score_hypotheses(rung);
+    for (const RefinedHypothesis& r : c.s.hypotheses) c.iterations += r.iterations;
+    c.best = c.s.hypotheses.front().start;
+    c.best.T_target_source = c.s.hypotheses.front().T_refined;
+  }
+  if (search_source_) {
+    // The conclusion's source: the search's at the rung, its scales with it.
+    c.source = scaled_search_source(rung);
+    c.scale = search_source_->scale() * rung;
+    if (c.s.scales) c.s.scales = *c.source->scales();
+    c.all = c.source->context(c.all);
+    c.all.scales = c.s.scales ? &*c.s.scales : nullptr;
+  }
+  refine_best(&c);
+  end_pass(&c);
+  judge(&c);
+  return std::move(c.s);
+}
+
+std::unique_ptr<ScaledSource> PipelineRun::scaled_search_source(double factor) const {
+  return std::make_unique<ScaledSource>(search_source_->view(),
+                                        base_.scales ? &*base_.scales : nullptr,
+                                        floor_is_a_setting(settings_), factor);
+}
+
+std::vector<RefinedHypothesis> PipelineRun::score_hypotheses(double rung) const {
+  // Every hypothesis refined on the scorer's samples at the rung: the samples' positions times
+  // the rung (covariances as they are, so that no rung's gate is wider than another's), each
+  // pose moved to keep the source centre where the search put it; one per thread, each in its
+  // own slot.
+  const Scorer& scorer = *pipeline_.scorer();
+  const SourceView src = search_source_ ? search_source_->view() : source_;
+  OwnedPart part = part_of(src, scorer.samples(src.size()));
+  std::optional<Scales> scales = base_.scales;
+  std::vector<Hypothesis> tried = hypotheses_;
+  if (rung != 1.0) {
+    for (Vec3& p : part.positions) p *= rung;
+    if (scales) {
+      DataScales& d = scales->source;
+      d.centre_m *= rung;
+      d.radius_m *= rung;
+      d.spacing_m *= rung;
+    }
+    const Vec3 centre = base_.scales ? base_.scales->source.centre_m : Vec3::Zero();
+    for (Hypothesis& h : tried) {
+      h.scale_factor = rung;
+      h.T_target_source.translation() += (1.0 - rung) * (h.T_target_source.linear() * centre);
+    }
+  }
+  RefineContext context;
+  context.source = part.view(src);
+  context.target = &target_;
+  context.scales = scales ? &*scales : nullptr;
+  context.init = &base_.initialisation;
+  std::vector<RefinedHypothesis> refined(tried.size());
+  FirstException error;  // an exception may not leave the parallel loop
+#pragma omp parallel for schedule(dynamic, 1)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(tried.size()); ++i) {
+    error.capture([&] {
+      const Hypothesis& h = tried[static_cast<std::size_t>(i)];
+      const Refinement r = pipeline_.refine(context, h, Phase::kHypothesis);
+      RefinedHypothesis& out = refined[static_cast<std::size_t>(i)];
+      out.start = h;
+      out.T_refined = r.T;
+      out.iterations = r.iterations;
+      out.termination = r.termination;
+      out.score = scorer.score(context, pipeline_, r.T);
+    });
+  }
+  error.rethrow();
+  std::stable_sort(
+      refined.begin(), refined.end(),
+      [](const RefinedHypothesis& a, const RefinedHypothesis& b) { return a.score > b.score; });
+  return refined;
+}
+
+void PipelineRun::refine_best(Conclusion* c) const {
+  // The best on every landmark, rigid; then, with the scale free, in 7 DoF from there.
+  const int history = request_.record_history ? (request_.history_scores ? 2 : 1) : 0;
+  const bool keep = pipeline_.schedule().end_pass() == Schedule::EndPass::kLastStep;
+  c->fin = pipeline_.refine(c->all, c->best, Phase::kFinal, keep, history);
+  if (c->source) refine_scale(c);
+  RegistrationResult& reg = c->s.registration;
+  const Refinement& fin = c->fin;
+  reg.T_target_source = fin.T;
+  reg.termination = fin.termination;
+  reg.converged = fin.termination == TerminationReason::kTransform ||
+                  fin.termination == TerminationReason::kAbsoluteMse ||
+                  fin.termination == TerminationReason::kRelativeMse;
+  reg.iterations = c->iterations + fin.iterations;
+  reg.num_correspondences = fin.num_pairs;
+  reg.history = fin.history;
+  // PCL's fitness scores, through the matcher's caches where it keeps them.
+  const Matcher& m = pipeline_.matcher();
+  std::unique_ptr<StageState> state = m.begin(c->all);
+  const double range = settings_.real("fitness.max_range_m");
+  reg.initial_score_m2 = m.fitness(c->all, state.get(), guess_, range).mean_sq_m2;
+  reg.final_score_m2 = m.fitness(c->all, state.get(), fin.T, range).mean_sq_m2;
+}
+
+void PipelineRun::refine_scale(Conclusion* c) const {
+  // The 7-DoF refinement from the rigid one, kept when the scorer scores the similarity at
+  // least as well on every landmark (without a scorer: always): the score is what the verdict
+  // measures, so a similarity never ends below the rigid answer it started from.
+  const Scorer* scorer = pipeline_.scorer();
+  Hypothesis from = c->best;
+  from.T_target_source = c->fin.T;
+  RefineContext free = c->all;
+  free.free_scale = true;
+  const int history = request_.record_history ? (request_.history_scores ? 2 : 1) : 0;
+  const bool keep = pipeline_.schedule().end_pass() == Schedule::EndPass::kLastStep;
+  Refinement sim = pipeline_.refine(free, from, Phase::kFinal, keep, history);
+  const bool ended = sim.termination != TerminationReason::kNoCorrespondences &&
+                     sim.termination != TerminationReason::kDegenerate;
+  c->s.scale.free = true;
+  if (!ended || !(sim.scale > 0.0) || !std::isfinite(sim.scale)) return;
+  std::unique_ptr<ScaledSource> at = scaled_search_source(c->source->scale() * sim.scale);
+  RefineContext all_sim = at->context(c->all);
+  if (scorer != nullptr &&
+      scorer->score(all_sim, pipeline_, sim.T) < scorer->score(c->all, pipeline_, c->fin.T)) {
+    return;
+  }
+  c->iterations += c->fin.iterations;
+  c->fin = std::move(sim);
+  c->scale *= c->fin.scale;
+  c->source = std::move(at);
+  if (c->s.scales) c->s.scales = *c->source->scales();
+  c->all = c->source->context(c->all);
+  c->all.scales = c->s.scales ? &*c->s.scales : nullptr;
+  ++c->s.scale.rounds;
+  // The best hypothesis scored again at the refined scale, on the same samples: its rung may be
+  // 6% off, and the trust judge's margin to the rivals must not count that against it.
+  if (scorer != nullptr && !c->s.hypotheses.empty()) {
+    const OwnedPart part = part_of(c->all.source, scorer->samples(c->all.source.size()));
+    RefineContext sub = c->all;
+    sub.source = part.view(c->all.source);
+    const double at_estimate = scorer->score(sub, pipeline_, c->fin.T);
+    RefinedHypothesis& front = c->s.hypotheses.front();
+    if (at_estimate > front.score) {
+      front.score = at_estimate;
+      front.T_refined = c->fin.T;
+    }
+  }
+}
+
+Pairs PipelineRun::pairs_at_estimate(const RefineContext& all, const Refinement& fin,
+                                     LoopState* loop) const {
+  *loop = fin.loop;
+  loop->final_pass = true;
+  loop->free_scale = all.free_scale;
+  loop->sigma.pivot_m =
+      fin.T * (all.scales != nullptr ? all.scales->source.centre_m : Vec3::Zero());
+  std::unique_ptr<StageState> state = pipeline_.matcher().begin(all);
+  Pairs pairs;
+  pipeline_.matcher().match(all, state.get(), fin.T, *loop, &pairs);
+  for (const auto& r : pipeline_.rejectors()) r->reject(all, loop, &pairs);
+  if (pairs.size() > 0) {
+    loop->distribution_step = pipeline_.estimator().distribution_step(*loop);
+    pipeline_.kernel().weigh(all, *loop, pairs, fin.T, Isometry3::Identity(), &pairs.weights);
+  }
+  return pairs;
+}
+
+void PipelineRun::end_pass(Conclusion* c) const {
+  Summary& s = c->s;
+  const Refinement& fin = c->fin;
+  const Estimator& estimator = pipeline_.estimator();
+  RefineContext all = c->all;
+  all.free_scale = c->source != nullptr;
+  Pose estimate;
+  estimate.T_target_source = fin.T;
+  const Schedule::EndPass end = pipeline_.schedule().end_pass();
+  if (end == Schedule::EndPass::kAtEstimate) {
+    LoopState loop;
+    const Pairs pairs = pairs_at_estimate(all, fin, &loop);
+    EstimateDiagnostics& d = s.at_estimate;
+    d.computed = true;
+    d.num_pairs = pairs.size();
+    d.max_distance_m = loop.max_distance_m;
+    d.overlap_ratio = fin.loop.overlap_ratio;
+    d.inlier_ratio = static_cast<double>(pairs.size()) / static_cast<double>(all.source.size());
+    if (pairs.size() > 0) {
+      double wsum = 0.0, wr2 = 0.0;
+      for (std::size_t i = 0; i < pairs.size(); ++i) {
+        const double w = pairs.weights.empty() ? 1.0 : pairs.weights[i];
+        const double d2 =
+            pairs.kind == Pairs::Kind::kPoints
+                ? pairs.points[i].distance_sq_m2
+                : (target_.points()[pairs.gated[i].target_index] - pairs.gated[i].moved_source_m)
+                      .squaredNorm();
+        wsum += w;
+        wr2 += w * d2;
+      }
+      d.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
+      if (wsum > 0.0) {
+        s.estimator_covariance = estimator.covariance(all, pipeline_, loop, pairs, estimate,
+                                                      nullptr, &s.num_half_samples);
+      }
+    }
+  } else if (end == Schedule::EndPass::kLastStep && fin.has_step && fin.last_step.ok) {
+    LoopState loop = fin.loop;
+    loop.free_scale = all.free_scale;
+    s.estimator_covariance = estimator.covariance(all, pipeline_, loop, fin.last_pairs, estimate,
+                                                  &fin.last_step, &s.num_half_samples);
+  } else if (all.free_scale) {
+    // A pipeline that reports no covariance still reports its scale's standard deviation: the
+    // estimator's covariance of the pairs at the estimate, for the scale alone.
+    LoopState loop;
+    const Pairs pairs = pairs_at_estimate(all, fin, &loop);
+    if (pairs.size() > 0) {
+      c->scale_covariance =
+          estimator.covariance(all, pipeline_, loop, pairs, estimate, nullptr, nullptr);
+    }
+  }
+  s.covariance = s.estimator_covariance;
+  if (s.estimator_covariance.has_scale) c->scale_covariance = s.estimator_covariance;
+  // The alignment's time; the verdict's is in total_time_s.
+  s.registration.wall_time_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+void PipelineRun::judge(Conclusion* c) const {
+  Summary& s = c->s;
+  if (const TrustJudge* judge = pipeline_.trust()) {
+    JudgeContext jc;
+    jc.context = c->all;
+    jc.pipeline = &pipeline_;
+    jc.final = &c->fin;
+    jc.hypotheses = &s.hypotheses;
+    jc.init = &s.initialisation;
+    jc.covariance = &s.estimator_covariance;
+    s.verdict = judge->judge(jc);
+    if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
+  }
+  if (c->source) {
+    ScaleEstimate& e = s.scale;
+    e.free = true;
+    e.scale = c->scale;
+    e.initial_scale = scale_search_->initial_scale();
+    if (c->scale_covariance && c->scale_covariance->valid && c->scale_covariance->has_scale) {
+      Mat7 c7 = c->scale_covariance->covariance_7x7;
+      if (s.verdict.covariance_scale > 1.0) c7 *= s.verdict.covariance_scale;
+      e.covariance_7x7 = c7;
+      e.scale_sd = e.scale * std::sqrt(std::max(0.0, c7(6, 6)));
+    }
+  }
+  add_caveats(&s);
+}
+
+void PipelineRun::add_caveats(Summary* summary) const {
+  // The caveats every verdict carries: a confidence that is 0 everywhere (Eqs. 2-3 on a target
+  // without observations) never picks a neighbour (Eq. 6) and zeroes every pair's weight, so
+  // nothing was aligned; landmarks left out; covariances assumed.
+  Summary& s = *summary;
+  for (WeightKind kind : pipeline_.confidences()) {
+    const std::vector<double>& w = target_.weights(kind);
+    if (!w.empty() && std::all_of(w.begin(), w.end(), [](double x) { return x == 0.0; })) {
+      s.verdict.trustworthy = false;
+      s.verdict.reason = "every target landmark has " + to_string(kind) +
+                         " weight 0 (it has no observations: a point cloud), so the strategy "
+                         "weighs every pair by 0 (method.md Eqs. 2-3, 6): nothing was "
+                         "aligned; use base, covariance or adaptive";
+      break;
+    }
+  }
+  s.source_left_out = request_.source_left_out;
+  s.target_left_out = request_.target_left_out;
+  std::string note = left_out_message(request_.source_left_out, request_.target_left_out);
+  if (request_.covariances_assumed && pipeline_.uses_covariances()) {
+    s.covariances_assumed = true;
+    note = (note.empty() ? "" : note + "; ") +
+           "covariances assumed from the landmark spacing (isotropic, half the median distance "
+           "to the 6 nearest landmarks: the map stores none), so the covariance weights and "
+           "gates measure agreement with that assumption";
+  }
+  if (!note.empty()) s.verdict.reason += "; " + note;
+}
+
+Summary PipelineRun::finish(Summary s, int attempts, int searches) const {
+  s.scale.attempts = attempts;
+  s.scale.searches = searches;
+  s.total_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  return s;
+}
+
+}  // namespace lmalign::detail

@@ -1,0 +1,115 @@
+// One run of a Pipeline (Pipeline::run, include/lmalign/registration/pipeline.hpp): its phases,
+// each a short member function over one state. Internal to src/registration/.
+//
+//   validate        the inputs and the request (throws)
+//   begin_search    the source at the search's initial scale (free scale), the data's scales,
+//                   the initialiser's hypotheses
+//   conclude        at one place of the scale axis: the hypotheses refined and scored on the
+//                   scorer's samples (score_hypotheses), the best refined on every landmark, in
+//                   7 DoF too when the scale is free (refine_best), the covariance and the
+//                   diagnostics (end_pass), the verdict with its caveats (judge)
+//   finish          the times
+//
+// Frames: T_target_source, p_target = T_target_source * (scale * p_source).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include "lmalign/registration/pipeline.hpp"
+
+namespace lmalign::detail {
+
+/// True when the covariance floor is a setting (scales.floor_m > 0), not the data's.
+bool floor_is_a_setting(const Settings& settings);
+
+/// The landmarks `indices` of a view, copied out (a refinement on part of them).
+struct OwnedPart {
+  Points3 positions;
+  std::vector<Mat3> covariances_m2;
+  SourceView view(const SourceView& of) const { return {&positions, &covariances_m2, of.up}; }
+};
+OwnedPart part_of(const SourceView& source, const std::vector<std::uint32_t>& indices);
+
+/// A source at a scale: its positions times the scale, its covariances times its square, and
+/// the source's data scales (spacing, floor, radius, centre) with them; always recomputed from
+/// the original, so that the same scale gives the same numbers however it was reached. Neither
+/// copied nor moved: views point into it.
+class ScaledSource {
+ public:
+  /// `scales`: the pipeline's scales at `scale` 1 (null when it reads none); `floor_fixed`: the
+  /// covariance floor is a setting (else the larger of the two maps').
+  ScaledSource(const SourceView& original, const Scales* scales, bool floor_fixed, double scale);
+  ScaledSource(const ScaledSource&) = delete;
+  ScaledSource& operator=(const ScaledSource&) = delete;
+
+  void set_scale(double scale);
+  double scale() const { return scale_; }
+  SourceView view() const { return {&positions_, &covariances_, original_.up}; }
+  const Scales* scales() const { return scales_ ? &*scales_ : nullptr; }
+  /// A context of every landmark of this source (the rest as `of`).
+  RefineContext context(const RefineContext& of) const;
+
+ private:
+  SourceView original_;
+  std::optional<Scales> original_scales_;
+  bool floor_fixed_;
+  double scale_ = 1.0;
+  Points3 positions_;
+  std::vector<Mat3> covariances_;
+  std::optional<Scales> scales_;
+};
+
+class PipelineRun {
+ public:
+  PipelineRun(const Pipeline& pipeline, const SourceView& source, const PreparedTarget& target,
+              const PipelineRequest& request);
+
+  /// Throws InvalidArgument as Pipeline::run documents.
+  void validate() const;
+  bool scale_free() const { return request_.free_scale; }
+  const ScaleSearch& scale_search() const { return *scale_search_; }
+  /// A search at `factor` times the data's initial scale (1 without a free scale): the source
+  /// there, the scales, the hypotheses. False when a map has fewer than 3 landmarks for a
+  /// pipeline that reads the scales (then too_few_landmarks() is the result).
+  bool begin_search(double factor);
+  Summary too_few_landmarks() const;
+  /// The hypotheses of the current search concluded at `rung` times its initial scale.
+  Summary conclude(double rung) const;
+  /// The summary with the run's times and the scale search's counts.
+  Summary finish(Summary s, int attempts, int searches) const;
+
+ private:
+  struct Conclusion;
+  /// The search's source times `factor` (its scales with it).
+  std::unique_ptr<ScaledSource> scaled_search_source(double factor) const;
+  std::vector<RefinedHypothesis> score_hypotheses(double rung) const;
+  void refine_best(Conclusion* c) const;
+  void refine_scale(Conclusion* c) const;
+  /// The last level's pairs re-made at the estimate and weighted (*loop: their loop state).
+  Pairs pairs_at_estimate(const RefineContext& all, const Refinement& fin, LoopState* loop) const;
+  void end_pass(Conclusion* c) const;
+  void judge(Conclusion* c) const;
+  /// The verdict's caveats: a confidence 0 everywhere, landmarks left out, covariances assumed.
+  void add_caveats(Summary* s) const;
+
+  const Pipeline& pipeline_;
+  const Settings& settings_;
+  SourceView source_;
+  const PreparedTarget& target_;
+  const PipelineRequest& request_;
+  std::chrono::steady_clock::time_point start_;
+  Isometry3 guess_;
+  std::optional<ScaleSearch> scale_search_;
+  /// The current search: its source (copied at its initial scale when the scale is free), the
+  /// summary every conclusion starts from (preset, settings, scales, initialiser report), its
+  /// hypotheses.
+  std::unique_ptr<ScaledSource> search_source_;
+  Summary base_;
+  std::vector<Hypothesis> hypotheses_;
+};
+
+}  // namespace lmalign::detail

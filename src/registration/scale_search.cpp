@@ -1,0 +1,103 @@
+// The scale search of a free-scale run (include/lmalign/registration/scale_search.hpp).
+#include "lmalign/registration/scale_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "lmalign/core/error.hpp"
+
+namespace lmalign {
+
+std::string to_string(ScaleMode mode) { return name_of(kScaleModeNames, mode); }
+
+ScaleMode parse_scale_mode(const std::string& name) {
+  return parse_enum(kScaleModeNames, "scale mode", name);
+}
+
+ScaleMode resolve_scale_mode(ScaleMode mode, bool source_metric, bool target_metric) {
+  if (mode != ScaleMode::kAuto) return mode;
+  return source_metric && target_metric ? ScaleMode::kFixed : ScaleMode::kFree;
+}
+
+std::vector<SettingRow> scale_search_settings() {
+  const ScaleSearchOptions d;
+  return {
+      real_setting("scale.initial_min", "ScaleSearchOptions::initial_min", d.initial_min,
+                   SettingBound::above(0.0), "1",
+                   "free scale: the initial scale from the landmark spacings is at least this"),
+      real_setting("scale.initial_max", "ScaleSearchOptions::initial_max", d.initial_max,
+                   SettingBound::above(0.0), "1",
+                   "free scale: the initial scale from the landmark spacings is at most this"),
+      real_setting("scale.rung_ratio", "ScaleSearchOptions::rung_ratio", d.rung_ratio,
+                   SettingBound::above(1.0), "1",
+                   "free scale: the step between the scale axis's rungs and the searches "
+                   "again (a ratio)"),
+      int_setting("scale.rungs", "ScaleSearchOptions::rungs", d.rungs, SettingBound::closed(0, 20),
+                  "count",
+                  "free scale: rungs on each side of the initial scale at which the first "
+                  "search's hypotheses are concluded again while none is trusted"),
+      int_setting("scale.researches", "ScaleSearchOptions::researches", d.researches,
+                  SettingBound::closed(0, 20), "count",
+                  "free scale: searches again on each side, at rung_ratio^k times the initial "
+                  "scale, while none is trusted"),
+      real_setting("scale.settle", "ScaleSearchOptions::settle", d.settle, SettingBound::above(0.0),
+                   "1",
+                   "free scale: a refinement goes on while its last step changed the scale by "
+                   "more than this (relative)"),
+  };
+}
+
+ScaleSearchOptions scale_search_options(const Settings& s) {
+  ScaleSearchOptions o;
+  o.initial_min = s.real("scale.initial_min");
+  o.initial_max = s.real("scale.initial_max");
+  if (!(o.initial_min <= o.initial_max)) {
+    throw InvalidArgument("scale.initial_min = " + std::to_string(o.initial_min) +
+                          " is above scale.initial_max = " + std::to_string(o.initial_max));
+  }
+  o.rung_ratio = s.real("scale.rung_ratio");
+  o.rungs = static_cast<int>(s.integer("scale.rungs"));
+  o.researches = static_cast<int>(s.integer("scale.researches"));
+  o.settle = s.real("scale.settle");
+  return o;
+}
+
+ScaleSearch::ScaleSearch(const ScaleSearchOptions& options, double initial_scale)
+    : o_(options), initial_scale_(initial_scale) {
+  if (!std::isfinite(initial_scale) || !(initial_scale > 0.0)) {
+    throw InvalidArgument("initial scale " + std::to_string(initial_scale) +
+                          ": expected finite and > 0");
+  }
+}
+
+std::vector<ScaleAttempt> ScaleSearch::rungs() const {
+  std::vector<ScaleAttempt> out{{1.0, false}};
+  for (int k = 1; k <= o_.rungs; ++k) {
+    const double f = std::pow(o_.rung_ratio, k);
+    out.push_back({1.0 / f, false});
+    out.push_back({f, false});
+  }
+  return out;
+}
+
+std::vector<ScaleAttempt> ScaleSearch::researches(double refined_scale) const {
+  // The side the first result's refined scale leans to first; each step of the ratio, nearest
+  // first, beyond the rungs already concluded.
+  const double up = refined_scale > initial_scale_ ? o_.rung_ratio : 1.0 / o_.rung_ratio;
+  std::vector<ScaleAttempt> out;
+  for (int k = 1; k <= o_.researches; ++k) {
+    out.push_back({std::pow(up, k), true});
+    out.push_back({std::pow(1.0 / up, k), true});
+  }
+  return out;
+}
+
+double initial_scale_from_spacing(double source_spacing, double target_spacing, double min_scale,
+                                  double max_scale) {
+  if (!(source_spacing > 0.0) || !(target_spacing > 0.0)) {
+    throw InvalidArgument("initial_scale_from_spacing: spacings must be > 0");
+  }
+  return std::clamp(target_spacing / source_spacing, min_scale, max_scale);
+}
+
+}  // namespace lmalign
