@@ -179,26 +179,13 @@ AlignPlan plan_align(const AlignArgs& a) {
   }
   request.record_history = a.history;
   for (const std::string& s : a.settings) {
-    const std::size_t eq = s.find('=');
-    if (eq == std::string::npos) throw InvalidArgument("--set '" + s + "': expected KEY=VALUE");
-    request.settings.emplace_back(s.substr(0, eq), SettingValue(s.substr(eq + 1)));
-  }
-  // --set values are text: each strategy reads them by its own table (and refuses unknown keys,
-  // or values outside their bounds, before any map is read).
-  std::vector<AlignRequest>& requests = plan.requests;
-  for (const Preset& p : strategies) {
-    AlignRequest r = request;
-    const Pipeline base(p.spec);
-    for (auto& [key, value] : r.settings) {
-      try {
-        value = base.settings().row(key).parse(std::get<std::string>(value));
-      } catch (const InvalidArgument& e) {
-        throw InvalidArgument("--set " + key + ": " + e.what() + " (strategy '" + p.name + "')");
-      }
+    try {
+      request.add_assignment(s);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(std::string("--set ") + e.what());
     }
-    const Pipeline resolved(resolve_spec(p, r));  // validates the whole table
-    requests.push_back(r);
   }
+  std::vector<AlignRequest>& requests = plan.requests;
 
   WeightOptions& wopt = plan.wopt;
   wopt.covariance_norm = parse_covariance_norm(a.covariance_norm);
@@ -247,13 +234,7 @@ AlignPlan plan_align(const AlignArgs& a) {
     const PriorSigma prior{v[0], v[1]};
     std::string why;
     if (!prior.is_valid(&why)) throw InvalidArgument("--prior-sigma " + a.prior_sigma + ": " + why);
-    for (const Preset& s : strategies) {
-      if (!Pipeline(s.spec).initialiser().uses_prior()) {
-        throw InvalidArgument("--prior-sigma: the strategy '" + s.name + "' uses no prior (its " +
-                              "initialiser '" + s.spec.initialiser + "' does not search)");
-      }
-    }
-    for (AlignRequest& r : requests) r.prior = prior;
+    request.prior = prior;
   }
   if (!a.initial_guess.empty()) {
     const Isometry3 guess = read_transform(a.initial_guess);
@@ -263,7 +244,15 @@ AlignPlan plan_align(const AlignArgs& a) {
                             "and det R = +1)");
     }
     check_supported_translation("--initial-guess " + a.initial_guess, guess.translation());
-    for (AlignRequest& r : requests) r.initial_guess = guess;
+    request.initial_guess = guess;
+  }
+  // The --set values are text: each strategy reads them by its own table; unknown keys, values
+  // outside their bounds and a prior for a strategy that uses none are refused before any map is
+  // read (AlignRequest::resolve).
+  for (const Preset& p : strategies) {
+    AlignRequest r = request;
+    r.resolve(p);
+    requests.push_back(r);
   }
 
   std::optional<Similarity3>& T_gt = plan.T_gt;

@@ -35,8 +35,6 @@ AlignOutcome run_alignment(const Points3& source_points,
   const Preset preset =
       request.strategy.empty() ? recommended_preset() : find_preset(request.strategy);
   if (request.threads < 0) throw InvalidArgument("threads: must be >= 0 (0 = OpenMP's default)");
-  // As apps/lmalign/cmd_align.cpp: text values are read by the setting's own row; the rest is
-  // checked by the pipeline (key, value, bound).
   lmalign::AlignRequest r;
   r.k = request.k;
   r.max_iterations = request.max_iterations;
@@ -45,22 +43,8 @@ AlignOutcome run_alignment(const Points3& source_points,
   r.prior = request.prior;
   r.scale = request.scale;
   r.describe_maps(request.source_header, request.target_header);
-  const Pipeline base(preset.spec);
-  for (const auto& [key, value] : request.settings) {
-    try {
-      const SettingRow& row = base.settings().row(key);
-      const std::string* text = std::get_if<std::string>(&value);
-      r.settings.emplace_back(
-          key, text != nullptr && row.type != SettingType::kChoice ? row.parse(*text) : value);
-    } catch (const InvalidArgument& e) {
-      throw InvalidArgument(std::string("settings: ") + e.what() + " (strategy '" + preset.name +
-                            "')");
-    }
-  }
-  if (request.prior && !base.initialiser().uses_prior()) {
-    throw InvalidArgument("prior_sigma: the strategy '" + preset.name + "' uses no prior (its " +
-                          "initialiser '" + preset.spec.initialiser + "' does not search)");
-  }
+  r.settings = request.settings;
+  r.resolve(preset);  // text values read by their rows; every check before the alignment
   const ThreadCount threads(request.threads);
   const auto now_s = [] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())

@@ -154,7 +154,7 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     for (const std::string& s : c.strategies) {
       // Every setting within its bound before any run (the pipeline validates its table).
       try {
-        const Pipeline check(resolve_spec(find_preset(s), run_request(config, s, c.k, options)));
+        run_request(config, s, c.k, options).resolve(find_preset(s));
       } catch (const InvalidArgument& e) {
         throw InvalidArgument("runner: case " + c.id() + ", " + s + ": " + e.what());
       }

@@ -312,6 +312,49 @@ void AlignRequest::describe_maps(const MapHeader& source, const MapHeader& targe
   covariances_assumed = source.covariance_assumed || target.covariance_assumed;
 }
 
+void AlignRequest::add_assignment(const std::string& key_value) {
+  const std::size_t eq = key_value.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw InvalidArgument("'" + key_value + "': expected KEY=VALUE");
+  }
+  settings.emplace_back(key_value.substr(0, eq), SettingValue(key_value.substr(eq + 1)));
+}
+
+void AlignRequest::resolve(const Preset& preset) {
+  const Pipeline base(preset.spec);
+  const std::string strategy = " (strategy '" + preset.name + "')";
+  for (auto& [key, value] : settings) {
+    try {
+      const SettingRow& row = base.settings().row(key);  // an unknown key names the nearest
+      if (const std::string* text = std::get_if<std::string>(&value)) value = row.parse(*text);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument("settings: " + std::string(e.what()) + strategy);
+    }
+  }
+  if (prior) {
+    std::string why;
+    if (!prior->is_valid(&why)) throw InvalidArgument("prior sigma: " + why);
+    if (!base.initialiser().uses_prior()) {
+      throw InvalidArgument("prior sigma: the strategy '" + preset.name +
+                            "' uses no prior (its initialiser '" + preset.spec.initialiser +
+                            "' does not search)");
+    }
+  }
+  if (initial_guess) {
+    if (!is_rigid_transform(*initial_guess)) {
+      throw InvalidArgument(
+          "initial guess: not a rigid transform (expected a finite 4x4 [R t; 0 0 0 1] with R "
+          "orthonormal and det R = +1)");
+    }
+    check_supported_translation("initial guess", initial_guess->translation());
+  }
+  try {
+    const Pipeline resolved(resolve_spec(preset, *this));  // the whole table, within its bounds
+  } catch (const InvalidArgument& e) {
+    throw InvalidArgument("settings: " + std::string(e.what()) + strategy);
+  }
+}
+
 PipelineSpec resolve_spec(const Preset& preset, const AlignRequest& request) {
   PipelineSpec spec = preset.spec;
   auto add = [&](const std::string& key, SettingValue v) {
@@ -330,23 +373,10 @@ PipelineSpec resolve_spec(const Preset& preset, const AlignRequest& request) {
 }
 
 Summary align(const Preset& preset, const SourceView& source, const PreparedTarget& target,
-              const AlignRequest& request) {
-  if (request.initial_guess && !is_rigid_transform(*request.initial_guess)) {
-    throw InvalidArgument(
-        "initial guess: not a rigid transform (expected a finite 4x4 [R t; 0 0 0 1] with R "
-        "orthonormal and det R = +1)");
-  }
-  if (request.initial_guess) {
-    check_supported_translation("initial guess", request.initial_guess->translation());
-  }
+              const AlignRequest& given) {
+  AlignRequest request = given;
+  request.resolve(preset);
   const Pipeline pipeline(resolve_spec(preset, request));
-  if (request.prior && !pipeline.initialiser().uses_prior()) {
-    throw InvalidArgument("prior sigma: the strategy '" + preset.name +
-                          "' uses no prior (its initialiser '" + preset.spec.initialiser +
-                          "' does not search)");
-  }
-  std::string why;
-  if (request.prior && !request.prior->is_valid(&why)) throw InvalidArgument("prior sigma: " + why);
   // The supported range (core/supported_range.hpp): landmarks beyond it are left out, counted,
   // and named in the verdict's reason.
   const SupportedLandmarks kept = keep_supported_landmarks(source, target);

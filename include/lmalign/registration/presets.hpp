@@ -74,7 +74,8 @@ struct AlignRequest {
   std::optional<int> max_iterations;
   std::optional<double> max_distance_m;
   /// Settings by key (--set KEY=VALUE, an experiment's `settings:`, Python's settings=); they
-  /// win over k and the limits.
+  /// win over k and the limits. A value may be given as text (std::string), which resolve()
+  /// reads by the setting's own row (SettingRow::parse: numbers, lists, inf, true/false, names).
   std::vector<std::pair<std::string, SettingValue>> settings;
   /// Per-iteration history of the final refinement (and the fitness score at each).
   bool record_history = false;
@@ -97,6 +98,19 @@ struct AlignRequest {
   /// the two maps it read, so `auto` means the same in the CLI, Python, the experiment runner
   /// and the merge.
   void describe_maps(const MapHeader& source, const MapHeader& target);
+
+  /// Makes the request the preset's, checked before any work: every setting given as text read
+  /// by its row in the preset's table, then the whole table (k, the limits, the settings) within
+  /// its bounds; a prior that is valid and that the preset's initialiser uses; a guess that is a
+  /// rigid transform within the supported range. Throws InvalidArgument naming what is wrong and
+  /// the strategy: "settings: unknown setting 'schedule.max_iteration' (nearest:
+  /// 'schedule.max_iterations') (strategy 'adaptive')", "prior sigma: the strategy 'base' uses
+  /// no prior (its initialiser 'guess' does not search)". The one place a front end's request is
+  /// made (the CLI, Python, the experiment runner, the merge); align() calls it too.
+  void resolve(const Preset& preset);
+  /// Adds a setting given as "KEY=VALUE" text (the first '=' splits; the value is read by
+  /// resolve()). Throws InvalidArgument "'TEXT': expected KEY=VALUE".
+  void add_assignment(const std::string& key_value);
 };
 
 /// The preset's pipeline spec with the request's k, limits and settings applied. Throws
