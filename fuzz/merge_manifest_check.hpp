@@ -41,7 +41,7 @@
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/merge/output.hpp"
 #include "lmalign/merge/pose_graph.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "map_reader_check.hpp"  // LMALIGN_FUZZ_CHECK, is_proper_rigid
 
 namespace lmalign::fuzz {

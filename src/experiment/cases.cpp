@@ -132,8 +132,12 @@ void expand_random(const ExperimentSpec& e, std::size_t ei, const Points3& sourc
   // A: from a frame whose z is up to the maps' frame (Rx(90 deg) takes z to -y, Ry(90 deg) to x;
   // the sign of the up axis does not matter, every angle is drawn symmetrically).
   Mat3 A = Mat3::Identity();
-  if (r.up_axis == UpAxis::kY) A = Eigen::AngleAxisd(M_PI / 2.0, Vec3::UnitX()).toRotationMatrix();
-  if (r.up_axis == UpAxis::kX) A = Eigen::AngleAxisd(M_PI / 2.0, Vec3::UnitY()).toRotationMatrix();
+  if (r.up_axis == CoordinateAxis::kY) {
+    A = Eigen::AngleAxisd(M_PI / 2.0, Vec3::UnitX()).toRotationMatrix();
+  }
+  if (r.up_axis == CoordinateAxis::kX) {
+    A = Eigen::AngleAxisd(M_PI / 2.0, Vec3::UnitY()).toRotationMatrix();
+  }
   for (int s = 0; s < r.samples; ++s) {
     std::seed_seq seq{static_cast<std::uint32_t>(r.seed), static_cast<std::uint32_t>(r.seed >> 32),
                       2u, static_cast<std::uint32_t>(s)};

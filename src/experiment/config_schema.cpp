@@ -311,8 +311,9 @@ const std::vector<Row>& schema() {
                       "Roll and pitch each uniform in [-roll_pitch_deg, roll_pitch_deg]."));
     r.push_back(choice(kExperiments, "random", "pivot", &RandomStartSpec::pivot, kYawPivotNames,
                        "RandomStartSpec::pivot", "Where the yaw turns about."));
-    r.push_back(choice(kExperiments, "random", "up_axis", &RandomStartSpec::up_axis, kUpAxisNames,
-                       "RandomStartSpec::up_axis", "The maps' vertical axis."));
+    r.push_back(choice(kExperiments, "random", "up_axis", &RandomStartSpec::up_axis,
+                       kCoordinateAxisNames, "RandomStartSpec::up_axis",
+                       "The maps' vertical axis."));
     // --- experiments[].escalate
     r.push_back(field(kEscalate, "", "start_m", Kind::kReal, &EscalationSpec::start_m,
                       "EscalationSpec::start_m", kPositive, "m", "The first offset."));

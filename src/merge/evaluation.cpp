@@ -11,7 +11,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/pipeline.hpp"
 
 namespace lmalign {
 

@@ -14,7 +14,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/supported_range.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/pipeline.hpp"
 
 namespace lmalign {
 

@@ -13,6 +13,7 @@
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/registration/score.hpp"
 #include "pipeline_run.hpp"
+#include "stages/stage.hpp"
 
 namespace lmalign {
 
@@ -122,14 +123,9 @@ static std::vector<SettingRow> scale_settings() {
                    "covariance floor added to every pair's combined covariance; 0 = the data's "
                    "(the larger of the two maps' median smallest-axis standard deviation, or half "
                    "the landmark spacing without covariances)"),
-      reals_setting(
-          "scales.default_up", "Scales::up_source, up_target", {0.0, 0.0, 1.0},
-          [] {
-            SettingBound b;
-            b.min_size = b.max_size = 3;
-            return b;
-          }(),
-          "1", "up axis of a map whose frames do not give one (normalised)"),
+      reals_setting("scales.default_up", "Scales::up_source, up_target", {0.0, 0.0, 1.0},
+                    stages::vector3_bound(), "1",
+                    "up axis of a map whose frames do not give one (normalised)"),
   };
 }
 
@@ -191,14 +187,7 @@ Pipeline::Pipeline(const PipelineSpec& spec) : spec_(spec) {
     }
     settings_.set(key, value);
   }
-  if (needs_scales_) {
-    const std::vector<double>& up = settings_.reals("scales.default_up");
-    const Vec3 u(up[0], up[1], up[2]);
-    if (!u.allFinite() || !(u.norm() > 0.0)) {
-      throw InvalidArgument("scales.default_up = " + settings_.row("scales.default_up").text(up) +
-                            " must be finite and non-zero");
-    }
-  }
+  if (needs_scales_) stages::unit_vector(settings_, "scales.default_up");  // checked here
   initialiser_ = build<Initialiser>(Seam::kInitialiser, spec.initialiser, settings_);
   matcher_ = build<Matcher>(Seam::kMatcher, spec.matcher, settings_);
   for (const std::string& r : spec.rejectors) {

@@ -1,6 +1,8 @@
 // The phases of one run of a Pipeline (pipeline_run.hpp).
 #include "pipeline_run.hpp"
 
+#include "stages/stage.hpp"
+
 #include <algorithm>
 #include <cmath>
 
@@ -174,8 +176,7 @@ bool PipelineRun::begin_search(double factor) {
     const double floor_setting = settings_.real("scales.floor_m");
     scales.floor_m = floor_setting > 0.0 ? floor_setting
                                          : std::max(scales.source.floor_m, scales.target.floor_m);
-    const std::vector<double>& up = settings_.reals("scales.default_up");
-    const Vec3 default_up(up[0], up[1], up[2]);
+    const Vec3 default_up = stages::unit_vector(settings_, "scales.default_up");
     scales.up_source = src.up.value_or(default_up).normalized();
     scales.up_target = target_.up_axis().value_or(default_up).normalized();
     s.scales = scales;

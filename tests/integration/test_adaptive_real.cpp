@@ -16,8 +16,9 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
+#include "support/align_preset.hpp"
 #include "support/data_path.hpp"
 #include "support/real_pair.hpp"
 
@@ -35,7 +36,7 @@ SourceLandmarks displaced(const SourceLandmarks& s, const Isometry3& D) {
 
 /// The error of an estimate for the source displaced by D against the truth D^-1 (the maps'
 /// true transform is the identity).
-TransformError error_of(const AdaptiveResult& r, const Isometry3& D) {
+TransformError error_of(const Summary& r, const Isometry3& D) {
   return transform_error(r.registration.T_target_source * D, Isometry3::Identity());
 }
 
@@ -104,22 +105,22 @@ TEST_F(AdaptiveKitti, UpAxesOfBothMapsAreNearMinusY) {
 TEST_F(AdaptiveDesk, ReachesTheTruthFromTable1sDisplacement) {
   // Measured: 0.59 deg, 1.4 cm; inlier ratio 0.86, ambiguity 0.77; ~1.2 s.
   const Isometry3 D = pose_from_xyz_rpy_deg(0, 1, 0.4, 10, 0, 22.5);
-  const AdaptiveResult r = align_adaptive(displaced(*source_, D), *target_);
+  const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
   const TransformError e = error_of(r, D);
   EXPECT_LT(e.rotation_deg, 1.5);
   EXPECT_LT(e.translation_m, 0.03);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 TEST_F(AdaptiveDesk, ReachesTheTruthFromAFarStart) {
   // Yaw 150 deg about z and 2 m in x-y (test_global_real_pair.cpp's far start).
   // Measured: 0.60 deg, 1.4 cm; inlier ratio 0.86, ambiguity 0.76; ~1.3 s.
   const Isometry3 D = pose_from_xyz_rpy_deg(1.5, -1.3, 0, 0, 0, 150);
-  const AdaptiveResult r = align_adaptive(displaced(*source_, D), *target_);
+  const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
   const TransformError e = error_of(r, D);
   EXPECT_LT(e.rotation_deg, 1.5);
   EXPECT_LT(e.translation_m, 0.03);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 TEST_F(AdaptiveKitti, DisjointPairStaysAtTheTruthUnderATightPrior) {
@@ -130,12 +131,12 @@ TEST_F(AdaptiveKitti, DisjointPairStaysAtTheTruthUnderATightPrior) {
   PriorSigma prior;
   prior.rotation_deg = 1.0;
   prior.translation_m = 0.2;
-  const AdaptiveResult r = align_adaptive(*source_, *target_, {}, &guess, &prior);
+  const Summary r = test::align_with("adaptive", *source_, *target_, {{}, guess, prior});
   const TransformError e = error_of(r, Isometry3::Identity());
-  EXPECT_EQ(r.initialisation, "given");
+  EXPECT_EQ(r.initialisation.initialisation, "given");
   EXPECT_LT(e.rotation_deg, 0.2);
   EXPECT_LT(e.translation_m, 0.1);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 /// A far start on KITTI: yaw 100 deg about the maps' up axis (-y, camera y down) and 8 m in the
@@ -151,22 +152,22 @@ TEST_F(AdaptiveKitti, DisjointPairFromAFarStartWithoutAGuess) {
   // Measured: 0.079 deg, 4.0 cm (the same estimate as from the truth); inlier ratio 0.33,
   // ambiguity 0.48; ~1.1 s.
   const Isometry3 D = kitti_far_start();
-  const AdaptiveResult r = align_adaptive(displaced(*source_, D), *target_);
+  const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
   const TransformError e = error_of(r, D);
   EXPECT_LT(e.rotation_deg, 1.0);
   EXPECT_LT(e.translation_m, 0.3);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 TEST_F(AdaptiveKittiOverlap, OverlappingPairFromAFarStart) {
   // The same far start as the disjoint pair's. Measured: 0.010 deg, 3 mm; inlier ratio 0.63,
   // ambiguity 0.19; ~1.1 s.
   const Isometry3 D = kitti_far_start();
-  const AdaptiveResult r = align_adaptive(displaced(*source_, D), *target_);
+  const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
   const TransformError e = error_of(r, D);
   EXPECT_LT(e.rotation_deg, 0.2);
   EXPECT_LT(e.translation_m, 0.05);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 /// The re-triangulated window [first, last] of the motion-capture-anchored desk map (as
@@ -199,12 +200,13 @@ TEST(AdaptiveDeskWindows, AShortHandHeldWindowsUpAxisIsRescuedByItsLandmarkPlane
   EXPECT_LT(angle_deg(*plane, z), 12.0);
 
   const Isometry3 D = pose_from_xyz_rpy_deg(0.8, -0.5, 0.1, 0.0, 0.0, 100.0);
-  const AdaptiveResult r = align_adaptive(displaced(SourceLandmarks::from_map(a), D), target);
-  EXPECT_GE(r.ups_target.size(), 2u);
+  const Summary r =
+      test::align_with("adaptive", displaced(SourceLandmarks::from_map(a), D), target);
+  EXPECT_GE(r.initialisation.ups_target.size(), 2u);
   const TransformError e = error_of(r, D);
   EXPECT_LT(e.rotation_deg, 0.5);
   EXPECT_LT(e.translation_m, 0.01);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 // Re-triangulated windows of the desk map whose votes never proposed the truth (the search kept
@@ -225,11 +227,12 @@ TEST(AdaptiveDeskWindows, TheCompleteSearchFindsShortWindowsTheVotesMissed) {
     const Map b = desk_window(full, k.b0, k.b1);
     const PreparedTarget target(b);
     const Isometry3 D = pose_from_xyz_rpy_deg(0.4, -0.3, 0.05, 0.0, 0.0, -120.0);
-    const AdaptiveResult r = align_adaptive(displaced(SourceLandmarks::from_map(a), D), target);
+    const Summary r =
+        test::align_with("adaptive", displaced(SourceLandmarks::from_map(a), D), target);
     const TransformError e = error_of(r, D);
     EXPECT_LT(e.rotation_deg, 1.0);
     EXPECT_LT(e.translation_m, 0.02);
-    EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+    EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
   }
 }
 

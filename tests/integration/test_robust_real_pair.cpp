@@ -6,7 +6,6 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/presets.hpp"
-#include "lmalign/registration/robust.hpp"
 #include "support/real_pair.hpp"
 
 namespace lmalign {
@@ -14,17 +13,18 @@ namespace {
 
 class RobustRealPair : public test::RealPairTest {
  protected:
-  static TransformError run(const RobustRegistrationOptions& o, const Isometry3& D) {
-    const RobustRegistrationResult r =
-        align_robust(transform_points(D, source_->positions()), *target_, o);
-    return transform_error(r.T_target_source * D, Isometry3::Identity());
-  }
-  static TransformError run(const std::string& preset, const Isometry3& D) {
+  static TransformError run(const Preset& preset, const Isometry3& D,
+                            const std::vector<std::string>& settings = {}) {
     const Points3 moved = transform_points(D, source_->positions());
     SourceView view;
     view.positions = &moved;
-    const Summary r = align(find_preset(preset), view, *target_);
+    AlignRequest request;
+    for (const std::string& s : settings) request.add_assignment(s);
+    const Summary r = align(preset, view, *target_, request);
     return transform_error(r.registration.T_target_source * D, Isometry3::Identity());
+  }
+  static TransformError run(const std::string& preset, const Isometry3& D) {
+    return run(find_preset(preset), D);
   }
 };
 
@@ -39,8 +39,11 @@ TEST_F(RobustRealPair, RobustObsFindsTheBasinAtYaw50WhereBaseFails) {
   // Table 2, yaw 50: base and shrink (unweighted) end in a wrong basin near 45 deg; the
   // observation weights in the estimation step pull the unlimited stage into the right one.
   const Isometry3 D = pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 50);
-  // The shrinking schedule without weights (the retired preset 'shrink').
-  const TransformError shrink = run(RobustRegistrationOptions{}, D);
+  // The shrinking schedule without weights (the retired preset 'shrink'): robust_obs without its
+  // kernel and its observation weight.
+  Preset shrink_preset = find_preset("robust_obs");
+  shrink_preset.spec.kernel = "none";
+  const TransformError shrink = run(shrink_preset, D, {"kernel.confidence=uniform"});
   EXPECT_GT(shrink.rotation_deg, 5.0);
   const TransformError e = run("robust_obs", D);
   EXPECT_LT(e.rotation_deg, 1.0);

@@ -18,7 +18,7 @@
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/merge/output.hpp"
 #include "lmalign/merge/pose_graph.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "support/manifest_error.hpp"
 #include "support/temp_dir.hpp"
 

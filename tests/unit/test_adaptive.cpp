@@ -18,12 +18,13 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "lmalign/registration/stages/p2d_step.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
+#include "support/align_preset.hpp"
 #include "support/synthetic_scene.hpp"
 
 namespace lmalign {
@@ -968,7 +969,7 @@ TEST(YawVote, RefusesBadInputs) {
 }
 
 // ------------------------------------------------------------------------------------------
-// align_adaptive, align(preset)
+// The adaptive default through align(preset), as every front end calls it
 // ------------------------------------------------------------------------------------------
 
 /// A partial-overlap room (test::room_points): the target keeps x + y >= 1.2 m, the source
@@ -1027,7 +1028,9 @@ Room make_room(const Isometry3& T_true, std::uint64_t seed) {
   return r;
 }
 
-double default_yaw_step_deg() { return AdaptiveOptions{}.search.yaw_step_deg; }
+double default_yaw_step_deg() { return test::preset_setting("adaptive", "init.yaw_step_deg"); }
+
+bool from_guess(const RefinedHypothesis& h) { return h.start.origin == "guess"; }
 
 /// Far from the truth: yaw 120 degrees, metres off, and a little roll and pitch.
 Isometry3 far_truth() { return pose_from_xyz_rpy_deg(3.0, -2.5, 0.4, 2.0, -1.5, 120.0); }
@@ -1036,13 +1039,13 @@ TEST(Adaptive, FindsAPartialOverlapRoomFromAFarStart) {
   // Measured: 0.013 deg, 0.9 mm, inlier ratio 0.86, ambiguity 0.13, 1054 inliers; ~1 s.
   const Room room = make_room(far_truth(), 41);
   const PreparedTarget target = room.target();
-  const AdaptiveResult r = align_adaptive(room.source, target);
+  const Summary r = test::align_with("adaptive", room.source, target);
   const TransformError e = transform_error(r.registration.T_target_source, room.T_true);
   EXPECT_LT(e.rotation_deg, 0.5);
   EXPECT_LT(e.translation_m, 0.02);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
-  EXPECT_EQ(r.trust_reason, "ok");
-  EXPECT_EQ(r.initialisation, "global");
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  EXPECT_EQ(r.verdict.reason, "ok");
+  EXPECT_EQ(r.initialisation.initialisation, "global");
   EXPECT_EQ(r.registration.termination, TerminationReason::kTransform);
   EXPECT_TRUE(r.registration.converged);
   EXPECT_TRUE(r.covariance.valid);
@@ -1052,28 +1055,28 @@ TEST(Adaptive, FindsAPartialOverlapRoomFromAFarStart) {
   for (std::size_t i = 1; i < r.hypotheses.size(); ++i) {
     EXPECT_GE(r.hypotheses[i - 1].score, r.hypotheses[i].score);
   }
-  EXPECT_LT(r.ambiguity, AdaptiveOptions{}.max_ambiguity);
-  EXPECT_GT(r.inlier_ratio, 0.2);
-  EXPECT_GE(r.num_inliers, 12u);
-  EXPECT_LT((r.up_source - room.source.up->normalized()).norm(), 1e-12);
-  EXPECT_LT((r.up_target - Vec3::UnitZ()).norm(), 1e-12);
+  EXPECT_LT(r.verdict.ambiguity, test::preset_setting("adaptive", "trust.max_ambiguity"));
+  EXPECT_GT(r.verdict.inlier_ratio, 0.2);
+  EXPECT_GE(r.verdict.num_inliers, 12u);
+  EXPECT_LT((r.scales->up_source - room.source.up->normalized()).norm(), 1e-12);
+  EXPECT_LT((r.scales->up_target - Vec3::UnitZ()).norm(), 1e-12);
 }
 
 TEST(Adaptive, DeterministicForOneAndTwoThreads) {
   const Room room = make_room(far_truth(), 42);
   const PreparedTarget target = room.target();
-  AdaptiveOptions o;
-  o.search.yaw_step_deg = 5.0;  // half the default's search time; still finds the truth
+  test::Ask o;
+  o.settings = {"init.yaw_step_deg=5"};  // half the default's search time; still finds the truth
   ThreadCount restore;
   omp_set_num_threads(1);
-  const AdaptiveResult one = align_adaptive(room.source, target, o);
+  const Summary one = test::align_with("adaptive", room.source, target, o);
   omp_set_num_threads(2);
-  const AdaptiveResult two = align_adaptive(room.source, target, o);
+  const Summary two = test::align_with("adaptive", room.source, target, o);
   EXPECT_TRUE(one.registration.T_target_source.matrix() ==
               two.registration.T_target_source.matrix());
-  EXPECT_EQ(one.score, two.score);
-  EXPECT_EQ(one.ambiguity, two.ambiguity);
-  EXPECT_EQ(one.num_inliers, two.num_inliers);
+  EXPECT_EQ(one.verdict.score, two.verdict.score);
+  EXPECT_EQ(one.verdict.ambiguity, two.verdict.ambiguity);
+  EXPECT_EQ(one.verdict.num_inliers, two.verdict.num_inliers);
   EXPECT_EQ(one.registration.iterations, two.registration.iterations);
   ASSERT_EQ(one.hypotheses.size(), two.hypotheses.size());
   for (std::size_t i = 0; i < one.hypotheses.size(); ++i) {
@@ -1091,36 +1094,36 @@ TEST(Adaptive, APriorBoundsTheSearchAroundTheGuess) {
   prior.rotation_deg = 3.0;
   prior.translation_m = 0.2;
   // Measured: 0.019 deg, 0.7 mm, for both runs below.
-  const AdaptiveResult r = align_adaptive(room.source, target, {}, &guess, &prior);
-  EXPECT_EQ(r.initialisation, "prior");
+  const Summary r = test::align_with("adaptive", room.source, target, {{}, guess, prior});
+  EXPECT_EQ(r.initialisation.initialisation, "prior");
   ASSERT_FALSE(r.hypotheses.empty());
   bool has_guess = false;
-  for (const AdaptiveHypothesis& h : r.hypotheses) {
-    has_guess = has_guess || h.from_guess;
+  for (const RefinedHypothesis& h : r.hypotheses) {
+    has_guess = has_guess || from_guess(h);
     // 3 sigma, plus the outward rounding of the yaw grid (at most one step; see YawVote).
-    EXPECT_LE(transform_error(h.T_start, guess).rotation_deg,
+    EXPECT_LE(transform_error(h.start.T_target_source, guess).rotation_deg,
               3.0 * prior.rotation_deg + default_yaw_step_deg() + 1e-9);
   }
   EXPECT_TRUE(has_guess);
   const TransformError e = transform_error(r.registration.T_target_source, room.T_true);
   EXPECT_LT(e.rotation_deg, 0.5);
   EXPECT_LT(e.translation_m, 0.02);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
-  const TransformError from_guess = transform_error(r.registration.T_target_source, guess);
-  EXPECT_LT(from_guess.rotation_deg, 3.0 * prior.rotation_deg);
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  const TransformError off_guess = transform_error(r.registration.T_target_source, guess);
+  EXPECT_LT(off_guess.rotation_deg, 3.0 * prior.rotation_deg);
 
   // A prior tighter than the search's resolution: the guess alone is refined ("given").
   const Isometry3 near = pose_from_xyz_rpy_deg(0.01, 0.0, 0.0, 0, 0, 0.5) * room.T_true;
   PriorSigma tight;
   tight.rotation_deg = 1.0;
   tight.translation_m = 0.02;
-  const AdaptiveResult g = align_adaptive(room.source, target, {}, &near, &tight);
-  EXPECT_EQ(g.initialisation, "given");
+  const Summary g = test::align_with("adaptive", room.source, target, {{}, near, tight});
+  EXPECT_EQ(g.initialisation.initialisation, "given");
   ASSERT_EQ(g.hypotheses.size(), 1u);
-  EXPECT_TRUE(g.hypotheses[0].from_guess);
-  EXPECT_TRUE(g.hypotheses[0].T_start.matrix() == near.matrix());
+  EXPECT_TRUE(from_guess(g.hypotheses[0]));
+  EXPECT_TRUE(g.hypotheses[0].start.T_target_source.matrix() == near.matrix());
   EXPECT_LT(transform_error(g.registration.T_target_source, room.T_true).rotation_deg, 0.5);
-  EXPECT_TRUE(g.trustworthy) << g.trust_reason;
+  EXPECT_TRUE(g.verdict.trustworthy) << g.verdict.reason;
 }
 
 TEST(Adaptive, LandmarksOnALineAreNotTrusted) {
@@ -1139,10 +1142,10 @@ TEST(Adaptive, LandmarksOnALineAreNotTrusted) {
     PreparedTarget target(tgt);
     SourceLandmarks s;
     s.positions = transform_points(pose_from_xyz_rpy_deg(1, 2, 0, 0, 0, 40).inverse(), src);
-    AdaptiveResult r;
-    ASSERT_NO_THROW(r = align_adaptive(s, target));
-    EXPECT_FALSE(r.trustworthy) << "across " << across << ": " << r.trust_reason;
-    EXPECT_NE(r.trust_reason, "ok");
+    Summary r;
+    ASSERT_NO_THROW(r = test::align_with("adaptive", s, target));
+    EXPECT_FALSE(r.verdict.trustworthy) << "across " << across << ": " << r.verdict.reason;
+    EXPECT_NE(r.verdict.reason, "ok");
     EXPECT_TRUE(r.registration.T_target_source.matrix().allFinite());
     if (across == 0.0) {
       EXPECT_FALSE(r.covariance.valid);
@@ -1163,16 +1166,17 @@ TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
     PreparedTarget target(tgt);
     SourceLandmarks s;
     s.positions = src;
-    const AdaptiveResult r = align_adaptive(s, target);
-    EXPECT_FALSE(r.trustworthy) << "seed " << seed << ": " << r.trust_reason;
+    const Summary r = test::align_with("adaptive", s, target);
+    EXPECT_FALSE(r.verdict.trustworthy) << "seed " << seed << ": " << r.verdict.reason;
     // The verdict names the rival it measured, and the result carries it.
-    ASSERT_TRUE(r.rival_T_target_source.has_value());
-    EXPECT_GE(r.ambiguity, AdaptiveOptions{}.max_ambiguity);
-    EXPECT_NE(r.trust_reason.find("ambiguous: another pose"), std::string::npos) << r.trust_reason;
+    ASSERT_TRUE(r.verdict.rival_T_target_source.has_value());
+    EXPECT_GE(r.verdict.ambiguity, test::preset_setting("adaptive", "trust.max_ambiguity"));
+    EXPECT_NE(r.verdict.reason.find("ambiguous: another pose"), std::string::npos)
+        << r.verdict.reason;
     const TransformError apart =
-        transform_error(*r.rival_T_target_source, r.registration.T_target_source);
-    EXPECT_GT(r.rival_distance_m + r.rival_angle_deg, 0.0);
-    EXPECT_NEAR(r.rival_angle_deg, apart.rotation_deg, 1e-6);
+        transform_error(*r.verdict.rival_T_target_source, r.registration.T_target_source);
+    EXPECT_GT(r.verdict.rival_distance_m + r.verdict.rival_angle_deg, 0.0);
+    EXPECT_NEAR(r.verdict.rival_angle_deg, apart.rotation_deg, 1e-6);
   }
 }
 
@@ -1183,31 +1187,33 @@ TEST(Adaptive, UnderstatedCovariancesAreMeasuredAndRefused) {
   // stated sd, so the covariance scale (about 4) rejects it and says why.
   const Room room = make_room(far_truth(), 53);
   const PreparedTarget target = room.target();
-  const AdaptiveResult right = align_adaptive(room.source, target);
+  const Summary right = test::align_with("adaptive", room.source, target);
   ASSERT_LT(transform_error(right.registration.T_target_source, room.T_true).rotation_deg, 0.5);
-  EXPECT_TRUE(right.trustworthy) << right.trust_reason;
-  EXPECT_NEAR(right.expected_nis, expected_gated_d2(kChi2Dof3P99), 1e-12);
-  EXPECT_GT(right.mean_nis, 0.5 * right.expected_nis);
-  EXPECT_LE(right.mean_nis, right.expected_nis);
+  EXPECT_TRUE(right.verdict.trustworthy) << right.verdict.reason;
+  EXPECT_NEAR(right.verdict.expected_nis, expected_gated_d2(kChi2Dof3P99), 1e-12);
+  EXPECT_GT(right.verdict.mean_nis, 0.5 * right.verdict.expected_nis);
+  EXPECT_LE(right.verdict.mean_nis, right.verdict.expected_nis);
 
   Room understated = room;
   for (Mat3& c : understated.source.covariances_m2) c *= 0.25;
   for (Mat3& c : understated.target_cov) c *= 0.25;
   const PreparedTarget target4 = understated.target();
-  AdaptiveOptions o;
-  o.floor_m = 1e-4;  // keep the floor from hiding the understatement
-  const AdaptiveResult r = align_adaptive(understated.source, target4, o);
+  test::Ask o;
+  o.settings = {"scales.floor_m=1e-4"};  // keep the floor from hiding the understatement
+  const Summary r = test::align_with("adaptive", understated.source, target4, o);
   EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).rotation_deg, 0.5);
   // The covariance scale measures the four-fold understatement from the inliers alone.
-  EXPECT_NEAR(right.covariance_scale, 1.0, 0.3);
-  EXPECT_NEAR(r.covariance_scale, 4.0, 1.0);
-  EXPECT_GT(r.covariance_scale, o.max_covariance_scale);
-  EXPECT_FALSE(r.trustworthy);
-  EXPECT_NE(r.trust_reason.find("times what their covariances say"), std::string::npos)
-      << r.trust_reason;
+  EXPECT_NEAR(right.verdict.covariance_scale, 1.0, 0.3);
+  EXPECT_NEAR(r.verdict.covariance_scale, 4.0, 1.0);
+  EXPECT_GT(r.verdict.covariance_scale,
+            test::preset_setting("adaptive", "trust.max_covariance_scale"));
+  EXPECT_FALSE(r.verdict.trustworthy);
+  EXPECT_NE(r.verdict.reason.find("times what their covariances say"), std::string::npos)
+      << r.verdict.reason;
   // The threshold is an option: a looser one trusts the same result.
-  o.max_covariance_scale = r.covariance_scale + 0.01;
-  EXPECT_TRUE(align_adaptive(understated.source, target4, o).trustworthy);
+  o.settings.push_back("trust.max_covariance_scale=" +
+                       std::to_string(r.verdict.covariance_scale + 0.01));
+  EXPECT_TRUE(test::align_with("adaptive", understated.source, target4, o).verdict.trustworthy);
 }
 
 // The source bent as a whole (a smooth non-rigid error of the map, as frames' pose errors or
@@ -1223,16 +1229,17 @@ TEST(Adaptive, HalfSampleCovarianceCoversAMapBentAsAWhole) {
     p = room.T_true.inverse() * w;
   }
   const PreparedTarget target = room.target();
-  AdaptiveOptions off;
-  off.covariance_half_sample_planes = 0;
-  const AdaptiveResult a = align_adaptive(room.source, target, off);
-  const AdaptiveResult b = align_adaptive(room.source, target);
-  ASSERT_TRUE(a.trustworthy) << a.trust_reason;
-  ASSERT_TRUE(b.trustworthy) << b.trust_reason;
+  const Summary a =
+      test::align_with("adaptive", room.source, target, {{"estimate.half_sample_planes=0"}});
+  const Summary b = test::align_with("adaptive", room.source, target);
+  ASSERT_TRUE(a.verdict.trustworthy) << a.verdict.reason;
+  ASSERT_TRUE(b.verdict.trustworthy) << b.verdict.reason;
   // The same estimate; only its covariance differs.
   EXPECT_TRUE(a.registration.T_target_source.isApprox(b.registration.T_target_source, 1e-12));
   EXPECT_EQ(a.num_half_samples, 0u);
-  EXPECT_EQ(b.num_half_samples, 2u * (AdaptiveOptions{}.covariance_half_sample_planes + 1u));
+  EXPECT_EQ(b.num_half_samples,
+            2u * static_cast<std::size_t>(
+                     test::preset_setting("adaptive", "estimate.half_sample_planes") + 1));
   const Vec6 err = pose_error_twist(b.registration.T_target_source, room.T_true);
   const double nees_off = nees(err, a.covariance);
   const double nees_on = nees(err, b.covariance);
@@ -1257,23 +1264,22 @@ TEST(Adaptive, APriorsTiltIsCorrectedByTheUpAxesWithinThreeSigma) {
            room.T_true;
   };
   const PriorSigma prior{3.0, 0.3};
-  auto upright_starts = [&](const AdaptiveResult& r) {
+  auto upright_starts = [&](const Summary& r) {
     std::size_t n = 0;
-    for (const AdaptiveHypothesis& h : r.hypotheses) {
-      const Vec3 up = h.T_start.linear() * r.up_source;
-      if (!h.from_guess && (up - r.up_target).norm() < 1e-9) ++n;
+    for (const RefinedHypothesis& h : r.hypotheses) {
+      const Vec3 up = h.start.T_target_source.linear() * r.scales->up_source;
+      if (!from_guess(h) && (up - r.scales->up_target).norm() < 1e-9) ++n;
     }
     return n;
   };
   const Isometry3 six = tilted_guess(6.0);
-  const AdaptiveResult r6 = align_adaptive(room.source, target, AdaptiveOptions{}, &six, &prior);
+  const Summary r6 = test::align_with("adaptive", room.source, target, {{}, six, prior});
   EXPECT_GT(upright_starts(r6), 0u);
   EXPECT_LT(transform_error(r6.registration.T_target_source, room.T_true).rotation_deg, 0.5);
-  EXPECT_TRUE(r6.trustworthy) << r6.trust_reason;
+  EXPECT_TRUE(r6.verdict.trustworthy) << r6.verdict.reason;
   // 15 deg is 5 sigma: the up axes disagree with the prior, and only the guess's base votes.
   const Isometry3 fifteen = tilted_guess(15.0);
-  const AdaptiveResult r15 =
-      align_adaptive(room.source, target, AdaptiveOptions{}, &fifteen, &prior);
+  const Summary r15 = test::align_with("adaptive", room.source, target, {{}, fifteen, prior});
   EXPECT_EQ(upright_starts(r15), 0u);
 }
 
@@ -1289,11 +1295,11 @@ TEST(Adaptive, APriorWindowCoversTheRotationsLeverArmFromTheTargetOrigin) {
   const Isometry3 guess =
       Isometry3(Eigen::AngleAxisd(6.0 * kRadPerDeg, Vec3::UnitZ())) * room.T_true;
   const PriorSigma prior{3.0, 0.3};
-  const AdaptiveResult r = align_adaptive(room.source, target, AdaptiveOptions{}, &guess, &prior);
-  EXPECT_EQ(r.initialisation, "prior");
+  const Summary r = test::align_with("adaptive", room.source, target, {{}, guess, prior});
+  EXPECT_EQ(r.initialisation.initialisation, "prior");
   EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).rotation_deg, 0.5);
   EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).translation_m, 0.05);
-  EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 TEST(Adaptive, RefusesBadInput) {
@@ -1311,7 +1317,9 @@ TEST(Adaptive, RefusesBadInput) {
     std::string why;
     EXPECT_FALSE(p.is_valid(&why));
     EXPECT_NE(why.find("prior"), std::string::npos);
-    EXPECT_THROW(align_adaptive(room.source, target, {}, nullptr, &p), InvalidArgument);
+    test::Ask ask;
+    ask.prior = p;
+    EXPECT_THROW(test::align_with("adaptive", room.source, target, ask), InvalidArgument);
   }
   // Non-rigid initial guesses: a scaled rotation, a reflection, a NaN, a bad last row.
   Isometry3 scaled = pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 30);
@@ -1324,58 +1332,31 @@ TEST(Adaptive, RefusesBadInput) {
   last_row.matrix()(3, 0) = 0.5;
   for (const Isometry3& T : {scaled, reflection, nan, last_row}) {
     EXPECT_FALSE(is_rigid_transform(T));
-    EXPECT_THROW(align_adaptive(room.source, target, {}, &T), InvalidArgument);
+    EXPECT_THROW(test::align_with("adaptive", room.source, target, {{}, T}), InvalidArgument);
   }
   EXPECT_TRUE(is_rigid_transform(far_truth()));
   // Empty source; covariance count mismatch; a non-finite landmark.
   SourceLandmarks empty;
-  EXPECT_THROW(align_adaptive(empty, target), InvalidArgument);
+  EXPECT_THROW(test::align_with("adaptive", empty, target), InvalidArgument);
   SourceLandmarks mismatch = room.source;
   mismatch.covariances_m2.pop_back();
-  EXPECT_THROW(align_adaptive(mismatch, target), InvalidArgument);
+  EXPECT_THROW(test::align_with("adaptive", mismatch, target), InvalidArgument);
   SourceLandmarks nan_point = room.source;
   nan_point.positions[nan_point.positions.size() / 2 + 1].y() = kNaN;
-  EXPECT_THROW(align_adaptive(nan_point, target), InvalidArgument);
-  // Invalid options name their field.
-  AdaptiveOptions o;
-  std::string why;
-  EXPECT_TRUE(o.is_valid(&why));
-  o.sigma_decay = 1.0;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("sigma_decay"), std::string::npos);
-  EXPECT_THROW(align_adaptive(room.source, target, o), InvalidArgument);
-  o = AdaptiveOptions{};
-  o.gate.k = 0;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("gate.k"), std::string::npos);
-  o = AdaptiveOptions{};
-  o.search.yaw_step_deg = 0.0;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("search.yaw_step_deg"), std::string::npos);
-  o = AdaptiveOptions{};
-  o.min_inliers = 2;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("min_inliers"), std::string::npos);
-  o = AdaptiveOptions{};
-  o.floor_m = -1.0;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("floor_m"), std::string::npos);
-  o = AdaptiveOptions{};
-  o.max_covariance_scale = 0.9;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("max_covariance_scale"), std::string::npos);
-  o = AdaptiveOptions{};
-  o.second_up_min_angle_deg = -1.0;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("second_up_min_angle_deg"), std::string::npos);
-  o = AdaptiveOptions{};
-  o.default_up = Vec3::Zero();
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("default_up"), std::string::npos);
-  o = AdaptiveOptions{};
-  o.covariance_half_sample_planes = -1;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("covariance_half_sample_planes"), std::string::npos);
+  EXPECT_THROW(test::align_with("adaptive", nan_point, target), InvalidArgument);
+  // Settings outside their bounds are refused naming the key (the table's rows).
+  for (const char* bad :
+       {"schedule.sigma_decay=1", "match.k=0", "init.yaw_step_deg=0", "trust.min_inliers=2",
+        "scales.floor_m=-1", "trust.max_covariance_scale=0.9", "init.second_up_min_angle_deg=-1",
+        "scales.default_up=0,0,0", "estimate.half_sample_planes=-1"}) {
+    const std::string key = std::string(bad).substr(0, std::string(bad).find('='));
+    try {
+      test::align_with("adaptive", room.source, target, {{bad}});
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << bad << ": " << e.what();
+    }
+  }
 }
 
 TEST(Adaptive, FewerThanThreeLandmarksGiveNoCorrespondencesUntrusted) {
@@ -1384,16 +1365,16 @@ TEST(Adaptive, FewerThanThreeLandmarksGiveNoCorrespondencesUntrusted) {
   SourceLandmarks two;
   two.positions = {room.source.positions[0], room.source.positions[1]};
   const Isometry3 guess = pose_from_xyz_rpy_deg(1, 0, 0, 0, 0, 10);
-  const AdaptiveResult r = align_adaptive(two, target, {}, &guess);
+  const Summary r = test::align_with("adaptive", two, target, {{}, guess});
   EXPECT_EQ(r.registration.termination, TerminationReason::kNoCorrespondences);
-  EXPECT_FALSE(r.trustworthy);
-  EXPECT_FALSE(r.trust_reason.empty());
+  EXPECT_FALSE(r.verdict.trustworthy);
+  EXPECT_FALSE(r.verdict.reason.empty());
   EXPECT_TRUE(r.registration.T_target_source.matrix() == guess.matrix());
   // A two-landmark target, likewise.
   const PreparedTarget small(Points3{Vec3::Zero(), Vec3::UnitX()});
-  const AdaptiveResult t = align_adaptive(room.source, small);
+  const Summary t = test::align_with("adaptive", room.source, small);
   EXPECT_EQ(t.registration.termination, TerminationReason::kNoCorrespondences);
-  EXPECT_FALSE(t.trustworthy);
+  EXPECT_FALSE(t.verdict.trustworthy);
 }
 
 TEST(AlignPreset, TheDefaultIsAlignAdaptiveOthersCarryTheirJudgesVerdict) {
@@ -1411,15 +1392,16 @@ TEST(AlignPreset, TheDefaultIsAlignAdaptiveOthersCarryTheirJudgesVerdict) {
   req.initial_guess = scaled;
   EXPECT_THROW(align(recommended_preset(), s, target, req), InvalidArgument);
 
-  // The recommended default: the same as align_adaptive's, bit for bit.
+  // The recommended default is the adaptive preset, bit for bit.
   const Summary a = align(recommended_preset(), s, target);
-  const AdaptiveResult direct = align_adaptive(room.source, target);
+  const Summary direct = test::align_with("adaptive", room.source, target);
+  EXPECT_EQ(recommended_preset().name, "adaptive");
   EXPECT_TRUE(a.registration.T_target_source.matrix() ==
               direct.registration.T_target_source.matrix());
   EXPECT_TRUE(a.covariance.covariance == direct.covariance.covariance);
-  EXPECT_EQ(a.verdict.trustworthy, direct.trustworthy);
-  EXPECT_EQ(a.verdict.reason, direct.trust_reason);
-  EXPECT_EQ(a.verdict.num_inliers, direct.num_inliers);
+  EXPECT_EQ(a.verdict.trustworthy, direct.verdict.trustworthy);
+  EXPECT_EQ(a.verdict.reason, direct.verdict.reason);
+  EXPECT_EQ(a.verdict.num_inliers, direct.verdict.num_inliers);
   EXPECT_EQ(a.hypotheses.size(), direct.hypotheses.size());
   EXPECT_TRUE(a.verdict.trustworthy) << a.verdict.reason;
   EXPECT_TRUE(a.IsSolutionUsable());

@@ -11,11 +11,11 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
-#include "lmalign/registration/adaptive.hpp"
 #include "lmalign/registration/stages/complete_search.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
 #include "lmalign/sim/street_sim.hpp"
+#include "support/align_preset.hpp"
 
 namespace lmalign {
 namespace {
@@ -47,20 +47,19 @@ TEST(CompleteSearch, FindsTheStreetPoseAndIsIndependentOfTheThreadCount) {
   const sim::SlamMapPair pair = street(33);
   const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
   const PreparedTarget target(pair.target);
-  AdaptiveOptions o;
-  o.covariance_half_sample_planes = 0;
+  const test::Ask o{{"estimate.half_sample_planes=0"}};
   ThreadCount restore;
   omp_set_num_threads(2);
-  const AdaptiveResult two = align_adaptive(source, target, o);
+  const Summary two = test::align_with("adaptive", source, target, o);
   const TransformError e = transform_error(two.registration.T_target_source, pair.T_target_source);
   EXPECT_LT(e.rotation_deg, 0.5);
   EXPECT_LT(e.translation_m, 0.2);
-  EXPECT_EQ(two.initialisation, "global");
+  EXPECT_EQ(two.initialisation.initialisation, "global");
   omp_set_num_threads(1);
-  const AdaptiveResult one = align_adaptive(source, target, o);
+  const Summary one = test::align_with("adaptive", source, target, o);
   EXPECT_TRUE(one.registration.T_target_source.matrix() ==
               two.registration.T_target_source.matrix());
-  EXPECT_EQ(one.score, two.score);
+  EXPECT_EQ(one.verdict.score, two.verdict.score);
   ASSERT_EQ(one.hypotheses.size(), two.hypotheses.size());
   for (std::size_t i = 0; i < one.hypotheses.size(); ++i) {
     EXPECT_TRUE(one.hypotheses[i].T_refined.matrix() == two.hypotheses[i].T_refined.matrix());
@@ -83,14 +82,13 @@ TEST(CompleteSearch, FindsAShortStreetOverlapOnTheFlankOfTheVotesRidge) {
   for (std::size_t k = 0; k + 1 < w.maps.size(); ++k) {
     SCOPED_TRACE("window " + std::to_string(k) + " onto " + std::to_string(k + 1));
     const PreparedTarget target(w.maps[k + 1]);
-    AdaptiveOptions opt;
-    opt.covariance_half_sample_planes = 0;
-    const AdaptiveResult r = align_adaptive(SourceLandmarks::from_map(w.maps[k]), target, opt);
+    const Summary r = test::align_with("adaptive", SourceLandmarks::from_map(w.maps[k]), target,
+                                       {{"estimate.half_sample_planes=0"}});
     const Isometry3 truth = w.T_world_map[k + 1].inverse() * w.T_world_map[k];
     const TransformError e = transform_error(r.registration.T_target_source, truth);
     EXPECT_LT(e.rotation_deg, 0.5);
     EXPECT_LT(e.translation_m, 0.1);
-    EXPECT_TRUE(r.trustworthy) << r.trust_reason;
+    EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
   }
 }
 

@@ -238,7 +238,7 @@ experiments:
   EXPECT_EQ(rs.translation_m, 10.0);
   EXPECT_EQ(rs.roll_pitch_deg, 2.0);
   EXPECT_EQ(rs.pivot, YawPivot::kOrigin);
-  EXPECT_EQ(rs.up_axis, UpAxis::kY);
+  EXPECT_EQ(rs.up_axis, CoordinateAxis::kY);
   const std::vector<Case> a = expand_cases(c), b = expand_cases(r);
   ASSERT_EQ(a.size(), b.size());
   for (std::size_t i = 0; i < a.size(); ++i) {

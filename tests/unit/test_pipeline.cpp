@@ -210,11 +210,13 @@ TEST_F(ComposedPipelines, TheRobustSearchWithTheFourDofEstimatorAndTrimming) {
   spec.initialiser = "yaw_centroid";
   spec.rejectors = {"trim"};
   spec.kernel = "cauchy";
-  spec.estimator = "four_dof";
+  spec.estimator = "umeyama";
   spec.schedule = "distance_levels";
   spec.scorer = "consensus";
   spec.trust = "inliers";
-  spec.settings = {{"reject.trim_ratio", 0.9}, {"init.yaw_hypotheses", 24LL}};
+  spec.settings = {{"reject.trim_ratio", 0.9},
+                   {"init.yaw_hypotheses", 24LL},
+                   {"estimate.dof", std::string("4")}};
   // Yaw only: the 4-DoF estimator keeps roll and pitch.
   T_true_ = pose_from_xyz_rpy_deg(0.3, -0.2, 0.05, 0.0, 0.0, 100.0);
   source_.positions = transform_points(T_true_.inverse(), map_.positions());

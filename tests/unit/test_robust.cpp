@@ -17,6 +17,7 @@
 #include "lmalign/registration/estimation_4dof.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/robust.hpp"
+#include "support/align_preset.hpp"
 #include "support/synthetic_scene.hpp"
 
 namespace lmalign {
@@ -107,7 +108,9 @@ TEST(Rejection, MutualKeepsOnlyReciprocalPairs) {
 
 TEST(Estimation4Dof, RecoversYawAndTranslationExactlyAndKeepsTheUpAxis) {
   const Points3 src = test::room_points(200, 3);
-  for (UpAxis up : {UpAxis::kX, UpAxis::kY, UpAxis::kZ}) {
+  // The coordinate axes, a camera's y down, and a tilted vertical: the up axis is one unit Vec3.
+  for (const Vec3& up : {Vec3(Vec3::UnitX()), Vec3(Vec3::UnitY()), Vec3(Vec3::UnitZ()),
+                         Vec3(-Vec3::UnitY()), Vec3(Vec3(0.1, -0.2, 1.0).normalized())}) {
     Isometry3 T = Isometry3::Identity();
     T.linear() = rotation_about_up(up, 0.7);
     T.translation() = Vec3(0.3, -1.2, 0.4);
@@ -115,8 +118,11 @@ TEST(Estimation4Dof, RecoversYawAndTranslationExactlyAndKeepsTheUpAxis) {
     Correspondences c;
     for (PointIndex i = 0; i < src.size(); ++i) c.push_back({i, i, 0.0});
     const Isometry3 est = estimate_4dof_transform(src, tgt, c, nullptr, up);
-    EXPECT_LT((est.matrix() - T.matrix()).cwiseAbs().maxCoeff(), 1e-12) << to_string(up);
+    EXPECT_LT((est.matrix() - T.matrix()).cwiseAbs().maxCoeff(), 1e-12) << up.transpose();
+    EXPECT_LT((est.linear() * up - up).norm(), 1e-12) << up.transpose();
   }
+  Correspondences one{{0, 0, 0.0}};
+  EXPECT_THROW(estimate_4dof_transform(src, src, one, nullptr, Vec3(0, 0, 2)), InvalidArgument);
   // A full 6-DoF truth: the estimate still rotates only about z (row and column 2 exact).
   const Isometry3 T6 = pose_from_xyz_rpy_deg(0.1, 0.2, 0.3, 5, -4, 30);
   const Points3 tgt = transform_points(T6, src);
@@ -129,21 +135,33 @@ TEST(Estimation4Dof, RecoversYawAndTranslationExactlyAndKeepsTheUpAxis) {
   EXPECT_THROW(estimate_4dof_transform(src, tgt, {}), InvalidArgument);
 }
 
-TEST(RobustOptions, IsValidNamesTheBadField) {
-  std::string why;
-  RobustRegistrationOptions o;
-  EXPECT_TRUE(o.is_valid(&why)) << why;
-  o.max_distance_schedule_m = {0.1, 0.5};
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("max_distance_schedule_m[1]"), std::string::npos) << why;
-  o = {};
-  o.trim_ratio = 0.0;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("trim_ratio"), std::string::npos) << why;
-  o = {};
-  o.kernel_scale_m = -1;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("kernel_scale_m"), std::string::npos) << why;
+/// The robust loop with the stages a test names: robust_obs's, with another kernel, matcher,
+/// rejectors (the presets are files; a test composes its own as a user's preset file would).
+Preset robust_loop(const std::string& kernel = "none", const std::string& matcher = "nearest",
+                   std::vector<std::string> rejectors = {}) {
+  Preset p = find_preset("robust_obs");
+  p.name = p.spec.name = "robust_test";
+  p.spec.kernel = kernel;
+  p.spec.matcher = matcher;
+  p.spec.rejectors = std::move(rejectors);
+  p.spec.settings.clear();  // robust_obs's observation weight: back to the stages' defaults
+  return p;
+}
+
+TEST(RobustSettings, ValuesOutsideTheirBoundsAreRefusedNamingTheKey) {
+  const Preset trimmed = robust_loop("cauchy", "nearest", {"trim"});
+  for (const char* bad : {"schedule.levels_m=0.1,0.5", "reject.trim_ratio=0", "kernel.scale_m=-1",
+                          "kernel.irls_iterations=0"}) {
+    const std::string key = std::string(bad).substr(0, std::string(bad).find('='));
+    AlignRequest r;
+    r.add_assignment(bad);
+    try {
+      r.resolve(trimmed);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  }
 }
 
 class RobustScene : public ::testing::Test {
@@ -163,18 +181,21 @@ class RobustScene : public ::testing::Test {
 Scene* RobustScene::scene_ = nullptr;
 PreparedTarget* RobustScene::target_ = nullptr;
 
-/// A preset (configs/presets/NAME.yaml) on bare points.
-Summary run_preset(const std::string& name, const Points3& source, const PreparedTarget& target,
-                   const AlignRequest& request = {}) {
+/// A preset (configs/presets/NAME.yaml, or composed) on bare points.
+Summary run_preset(const Preset& preset, const Points3& source, const PreparedTarget& target,
+                   const test::Ask& ask = {}) {
   SourceView view;
   view.positions = &source;
-  return align(find_preset(name), view, target, request);
+  return align(preset, view, target, test::request_of(ask));
+}
+Summary run_preset(const std::string& name, const Points3& source, const PreparedTarget& target,
+                   const test::Ask& ask = {}) {
+  return run_preset(find_preset(name), source, target, ask);
 }
 
 TEST_F(RobustScene, PaperBaseIsBiasedAndEveryNamedStrategyIsAccurate) {
-  const RegistrationResult base =
-      align(scene_->source, *target_, RegistrationOptions::paper(WeightKind::kUniform));
-  const TransformError eb = error_of(base.T_target_source);
+  const Summary base = run_preset("base", scene_->source, *target_);
+  const TransformError eb = error_of(base.registration.T_target_source);
   // The paper's objective: every source point pulls, including the half with no counterpart.
   EXPECT_GT(eb.translation_m, 0.02);
   // The robust presets that start from the guess with 6 DoF (robust_obs_4dof: the truth has
@@ -201,52 +222,46 @@ TEST_F(RobustScene, EveryKernelWithConfidenceWeightsIsAccurate) {
       {RobustKernel::kGemanMcClure, WeightKind::kObservations},
       {RobustKernel::kCauchy, WeightKind::kMeanDistance}};
   for (const auto& [k, w] : combos) {
-    RobustRegistrationOptions o;
-    o.kernel = k;
-    o.estimation_weight = w;
-    const TransformError e = error_of(align_robust(scene_->source, *target_, o).T_target_source);
+    const Summary r = run_preset(robust_loop(to_string(k)), scene_->source, *target_,
+                                 {{"kernel.confidence=" + to_string(w)}});
+    const TransformError e = error_of(r.registration.T_target_source);
     EXPECT_LT(e.rotation_deg, 0.2) << to_string(k) << " " << to_string(w);
     EXPECT_LT(e.translation_m, 0.005) << to_string(k) << " " << to_string(w);
   }
 }
 
 TEST_F(RobustScene, FixedDistanceGivenTrimAndWeightedKnnSelection) {
-  RobustRegistrationOptions o;
-  o.max_distance_schedule_m = {0.3};  // fixed
-  o.trim_ratio = 0.6;                 // given overlap
-  o.selection = CorrespondenceKind::kWeightedKnn;
-  o.selection_weight = WeightKind::kObservations;
-  o.k = 3;
-  const RobustRegistrationResult r = align_robust(scene_->source, *target_, o);
-  const TransformError e = error_of(r.T_target_source);
+  const Summary r =
+      run_preset(robust_loop("none", "weighted_knn", {"trim"}), scene_->source, *target_,
+                 {{"schedule.levels_m=0.3",  // fixed
+                   "reject.trim_ratio=0.6",  // given overlap
+                   "match.confidence=observations", "match.k=3"}});
+  const TransformError e = error_of(r.registration.T_target_source);
   EXPECT_LT(e.rotation_deg, 0.5);
   EXPECT_LT(e.translation_m, 0.01);
-  EXPECT_EQ(r.overlap_ratio, 0.6);
+  EXPECT_EQ(r.at_estimate.overlap_ratio, 0.6);
 }
 
 TEST_F(RobustScene, FourDofKeepsRollAndPitchExactlyAndRecoversYaw) {
   // A gravity-aligned truth (yaw and translation only), started from a guess with roll and
   // pitch: 4-DoF must keep the guess's up row bit-identical (roll, pitch unchanged).
   Isometry3 T_true = Isometry3::Identity();
-  T_true.linear() = rotation_about_up(UpAxis::kZ, 0.2);
+  T_true.linear() = rotation_about_up(Vec3::UnitZ(), 0.2);
   T_true.translation() = Vec3(0.1, -0.05, 0.03);
   Scene s = make_scene(5);
   s.source = transform_points(T_true.inverse() * s.T_true, s.source);
   const PreparedTarget target(s.target);
-  RobustRegistrationOptions o;  // robust_obs_4dof's settings
-  o.kernel = RobustKernel::kCauchy;
-  o.estimation_weight = WeightKind::kObservations;
-  o.dof = DegreesOfFreedom::k4;
   const Isometry3 init = pose_from_xyz_rpy_deg(0, 0, 0, 0.5, -0.3, 0);
-  const RobustRegistrationResult r = align_robust(s.source, target, o, init);
-  for (int c = 0; c < 3; ++c) EXPECT_EQ(r.T_target_source.linear()(2, c), init.linear()(2, c));
-  const Eigen::Matrix<double, 6, 1> rpy = xyz_rpy_deg_from_pose(r.T_target_source);
+  const Isometry3 T =
+      run_preset("robust_obs_4dof", s.source, target, {{}, init}).registration.T_target_source;
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(T.linear()(2, c), init.linear()(2, c));
+  const Eigen::Matrix<double, 6, 1> rpy = xyz_rpy_deg_from_pose(T);
   const Eigen::Matrix<double, 6, 1> rpy0 = xyz_rpy_deg_from_pose(init);
   EXPECT_EQ(rpy[3], rpy0[3]);  // roll
   EXPECT_EQ(rpy[4], rpy0[4]);  // pitch
   // From the identity it recovers the truth.
-  const TransformError e =
-      transform_error(align_robust(s.source, target, o).T_target_source, T_true);
+  const TransformError e = transform_error(
+      run_preset("robust_obs_4dof", s.source, target).registration.T_target_source, T_true);
   EXPECT_LT(e.rotation_deg, 0.2);
   EXPECT_LT(e.translation_m, 0.005);
 }
@@ -265,13 +280,6 @@ TEST_F(RobustScene, GlobalSearchFindsTheTruthFromAnyYawWithoutUsingIt) {
     const TransformError e = error_of(r.registration.T_target_source * D);
     EXPECT_LT(e.rotation_deg, 0.2) << yaw_deg;
     EXPECT_LT(e.translation_m, 0.005) << yaw_deg << " " << e.rotation_deg;
-    // The same through the options struct of the robust loop.
-    RobustRegistrationOptions o;
-    o.kernel = RobustKernel::kCauchy;
-    o.estimation_weight = WeightKind::kObservations;
-    o.global_search = true;
-    EXPECT_TRUE(align_robust(moved, *target_, o).T_target_source.matrix() ==
-                r.registration.T_target_source.matrix());
   }
 }
 
@@ -303,17 +311,15 @@ TEST_F(RobustScene, BitIdenticalForAnyThreadCount) {
 }
 
 TEST_F(RobustScene, RefusesInvalidInput) {
-  RobustRegistrationOptions o;
-  o.irls_iterations = 0;
-  EXPECT_THROW(align_robust(scene_->source, *target_, o), InvalidArgument);
-  EXPECT_THROW(align_robust({}, *target_, {}), InvalidArgument);
+  EXPECT_THROW(run_preset("robust_obs", scene_->source, *target_, {{"kernel.irls_iterations=0"}}),
+               InvalidArgument);
+  EXPECT_THROW(run_preset("robust_obs", Points3{}, *target_), InvalidArgument);
   Isometry3 bad = Isometry3::Identity();
   bad.translation().x() = std::nan("");
-  EXPECT_THROW(align_robust(scene_->source, *target_, {}, bad), InvalidArgument);
+  EXPECT_THROW(run_preset("robust_obs", scene_->source, *target_, {{}, bad}), InvalidArgument);
+  // robust_obs weighs each pair by the target's observation count: bare points have none.
   const PreparedTarget bare(scene_->source);
-  RobustRegistrationOptions ow;
-  ow.estimation_weight = WeightKind::kObservations;
-  EXPECT_THROW(align_robust(scene_->source, bare, ow), InvalidArgument);
+  EXPECT_THROW(run_preset("robust_obs", scene_->source, bare), InvalidArgument);
 }
 
 }  // namespace

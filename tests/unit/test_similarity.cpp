@@ -320,7 +320,7 @@ TEST(Similarity, FreeScaleNeedsASixDofEstimator) {
   const PreparedTarget target(t);
   AlignRequest r;
   r.scale = ScaleMode::kFree;
-  r.settings.emplace_back("estimate.four_dof", SettingValue(true));
+  r.settings.emplace_back("estimate.dof", SettingValue(std::string("4")));
   EXPECT_THROW(align(find_preset("adaptive"), s.view(), target, r), InvalidArgument);
   // Base ICP with Umeyama's scale: the target is the source doubled about the origin.
   AlignRequest b;

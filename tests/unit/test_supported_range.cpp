@@ -17,7 +17,6 @@
 #include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/supported_range.hpp"
-#include "lmalign/registration/adaptive.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/robust.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
@@ -189,14 +188,16 @@ TEST(SupportedRange, GuessesPriorsAndMapsEntirelyBeyondItAreOneLineErrors) {
   SourceLandmarks s;
   s.positions = p.source.positions;
   s.positions[3].y() = -1e200;
+  const Pipeline adaptive(find_preset("adaptive").spec);
   EXPECT_NE(message_of([&] {
-              align_adaptive(s, t);
+              adaptive.run(s.view(), t);
             }).find("source landmark 3 is not finite or beyond 1e+15 m"),
             std::string::npos);
   s.positions = p.source.positions;
-  EXPECT_THROW(align_adaptive(s, t, {}, &guess), InvalidArgument);
-  EXPECT_THROW(align_robust(p.source.positions, t, RobustRegistrationOptions{}, guess),
-               InvalidArgument);
+  PipelineRequest far;
+  far.initial_guess = guess;
+  EXPECT_THROW(adaptive.run(s.view(), t, far), InvalidArgument);
+  EXPECT_THROW(Pipeline(find_preset("robust_obs").spec).run(s.view(), t, far), InvalidArgument);
 }
 
 TEST(SupportedRange, AtTheEdgeOfTheRangeTheDefaultGivesAResult) {

@@ -11,8 +11,8 @@
 #include <utility>
 #include <vector>
 
+#include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/types.hpp"
-#include "lmalign/registration/estimation_4dof.hpp"
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/scale_search.hpp"
 #include "lmalign/registration/settings.hpp"
@@ -138,6 +138,11 @@ struct BasinSpec {
   TranslationDirections translation_directions = TranslationDirections::kXy;
 };
 
+/// A coordinate axis as a config names it (x, y or z): the random starts' vertical.
+enum class CoordinateAxis { kX, kY, kZ };
+inline constexpr EnumName<CoordinateAxis> kCoordinateAxisNames[] = {
+    {CoordinateAxis::kX, "x"}, {CoordinateAxis::kY, "y"}, {CoordinateAxis::kZ, "z"}};
+
 /// Random starts (the accuracy benchmark's, docs/accuracy.md): `samples` displacements, each drawn
 /// independently: yaw uniform in [-yaw_deg, yaw_deg] about the up axis through the pivot, roll and
 /// pitch each uniform in [-roll_pitch_deg, roll_pitch_deg] (R = Rz(yaw) Ry(pitch) Rx(roll) in a
@@ -154,9 +159,10 @@ struct RandomStartSpec {
   /// landmark: a source landmark drawn per start; centroid (default): the source centroid;
   /// origin: the frame's origin.
   YawPivot pivot = YawPivot::kCentroid;
-  /// The maps' vertical axis (its sign does not matter: yaw, roll and pitch are drawn
-  /// symmetrically): z in TUM's motion-capture frame, y in camera frames (KITTI, road_sim.hpp).
-  UpAxis up_axis = UpAxis::kZ;
+  /// The maps' vertical, as the config names a coordinate axis (its sign does not matter: yaw,
+  /// roll and pitch are drawn symmetrically): z in TUM's motion-capture frame, y in camera frames
+  /// (KITTI, road_sim.hpp).
+  CoordinateAxis up_axis = CoordinateAxis::kZ;
 };
 
 /// One experiment of the config (one entry of `experiments:`).

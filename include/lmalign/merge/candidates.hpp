@@ -18,7 +18,7 @@
 
 #include "lmalign/core/types.hpp"
 #include "lmalign/merge/manifest.hpp"
-#include "lmalign/registration/adaptive.hpp"
+#include "lmalign/registration/pipeline.hpp"
 
 namespace lmalign {
 

@@ -21,7 +21,7 @@ namespace lmalign::stages {
 namespace {
 
 struct P2DStepOptions {
-  bool four_dof = false;
+  bool four_dof = false;  ///< estimate.dof 4: x, y, z and the yaw about the target's up axis
   double block_factor = 0.5;
   int half_sample_planes = 8;
   std::size_t half_sample_min_landmarks = 12;
@@ -222,26 +222,28 @@ class P2DStepEstimator : public Estimator {
 }  // namespace
 
 std::vector<SettingRow> estimate_p2d_step_settings() {
+  const P2DStepOptions d;
   return {
-      bool_setting("estimate.four_dof", "AdaptiveOptions::four_dof", false,
-                   "estimate x, y, z and the yaw about the target's up axis only (4 DoF)"),
-      real_setting("estimate.covariance_block_factor", "AdaptiveOptions::covariance_block_factor",
-                   0.5, SettingBound::above(0.0), "1",
+      choice_setting("estimate.dof", "P2DStepOptions::four_dof", d.four_dof ? "4" : "6", {"6", "4"},
+                     "degrees of freedom: 6, or 4 (x, y, z and the yaw about the target's up "
+                     "axis, scales.up_target; roll and pitch kept)"),
+      real_setting("estimate.covariance_block_factor", "P2DStepOptions::block_factor",
+                   d.block_factor, SettingBound::above(0.0), "1",
                    "edge of the spatial blocks of the cluster-robust covariance, as a fraction of "
                    "the source's radius"),
-      int_setting("estimate.half_sample_planes", "AdaptiveOptions::covariance_half_sample_planes",
-                  8, SettingBound::closed(0, 1000), "count",
+      int_setting("estimate.half_sample_planes", "P2DStepOptions::half_sample_planes",
+                  d.half_sample_planes, SettingBound::closed(0, 1000), "count",
                   "vertical planes cutting the overlap in halves for the half-sample covariance "
                   "(0: off); costs 2 (n + 1) refinements of half the overlap"),
-      int_setting("estimate.half_sample_min_landmarks", "AdaptiveOptions::min_inliers", 12,
-                  SettingBound::at_least(3), "count",
-                  "a half with fewer landmarks is left out of the half-sample covariance"),
+      int_setting("estimate.half_sample_min_landmarks", "P2DStepOptions::half_sample_min_landmarks",
+                  static_cast<long long>(d.half_sample_min_landmarks), SettingBound::at_least(3),
+                  "count", "a half with fewer landmarks is left out of the half-sample covariance"),
   };
 }
 
 std::unique_ptr<Stage> make_estimate_p2d_step(const Settings& s) {
   P2DStepOptions o;
-  o.four_dof = s.boolean("estimate.four_dof");
+  o.four_dof = s.choice("estimate.dof") == "4";
   o.block_factor = s.real("estimate.covariance_block_factor");
   o.half_sample_planes = static_cast<int>(s.integer("estimate.half_sample_planes"));
   o.half_sample_min_landmarks =

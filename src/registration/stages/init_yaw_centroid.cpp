@@ -1,6 +1,6 @@
-// Initialiser "yaw_centroid": the initial guess, and init.yaw_hypotheses yaws about the map axis
-// init.up_axis (evenly spaced from 0), each turning the moved source about its centroid and moving
-// that onto the target's centroid. Meant with a scorer that refines and scores each.
+// Initialiser "yaw_centroid": the initial guess, and init.yaw_hypotheses yaws about the maps'
+// vertical init.up (evenly spaced from 0), each turning the moved source about its centroid and
+// moving that onto the target's centroid. Meant with a scorer that refines and scores each.
 #include <cmath>
 
 #include "lmalign/core/geometry.hpp"
@@ -13,9 +13,14 @@ namespace lmalign::stages {
 
 namespace {
 
+struct YawCentroidOptions {
+  int hypotheses = 12;
+  Vec3 up = Vec3::UnitZ();
+};
+
 class YawCentroid : public Initialiser {
  public:
-  YawCentroid(int count, UpAxis up) : count_(count), up_(up) {}
+  YawCentroid(int count, const Vec3& up) : count_(count), up_(up) {}
 
   std::vector<Hypothesis> propose(const InitialiserContext& c,
                                   InitialiserReport* report) const override {
@@ -49,22 +54,24 @@ class YawCentroid : public Initialiser {
 
  private:
   int count_;
-  UpAxis up_;
+  Vec3 up_;
 };
 
 }  // namespace
 
 std::vector<SettingRow> init_yaw_centroid_settings() {
-  return {int_setting("init.yaw_hypotheses", "RobustRegistrationOptions::yaw_hypotheses", 12,
+  const YawCentroidOptions d;
+  return {int_setting("init.yaw_hypotheses", "YawCentroidOptions::hypotheses", d.hypotheses,
                       SettingBound::closed(1, 3600), "count",
                       "yaws tried about the up axis, evenly spaced from 0, besides the guess"),
-          choice_setting("init.up_axis", "RobustRegistrationOptions::up_axis", "z", {"x", "y", "z"},
-                         "the map axis the yaws turn about")};
+          reals_setting("init.up", "YawCentroidOptions::up", {d.up.x(), d.up.y(), d.up.z()},
+                        vector3_bound(), "1",
+                        "the maps' shared vertical the yaws turn about (normalised)")};
 }
 
 std::unique_ptr<Stage> make_init_yaw_centroid(const Settings& s) {
   return std::make_unique<YawCentroid>(static_cast<int>(s.integer("init.yaw_hypotheses")),
-                                       parse_up_axis(s.choice("init.up_axis")));
+                                       unit_vector(s, "init.up"));
 }
 
 }  // namespace lmalign::stages

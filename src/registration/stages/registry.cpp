@@ -28,8 +28,8 @@
   X(kKernel, kernel_geman_mcclure, "geman_mcclure", "Geman-McClure IRLS x landmark confidence")    \
   X(kKernel, kernel_cauchy_mahalanobis, "cauchy_mahalanobis",                                      \
     "Cauchy weight of the gate's Mahalanobis distance")                                            \
-  X(kEstimator, estimate_umeyama, "umeyama", "weighted closed-form rigid transform (SVD)")         \
-  X(kEstimator, estimate_four_dof, "four_dof", "x, y, z and yaw in closed form")                   \
+  X(kEstimator, estimate_umeyama, "umeyama",                                                       \
+    "weighted closed-form rigid transform (SVD), or 4 DoF: x, y, z and yaw")                       \
   X(kEstimator, estimate_p2d_step, "p2d_step",                                                     \
     "one point-to-distribution Gauss-Newton step on the gated pairs per iteration")                \
   X(kSchedule, schedule_pcl, "pcl", "PCL's ICP convergence criteria at one fixed distance")        \
@@ -63,6 +63,21 @@ void check_limits(std::optional<int> max_iterations, std::optional<double> max_d
     throw InvalidArgument("max_distance_m = " + message_number(*max_distance_m) +
                           " (expected > 0 metres, or inf)");
   }
+}
+
+SettingBound vector3_bound() {
+  SettingBound b;
+  b.min_size = b.max_size = 3;
+  return b;
+}
+
+Vec3 unit_vector(const Settings& settings, const std::string& key) {
+  const std::vector<double>& v = settings.reals(key);
+  const Vec3 u(v[0], v[1], v[2]);
+  if (!u.allFinite() || !(u.norm() > 0.0)) {
+    throw InvalidArgument(key + " = " + settings.row(key).text(v) + " must be finite and non-zero");
+  }
+  return u.normalized();
 }
 
 std::vector<std::string> confidence_names() {

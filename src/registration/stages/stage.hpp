@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/types.hpp"
 #include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/seams.hpp"
 #include "lmalign/registration/settings.hpp"
@@ -20,6 +21,12 @@ std::vector<std::string> confidence_names();
 
 /// Refuses a user's limits that are not limits: a budget < 1, a distance that is not > 0.
 void check_limits(std::optional<int> max_iterations, std::optional<double> max_distance_m);
+
+/// The bound of a direction: a list of 3 reals (the up axis of a map: one type, a unit Vec3).
+SettingBound vector3_bound();
+/// The normalised direction of a 3-real setting. Throws InvalidArgument "KEY = [...] must be
+/// finite and non-zero".
+Vec3 unit_vector(const Settings& settings, const std::string& key);
 
 }  // namespace lmalign::stages
 
