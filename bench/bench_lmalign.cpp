@@ -17,14 +17,6 @@
 namespace lmalign::bench {
 namespace {
 
-RegistrationOptions forced(WeightKind weight, int k, int iterations) {
-  RegistrationOptions o = RegistrationOptions::paper(weight, k);
-  o.convergence.max_iterations = iterations;
-  o.convergence.absolute_mse_epsilon_m2 = -1.0;               // never fires
-  o.convergence.max_iterations_similar_transforms = 1 << 30;  // nor does the transform test
-  return o;
-}
-
 int run(const Args& args) {
   const RealPair pair = load_real_pair();
   const std::string& c = args.config;
@@ -55,16 +47,16 @@ int run(const Args& args) {
     return 2;
   }
   if (threads > 0) omp_set_num_threads(threads);
-  RegistrationOptions options = forced(strategy, 5, args.iterations);
-  options.reuse_neighbours = reuse;
-  options.record_history = scored;
-  options.history_scores = scored;
-  const WeightKind weight = options.weight;
+  const AlignRequest request = forced_paper_request(args.iterations, reuse, scored);
+  const Preset preset = find_preset(paper_preset_name(strategy));
+  const WeightKind weight = strategy;
+  SourceView view;
+  view.positions = &pair.source;
 
   auto once = [&]() {
     PreparedTarget target(pair.target);
     if (weight != WeightKind::kUniform) target.set_weights(weight, pair.target_weights);
-    const RegistrationResult r = align(pair.source, target, options);
+    const RegistrationResult r = align(preset, view, target, request).registration;
     return RunResult{r.iterations, r.final_score_m2};
   };
   return measure(c, "lmalign", description, args.reps, once,

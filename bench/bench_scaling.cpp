@@ -91,13 +91,15 @@ void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { counte
 namespace lmalign::bench {
 namespace {
 
-RegistrationOptions forced(int iterations, bool reuse) {
-  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kObservations, 5);
-  o.convergence.max_iterations = iterations;
-  o.convergence.absolute_mse_epsilon_m2 = -1.0;
-  o.convergence.max_iterations_similar_transforms = 1 << 30;
-  o.reuse_neighbours = reuse;
-  return o;
+/// The paper's observations strategy, forced to `iterations`, from `start` (bench/common.hpp).
+RegistrationResult forced(const Points3& source, const PreparedTarget& target, int iterations,
+                          bool reuse, const Isometry3& start) {
+  AlignRequest request = forced_paper_request(iterations, reuse, false);
+  request.initial_guess = start;
+  SourceView view;
+  view.positions = &source;
+  static const Preset preset = find_preset("observations");
+  return align(preset, view, target, request).registration;
 }
 
 int run(const Args& args) {
@@ -132,7 +134,7 @@ int run(const Args& args) {
     target.set_weights(WeightKind::kObservations,
                        compute_weights(pair.target, WeightKind::kObservations));
     tree_bytes = target.tree().memory_bytes();
-    reuse_run = align(source, target, forced(args.iterations, true), start);
+    reuse_run = forced(source, target, args.iterations, true, start);
     reuse_s = now_s() - t0;
   }
   const long long heap_peak = g_peak.load();
@@ -144,14 +146,14 @@ int run(const Args& args) {
   const int reps = args.reps;
   std::vector<double> reuse_t, plain_t;
   for (int r = 0; r < reps; ++r) {
-    RegistrationResult res = align(source, target, forced(args.iterations, true), start);
+    RegistrationResult res = forced(source, target, args.iterations, true, start);
     reuse_t.push_back(res.wall_time_s);
   }
   // Plain search per iteration: difference of a (2 + m)- and a 2-iteration run.
   const int m = n >= 300000 ? 4 : n >= 30000 ? 10 : 30;
   for (int r = 0; r < reps; ++r) {
-    const double a = align(source, target, forced(2 + m, false), start).wall_time_s;
-    const double b = align(source, target, forced(2, false), start).wall_time_s;
+    const double a = forced(source, target, 2 + m, false, start).wall_time_s;
+    const double b = forced(source, target, 2, false, start).wall_time_s;
     plain_t.push_back((a - b) / m);
   }
   const double reuse_med = median(reuse_t);

@@ -17,6 +17,7 @@
 
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/weights/weights.hpp"
 
 namespace lmalign::bench {
@@ -50,6 +51,26 @@ inline RealPair load_real_pair() {
   p.target = b.positions();
   p.target_weights = compute_weights(b, WeightKind::kObservations);
   return p;
+}
+
+/// The paper's preset of `weight` (base for kUniform), forced to run `iterations` iterations
+/// (PCL's convergence tests off), k = 5, with exact neighbour reuse on or off: the timed path of
+/// `make bench`, through the one entry point align(preset) every front end calls.
+inline AlignRequest forced_paper_request(int iterations, bool reuse, bool scored) {
+  AlignRequest r;
+  r.k = 5;
+  r.max_iterations = iterations;
+  r.record_history = scored;  // and the score at every iteration, as the paper timed
+  r.add_assignment("schedule.absolute_mse_epsilon_m2=-1");                    // never fires
+  r.add_assignment("schedule.max_iterations_similar_transforms=1073741824");  // nor this
+  r.add_assignment(std::string("match.reuse_neighbours=") + (reuse ? "true" : "false"));
+  return r;
+}
+inline const char* paper_preset_name(WeightKind weight) {
+  return weight == WeightKind::kUniform        ? "base"
+         : weight == WeightKind::kCovariance   ? "covariance"
+         : weight == WeightKind::kObservations ? "observations"
+                                               : "distance";
 }
 
 // ---- memory: the kernel's resident-set counters (kB in /proc/self/status)

@@ -25,6 +25,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/weights/weights.hpp"
 
@@ -103,11 +104,20 @@ inline void check_icp(const Map& map) {
   const bool in_range = within_coordinate_range(points);
   for (const WeightKind weight : {WeightKind::kUniform, WeightKind::kCovariance,
                                   WeightKind::kObservations, WeightKind::kMeanDistance}) {
-    RegistrationOptions options = RegistrationOptions::paper(weight, 3);
-    options.convergence.max_iterations = 10;
+    // The engine itself (it refuses what align() of presets.hpp would leave out).
+    PipelineSpec spec = find_preset(weight == WeightKind::kUniform        ? "base"
+                                    : weight == WeightKind::kCovariance   ? "covariance"
+                                    : weight == WeightKind::kObservations ? "observations"
+                                                                          : "distance")
+                            .spec;
+    if (weight != WeightKind::kUniform) spec.settings.emplace_back("match.k", 3LL);
+    spec.settings.emplace_back("schedule.max_iterations", 10LL);
+    SourceView view;
+    view.positions = &points;
+    PipelineRequest request;
+    request.initial_guess = pose_from_xyz_rpy_deg(0.01, -0.02, 0.01, 1, -1, 2);
     try {
-      const RegistrationResult r =
-          align(points, target, options, pose_from_xyz_rpy_deg(0.01, -0.02, 0.01, 1, -1, 2));
+      const RegistrationResult r = Pipeline(spec).run(view, target, request).registration;
       LMALIGN_FUZZ_CHECK(is_proper_rigid(r.T_target_source), "ICP transform not finite/rigid");
       LMALIGN_FUZZ_CHECK(r.termination != TerminationReason::kNotTerminated,
                          "ICP returned without a termination reason");

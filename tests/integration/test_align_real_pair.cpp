@@ -8,6 +8,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "support/align_preset.hpp"
 #include "support/real_pair.hpp"
 
 namespace lmalign {
@@ -23,8 +24,12 @@ class RealPair : public test::RealPairTest {
   // Error of the recovered map-to-map transform (T_est * D) against the identity.
   static TransformError run(WeightKind s, const Case& c, RegistrationResult* out = nullptr) {
     const Isometry3 D = pose_from_xyz_rpy_deg(c.x, c.y, c.z, c.roll, c.pitch, c.yaw);
-    const RegistrationResult r = align(transform_points(D, source_->positions()), *target_,
-                                       RegistrationOptions::paper(s, 5));
+    test::Ask k5;
+    k5.k = 5;
+    const RegistrationResult r =
+        test::align_with(test::paper_preset(s), transform_points(D, source_->positions()), *target_,
+                         k5)
+            .registration;
     if (out != nullptr) *out = r;
     return transform_error(r.T_target_source * D, Isometry3::Identity());
   }

@@ -135,9 +135,7 @@ TEST(PclDropIn, SameCorrespondencesAsLmalignOnTheRealPair) {
     const Cloud::Ptr source = test::to_cloud(transform_points(D, a.positions()));
     const Points3 source_d = test::from_cloud(*source);
     for (WeightKind st : all_weight_kinds()) {
-      const RegistrationOptions o = RegistrationOptions::paper(st, 5);
-      const std::vector<double>& w = prepared.weights(
-          o.correspondence == CorrespondenceKind::kWeightedKnn ? o.weight : WeightKind::kUniform);
+      const std::vector<double>& w = prepared.weights(st);
       CorrespondenceOptions co;
       co.kind = CorrespondenceKind::kWeightedKnn;  // k = 5 everywhere; base: k = 1
       co.k = st == WeightKind::kUniform ? 1 : 5;

@@ -35,6 +35,7 @@
 #include "lmalign/registration/estimation.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "pcl_support.hpp"
+#include "support/align_preset.hpp"
 
 namespace lmalign {
 namespace {
@@ -101,16 +102,18 @@ Row run_case(const Pair& p, WeightKind st, int yaw) {
   const PreparedTarget& prepared = *p.prepared;
   const Points3 source =
       transform_points(pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, yaw), p.a.positions());
-  const RegistrationOptions o = RegistrationOptions::paper(st, 5);
-  const bool weighted = o.correspondence == CorrespondenceKind::kWeightedKnn;
-  const std::vector<double>& w = prepared.weights(weighted ? o.weight : WeightKind::kUniform);
-  const RegistrationResult r = align(source, prepared, o);
+  const bool weighted = st != WeightKind::kUniform;
+  const std::vector<double>& w = prepared.weights(st);
+  test::Ask k5;
+  k5.k = 5;
+  const RegistrationResult r =
+      test::align_with(test::paper_preset(st), source, prepared, k5).registration;
 
   // lmalign's loop again, step by step, to record its correspondences (and check it is the loop
   // align() ran: same iterations, same transform to the bit).
   CorrespondenceOptions co;
-  co.kind = o.correspondence;
-  co.k = o.k;
+  co.kind = weighted ? CorrespondenceKind::kWeightedKnn : CorrespondenceKind::kNearest;
+  co.k = 5;
   const CorrespondenceFinder finder = CorrespondenceFinder::borrowing(prepared.tree(), w, co);
   CorrespondenceWorkspace ws;
   std::vector<Correspondences> lm_corr;
@@ -131,7 +134,7 @@ Row run_case(const Pair& p, WeightKind st, int yaw) {
   if (weighted) {
     icp.setCorrespondenceEstimation(
         std::make_shared<WeightedKnnCorrespondenceEstimation<pcl::PointXYZ, pcl::PointXYZ, double>>(
-            o.k, w));
+            5, w));
   }
   std::vector<Points3> pcl_moved;  // the cloud each PCL iteration searched from
   std::function<PclIcp::UpdateVisualizerCallbackSignature> record =
@@ -189,7 +192,7 @@ Row run_case(const Pair& p, WeightKind st, int yaw) {
       // drift between the runs' positions of this source landmark.
       const Vec3& q = lm_moved[i][s];
       row.near_tie_drift = (pcl_moved[i][s] - q).norm();
-      std::vector<PointIndex> idx(static_cast<std::size_t>(o.k) + 2);
+      std::vector<PointIndex> idx(static_cast<std::size_t>(co.k) + 2);
       std::vector<double> d2(idx.size());
       const std::size_t found = prepared.tree().knn(q, idx.size(), idx.data(), d2.data());
       row.near_tie_gap = 1e300;

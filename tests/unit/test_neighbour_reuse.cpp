@@ -17,10 +17,12 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/correspondence.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/score.hpp"
 #include "lmalign/search/kdtree.hpp"
 #include "lmalign/sim/slam_sim.hpp"
+#include "support/align_preset.hpp"
 #include "support/synthetic_scene.hpp"
 
 namespace lmalign {
@@ -447,14 +449,20 @@ TEST(NeighbourReuse, AlignIsBitIdenticalWithReuseOnAndOff) {
                                                  2 * g(rng), 2 * g(rng), 8 * g(rng));
     for (WeightKind st : all_weight_kinds()) {
       for (int k : {1, 5}) {
-        RegistrationOptions o = RegistrationOptions::paper(st, k);
-        o.record_history = true;
-        o.history_scores = trial % 2 == 0;
-        o.max_correspondence_distance_m = trial == 3 ? 0.15 : kInf;
-        o.reuse_neighbours = true;
-        const RegistrationResult on = align(source, target, o, init);
-        o.reuse_neighbours = false;
-        const RegistrationResult off = align(source, target, o, init);
+        // The engine run directly, for the history without scores on odd trials.
+        PipelineSpec spec = find_preset(test::paper_preset(st)).spec;
+        if (st != WeightKind::kUniform) spec.settings.emplace_back("match.k", (long long)k);
+        spec.settings.emplace_back("schedule.max_distance_m", trial == 3 ? 0.15 : kInf);
+        PipelineRequest request;
+        request.initial_guess = init;
+        request.record_history = true;
+        request.history_scores = trial % 2 == 0;
+        SourceView view;
+        view.positions = &source;
+        spec.settings.emplace_back("match.reuse_neighbours", true);
+        const RegistrationResult on = Pipeline(spec).run(view, target, request).registration;
+        spec.settings.back().second = false;
+        const RegistrationResult off = Pipeline(spec).run(view, target, request).registration;
         const std::string what = to_string(st) + " k=" + std::to_string(k);
         ASSERT_TRUE(on.T_target_source.matrix() == off.T_target_source.matrix()) << what;
         ASSERT_EQ(on.iterations, off.iterations) << what;
@@ -466,7 +474,9 @@ TEST(NeighbourReuse, AlignIsBitIdenticalWithReuseOnAndOff) {
         for (std::size_t i = 0; i < on.history.size(); ++i) {
           ASSERT_EQ(on.history[i].mse_m2, off.history[i].mse_m2) << what;
           ASSERT_EQ(on.history[i].num_correspondences, off.history[i].num_correspondences);
-          if (o.history_scores) ASSERT_EQ(on.history[i].score_m2, off.history[i].score_m2);
+          if (request.history_scores) {
+            ASSERT_EQ(on.history[i].score_m2, off.history[i].score_m2);
+          }
         }
       }
     }
@@ -497,9 +507,10 @@ TEST(SlamSimulator, SeededDeterministicAndValid) {
   so.seed = 5;
   const sim::SlamMapPair full = sim::simulate_map_pair(so);
   const PreparedTarget full_target(full.target);
+  test::Ask near;
+  near.guess = so.T_target_source * pose_from_xyz_rpy_deg(0.03, 0.02, 0, 0, 0, 1.5);
   const RegistrationResult r =
-      align(full.source.positions(), full_target, RegistrationOptions::paper(WeightKind::kUniform),
-            so.T_target_source * pose_from_xyz_rpy_deg(0.03, 0.02, 0, 0, 0, 1.5));
+      test::align_with("base", full.source.positions(), full_target, near).registration;
   const TransformError e = transform_error(r.T_target_source, so.T_target_source);
   EXPECT_LT(e.rotation_deg, 0.5);
   EXPECT_LT(e.translation_m, 0.05);

@@ -6,8 +6,10 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/score.hpp"
+#include "support/align_preset.hpp"
 #include "support/synthetic_scene.hpp"
 
 namespace lmalign {
@@ -31,11 +33,22 @@ Scene make_scene(const Isometry3& T_true, std::uint32_t seed = 31) {
   return s;
 }
 
+/// The paper's strategy of a confidence (base, or its weighted kNN), as every front end runs it.
+RegistrationResult paper(const Points3& source, const PreparedTarget& target, WeightKind weight,
+                         const test::Ask& ask = {}) {
+  return test::align_with(test::paper_preset(weight), source, target, ask).registration;
+}
+
+test::Ask with_k(int k) {
+  test::Ask a;
+  a.k = k;
+  return a;
+}
+
 TEST(Registration, BaseIcpRecoversAKnownTransformExactly) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.10, -0.08, 0.03, 2, -1, 6));
   const PreparedTarget target(s.target);
-  const RegistrationResult r =
-      align(s.source, target, RegistrationOptions::paper(WeightKind::kUniform));
+  const RegistrationResult r = paper(s.source, target, WeightKind::kUniform);
   const TransformError e = transform_error(r.T_target_source, s.T_true);
   EXPECT_LT(e.rotation_deg, 1e-6);
   EXPECT_LT(e.translation_m, 1e-8);
@@ -53,7 +66,7 @@ TEST(Registration, WeightedStrategiesReachTheRightBasin) {
   const PreparedTarget target(s.target);
   for (WeightKind st :
        {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance}) {
-    const RegistrationResult r = align(s.source, target, RegistrationOptions::paper(st, 5));
+    const RegistrationResult r = paper(s.source, target, st, with_k(5));
     const TransformError e = transform_error(r.T_target_source, s.T_true);
     EXPECT_LT(e.rotation_deg, 1.0) << to_string(st);
     EXPECT_LT(e.translation_m, 0.03) << to_string(st);
@@ -64,11 +77,10 @@ TEST(Registration, WeightedStrategiesReachTheRightBasin) {
 TEST(Registration, WeightedWithKOneEqualsBase) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.3, 0.2, -0.1, 5, 3, -20));
   const PreparedTarget target(s.target);
-  const RegistrationResult base =
-      align(s.source, target, RegistrationOptions::paper(WeightKind::kUniform));
+  const RegistrationResult base = paper(s.source, target, WeightKind::kUniform);
   for (WeightKind st :
        {WeightKind::kCovariance, WeightKind::kObservations, WeightKind::kMeanDistance}) {
-    const RegistrationResult r = align(s.source, target, RegistrationOptions::paper(st, 1));
+    const RegistrationResult r = paper(s.source, target, st, with_k(1));
     EXPECT_EQ(r.iterations, base.iterations) << to_string(st);
     EXPECT_EQ(r.termination, base.termination) << to_string(st);
     EXPECT_TRUE(r.T_target_source.matrix() == base.T_target_source.matrix()) << to_string(st);
@@ -79,12 +91,11 @@ TEST(Registration, WeightedWithKOneEqualsBase) {
 TEST(Registration, SameResultForAnyThreadCount) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.3, 0.2, -0.1, 5, 3, -20));
   const PreparedTarget target(s.target);
-  const RegistrationOptions o = RegistrationOptions::paper(WeightKind::kObservations, 5);
   const int saved = omp_get_max_threads();
   omp_set_num_threads(1);
-  const RegistrationResult one = align(s.source, target, o);
+  const RegistrationResult one = paper(s.source, target, WeightKind::kObservations, with_k(5));
   omp_set_num_threads(3);
-  const RegistrationResult three = align(s.source, target, o);
+  const RegistrationResult three = paper(s.source, target, WeightKind::kObservations, with_k(5));
   omp_set_num_threads(saved);
   EXPECT_EQ(one.iterations, three.iterations);
   EXPECT_TRUE(one.T_target_source.matrix() == three.T_target_source.matrix());
@@ -94,10 +105,9 @@ TEST(Registration, SameResultForAnyThreadCount) {
 TEST(Registration, HistoryMatchesTheScoreAndTheMse) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.1, 0.0, 0.0, 0, 0, 4));
   const PreparedTarget target(s.target);
-  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kUniform);
-  o.record_history = true;
-  o.history_scores = true;
-  const RegistrationResult r = align(s.source, target, o);
+  test::Ask history;
+  history.history = true;  // and the score at each iteration
+  const RegistrationResult r = paper(s.source, target, WeightKind::kUniform, history);
   ASSERT_EQ(static_cast<int>(r.history.size()), r.iterations);
   ASSERT_GE(r.iterations, 2);
   for (int i = 0; i < r.iterations; ++i) EXPECT_EQ(r.history[i].iteration, i + 1);
@@ -106,8 +116,13 @@ TEST(Registration, HistoryMatchesTheScoreAndTheMse) {
   // The first iteration's MSE is the score of the initial guess (base ICP: same nearest pairs).
   EXPECT_NEAR(r.history.front().mse_m2, r.initial_score_m2, 1e-15);
   // Without history_scores the score column is NaN (not computed).
-  o.history_scores = false;
-  const RegistrationResult r2 = align(s.source, target, o);
+  SourceView view;
+  view.positions = &s.source;
+  PipelineRequest without;
+  without.record_history = true;
+  without.history_scores = false;
+  const RegistrationResult r2 =
+      Pipeline(find_preset("base").spec).run(view, target, without).registration;
   EXPECT_TRUE(std::isnan(r2.history.front().score_m2));
   EXPECT_EQ(r2.iterations, r.iterations);
 }
@@ -115,9 +130,9 @@ TEST(Registration, HistoryMatchesTheScoreAndTheMse) {
 TEST(Registration, MaxIterationsIsReportedAndNotConverged) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.3, 0.2, -0.1, 5, 3, -20));
   const PreparedTarget target(s.target);
-  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kUniform);
-  o.convergence.max_iterations = 2;
-  const RegistrationResult r = align(s.source, target, o);
+  test::Ask two;
+  two.max_iterations = 2;
+  const RegistrationResult r = paper(s.source, target, WeightKind::kUniform, two);
   EXPECT_EQ(r.iterations, 2);
   EXPECT_EQ(r.termination, TerminationReason::kMaxIterations);
   EXPECT_FALSE(r.converged);
@@ -126,10 +141,11 @@ TEST(Registration, MaxIterationsIsReportedAndNotConverged) {
 TEST(Registration, NoCorrespondencesKeepsTheInitialGuess) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 0));
   const PreparedTarget target(s.target);
-  RegistrationOptions o = RegistrationOptions::paper(WeightKind::kObservations);
-  o.max_correspondence_distance_m = 1e-9;
-  const Isometry3 init = pose_from_xyz_rpy_deg(5, 5, 5, 0, 0, 0);
-  const RegistrationResult r = align(s.source, target, o, init);
+  test::Ask o;
+  o.max_distance_m = 1e-9;
+  o.guess = pose_from_xyz_rpy_deg(5, 5, 5, 0, 0, 0);
+  const Isometry3 init = *o.guess;
+  const RegistrationResult r = paper(s.source, target, WeightKind::kObservations, o);
   EXPECT_EQ(r.termination, TerminationReason::kNoCorrespondences);
   EXPECT_FALSE(r.converged);
   EXPECT_EQ(r.iterations, 0);
@@ -137,37 +153,23 @@ TEST(Registration, NoCorrespondencesKeepsTheInitialGuess) {
   EXPECT_TRUE(std::isfinite(r.final_score_m2));
 }
 
-TEST(RegistrationOptions, ValidationNamesTheBadField) {
-  std::string why;
-  RegistrationOptions o;
-  o.k = 0;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("k must be"), std::string::npos) << why;
-  o = RegistrationOptions{};
-  o.max_correspondence_distance_m = std::nan("");
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("max_correspondence_distance_m"), std::string::npos) << why;
-  o = RegistrationOptions{};
-  o.convergence.max_iterations = -1;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("convergence.max_iterations"), std::string::npos) << why;
-  o = RegistrationOptions{};
-  o.score_max_range_m = -2;
-  EXPECT_FALSE(o.is_valid(&why));
-  EXPECT_NE(why.find("score_max_range_m"), std::string::npos) << why;
-
+TEST(PaperSettings, ValuesOutsideTheirBoundsAreRefusedNamingTheKey) {
   const Scene s = make_scene(Isometry3::Identity());
   const PreparedTarget target(s.target);
-  o.score_max_range_m = -2;
-  try {
-    align(s.source, target, o);
-    FAIL();
-  } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("score_max_range_m"), std::string::npos);
+  for (const char* bad : {"match.k=0", "schedule.max_distance_m=nan", "schedule.max_iterations=-1",
+                          "fitness.max_range_m=-2"}) {
+    const std::string key = std::string(bad).substr(0, std::string(bad).find('='));
+    try {
+      paper(s.source, target, WeightKind::kObservations, {{bad}});
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
   }
-  Isometry3 bad = Isometry3::Identity();
-  bad(0, 3) = std::numeric_limits<double>::infinity();
-  EXPECT_THROW(align(s.source, target, RegistrationOptions{}, bad), InvalidArgument);
+  test::Ask bad;
+  bad.guess = Isometry3::Identity();
+  (*bad.guess)(0, 3) = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(paper(s.source, target, WeightKind::kUniform, bad), InvalidArgument);
 }
 
 TEST(PreparedTarget, BarePointsHaveOnlyUniformWeights) {

@@ -13,6 +13,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/vo/map_builder.hpp"
+#include "support/align_preset.hpp"
 #include "support/data_path.hpp"
 
 namespace lmalign {
@@ -62,7 +63,9 @@ TEST(VoReal, NineFramesOfFr1DeskAgainstGroundTruth) {
   ASSERT_GT(map.landmarks.size(), 100u);
   const Isometry3 D = pose_from_xyz_rpy_deg(0.05, -0.03, 0.02, 2.0, -1.0, 3.0);
   const Map displaced = transform_map(map, D);
-  const auto result = align_maps(displaced, map, RegistrationOptions::paper(WeightKind::kUniform));
+  const RegistrationResult result =
+      test::align_with("base", SourceLandmarks::from_map(displaced), PreparedTarget(map))
+          .registration;
   const TransformError err = transform_error(result.T_target_source * D, Isometry3::Identity());
   EXPECT_LT(err.rotation_deg, 0.01);
   EXPECT_LT(err.translation_m, 1e-4);

@@ -1,7 +1,8 @@
-// The paper's registration driver: ICP with its correspondence strategies (method.md §3),
-// mirroring PCL's IterativeClosestPoint<PointXYZ, PointXYZ, double>::computeTransformation. It is
-// a preset of the registration engine (pipeline.hpp; configs/presets/base.yaml and the other
-// three); PreparedTarget, the target as every preset reads it, is declared here.
+// What every registration shares: the target as every preset reads it (PreparedTarget: its
+// kd-tree, its confidence weights, its covariances, its up axis) and the result of a refinement
+// (RegistrationResult). The paper's ICP (method.md §3, mirroring PCL's
+// IterativeClosestPoint::computeTransformation) is a preset of the engine (pipeline.hpp;
+// configs/presets/base.yaml and the other three), run by align() of presets.hpp.
 //
 // Frames: the result is T_target_source, p_target = T_target_source * p_source.
 #pragma once
@@ -23,37 +24,7 @@
 
 namespace lmalign {
 
-/// Every setting of one registration. Plain struct; check with is_valid().
-struct RegistrationOptions {
-  CorrespondenceKind correspondence = CorrespondenceKind::kNearest;
-  /// Target weights for kWeightedKnn (ignored by kNearest).
-  WeightKind weight = WeightKind::kUniform;
-  /// Neighbourhood size k for kWeightedKnn; [1, 4096]. The paper's default is 5.
-  int k = 5;
-  /// Maximum correspondence distance, metres; infinite as in the paper.
-  double max_correspondence_distance_m = std::numeric_limits<double>::infinity();
-  /// Iteration budget and PCL's convergence epsilons (ICP defaults).
-  ConvergenceOptions convergence;
-  /// Record per-iteration history (number of correspondences, MSE).
-  bool record_history = false;
-  /// With record_history: also compute the fitness score at every iteration (one extra
-  /// nearest-neighbour pass per iteration, as the paper's timing did).
-  bool history_scores = false;
-  /// Range for the final fitness score, metres (see fitness_score()); infinite by default.
-  double score_max_range_m = std::numeric_limits<double>::infinity();
-  /// Exact reuse of nearest-neighbour results between iterations (CorrespondenceWorkspace). It
-  /// never changes a result: false searches the tree for every point, with bit-identical output.
-  bool reuse_neighbours = true;
-
-  /// The paper's setting for a landmark confidence (method.md §3): kUniform = base ICP (the
-  /// nearest neighbour); any other = its weighted kNN (Eq. 6) with that weight and k.
-  static RegistrationOptions paper(WeightKind weight, int k = 5);
-
-  /// Ceres-style validation: false, and *why names the bad field and its value.
-  bool is_valid(std::string* why = nullptr) const;
-};
-
-/// One ICP iteration, recorded when RegistrationOptions::record_history is set.
+/// One ICP iteration, recorded when the run asks for its history (PipelineRequest).
 struct IterationRecord {
   int iteration = 0;  ///< 1-based
   std::size_t num_correspondences = 0;
@@ -124,28 +95,5 @@ class PreparedTarget {
   std::vector<Mat3> covariances_;
   std::optional<Vec3> up_axis_;
 };
-
-/// Aligns `source_points` (metres, source frame) to the prepared target, starting from
-/// T_target_source_init. Mirrors PCL ICP's loop: transform the source by the current estimate,
-/// find correspondences, estimate the increment by SVD, compose it, test convergence (see
-/// ConvergenceCriteria). The source is re-transformed from the original points by the full
-/// estimate each iteration (PCL transforms incrementally; see docs/conventions.md).
-/// Deterministic for any thread count. Throws InvalidArgument on invalid options, a non-finite
-/// initial guess, non-finite source points, an empty source or target, or a coordinate beyond
-/// kMaxCoordinateM (core/supported_range.hpp; align() of presets.hpp leaves such landmarks out
-/// instead). Degenerate geometry (fewer than 3 correspondences, identical or collinear points)
-/// gives a finite result with termination kNoCorrespondences or kDegenerate.
-RegistrationResult align(const Points3& source_points, const PreparedTarget& target,
-                         const RegistrationOptions& options,
-                         const Isometry3& T_target_source_init = Isometry3::Identity());
-
-struct PipelineSpec;
-/// The engine's stages and settings that align() runs (pipeline.hpp): the paper's ICP as a preset.
-PipelineSpec paper_pipeline_spec(const RegistrationOptions& options);
-
-/// Convenience: aligns the landmark positions of two maps (builds a PreparedTarget).
-RegistrationResult align_maps(const Map& source, const Map& target,
-                              const RegistrationOptions& options,
-                              const Isometry3& T_target_source_init = Isometry3::Identity());
 
 }  // namespace lmalign

@@ -5,7 +5,7 @@
 #include <random>
 
 #include <lmalign/core/geometry.hpp>
-#include <lmalign/registration/registration.hpp>
+#include <lmalign/registration/presets.hpp>
 
 int main() {
   std::mt19937_64 rng(20);
@@ -17,8 +17,10 @@ int main() {
   const lmalign::Points3 source = lmalign::transform_points(T_true.inverse(), target);
 
   const lmalign::PreparedTarget prepared(target);
-  const lmalign::RegistrationResult r = lmalign::align(
-      source, prepared, lmalign::RegistrationOptions::paper(lmalign::WeightKind::kUniform));
+  lmalign::SourceView view;
+  view.positions = &source;
+  const lmalign::RegistrationResult r =
+      lmalign::align(lmalign::find_preset("base"), view, prepared).registration;
   const lmalign::TransformError e = lmalign::transform_error(r.T_target_source, T_true);
   std::printf("consumer: %s; rotation error %.3g deg, translation error %.3g m\n",
               r.brief_report().c_str(), e.rotation_deg, e.translation_m);
