@@ -107,7 +107,7 @@ FitnessScore Matcher::fitness(const RefineContext& context, StageState* state, c
 
 std::vector<SettingRow> engine_settings() {
   std::vector<SettingRow> rows{
-      real_setting("fitness.max_range_m", "RegistrationOptions::score_max_range_m",
+      real_setting("fitness.max_range_m", "fitness_score(..., max_range_m)",
                    std::numeric_limits<double>::infinity(), SettingBound::above_or_inf(0.0), "m",
                    "range of PCL's fitness score reported at the initial guess and the estimate "
                    "(landmarks farther from every target landmark are not counted)"),
@@ -118,14 +118,15 @@ std::vector<SettingRow> engine_settings() {
 
 // The rows the engine adds when a stage reads the scales.
 static std::vector<SettingRow> scale_settings() {
+  const Scales d;
   return {
-      real_setting("scales.floor_m", "Scales::floor_m", 0.0, SettingBound::at_least(0.0), "m",
+      real_setting("scales.floor_m", "Scales::floor_m", d.floor_m, SettingBound::at_least(0.0), "m",
                    "covariance floor added to every pair's combined covariance; 0 = the data's "
                    "(the larger of the two maps' median smallest-axis standard deviation, or half "
                    "the landmark spacing without covariances)"),
-      reals_setting("scales.default_up", "Scales::up_source, up_target", {0.0, 0.0, 1.0},
-                    stages::vector3_bound(), "1",
-                    "up axis of a map whose frames do not give one (normalised)"),
+      reals_setting("scales.default_up", "Scales::up_source, up_target",
+                    {d.up_source.x(), d.up_source.y(), d.up_source.z()}, stages::vector3_bound(),
+                    "1", "up axis of a map whose frames do not give one (normalised)"),
   };
 }
 

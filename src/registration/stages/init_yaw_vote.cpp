@@ -145,7 +145,8 @@ class YawVote : public Initialiser {
 }  // namespace
 
 std::vector<SettingRow> init_yaw_vote_settings() {
-  const YawVoteOptions d;
+  const YawVoteInitOptions init;
+  const YawVoteOptions& d = init.search;
   return {
       real_setting("init.yaw_step_deg", "YawVoteOptions::yaw_step_deg", d.yaw_step_deg,
                    SettingBound::open_closed(0.0, 90.0), "deg", "spacing of the yaw grid"),
@@ -158,16 +159,16 @@ std::vector<SettingRow> init_yaw_vote_settings() {
       int_setting("init.hypotheses", "YawVoteOptions::hypotheses",
                   static_cast<long long>(d.hypotheses), SettingBound::closed(1, 100000), "count",
                   "hypotheses kept at most (local maxima of the votes over yaw)"),
-      real_setting("init.vote_cell_factor", "AdaptiveOptions::vote_cell_factor", 1.5,
-                   SettingBound::above(0.0), "1",
+      real_setting("init.vote_cell_factor", "YawVoteInitOptions::vote_cell_factor",
+                   init.vote_cell_factor, SettingBound::above(0.0), "1",
                    "the vote cell is this times max(target spacing, 2 sin(step / 2) x source "
                    "radius)"),
-      real_setting("init.start_sigma_factor", "AdaptiveOptions::start_sigma_factor", 0.3,
-                   SettingBound::open_closed(0.0, 10.0), "1",
+      real_setting("init.start_sigma_factor", "YawVoteInitOptions::start_sigma_factor",
+                   init.start_sigma_factor, SettingBound::open_closed(0.0, 10.0), "1",
                    "a hypothesis' gate starts at this fraction of the search's resolution (two "
                    "cells, one yaw step) or of the prior's sigmas"),
-      real_setting("init.second_up_min_angle_deg", "AdaptiveOptions::second_up_min_angle_deg", 10.0,
-                   SettingBound::closed(0.0, 180.0), "deg",
+      real_setting("init.second_up_min_angle_deg", "YawVoteInitOptions::second_up_min_angle_deg",
+                   init.second_up_min_angle_deg, SettingBound::closed(0.0, 180.0), "deg",
                    "a map's landmark-plane normal becomes a second up-axis candidate when this "
                    "far from its frames' up axis (180: never)"),
   };

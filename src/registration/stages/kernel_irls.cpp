@@ -79,24 +79,26 @@ class IrlsKernel : public Kernel {
 };
 
 SettingRow confidence_row() {
-  return choice_setting("kernel.confidence", "RobustRegistrationOptions::estimation_weight",
-                        "uniform", confidence_names(),
+  const IrlsOptions d;
+  return choice_setting("kernel.confidence", "IrlsOptions::confidence", to_string(d.confidence),
+                        confidence_names(),
                         "landmark confidence of the matched target landmark, multiplied into each "
                         "pair's weight (Eqs. 1-4)");
 }
 
 std::vector<SettingRow> robust_rows() {
+  const IrlsOptions d;
   return {
       confidence_row(),
-      real_setting("kernel.scale_m", "RobustRegistrationOptions::kernel_scale_m", 0.02,
-                   SettingBound::above(0.0), "m",
+      real_setting("kernel.scale_m", "IrlsOptions::scale_m", d.scale_m, SettingBound::above(0.0),
+                   "m",
                    "kernel scale at the finest levels: max(this, scale_ratio x the level's maximum "
                    "distance)"),
-      real_setting("kernel.scale_ratio", "RobustRegistrationOptions::kernel_scale_ratio", 0.5,
+      real_setting("kernel.scale_ratio", "IrlsOptions::scale_ratio", d.scale_ratio,
                    SettingBound::at_least(0.0), "1",
                    "kernel scale as a fraction of the level's maximum distance (an unlimited "
                    "level is unweighted)"),
-      int_setting("kernel.irls_iterations", "RobustRegistrationOptions::irls_iterations", 3,
+      int_setting("kernel.irls_iterations", "IrlsOptions::irls_iterations", d.irls_iterations,
                   SettingBound::closed(1, 1000), "count",
                   "re-weightings per iteration on fixed pairs"),
   };

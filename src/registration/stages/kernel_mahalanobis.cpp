@@ -11,6 +11,11 @@ namespace lmalign::stages {
 
 namespace {
 
+struct CauchyMahalanobisOptions {
+  double scale_d2 = kChi2Dof3P99;
+  WeightKind confidence = WeightKind::kUniform;
+};
+
 class CauchyMahalanobis : public Kernel {
  public:
   bool accepts(int kind) const override {
@@ -41,11 +46,12 @@ class CauchyMahalanobis : public Kernel {
 }  // namespace
 
 std::vector<SettingRow> kernel_cauchy_mahalanobis_settings() {
-  return {real_setting("kernel.scale_d2", "cauchy_weight(d2 / scale)", kChi2Dof3P99,
+  const CauchyMahalanobisOptions d;
+  return {real_setting("kernel.scale_d2", "CauchyMahalanobisOptions::scale_d2", d.scale_d2,
                        SettingBound::above(0.0), "1",
                        "Cauchy scale on the Mahalanobis d^2 (the gate's chi-square by default)"),
-          choice_setting("kernel.confidence", "CauchyMahalanobis::confidence", "uniform",
-                         confidence_names(),
+          choice_setting("kernel.confidence", "CauchyMahalanobisOptions::confidence",
+                         to_string(d.confidence), confidence_names(),
                          "landmark confidence of the matched target landmark, multiplied into "
                          "each pair's weight")};
 }

@@ -45,10 +45,11 @@ class GateMatcher : public Matcher {
 }  // namespace
 
 std::vector<SettingRow> match_gate_settings() {
-  return {int_setting("match.k", "MahalanobisGateOptions::k", 5, SettingBound::closed(1, 64),
+  const MahalanobisGateOptions d;
+  return {int_setting("match.k", "MahalanobisGateOptions::k", d.k, SettingBound::closed(1, 64),
                       "count", "Euclidean nearest target landmarks examined per source landmark"),
           real_setting("match.chi2_threshold", "MahalanobisGateOptions::chi2_threshold",
-                       kChi2Dof3P99, SettingBound::above(0.0), "1",
+                       d.chi2_threshold, SettingBound::above(0.0), "1",
                        "gate on the Mahalanobis d^2 (chi-square, 3 dof, 0.99)")};
 }
 

@@ -15,6 +15,12 @@ namespace lmalign::stages {
 
 namespace {
 
+struct NearestMatchOptions {
+  int k = CorrespondenceOptions{}.k;
+  WeightKind confidence = WeightKind::kObservations;
+  bool reuse_neighbours = true;
+};
+
 class NearestMatcher : public Matcher {
  public:
   NearestMatcher(CorrespondenceKind kind, int k, WeightKind weight, bool reuse)
@@ -79,7 +85,8 @@ class NearestMatcher : public Matcher {
 };
 
 SettingRow reuse_row() {
-  return bool_setting("match.reuse_neighbours", "RegistrationOptions::reuse_neighbours", true,
+  return bool_setting("match.reuse_neighbours", "NearestMatchOptions::reuse_neighbours",
+                      NearestMatchOptions{}.reuse_neighbours,
                       "reuse the exact nearest-neighbour results between iterations "
                       "(docs/performance.md); never changes a result");
 }
@@ -94,10 +101,11 @@ std::unique_ptr<Stage> make_match_nearest(const Settings& s) {
 }
 
 std::vector<SettingRow> match_weighted_knn_settings() {
-  return {int_setting("match.k", "CorrespondenceOptions::k", 5, SettingBound::closed(1, 4096),
+  const NearestMatchOptions d;
+  return {int_setting("match.k", "NearestMatchOptions::k", d.k, SettingBound::closed(1, 4096),
                       "count", "target landmarks examined per source landmark (the paper's k)"),
-          choice_setting("match.confidence", "RegistrationOptions::weight", "observations",
-                         confidence_names(),
+          choice_setting("match.confidence", "NearestMatchOptions::confidence",
+                         to_string(d.confidence), confidence_names(),
                          "the target landmark confidence that picks among the k nearest "
                          "(Eqs. 1-4)"),
           reuse_row()};

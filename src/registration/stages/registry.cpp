@@ -1,6 +1,7 @@
 // The registry of stages: one row per stage (its seam, its name in preset files and settings,
 // one line of what it does). A new stage is one file (its class, its settings rows and its
 // factory, declared with LMALIGN_STAGE_FUNCTIONS) and one row here.
+#include "lmalign/weights/weights.hpp"
 #include "stage.hpp"
 
 //  X(seam, identifier in the stage file, name, doc)
@@ -81,7 +82,9 @@ Vec3 unit_vector(const Settings& settings, const std::string& key) {
 }
 
 std::vector<std::string> confidence_names() {
-  return {"uniform", "covariance", "observations", "distance"};
+  std::vector<std::string> names;
+  for (WeightKind k : all_weight_kinds()) names.push_back(to_string(k));
+  return names;
 }
 
 // The two "none" rows of optional seams: no settings, no stage.

@@ -13,11 +13,16 @@ namespace lmalign::stages {
 
 namespace {
 
+struct TrimOptions {
+  double trim_ratio = 1.0;
+  bool estimate_overlap = false;
+  double min_overlap_ratio = 0.4;
+};
+
 class TrimRejector : public Rejector {
  public:
   bool accepts(int kind) const override { return kind == static_cast<int>(Pairs::Kind::kPoints); }
-  TrimRejector(double ratio, bool estimate, double min_ratio)
-      : ratio_(ratio), estimate_(estimate), min_ratio_(min_ratio) {}
+  explicit TrimRejector(TrimOptions o) : o_(o) {}
 
   void reject(const RefineContext&, LoopState* loop, Pairs* pairs) const override {
     Correspondences& corr = pairs->points;
@@ -26,40 +31,42 @@ class TrimRejector : public Rejector {
       return;
     }
     const bool gated = std::isfinite(loop->max_distance_m);
-    double ratio = gated ? ratio_ : 1.0;
-    if (gated && estimate_ && corr.size() >= 2) {
+    double ratio = gated ? o_.trim_ratio : 1.0;
+    if (gated && o_.estimate_overlap && corr.size() >= 2) {
       std::vector<double> residuals_sq;
       residuals_sq.reserve(corr.size());
       for (const Correspondence& c : corr) residuals_sq.push_back(c.distance_sq_m2);
-      ratio = estimate_overlap_ratio(residuals_sq, min_ratio_);
+      ratio = estimate_overlap_ratio(residuals_sq, o_.min_overlap_ratio);
     }
     if (ratio < 1.0) trim_correspondences(corr, ratio);
     loop->overlap_ratio = ratio;
   }
 
  private:
-  double ratio_;
-  bool estimate_;
-  double min_ratio_;
+  TrimOptions o_;
 };
 
 }  // namespace
 
 std::vector<SettingRow> reject_trim_settings() {
-  return {real_setting("reject.trim_ratio", "RobustRegistrationOptions::trim_ratio", 1.0,
-                       SettingBound::open_closed(0.0, 1.0), "1",
-                       "fraction of the pairs kept, those of smallest distance"),
-          bool_setting("reject.estimate_overlap", "RobustRegistrationOptions::estimate_overlap",
-                       false, "estimate the fraction each iteration instead (trimmed ICP)"),
-          real_setting("reject.min_overlap_ratio", "RobustRegistrationOptions::min_overlap_ratio",
-                       0.4, SettingBound::open_closed(0.0, 1.0), "1",
-                       "lower bound of the estimated fraction")};
+  const TrimOptions d;
+  return {
+      real_setting("reject.trim_ratio", "TrimOptions::trim_ratio", d.trim_ratio,
+                   SettingBound::open_closed(0.0, 1.0), "1",
+                   "fraction of the pairs kept, those of smallest distance"),
+      bool_setting("reject.estimate_overlap", "TrimOptions::estimate_overlap", d.estimate_overlap,
+                   "estimate the fraction each iteration instead (trimmed ICP)"),
+      real_setting("reject.min_overlap_ratio", "TrimOptions::min_overlap_ratio",
+                   d.min_overlap_ratio, SettingBound::open_closed(0.0, 1.0), "1",
+                   "lower bound of the estimated fraction")};
 }
 
 std::unique_ptr<Stage> make_reject_trim(const Settings& s) {
-  return std::make_unique<TrimRejector>(s.real("reject.trim_ratio"),
-                                        s.boolean("reject.estimate_overlap"),
-                                        s.real("reject.min_overlap_ratio"));
+  TrimOptions o;
+  o.trim_ratio = s.real("reject.trim_ratio");
+  o.estimate_overlap = s.boolean("reject.estimate_overlap");
+  o.min_overlap_ratio = s.real("reject.min_overlap_ratio");
+  return std::make_unique<TrimRejector>(o);
 }
 
 }  // namespace lmalign::stages

@@ -7,6 +7,7 @@
 // last level's pairs at the estimate.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "stage.hpp"
 
@@ -20,6 +21,18 @@ struct Levels {
   std::vector<double> distances_m;
   int max_iterations = 300;
   int max_iterations_per_level = 60;
+};
+
+// The rows' defaults.
+struct DistanceLevelsOptions {
+  std::vector<double> levels_m{std::numeric_limits<double>::infinity(), 1.0, 0.5, 0.25, 0.1, 0.05};
+  int max_iterations = 300;
+  int max_iterations_per_level = 60;
+  double settle_translation_m = 1e-5;
+  double settle_rotation_rad = 1e-6;
+  int min_correspondences = 3;
+  std::vector<double> hypothesis_levels_m{std::numeric_limits<double>::infinity(), 0.5, 0.2};
+  int hypothesis_iterations = 45;
 };
 
 class DistanceSchedule : public Schedule {
@@ -110,32 +123,32 @@ SettingBound schedule_bound() {
 }  // namespace
 
 std::vector<SettingRow> schedule_distance_settings() {
-  const double inf = std::numeric_limits<double>::infinity();
+  const DistanceLevelsOptions d;
   return {
-      reals_setting("schedule.levels_m", "RobustRegistrationOptions::max_distance_schedule_m",
-                    {inf, 1.0, 0.5, 0.25, 0.1, 0.05}, schedule_bound(), "m",
+      reals_setting("schedule.levels_m", "DistanceLevelsOptions::levels_m", d.levels_m,
+                    schedule_bound(), "m",
                     "maximum correspondence distance per level (inf = unlimited)"),
-      int_setting("schedule.max_iterations", "RobustRegistrationOptions::max_iterations", 300,
-                  SettingBound::closed(1, 2147483647), "count", "iterations over all levels"),
+      int_setting("schedule.max_iterations", "DistanceLevelsOptions::max_iterations",
+                  d.max_iterations, SettingBound::closed(1, 2147483647), "count",
+                  "iterations over all levels"),
       int_setting("schedule.max_iterations_per_level",
-                  "RobustRegistrationOptions::max_iterations_per_level", 60,
+                  "DistanceLevelsOptions::max_iterations_per_level", d.max_iterations_per_level,
                   SettingBound::closed(1, 2147483647), "count",
                   "iterations at one level before the next applies anyway"),
-      real_setting("schedule.settle_translation_m",
-                   "RobustRegistrationOptions::settle_translation_m", 1e-5,
-                   SettingBound::at_least(0.0), "m",
+      real_setting("schedule.settle_translation_m", "DistanceLevelsOptions::settle_translation_m",
+                   d.settle_translation_m, SettingBound::at_least(0.0), "m",
                    "an increment below this translation (and rotation) has settled"),
-      real_setting("schedule.settle_rotation_rad", "RobustRegistrationOptions::settle_rotation_rad",
-                   1e-6, SettingBound::at_least(0.0), "rad",
+      real_setting("schedule.settle_rotation_rad", "DistanceLevelsOptions::settle_rotation_rad",
+                   d.settle_rotation_rad, SettingBound::at_least(0.0), "rad",
                    "an increment below this rotation (and translation) has settled"),
-      int_setting("schedule.min_correspondences", "RobustRegistrationOptions::min_correspondences",
-                  3, SettingBound::closed(3, 2147483647), "count",
+      int_setting("schedule.min_correspondences", "DistanceLevelsOptions::min_correspondences",
+                  d.min_correspondences, SettingBound::closed(3, 2147483647), "count",
                   "fewer pairs end the run (no_correspondences)"),
-      reals_setting("schedule.hypothesis_levels_m", "RobustRegistrationOptions::global_schedule_m",
-                    {inf, 0.5, 0.2}, schedule_bound(), "m",
+      reals_setting("schedule.hypothesis_levels_m", "DistanceLevelsOptions::hypothesis_levels_m",
+                    d.hypothesis_levels_m, schedule_bound(), "m",
                     "levels of the short runs that refine a search's hypotheses"),
-      int_setting("schedule.hypothesis_iterations", "RobustRegistrationOptions::global_iterations",
-                  45, SettingBound::closed(1, 2147483647), "count",
+      int_setting("schedule.hypothesis_iterations", "DistanceLevelsOptions::hypothesis_iterations",
+                  d.hypothesis_iterations, SettingBound::closed(1, 2147483647), "count",
                   "iterations of each hypothesis' short run, over all its levels"),
   };
 }

@@ -61,8 +61,8 @@ class PclSchedule : public Schedule {
 std::vector<SettingRow> schedule_pcl_settings() {
   const ConvergenceOptions d;
   return {
-      real_setting("schedule.max_distance_m", "RegistrationOptions::max_correspondence_distance_m",
-                   std::numeric_limits<double>::infinity(), SettingBound::above_or_inf(0.0), "m",
+      real_setting("schedule.max_distance_m", "CorrespondenceOptions::max_distance_m",
+                   CorrespondenceOptions{}.max_distance_m, SettingBound::above_or_inf(0.0), "m",
                    "maximum correspondence distance (the paper's: unlimited)"),
       int_setting("schedule.max_iterations", "ConvergenceOptions::max_iterations", d.max_iterations,
                   SettingBound::closed(1, 2147483647), "count",

@@ -96,22 +96,23 @@ class SigmaSchedule : public Schedule {
 }  // namespace
 
 std::vector<SettingRow> schedule_sigma_settings() {
+  const SigmaOptions d;
   return {
-      int_setting("schedule.max_iterations", "AdaptiveOptions::max_iterations", 120,
+      int_setting("schedule.max_iterations", "SigmaOptions::max_iterations", d.max_iterations,
                   SettingBound::closed(1, 2147483647), "count", "iterations per refinement"),
-      int_setting("schedule.max_iterations_per_level", "AdaptiveOptions::max_iterations_per_level",
-                  15, SettingBound::closed(1, 2147483647), "count",
+      int_setting("schedule.max_iterations_per_level", "SigmaOptions::max_iterations_per_level",
+                  d.max_iterations_per_level, SettingBound::closed(1, 2147483647), "count",
                   "iterations before the pose uncertainty shrinks anyway"),
-      real_setting("schedule.sigma_decay", "AdaptiveOptions::sigma_decay", 0.5,
+      real_setting("schedule.sigma_decay", "SigmaOptions::sigma_decay", d.sigma_decay,
                    SettingBound::open(0.0, 1.0), "1",
                    "each time the estimate settles the gate's pose uncertainty is multiplied by "
                    "this"),
-      real_setting("schedule.settle_ratio", "AdaptiveOptions::settle_ratio", 1e-3,
+      real_setting("schedule.settle_ratio", "SigmaOptions::settle_ratio", d.settle_ratio,
                    SettingBound::open_closed(0.0, 1.0), "1",
                    "settled: a step below this times the floor (and that over the source's radius "
                    "in rotation)"),
-      real_setting("schedule.level_settle_ratio", "AdaptiveOptions::level_settle_ratio", 0.0,
-                   SettingBound::closed_open(0.0, 1.0), "1",
+      real_setting("schedule.level_settle_ratio", "SigmaOptions::level_settle_ratio",
+                   d.level_settle_ratio, SettingBound::closed_open(0.0, 1.0), "1",
                    "at a level whose pose uncertainty is above zero, a step below this fraction of "
                    "it also counts as settled"),
   };

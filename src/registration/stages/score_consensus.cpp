@@ -8,6 +8,11 @@ namespace lmalign::stages {
 
 namespace {
 
+struct ConsensusOptions {
+  int stride = 4;
+  double inlier_distance_m = 0.1;
+};
+
 class ConsensusScorer : public Scorer {
  public:
   ConsensusScorer(std::size_t stride, double distance_m)
@@ -38,12 +43,13 @@ class ConsensusScorer : public Scorer {
 }  // namespace
 
 std::vector<SettingRow> score_consensus_settings() {
-  return {int_setting("score.stride", "RobustRegistrationOptions::global_subsample", 4,
+  const ConsensusOptions d;
+  return {int_setting("score.stride", "ConsensusOptions::stride", d.stride,
                       SettingBound::closed(1, 2147483647), "count",
                       "every n-th source landmark refines and scores the hypotheses"),
-          real_setting(
-              "score.inlier_distance_m", "RobustRegistrationOptions::global_inlier_distance_m", 0.1,
-              SettingBound::above(0.0), "m", "a landmark this close to a target landmark counts")};
+          real_setting("score.inlier_distance_m", "ConsensusOptions::inlier_distance_m",
+                       d.inlier_distance_m, SettingBound::above(0.0), "m",
+                       "a landmark this close to a target landmark counts")};
 }
 
 std::unique_ptr<Stage> make_score_consensus(const Settings& s) {

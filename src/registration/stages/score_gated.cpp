@@ -9,6 +9,10 @@ namespace lmalign::stages {
 
 namespace {
 
+struct GatedScoreOptions {
+  int samples = 1024;
+};
+
 class GatedScorer : public Scorer {
  public:
   explicit GatedScorer(std::size_t samples) : samples_(samples) {}
@@ -41,7 +45,7 @@ class GatedScorer : public Scorer {
 }  // namespace
 
 std::vector<SettingRow> score_gated_settings() {
-  return {int_setting("score.samples", "AdaptiveOptions::hypothesis_samples", 1024,
+  return {int_setting("score.samples", "GatedScoreOptions::samples", GatedScoreOptions{}.samples,
                       SettingBound::closed(16, 2147483647), "count",
                       "source landmarks (evenly strided) on which each hypothesis is refined and "
                       "scored; the best is then refined on all")};

@@ -180,28 +180,29 @@ class GatedJudge : public TrustJudge {
 }  // namespace
 
 std::vector<SettingRow> trust_gated_settings() {
+  const GatedTrustOptions d;
   return {
-      int_setting("trust.min_inliers", "AdaptiveOptions::min_inliers", 12,
-                  SettingBound::closed(3, 2147483647), "count",
-                  "untrusted below this many gated inliers"),
-      real_setting("trust.min_inlier_ratio", "AdaptiveOptions::min_inlier_ratio", 0.2,
-                   SettingBound::closed(0.0, 1.0), "1",
+      int_setting("trust.min_inliers", "GatedTrustOptions::min_inliers",
+                  static_cast<long long>(d.min_inliers), SettingBound::closed(3, 2147483647),
+                  "count", "untrusted below this many gated inliers"),
+      real_setting("trust.min_inlier_ratio", "GatedTrustOptions::min_inlier_ratio",
+                   d.min_inlier_ratio, SettingBound::closed(0.0, 1.0), "1",
                    "untrusted when fewer than this fraction of the landmarks near a target "
                    "landmark pass the gate at the estimate"),
-      real_setting("trust.max_covariance_scale", "AdaptiveOptions::max_covariance_scale", 3.0,
-                   SettingBound::at_least(1.0), "1",
+      real_setting("trust.max_covariance_scale", "GatedTrustOptions::max_covariance_scale",
+                   d.max_covariance_scale, SettingBound::at_least(1.0), "1",
                    "untrusted when the inliers' residuals need their covariances scaled by more "
                    "than this (robust, from the median Mahalanobis d^2)"),
-      real_setting("trust.max_ambiguity", "AdaptiveOptions::max_ambiguity", 0.85,
+      real_setting("trust.max_ambiguity", "GatedTrustOptions::max_ambiguity", d.max_ambiguity,
                    SettingBound::open_closed(0.0, 1.0), "1",
                    "untrusted when a distinct pose scores at least this fraction of the best"),
-      real_setting("trust.alias_ambiguity", "AdaptiveOptions::alias_ambiguity", 0.7,
+      real_setting("trust.alias_ambiguity", "GatedTrustOptions::alias_ambiguity", d.alias_ambiguity,
                    SettingBound::open_closed(0.0, 1.0), "1",
                    "untrusted when a distinct pose scores this fraction of the best and the "
                    "mean NIS exceeds trust.alias_nis_ratio of its expectation"),
-      real_setting("trust.alias_nis_ratio", "AdaptiveOptions::alias_nis_ratio", 1.2,
+      real_setting("trust.alias_nis_ratio", "GatedTrustOptions::alias_nis_ratio", d.alias_nis_ratio,
                    SettingBound::at_least(1.0), "1", "see trust.alias_ambiguity"),
-      real_setting("trust.distinct_cells", "AdaptiveOptions::distinct_cells", 4.0,
+      real_setting("trust.distinct_cells", "GatedTrustOptions::distinct_cells", d.distinct_cells,
                    SettingBound::above(0.0), "1",
                    "two poses are distinct when they move a landmark at the source's typical "
                    "distance from its centre apart by more than this many search resolutions"),
