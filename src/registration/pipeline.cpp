@@ -81,30 +81,6 @@ bool PriorSigma::is_valid(std::string* why) const {
   return true;
 }
 
-std::string to_string(Seam seam) {
-  static constexpr EnumName<Seam> kNames[] = {
-      {Seam::kInitialiser, "initialiser"}, {Seam::kMatcher, "matcher"},
-      {Seam::kRejector, "rejectors"},      {Seam::kKernel, "kernel"},
-      {Seam::kEstimator, "estimator"},     {Seam::kSchedule, "schedule"},
-      {Seam::kScorer, "scorer"},           {Seam::kTrustJudge, "trust"}};
-  return name_of(kNames, seam);
-}
-
-SourceLandmarks SourceLandmarks::from_map(const Map& map) {
-  map.validate();
-  SourceLandmarks s;
-  s.positions = map.positions();
-  s.covariances_m2 = map.covariances_m2();
-  s.up = estimate_up_axis(map);
-  return s;
-}
-
-FitnessScore Matcher::fitness(const RefineContext& context, StageState* state, const Isometry3& T,
-                              double max_range_m) const {
-  (void)state;
-  return fitness_score(*context.source.positions, context.target->tree(), T, max_range_m);
-}
-
 std::vector<SettingRow> engine_settings() {
   std::vector<SettingRow> rows{
       real_setting("fitness.max_range_m", "fitness_score(..., max_range_m)",

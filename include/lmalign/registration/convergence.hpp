@@ -2,6 +2,7 @@
 // IterativeClosestPoint configures it (method.md §3).
 #pragma once
 
+#include <cstddef>
 #include <limits>
 #include <string>
 
@@ -28,6 +29,15 @@ enum class TerminationReason {
 /// "max_iterations", "transform", "absolute_mse", "relative_mse", "no_correspondences",
 /// "degenerate".
 std::string to_string(TerminationReason reason);
+
+/// One ICP iteration, recorded when the run asks for its history (PipelineRequest).
+struct IterationRecord {
+  int iteration = 0;  ///< 1-based
+  std::size_t num_correspondences = 0;
+  double mse_m2 = 0.0;  ///< mean squared correspondence distance (PCL's MSE), m^2
+  /// Fitness score after this iteration's update (m^2); NaN unless history_scores was set.
+  double score_m2 = std::numeric_limits<double>::quiet_NaN();
+};
 
 /// PCL's epsilons, with ICP's defaults (the paper's settings).
 struct ConvergenceOptions {

@@ -24,15 +24,6 @@
 
 namespace lmalign {
 
-/// One ICP iteration, recorded when the run asks for its history (PipelineRequest).
-struct IterationRecord {
-  int iteration = 0;  ///< 1-based
-  std::size_t num_correspondences = 0;
-  double mse_m2 = 0.0;  ///< mean squared correspondence distance (PCL's MSE), m^2
-  /// Fitness score after this iteration's update (m^2); NaN unless history_scores was set.
-  double score_m2 = std::numeric_limits<double>::quiet_NaN();
-};
-
 /// What a registration returns (after small_gicp's RegistrationResult and Ceres' Summary).
 struct RegistrationResult {
   /// The estimate, p_target = T_target_source * p_source. Always finite.

@@ -31,19 +31,23 @@
 #include <utility>
 #include <vector>
 
+// The plain data the seams pass (pairs, gates, scales, covariances, settings values); the
+// classes they only point to are declared below. The definitions: src/registration/seams.cpp.
 #include "lmalign/core/types.hpp"
 #include "lmalign/registration/convergence.hpp"
 #include "lmalign/registration/correspondence.hpp"
-#include "lmalign/registration/registration.hpp"
-#include "lmalign/registration/score.hpp"
 #include "lmalign/registration/settings.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "lmalign/registration/uncertainty.hpp"
+#include "lmalign/weights/weights.hpp"
 
 namespace lmalign {
 
+class Map;
 class Pipeline;
+class PreparedTarget;
+struct FitnessScore;
 struct RefineContext;
 
 /// The source landmarks as the engine reads them (not owned): positions (metres, source frame),

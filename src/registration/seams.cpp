@@ -1,0 +1,37 @@
+// The definitions of the seams' header (include/lmalign/registration/seams.hpp): the seams'
+// names, the source landmarks read off a map, and a matcher's default fitness score.
+#include "lmalign/registration/seams.hpp"
+
+#include "lmalign/core/enum_names.hpp"
+#include "lmalign/map/map.hpp"
+#include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/score.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
+
+namespace lmalign {
+
+std::string to_string(Seam seam) {
+  static constexpr EnumName<Seam> kNames[] = {
+      {Seam::kInitialiser, "initialiser"}, {Seam::kMatcher, "matcher"},
+      {Seam::kRejector, "rejectors"},      {Seam::kKernel, "kernel"},
+      {Seam::kEstimator, "estimator"},     {Seam::kSchedule, "schedule"},
+      {Seam::kScorer, "scorer"},           {Seam::kTrustJudge, "trust"}};
+  return name_of(kNames, seam);
+}
+
+SourceLandmarks SourceLandmarks::from_map(const Map& map) {
+  map.validate();
+  SourceLandmarks s;
+  s.positions = map.positions();
+  s.covariances_m2 = map.covariances_m2();
+  s.up = estimate_up_axis(map);
+  return s;
+}
+
+FitnessScore Matcher::fitness(const RefineContext& context, StageState* state, const Isometry3& T,
+                              double max_range_m) const {
+  (void)state;
+  return fitness_score(*context.source.positions, context.target->tree(), T, max_range_m);
+}
+
+}  // namespace lmalign
