@@ -16,19 +16,12 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/text.hpp"
 #include "lmalign/io/output_file.hpp"
 
 namespace lmalign {
 
 namespace {
-
-std::vector<std::string> split_ws(const std::string& line) {
-  std::vector<std::string> out;
-  std::istringstream ss(line);
-  std::string tok;
-  while (ss >> tok) out.push_back(tok);
-  return out;
-}
 
 double parse_double(const std::string& path, std::size_t line, const std::string& field,
                     const std::string& token) {
@@ -44,12 +37,6 @@ double parse_double(const std::string& path, std::size_t line, const std::string
     throw ParseError(path, line, "field '" + field + "' is not finite: '" + token + "'");
   }
   return v;
-}
-
-std::string shortest(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
-  return std::string(buf, r.ptr);
 }
 
 std::ifstream open_text(const std::string& path, const std::string& what) {
@@ -68,7 +55,7 @@ std::vector<std::pair<std::size_t, std::vector<std::string>>> read_records(
   while (std::getline(in, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    auto toks = split_ws(line);
+    auto toks = split_whitespace(line);
     if (toks.empty() || toks[0][0] == '#') continue;
     records.emplace_back(line_no, std::move(toks));
   }

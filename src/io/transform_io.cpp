@@ -10,27 +10,10 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/similarity.hpp"
+#include "lmalign/core/text.hpp"
 #include "lmalign/io/output_file.hpp"
 
 namespace lmalign {
-
-namespace {
-
-std::vector<std::string> split_ws(const std::string& line) {
-  std::vector<std::string> out;
-  std::istringstream ss(line);
-  std::string tok;
-  while (ss >> tok) out.push_back(tok);
-  return out;
-}
-
-std::string shortest(double v) {
-  char buf[64];
-  auto r = std::to_chars(buf, buf + sizeof(buf), v);
-  return std::string(buf, r.ptr);
-}
-
-}  // namespace
 
 namespace {
 
@@ -47,7 +30,7 @@ Mat4 read_matrix4(const std::string& path) {
   while (std::getline(in, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
-    const auto toks = split_ws(line);
+    const auto toks = split_whitespace(line);
     if (toks.empty() || toks[0][0] == '#') continue;
     if (row == 4) throw ParseError(path, line_no, "extra row: a 4x4 matrix has 4 rows");
     if (toks.size() != 4) {

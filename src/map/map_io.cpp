@@ -25,6 +25,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/text.hpp"
 #include "lmalign/io/output_file.hpp"
 
 namespace lmalign {
@@ -39,13 +40,6 @@ constexpr std::size_t kFrameTokens = 9;
 constexpr std::size_t kLandmarkFixedTokens = 15;  // LANDMARK id x y z c00..c22 n
 constexpr const char* kCovNames[3][3] = {
     {"c00", "c01", "c02"}, {"c10", "c11", "c12"}, {"c20", "c21", "c22"}};
-
-/// Shortest round-trip text of a double.
-std::string format_double(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
-}
 
 void append_double(std::string& out, double value) {
   char buffer[32];
@@ -152,8 +146,8 @@ std::string covariance_problem(const Mat3& cov, double symmetry_tolerance, doubl
     for (int j = i + 1; j < 3; ++j) {
       if (std::abs(cov(i, j) - cov(j, i)) > symmetry_tolerance * scale) {
         return std::string("covariance is not symmetric: ") + kCovNames[i][j] + "=" +
-               format_double(cov(i, j)) + " but " + kCovNames[j][i] + "=" +
-               format_double(cov(j, i)) + " (row-major c00 c01 c02 c10 c11 c12 c20 c21 c22)";
+               shortest(cov(i, j)) + " but " + kCovNames[j][i] + "=" + shortest(cov(j, i)) +
+               " (row-major c00 c01 c02 c10 c11 c12 c20 c21 c22)";
       }
     }
   }

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/text.hpp"
 
 namespace lmalign {
 
@@ -14,14 +15,7 @@ namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // Exact, locale-independent: the shortest text that reads back to v.
-std::string number_text(double v) {
-  if (std::isnan(v)) return "nan";
-  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
-  if (v == 0.0) return "0";
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
+std::string number_text(double v) { return shortest(v); }
 
 std::string trim(std::string s) {
   const auto not_space = [](unsigned char c) { return !std::isspace(c); };

@@ -24,6 +24,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/transform.hpp"
 #include "support/run_cli.hpp"
+#include "support/socket_listener.hpp"
 #include "support/synthetic_scene.hpp"
 
 namespace lmalign {
@@ -86,24 +87,9 @@ TEST_F(CliOutputs, AFifoGetsTheJsonInPlaceAndStaysAFifo) {
 
 TEST_F(CliOutputs, ASocketGetsTheJson) {
   const std::string sock = path("s");
-  const int server = ::socket(AF_UNIX, SOCK_STREAM, 0);
-  sockaddr_un address{};
-  address.sun_family = AF_UNIX;
-  std::strncpy(address.sun_path, sock.c_str(), sizeof(address.sun_path) - 1);
-  ASSERT_EQ(::bind(server, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
-  ASSERT_EQ(::listen(server, 1), 0);
-  std::string received;
-  std::thread reader([&] {
-    const int client = ::accept(server, nullptr, nullptr);
-    char buffer[4096];
-    for (ssize_t n; (n = ::read(client, buffer, sizeof(buffer))) > 0;) {
-      received.append(buffer, static_cast<std::size_t>(n));
-    }
-    ::close(client);
-  });
+  test::SocketListener listener(sock);
   const test::CliRun r = run(align_ + "--json " + shell_quote(sock));
-  reader.join();
-  ::close(server);
+  const std::string received = listener.received();
   ASSERT_EQ(r.exit_code, 0) << r.err;
   EXPECT_EQ(nlohmann::json::parse(received)["results"].size(), 1u);
   EXPECT_TRUE(is_node(sock, S_IFSOCK));

@@ -20,6 +20,7 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/io/output_file.hpp"
+#include "support/socket_listener.hpp"
 #include "support/temp_dir.hpp"
 
 namespace lmalign {
@@ -166,27 +167,10 @@ TEST(OutputFile, AFifoWhoseReaderLeavesIsABrokenPipeErrorNotTheEndOfTheProcess) 
 TEST(OutputFile, ASocketIsConnectedToAndWrittenInPlace) {
   test::ScratchDir dir("output");
   const std::string path = dir.file("sock");
-  const int server = ::socket(AF_UNIX, SOCK_STREAM, 0);
-  sockaddr_un address{};
-  address.sun_family = AF_UNIX;
-  std::strncpy(address.sun_path, path.c_str(), sizeof(address.sun_path) - 1);
-  ASSERT_EQ(::bind(server, reinterpret_cast<sockaddr*>(&address), sizeof(address)), 0);
-  ASSERT_EQ(::listen(server, 1), 0);
-  std::string received;
-  std::thread reader([&] {
-    const int client = ::accept(server, nullptr, nullptr);
-    char buffer[4096];
-    ssize_t n = 0;
-    while ((n = ::read(client, buffer, sizeof(buffer))) > 0) {
-      received.append(buffer, static_cast<std::size_t>(n));
-    }
-    ::close(client);
-  });
+  test::SocketListener listener(path);
   EXPECT_TRUE(check_output_path(path).is_socket);
   write_text(path, "over the socket\n");
-  reader.join();
-  ::close(server);
-  EXPECT_EQ(received, "over the socket\n");
+  EXPECT_EQ(listener.received(), "over the socket\n");
   struct stat st {};
   ASSERT_EQ(::lstat(path.c_str(), &st), 0);
   EXPECT_TRUE(S_ISSOCK(st.st_mode));

@@ -15,6 +15,7 @@
 #include <unordered_set>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/text.hpp"
 #include "lmalign/io/output_file.hpp"
 #include "text_tokens.hpp"
 
@@ -338,12 +339,6 @@ void read_binary(const ColmapFiles& files, const ColmapReadOptions& options, Mod
     }
     b.expect_end();
   }
-}
-
-std::string shortest(double value) {
-  char buffer[32];
-  const auto result = std::to_chars(buffer, buffer + sizeof(buffer), value);
-  return std::string(buffer, result.ptr);
 }
 
 }  // namespace
