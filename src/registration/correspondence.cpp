@@ -653,6 +653,7 @@ void CorrespondenceFinder::bind(const Points3& source_points,
       if (p.allFinite()) st.source_norm_max = std::max(st.source_norm_max, p.norm());
     }
     st.pose_bound_max = 0.0;
+    st.searched = st.reused = st.fast = 0;
     st.cand.clear();
     st.reach.clear();
     st.ref.clear();
@@ -703,12 +704,18 @@ void CorrespondenceFinder::find(const Points3& source_points, const Isometry3& T
   const Vec3 t = T_target_source.translation();
   const PointIndex* order = st.order.data();
   std::size_t searched = 0, reused = 0, fast = 0, unmatched = 0;
+  // When the last pass on this workspace served nearly every point by the fast path (a
+  // converged estimate), this one costs a few nanoseconds per point, less than waking the
+  // thread pool (tens of microseconds with OMP_WAIT_POLICY=passive): it runs on this thread.
+  // Measured on the real pair: 49 us per converged iteration on one thread against 93 us on
+  // two (docs/performance.md). The result does not depend on it.
+  const bool parallel = !(reuse && st.fast + st.reused > 0 && st.searched * 32 < n);
 
   // proc_bind(close): threads that migrate between cores lose their caches (measured on the
   // benchmark machine: docs/performance.md). An exception may not leave the region: each
   // iteration is captured.
   FirstException error;
-#pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast, unmatched)
+#pragma omp parallel proc_bind(close) reduction(+ : searched, reused, fast, unmatched) if (parallel)
   {
     PointIndex* idx = st.scratch_idx.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;
     double* d2 = st.scratch_d2.data() + static_cast<std::size_t>(omp_get_thread_num()) * sw;

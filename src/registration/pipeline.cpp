@@ -223,7 +223,7 @@ bool Pipeline::uses_covariances() const {
 }
 
 Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& start, Phase phase,
-                            bool keep_pairs, int history) const {
+                            bool keep_pairs, int history, StageState* matcher_state) const {
   // A free-scale refinement (not a hypothesis': the search's scale is the scale axis's) works on
   // a copy of its source, rescaled each time a 7-DoF step changes the scale.
   const bool free =
@@ -241,7 +241,10 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
   LoopState& loop = out.loop;
   loop.phase = phase;
   loop.free_scale = free;
-  std::unique_ptr<StageState> matched = matcher_->begin(c);
+  // A free-scale refinement matches its rescaled copy with a state of its own.
+  const bool shared = matcher_state != nullptr && !free;
+  std::unique_ptr<StageState> own_matched = shared ? nullptr : matcher_->begin(c);
+  StageState* matched = shared ? matcher_state : own_matched.get();
   std::unique_ptr<StageState> scheduled = schedule_->begin(c, start, &loop);
   const std::size_t min_pairs = std::max(schedule_->min_pairs(), estimator_->min_pairs());
   const Points3& target_points = c.target->points();
@@ -255,7 +258,7 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
       break;
     }
     loop.sigma.pivot_m = out.T * (c.scales != nullptr ? c.scales->source.centre_m : Vec3::Zero());
-    matcher_->match(c, matched.get(), out.T, loop, &pairs);
+    matcher_->match(c, matched, out.T, loop, &pairs);
     for (const auto& r : rejectors_) r->reject(c, &loop, &pairs);
     out.num_pairs = pairs.size();
     if (pairs.size() < min_pairs) {
@@ -287,6 +290,9 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
     if (free && step.estimate.scale != 1.0) {
       out.scale *= step.estimate.scale;
       working->set_scale(out.scale);
+      // The source moved in place: caches keyed by its positions start again.
+      own_matched = matcher_->begin(c);
+      matched = own_matched.get();
     }
     ++loop.iterations;
     ++loop.level_iterations;
@@ -298,8 +304,7 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
       rec.mse_m2 = mean_squared_distance(pairs, target_points);
       if (history > 1) {
         rec.score_m2 =
-            matcher_->fitness(c, matched.get(), out.T, settings_.real("fitness.max_range_m"))
-                .mean_sq_m2;
+            matcher_->fitness(c, matched, out.T, settings_.real("fitness.max_range_m")).mean_sq_m2;
       }
       out.history.push_back(rec);
     }

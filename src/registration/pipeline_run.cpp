@@ -304,8 +304,18 @@ void PipelineRun::refine_best(Conclusion* c) const {
   // The best on every landmark, rigid; then, with the scale free, in 7 DoF from there.
   const int history = request_.record_history ? (request_.history_scores ? 2 : 1) : 0;
   const bool keep = pipeline_.schedule().end_pass() == Schedule::EndPass::kLastStep;
-  c->fin = pipeline_.refine(c->all, c->best, Phase::kFinal, keep, history);
-  if (c->source) refine_scale(c);
+  // One matcher state for PCL's fitness score at the guess, the refinement and the score at
+  // the estimate: the refinement's first pairs and the last score come from warm caches
+  // (bit-identical to fresh searches; docs/performance.md).
+  const Matcher& m = pipeline_.matcher();
+  std::unique_ptr<StageState> state = m.begin(c->all);
+  const double range = settings_.real("fitness.max_range_m");
+  const double initial_score_m2 = m.fitness(c->all, state.get(), guess_, range).mean_sq_m2;
+  c->fin = pipeline_.refine(c->all, c->best, Phase::kFinal, keep, history, state.get());
+  if (c->source) {
+    refine_scale(c);
+    state = m.begin(c->all);  // the source may be another (rescaled)
+  }
   RegistrationResult& reg = c->s.registration;
   const Refinement& fin = c->fin;
   reg.T_target_source = fin.T;
@@ -316,11 +326,7 @@ void PipelineRun::refine_best(Conclusion* c) const {
   reg.iterations = c->iterations + fin.iterations;
   reg.num_correspondences = fin.num_pairs;
   reg.history = fin.history;
-  // PCL's fitness scores, through the matcher's caches where it keeps them.
-  const Matcher& m = pipeline_.matcher();
-  std::unique_ptr<StageState> state = m.begin(c->all);
-  const double range = settings_.real("fitness.max_range_m");
-  reg.initial_score_m2 = m.fitness(c->all, state.get(), guess_, range).mean_sq_m2;
+  reg.initial_score_m2 = initial_score_m2;
   reg.final_score_m2 = m.fitness(c->all, state.get(), fin.T, range).mean_sq_m2;
 }
 

@@ -247,8 +247,14 @@ class Pipeline {
 
   /// One refinement from `start` in `phase` on the landmarks of `context`. `keep_pairs`: keep
   /// the last iteration's pairs in the result. `history`: 0 none, 1 pairs, 2 pairs and scores.
+  /// `matcher_state`: the matcher's state to match with (from matcher().begin(); its caches,
+  /// warm from a fitness score at the start, then serve the score at the estimate), or null
+  /// for a state of the refinement's own. A free-scale refinement ignores it: it matches a
+  /// rescaled copy of its source, with a state of its own begun again whenever the scale
+  /// changes (the caches hold positions of the source at the old scale).
   Refinement refine(const RefineContext& context, const Hypothesis& start, Phase phase,
-                    bool keep_pairs = false, int history = 0) const;
+                    bool keep_pairs = false, int history = 0,
+                    StageState* matcher_state = nullptr) const;
   /// refine() on the source landmarks `indices` (increasing) of `context`, copied out.
   Refinement refine_part(const RefineContext& context, const std::vector<std::uint32_t>& indices,
                          const Hypothesis& start, Phase phase) const;
