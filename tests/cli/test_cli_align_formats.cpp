@@ -33,14 +33,16 @@ TEST_F(CliAlignFormats, AlignsARealBundlerMapOntoItselfFromADisplacement) {
   EXPECT_LT(j["results"][0]["translation_error_m"].get<double>(), 0.01);
   EXPECT_GT(j["source_landmarks"].get<int>(), 100);
 
-  // Without the image size (the file has none) it aligns the same: triangulation needs only
-  // the focal length. An output that stores top-left pixels needs the size, and says so.
+  // Without the image size (the file has none) it reads the same landmarks: triangulation needs
+  // only the focal length (base ICP, undisplaced: the reader is what is checked here). An output
+  // that stores top-left pixels needs the size, and says so.
   const test::CliRun unsized =
-      run("align " + out + " " + out + " --displace 0.3,-0.2,0.1,0,0,40 --ground-truth identity " +
-          "--json " + path("u.json"));
+      run("align " + out + " " + out + " --strategy base --ground-truth identity --json " +
+          path("u.json"));
   ASSERT_EQ(unsized.exit_code, 0) << unsized.out << unsized.err;
   const auto u = nlohmann::json::parse(test::read_text(path("u.json")));
   EXPECT_LT(u["results"][0]["rotation_error_deg"].get<double>(), 0.5);
+  EXPECT_LT(u["results"][0]["translation_error_m"].get<double>(), 0.01);
   EXPECT_EQ(u["source_landmarks"], j["source_landmarks"]);
   const test::CliRun e = run("align " + out + " " + out + " --aligned-out " + path("a.txt"));
   EXPECT_EQ(e.exit_code, 2) << e.out << e.err;
@@ -173,7 +175,9 @@ TEST_F(CliAlignFormats, AutoScaleFollowsTheMapsHeaders) {
   // The truth maps the shrunk source back onto the desk map: [I/s 0; 0 1].
   std::ofstream(path("gt.txt")) << 1.0 / s << " 0 0 0\n0 " << 1.0 / s << " 0 0\n0 0 " << 1.0 / s
                                 << " 0\n0 0 0 1\n";
-  const test::CliRun rigid = run("align " + desk + " " + desk + " --json " + path("r.json"));
+  // The scale mode follows the headers whatever the strategy: the metric pair with base ICP.
+  const test::CliRun rigid =
+      run("align " + desk + " " + desk + " --strategy base --json " + path("r.json"));
   ASSERT_EQ(rigid.exit_code, 0) << rigid.out << rigid.err;
   const auto r = nlohmann::json::parse(test::read_text(path("r.json")));
   EXPECT_EQ(r["results"][0]["scale_mode"], "fixed");
@@ -189,9 +193,9 @@ TEST_F(CliAlignFormats, AutoScaleFollowsTheMapsHeaders) {
   EXPECT_LT(e["rotation_error_deg"].get<double>(), 0.5);
   EXPECT_EQ(e["trustworthy"], true);
 
-  // --scale fixed overrides the header: no scale is estimated.
-  const test::CliRun fixed =
-      run("align " + path("small.txt") + " " + desk + " --scale fixed --json " + path("f.json"));
+  // --scale fixed overrides the header: no scale is estimated (base ICP: the mode is checked).
+  const test::CliRun fixed = run("align " + path("small.txt") + " " + desk +
+                                 " --strategy base --scale fixed --json " + path("f.json"));
   ASSERT_EQ(fixed.exit_code, 0) << fixed.out << fixed.err;
   const auto f = nlohmann::json::parse(test::read_text(path("f.json")));
   EXPECT_EQ(f["results"][0]["scale_mode"], "fixed");
