@@ -173,8 +173,11 @@ class Aligner:
         if guess is not None:
             key_parts += ["guess"] + ["%.17g" % v for r in guess for v in r]
         if prior is not None:
-            args += ["--prior-sigma", "%.17g,%.17g" % tuple(prior)]
-            key_parts += args[-2:]
+            # The refinement from a guess is measured here (its basin, the score refined from the
+            # truth), not the prior check's verdict: the prior's search alone (issue 41).
+            args += ["--prior-sigma", "%.17g,%.17g" % tuple(prior), "--set",
+                     "init.prior_check=off"]
+            key_parts += args[-4:]
         key = hashlib.sha1("\n".join([self.binary_key] + key_parts).encode()).hexdigest()[:20]
         out = os.path.join(self.folder, "runs", key + ".json")
         if os.path.isfile(out):

@@ -226,6 +226,14 @@ Summary PipelineRun::conclude(double rung) const {
   if (pipeline_.scorer() != nullptr) {
     c.s.hypotheses = score_hypotheses(rung);
     for (const RefinedHypothesis& r : c.s.hypotheses) c.iterations += r.iterations;
+    // A strict prior window: the best hypothesis that may be the answer goes first; the rivals
+    // that scored higher follow it, and the trust judge weighs them (ambiguity above 1).
+    const auto answer =
+        std::find_if(c.s.hypotheses.begin(), c.s.hypotheses.end(),
+                     [](const RefinedHypothesis& h) { return !h.start.rival_only; });
+    if (answer != c.s.hypotheses.end()) {
+      std::rotate(c.s.hypotheses.begin(), answer, answer + 1);
+    }
     c.best = c.s.hypotheses.front().start;
     c.best.T_target_source = c.s.hypotheses.front().T_refined;
   }
@@ -463,6 +471,7 @@ void PipelineRun::judge(Conclusion* c) const {
     jc.covariance = &s.estimator_covariance;
     s.verdict = judge->judge(jc);
     if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
+    check_prior_window(c);
   }
   if (c->source) {
     ScaleEstimate& e = s.scale;
@@ -477,6 +486,33 @@ void PipelineRun::judge(Conclusion* c) const {
     }
   }
   add_caveats(&s);
+}
+
+void PipelineRun::check_prior_window(Conclusion* c) const {
+  // A prior is a hint (issue 41): an answer outside its window (3 sigma in rotation, and for the
+  // source centre's image 3 (sigma_t + sigma_r x its distance from the target origin), widened
+  // by the search's resolution) is not trusted, and the verdict says where the maps put it.
+  if (!request_.prior || !request_.initial_guess) return;
+  Summary& s = c->s;
+  const Isometry3& guess = *request_.initial_guess;
+  const Isometry3& answer = s.registration.T_target_source;
+  const Vec3 centre = s.scales ? s.scales->source.centre_m : Vec3::Zero();
+  const double sigma_r = request_.prior->rotation_deg * kPi / 180.0;
+  const double lever_m = (guess * centre).norm();
+  const double rot_rad = Eigen::AngleAxisd(answer.linear() * guess.linear().transpose()).angle();
+  const double moved_m = (answer * centre - guess * centre).norm();
+  const double max_rot = 3.0 * sigma_r + s.initialisation.resolution_rad;
+  const double max_moved =
+      3.0 * (request_.prior->translation_m + sigma_r * lever_m) + s.initialisation.resolution_m;
+  if (rot_rad <= max_rot && moved_m <= max_moved) return;
+  s.verdict.trustworthy = false;
+  const std::string where = message_number(moved_m) + " m / " +
+                            message_number(rot_rad * 180.0 / kPi) + " deg from the guess";
+  const std::string window =
+      message_number(max_moved) + " m / " + message_number(max_rot * 180.0 / kPi) + " deg";
+  s.verdict.reason = "the maps prefer a pose outside the prior's window: " + where +
+                     " (the window: " + window + ")" +
+                     (s.verdict.reason == "ok" ? "" : "; " + s.verdict.reason);
 }
 
 void PipelineRun::add_caveats(Summary* summary) const {

@@ -93,6 +93,8 @@ class PipelineRun {
   Pairs pairs_at_estimate(const RefineContext& all, const Refinement& fin, LoopState* loop) const;
   void end_pass(Conclusion* c) const;
   void judge(Conclusion* c) const;
+  /// With a prior and a guess: an answer outside the prior's window is not trusted (issue 41).
+  void check_prior_window(Conclusion* c) const;
   /// The verdict's caveats: a confidence 0 everywhere, landmarks left out, covariances assumed.
   void add_caveats(Summary* s) const;
 

@@ -117,7 +117,9 @@ std::string Summary::FullReport() const {
                 : ", best search score " + fmt("%.6g", initialisation.best_search_score)) +
            (std::isnan(initialisation.second_search_score)
                 ? std::string()
-                : ", second " + fmt("%.6g", initialisation.second_search_score)));
+                : ", second " + fmt("%.6g", initialisation.second_search_score)) +
+           (initialisation.prior_checked ? ", the prior checked by the global search"
+                                         : std::string()));
   if (!hypotheses.empty()) {
     std::string h = std::to_string(hypotheses.size()) + " refined, scores";
     for (std::size_t i = 0; i < hypotheses.size() && i < 8; ++i) {
@@ -242,7 +244,8 @@ std::string to_json(const Summary& s, int indent) {
                  {"resolution_m", s.initialisation.resolution_m},
                  {"resolution_rad", s.initialisation.resolution_rad},
                  {"best_search_score", number(s.initialisation.best_search_score)},
-                 {"second_search_score", number(s.initialisation.second_search_score)}};
+                 {"second_search_score", number(s.initialisation.second_search_score)},
+                 {"prior_checked", s.initialisation.prior_checked}};
     for (const auto& [k, v] : s.initialisation.notes) init[k] = number(v);
     e["initialiser_report"] = init;
   }

@@ -159,6 +159,9 @@ struct Hypothesis {
   /// With a free scale: the source's scale for this hypothesis relative to the run's current
   /// one (a rung of the scale axis, Pipeline::run); the pose moves the source rescaled by it.
   double scale_factor = 1.0;
+  /// Refined and scored as a rival of the verdict, never the answer (a strict prior window's
+  /// global check, init.prior_check = strict).
+  bool rival_only = false;
 };
 
 /// What an initialiser tells the rest of the pipeline and the trust judge.
@@ -180,6 +183,9 @@ struct InitialiserReport {
   /// bounds it proved here.
   double best_search_score = std::numeric_limits<double>::quiet_NaN();
   double second_search_score = std::numeric_limits<double>::quiet_NaN();
+  /// With a prior: the global search ran too and its modes are among the hypotheses (issue 41);
+  /// the verdict then checks that the answer lies in the prior's window.
+  bool prior_checked = false;
   /// Other numbers worth a line in the report (name, value).
   std::vector<std::pair<std::string, double>> notes;
 };

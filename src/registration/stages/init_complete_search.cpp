@@ -5,7 +5,10 @@
 // its frames' axis, its landmark plane's normal when that disagrees by more than
 // init.second_up_min_angle_deg, and its dominant plane's normal (a floor, a desk, a road) when
 // that disagrees with both by more than a degree. With a prior it is the "yaw_vote" initialiser
-// (the vote bounded by the prior). The vote cell, the search's coarse resolution, is
+// (the vote bounded by the prior), and, with init.prior_check "rivals" or "strict", the complete
+// search too: its modes join the prior's hypotheses, so that a pose the maps prefer outside the
+// prior's window wins ("rivals") or is the trust judge's rival ("strict") (issue 41;
+// docs/accuracy.md, "Priors are hints"). The vote cell, the search's coarse resolution, is
 // init.vote_cell_factor x max(target spacing, 2 sin(step / 2) x source radius); the modes are
 // refined from a third of it.
 #include <algorithm>
@@ -29,6 +32,10 @@ struct CompleteInitOptions {
   double vote_cell_factor = 1.5;
   double start_sigma_factor = 0.3;
   double second_up_min_angle_deg = 10.0;
+  /// With a prior (issue 41: a prior is a hint, checked against the maps): "rivals", the global
+  /// search runs too and its modes compete with the prior's hypotheses; "strict", they are the
+  /// verdict's rivals but never the answer; "off", the prior's search alone.
+  std::string prior_check = "off";
 };
 
 class CompleteSearchInit : public Initialiser {
@@ -40,9 +47,39 @@ class CompleteSearchInit : public Initialiser {
 
   std::vector<Hypothesis> propose(const InitialiserContext& c,
                                   InitialiserReport* report) const override {
-    if (c.prior_sigma_deg_m.has_value() || c.pipeline == nullptr || c.refine_context == nullptr) {
-      return bounded_->propose(c, report);
+    if (c.pipeline == nullptr || c.refine_context == nullptr) return bounded_->propose(c, report);
+    if (!c.prior_sigma_deg_m.has_value()) return global(c, report);
+    std::vector<Hypothesis> out = bounded_->propose(c, report);
+    if (o_.prior_check == "off") return out;
+    // The prior's hypotheses first, then the global search's modes: the refinement and the
+    // scorer treat them alike, and the trust judge's rival test sees what the maps prefer
+    // outside the window. The report keeps the prior's initialisation ("prior" or "given"),
+    // with the global search's resolution (coarser: it measures which poses are distinct).
+    const std::size_t from_prior = out.size();
+    InitialiserContext open = c;
+    open.prior_sigma_deg_m.reset();
+    open.initial_guess.reset();
+    InitialiserReport global_report;
+    std::vector<Hypothesis> modes = global(open, &global_report);
+    std::size_t rivals = 0;
+    for (Hypothesis& h : modes) {
+      if (h.origin != "search") continue;
+      h.origin = "global check";
+      h.rival_only = o_.prior_check == "strict";
+      out.push_back(h);
+      ++rivals;
     }
+    report->notes.emplace_back("prior search resolution (m)", report->resolution_m);
+    report->notes.emplace_back("prior hypotheses", static_cast<double>(from_prior));
+    report->notes.emplace_back("global check modes", static_cast<double>(rivals));
+    report->resolution_m = std::max(report->resolution_m, global_report.resolution_m);
+    report->resolution_rad = std::max(report->resolution_rad, global_report.resolution_rad);
+    report->prior_checked = true;
+    return out;
+  }
+
+ private:
+  std::vector<Hypothesis> global(const InitialiserContext& c, InitialiserReport* report) const {
     const Scales& sc = *c.scales;
     const Points3& source = *c.source.positions;
     const Points3& target = c.target->points();
@@ -125,7 +162,6 @@ class CompleteSearchInit : public Initialiser {
     return out;
   }
 
- private:
   CompleteInitOptions o_;
   std::unique_ptr<Initialiser> bounded_;
 };
@@ -135,6 +171,12 @@ class CompleteSearchInit : public Initialiser {
 std::vector<SettingRow> init_complete_search_settings() {
   // The prior-bounded vote's settings (init.*), then the complete search's own (search.*).
   std::vector<SettingRow> rows = init_yaw_vote_settings();
+  rows.push_back(choice_setting(
+      "init.prior_check", "CompleteInitOptions::prior_check", CompleteInitOptions{}.prior_check,
+      {"rivals", "strict", "off"},
+      "with a prior: rivals = the global search runs too and its modes compete with the prior's "
+      "hypotheses; strict = they are the verdict's rivals, never the answer; off = the prior's "
+      "search alone (an answer outside the prior's window is not trusted either way)"));
   const CompleteSearchOptions d;
   auto count = [](const char* key, const char* member, std::size_t v, long long lo, long long hi,
                   const char* doc) {
@@ -189,6 +231,7 @@ std::unique_ptr<Stage> make_init_complete_search(const Settings& s) {
   o.vote_cell_factor = s.real("init.vote_cell_factor");
   o.start_sigma_factor = s.real("init.start_sigma_factor");
   o.second_up_min_angle_deg = s.real("init.second_up_min_angle_deg");
+  o.prior_check = s.choice("init.prior_check");
   auto n = [&](const char* key) { return static_cast<std::size_t>(s.integer(key)); };
   o.search.vote_source_samples = n("search.vote_source_samples");
   o.search.vote_target_samples = n("search.vote_target_samples");

@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "stage.hpp"
@@ -33,6 +35,10 @@ struct GatedTrustOptions {
   double alias_ambiguity = 0.7;
   double alias_nis_ratio = 1.2;
   double distinct_cells = 4.0;
+  /// The estimate's standard deviations, at most: translation (and rotation times the source's
+  /// radius) this many landmark spacings, and translation this fraction of the radius.
+  double max_sd_spacings = 5.0;
+  double max_sd_radius_ratio = 0.1;
 };
 
 // A measured quantity in a verdict: three significant digits.
@@ -73,6 +79,25 @@ bool distinct(const Isometry3& a, const Isometry3& b, const Vec3& centre, double
               double distance_m) {
   const double angle = Eigen::AngleAxisd(a.linear() * b.linear().transpose()).angle();
   return ((a * centre) - (b * centre)).norm() + angle * radius_m > distance_m;
+}
+
+// The estimate's standard deviations measured against the maps (issue 41: never in metres):
+// empty when they are small against the landmark spacing and the source's radius, else why not.
+std::string sd_reason(double translation_sd_m, double rotation_sd_rad, const Scales& sc,
+                      double max_spacings, double max_radius_ratio) {
+  const double spacing = std::max(sc.source.spacing_m, sc.target.spacing_m);
+  const double radius = sc.source.radius_m;
+  const double lever_m = rotation_sd_rad * radius;
+  if (!(spacing > 0.0) || !(radius > 0.0)) return {};
+  if (translation_sd_m > max_spacings * spacing || lever_m > max_spacings * spacing ||
+      translation_sd_m > max_radius_ratio * radius) {
+    return "too uncertain: standard deviations " + short_number(translation_sd_m) +
+           " m at the source's centre and " + short_number(rotation_sd_rad * 180.0 / kPi) +
+           " deg (" + short_number(lever_m) +
+           " m at the source's radius) against a landmark spacing of " + short_number(spacing) +
+           " m and a radius of " + short_number(radius) + " m";
+  }
+  return {};
 }
 
 class GatedJudge : public TrustJudge {
@@ -166,6 +191,11 @@ class GatedJudge : public TrustJudge {
                     short_number(v.mean_nis / v.expected_nis) +
                     " times its expectation): repeated structure may have aliased the pose";
       }
+    } else if (end == TerminationReason::kMaxIterations && !j.final->loop.free_scale) {
+      // (A free-scale refinement may spend its budget settling the scale: not asked there.)
+      v.reason = "not converged: the refinement reached its iteration limit";
+    } else if (const std::string why = too_uncertain(j, v, sc); !why.empty()) {
+      v.reason = why;
     } else {
       v.trustworthy = true;
       v.reason = "ok";
@@ -174,6 +204,22 @@ class GatedJudge : public TrustJudge {
   }
 
  private:
+  std::string too_uncertain(const JudgeContext& j, const Verdict& v, const Scales& sc) const {
+    const PoseCovariance& cov = v.covariance ? *v.covariance : *j.covariance;
+    if (!cov.valid) return {};
+    // The translation's uncertainty where the source is (its centre's image), not at the
+    // target origin: delta p = rho + phi x p for the left perturbation (rho, phi).
+    const Vec3 p = j.final->T * sc.source.centre_m;
+    Eigen::Matrix<double, 3, 6> J;
+    J.leftCols<3>() = Mat3::Identity();
+    J.rightCols<3>() << 0.0, p.z(), -p.y(), -p.z(), 0.0, p.x(), p.y(), -p.x(), 0.0;
+    const Mat3 cov_p = J * cov.covariance * J.transpose();
+    const double sd_centre_m = std::sqrt(
+        std::max(0.0, Eigen::SelfAdjointEigenSolver<Mat3>(cov_p).eigenvalues().maxCoeff()));
+    return sd_reason(sd_centre_m, cov.rotation_sd_deg() * kPi / 180.0, sc, o_.max_sd_spacings,
+                     o_.max_sd_radius_ratio);
+  }
+
   GatedTrustOptions o_;
 };
 
@@ -202,6 +248,14 @@ std::vector<SettingRow> trust_gated_settings() {
                    "mean NIS exceeds trust.alias_nis_ratio of its expectation"),
       real_setting("trust.alias_nis_ratio", "GatedTrustOptions::alias_nis_ratio", d.alias_nis_ratio,
                    SettingBound::at_least(1.0), "1", "see trust.alias_ambiguity"),
+      real_setting("trust.max_sd_spacings", "GatedTrustOptions::max_sd_spacings", d.max_sd_spacings,
+                   SettingBound::above(0.0), "1",
+                   "untrusted when the translation standard deviation, or the rotation's times "
+                   "the source's radius, exceeds this many landmark spacings"),
+      real_setting("trust.max_sd_radius_ratio", "GatedTrustOptions::max_sd_radius_ratio",
+                   d.max_sd_radius_ratio, SettingBound::above(0.0), "1",
+                   "untrusted when the translation standard deviation exceeds this fraction of "
+                   "the source's radius"),
       real_setting("trust.distinct_cells", "GatedTrustOptions::distinct_cells", d.distinct_cells,
                    SettingBound::above(0.0), "1",
                    "two poses are distinct when they move a landmark at the source's typical "
@@ -212,6 +266,8 @@ std::vector<SettingRow> trust_gated_settings() {
 std::unique_ptr<Stage> make_trust_gated(const Settings& s) {
   GatedTrustOptions o;
   o.min_inliers = static_cast<std::size_t>(s.integer("trust.min_inliers"));
+  o.max_sd_spacings = s.real("trust.max_sd_spacings");
+  o.max_sd_radius_ratio = s.real("trust.max_sd_radius_ratio");
   o.min_inlier_ratio = s.real("trust.min_inlier_ratio");
   o.max_covariance_scale = s.real("trust.max_covariance_scale");
   o.max_ambiguity = s.real("trust.max_ambiguity");
