@@ -603,9 +603,12 @@ CommandRunner add_align_command(CLI::App& root) {
                   "a 4x4 matrix file (p_target = T * p_source, metres). Every strategy starts "
                   "from it; a searching one adds it to its hypotheses, or bounds its search "
                   "around it with --prior-sigma");
-  cmd->add_option("--prior-sigma", args->prior_sigma,
-                  "ROT_DEG,TRANS_M: standard deviations of --initial-guess (identity if none), "
-                  "degrees and metres, each > 0: a searching strategy stays within 3 sigma of it");
+  cmd->add_option(
+      "--prior-sigma", args->prior_sigma,
+      "ROT_DEG,TRANS_M: standard deviations of --initial-guess (identity if none), "
+      "degrees and metres, each > 0: a searching strategy searches within 3 sigma of it, and "
+      "an answer outside that window is never trusted (--set init.prior_check=rivals "
+      "also runs the global search against it; docs/accuracy.md)");
   cmd->add_option("--scale", args->scale,
                   "auto, free or fixed: whether the scale is estimated too (a similarity, "
                   "p_target = scale * R * p_source + t, for maps without a common metric scale; "
