@@ -11,6 +11,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/registration/score.hpp"
+#include "lmalign/registration/stages/yaw_vote_search.hpp"
 
 namespace lmalign::detail {
 
@@ -497,21 +498,22 @@ void PipelineRun::check_prior_window(Conclusion* c) const {
   const Isometry3& guess = *request_.initial_guess;
   const Isometry3& answer = s.registration.T_target_source;
   const Vec3 centre = s.scales ? s.scales->source.centre_m : Vec3::Zero();
-  const double sigma_r = request_.prior->rotation_deg * kPi / 180.0;
-  const double lever_m = (guess * centre).norm();
+  PoseWindow window;
+  window.T_target_source_guess = guess;
+  window.rotation_sd_rad = request_.prior->rotation_deg * kPi / 180.0;
+  window.translation_sd_m = request_.prior->translation_m;
   const double rot_rad = Eigen::AngleAxisd(answer.linear() * guess.linear().transpose()).angle();
   const double moved_m = (answer * centre - guess * centre).norm();
-  const double max_rot = 3.0 * sigma_r + s.initialisation.resolution_rad;
-  const double max_moved =
-      3.0 * (request_.prior->translation_m + sigma_r * lever_m) + s.initialisation.resolution_m;
+  const double max_rot = 3.0 * window.rotation_sd_rad + s.initialisation.resolution_rad;
+  const double max_moved = 3.0 * window.point_sd_m(centre) + s.initialisation.resolution_m;
   if (rot_rad <= max_rot && moved_m <= max_moved) return;
   s.verdict.trustworthy = false;
   const std::string where = message_number(moved_m) + " m / " +
                             message_number(rot_rad * 180.0 / kPi) + " deg from the guess";
-  const std::string window =
+  const std::string bounds =
       message_number(max_moved) + " m / " + message_number(max_rot * 180.0 / kPi) + " deg";
   s.verdict.reason = "the maps prefer a pose outside the prior's window: " + where +
-                     " (the window: " + window + ")" +
+                     " (the window: " + bounds + ")" +
                      (s.verdict.reason == "ok" ? "" : "; " + s.verdict.reason);
 }
 

@@ -54,12 +54,7 @@ class YawVote : public Initialiser {
       window.rotation_sd_rad = c.prior_sigma_deg_m->first * kPi / 180.0;
       window.translation_sd_m = c.prior_sigma_deg_m->second;
     }
-    // The prior's translation sigma is about the target origin (uncertainty.hpp); where the
-    // source centre lands it grows by the rotation's sigma times that point's distance from there.
-    const double centre_sd_m =
-        !has_prior ? 0.0
-                   : window.translation_sd_m +
-                         window.rotation_sd_rad * (guess * sc.source.centre_m).norm();
+    const double centre_sd_m = has_prior ? window.point_sd_m(sc.source.centre_m) : 0.0;
     const bool search_needed =
         !has_prior || window.rotation_sd_rad > 0.5 * step_rad || centre_sd_m > cell;
     std::vector<Hypothesis> out;

@@ -59,6 +59,14 @@ struct PoseWindow {
   Isometry3 T_target_source_guess = Isometry3::Identity();
   double rotation_sd_rad = 0.0;   ///< > 0
   double translation_sd_m = 0.0;  ///< > 0
+
+  /// The standard deviation (metres) of where `point_m` (source frame) lands under the prior:
+  /// the translation sigma is about the target origin (uncertainty.hpp), so it grows by the
+  /// rotation's sigma times the distance of the point's image from there. The search's window
+  /// and the verdict's check of it (Pipeline::run) are 3 of these.
+  double point_sd_m(const Vec3& point_m) const {
+    return translation_sd_m + rotation_sd_rad * (T_target_source_guess * point_m).norm();
+  }
 };
 
 struct YawHypothesis {
