@@ -121,6 +121,48 @@ TEST(MergeFleet, TwelveMapsWithPriorsPlacedAndAPlantedLookAlikeEdgeIsRejected) {
   EXPECT_DOUBLE_EQ(ev2.fraction_within, 1.0);
 }
 
+// Priors are hints (issue 41, docs/accuracy.md "Priors are hints"): one map's prior is moved by
+// 20 deg of yaw and 4 m, far outside the 3 deg / 0.5 m it claims, so every pair with that map
+// gets a relative prior that is wrong by more than 3 sigma. Whatever the alignment of such a
+// pair returns (a pose inside the wrong window, or the truth outside it: "the maps prefer a
+// pose outside the prior's window"), it is not trusted; no edge enters the pose graph as
+// trusted and wrong, and the maps whose priors are right are still placed. (Without the
+// window check, map_001 -> map_002 was trusted: the truth, 20 deg from its guess.)
+TEST(MergeFleet, AWrongPriorNeverGivesATrustedWrongEdge) {
+  std::vector<std::optional<MapPrior>> priors;
+  const sim::FleetScene scene = fleet_with_priors(5, 7, 0, &priors);
+  constexpr std::size_t kWrong = 2;
+  const Isometry3 D = pose_from_xyz_rpy_deg(4.0, -1.0, 0.0, 0.0, 0.0, 20.0);
+  priors[kWrong]->T_world_map = D * priors[kWrong]->T_world_map;
+  const MergeRun run = run_merge(scene.maps, scene.names, priors, MergeOptions{});
+  ASSERT_FALSE(run.cancelled);
+  const GroundTruthThresholds thresholds{1.0, 0.1};
+  const MergeEvaluation ev = evaluate_merge(run.result, run.edges, scene.T_world_map, thresholds);
+  std::size_t with_wrong = 0;
+  for (std::size_t k = 0; k < run.edges.size(); ++k) {
+    const Edge& e = run.edges[k];
+    const bool touches = e.source == kWrong || e.target == kWrong;
+    with_wrong += touches ? 1 : 0;
+    EXPECT_TRUE(!e.trusted || ev.edge_true[k])
+        << scene.names[e.source] << " -> " << scene.names[e.target] << " is trusted and wrong ("
+        << e.trust_reason << ")";
+    if (touches) {
+      // The truth lies outside the wrong relative prior's window (20 deg off, the window about
+      // 16 deg at most): a right answer left the window, a wrong one is wrong; neither trusted.
+      EXPECT_FALSE(e.trusted) << scene.names[e.source] << " -> " << scene.names[e.target];
+      std::cout << "  " << scene.names[e.source] << " -> " << scene.names[e.target] << ": "
+                << (e.trusted ? "trusted" : "not trusted") << ", " << e.trust_reason << "\n";
+    }
+  }
+  EXPECT_GT(with_wrong, 0u);  // the wrong prior's pairs were planned and aligned
+  EXPECT_EQ(ev.false_kept_edges, 0u);
+  for (std::size_t i = 0; i < scene.maps.size(); ++i) {
+    if (i == kWrong) continue;
+    EXPECT_TRUE(ev.maps[i].within) << scene.names[i] << ": " << ev.maps[i].rotation_deg << " deg, "
+                                   << ev.maps[i].translation_m << " m";
+  }
+}
+
 // Maps without metric scale (docs/merge.md, "Maps without metric scale"): four fleet maps, each
 // moved by a known similarity of scale 0.3 to 3 and marked arbitrary, except map 2, kept metric.
 // The merge aligns every pair as a similarity and solves the Sim(3) graph: the metric map holds
