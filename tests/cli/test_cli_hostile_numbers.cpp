@@ -146,6 +146,42 @@ TEST_F(CliHostileNumbers, OptionValuesBeyondTheRangeAreOneLineErrorsNamingThem) 
   }
 }
 
+// Issue 41's bad input: a zero, negative or NaN sigma and a guess that is not a rigid transform
+// are one line each; a guess that puts the maps kilometres apart, with an ordinary prior, gives
+// a result that is not trusted and says where the maps put the source.
+TEST_F(CliHostileNumbers, BadPriorsAreOneLineErrorsAndAGuessKilometresOffIsNeverTrusted) {
+  {
+    std::ofstream f(path("scaled.txt"));
+    f << "2 0 0 0\n0 2 0 0\n0 0 2 0\n0 0 0 1\n";  // a similarity, not a rigid transform
+  }
+  struct Bad {
+    std::string args, expect;
+  };
+  for (const Bad& b : std::vector<Bad>{
+           {"--prior-sigma 0,0.3", "--prior-sigma 0,0.3: prior rotation sigma"},
+           {"--prior-sigma 1,0", "--prior-sigma 1,0: prior translation sigma"},
+           {"--prior-sigma -1,0.3", "--prior-sigma -1,0.3: prior rotation sigma"},
+           {"--prior-sigma 1,-0.3", "--prior-sigma 1,-0.3: prior translation sigma"},
+           {"--prior-sigma nan,0.3", "--prior-sigma \"nan,0.3\": 'nan' is not a finite number"},
+           {"--prior-sigma 1,nan", "--prior-sigma \"1,nan\": 'nan' is not a finite number"},
+           {"--initial-guess " + path("scaled.txt") + " --prior-sigma 1,0.3",
+            path("scaled.txt")},
+       }) {
+    expect_one_line_error(run("align " + st() + " " + b.args), b.expect, b.args);
+  }
+  Isometry3 far = T_true_;
+  far.translation() += Vec3(3000.0, -1500.0, 0.0);
+  write_transform(path("km.txt"), far);
+  const test::CliRun r = run("align " + st() + " --initial-guess " + path("km.txt") +
+                             " --prior-sigma 1,0.3 --json " + path("km.json"));
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const nlohmann::json e = results(path("km.json")).at(0);
+  EXPECT_FALSE(e["trustworthy"].get<bool>()) << e["trust_reason"];
+  for (const auto& row : e["T_target_source"]) {
+    for (const auto& v : row) EXPECT_TRUE(v.is_number());  // finite
+  }
+}
+
 TEST_F(CliHostileNumbers, AGuessAndPriorAtTheEdgeOfTheRangeGiveAResult) {
   // No intermediate overflows at the edge of the range. So wide a prior bounds nothing: the
   // search is global and finds the truth; a tight one about a guess that far finds nothing, and
