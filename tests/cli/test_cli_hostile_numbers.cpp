@@ -164,8 +164,7 @@ TEST_F(CliHostileNumbers, BadPriorsAreOneLineErrorsAndAGuessKilometresOffIsNever
            {"--prior-sigma 1,-0.3", "--prior-sigma 1,-0.3: prior translation sigma"},
            {"--prior-sigma nan,0.3", "--prior-sigma \"nan,0.3\": 'nan' is not a finite number"},
            {"--prior-sigma 1,nan", "--prior-sigma \"1,nan\": 'nan' is not a finite number"},
-           {"--initial-guess " + path("scaled.txt") + " --prior-sigma 1,0.3",
-            path("scaled.txt")},
+           {"--initial-guess " + path("scaled.txt") + " --prior-sigma 1,0.3", path("scaled.txt")},
        }) {
     expect_one_line_error(run("align " + st() + " " + b.args), b.expect, b.args);
   }
