@@ -183,19 +183,20 @@ Isometry3 off_guess(const Vec3& up, double yaw_deg, const Vec3& offset_m) {
   return G;
 }
 
-/// The answer for `guess` under `prior`, checked by the global search: never trusted when
-/// wrong (rotation_ok_deg, translation_ok_m).
+/// The answer for `guess` under `prior`, checked by the global search (`check` "rivals"; "off"
+/// is the default: the prior's search alone, its answer checked against its window): never
+/// trusted when wrong (rotation_ok_deg, translation_ok_m).
 Summary checked_against_prior(const SourceLandmarks& source, const PreparedTarget& target,
                               const Isometry3& guess, PriorSigma prior, double rotation_ok_deg,
-                              double translation_ok_m) {
+                              double translation_ok_m, const std::string& check = "rivals") {
   const Summary r = test::align_with("adaptive", source.view(), target,
-                                     {{"init.prior_check=rivals"}, guess, prior});
+                                     {{"init.prior_check=" + check}, guess, prior});
   const TransformError e = transform_error(r.registration.T_target_source, Isometry3::Identity());
   const bool right = e.rotation_deg < rotation_ok_deg && e.translation_m < translation_ok_m;
   EXPECT_TRUE(right || !r.verdict.trustworthy)
       << "trusted and wrong: " << e.rotation_deg << " deg, " << e.translation_m
       << " m; reason: " << r.verdict.reason;
-  EXPECT_TRUE(r.initialisation.prior_checked);
+  EXPECT_EQ(r.initialisation.prior_checked, check != "off");
   return r;
 }
 
@@ -215,6 +216,33 @@ TEST_F(AdaptiveDesk, AWrongPriorIsCheckedAndARightOneTrusted) {
   const Summary right = checked_against_prior(
       *source_, *target_, off_guess(Vec3::UnitZ(), 1.0, Vec3(0.02, -0.03, 0.0)), prior, 5.0, 0.1);
   EXPECT_TRUE(right.verdict.trustworthy) << right.verdict.reason;
+}
+
+TEST_F(AdaptiveDesk, TheIssuesWrongPriorsAreNotTrustedByTheDefault) {
+  // The default (init.prior_check=off): the issue's guesses 1.0 m / 130 deg off (an answer
+  // 131.7 deg off, trusted) and 90 deg off (97.7 deg off, not converged, trusted) end untrusted.
+  PriorSigma prior;
+  prior.rotation_deg = 2.0;
+  prior.translation_m = 0.05;
+  for (const Isometry3& guess : {off_guess(Vec3::UnitZ(), 130.0, Vec3(0.7, 0.7, 0.0)),
+                                 off_guess(Vec3::UnitZ(), 90.0, Vec3::Zero())}) {
+    const Summary r = checked_against_prior(*source_, *target_, guess, prior, 5.0, 0.1, "off");
+    EXPECT_FALSE(r.verdict.trustworthy) << r.verdict.reason;
+  }
+}
+
+TEST_F(AdaptiveKittiOverlap, TheIssuesWrongDriftPriorsAreNotTrustedByTheDefault) {
+  // The default (init.prior_check=off): the issue's guesses 39.5 m / -9 deg off (41.8 m off,
+  // trusted) and (3, 0, -38) m without rotation (38.6 m off, not converged, trusted on 21 gated
+  // inliers) end untrusted.
+  PriorSigma prior;
+  prior.rotation_deg = 1.0;
+  prior.translation_m = 0.3;
+  for (const Isometry3& guess : {off_guess(-Vec3::UnitY(), -9.0, Vec3(0.0, 0.0, 39.5)),
+                                 off_guess(-Vec3::UnitY(), 0.0, Vec3(3.0, 0.0, -38.0))}) {
+    const Summary r = checked_against_prior(*source_, *target_, guess, prior, 5.0, 1.0, "off");
+    EXPECT_FALSE(r.verdict.trustworthy) << r.verdict.reason;
+  }
 }
 
 TEST_F(AdaptiveKittiOverlap, AWrongDriftPriorIsCheckedAndARightOneTrusted) {
