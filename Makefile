@@ -10,7 +10,8 @@
 #               `apt install ./lmalign_*.deb` (docs/packaging.md). Python alone: `pip install
 #               --no-build-isolation .` in a venv, or a wheel (docs/python.md).
 # Also: make bench (against PCL and Open3D), make bench-merge (the synthetic 200-map merge),
-# make bench-merge-real (configs/merge_desk.yaml, merge_kitti.yaml),
+# make bench-merge-real (configs/merge_desk.yaml, merge_kitti.yaml), make bench-priors (wrong
+# and right priors on every real dataset; also the end of make bench-accuracy),
 # make test-sanitize (the sanitizer half alone),
 # make fuzz (libFuzzer targets, FUZZ_SECONDS each; .ci/run runs it after make test).
 # Real data: ../shared/data by default; set LMALIGN_DATA to point elsewhere.
@@ -167,6 +168,20 @@ bench-accuracy: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign bench-accuracy: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
 	$(PYTHON) bench/run_accuracy.py --build-dir $(BUILD_DIR) $(ACCURACY_ARGS)
+	$(MAKE) --no-print-directory bench-priors
+
+# `make bench-priors` (also the end of `make bench-accuracy`): wrong and right priors on every
+# real dataset (issue 41, docs/accuracy.md "Priors are hints"), with the default's prior check
+# (off) and with the global search checking the prior (rivals): trusted wrong answers, right
+# priors trusted, time against the default without a prior. Writes
+# $(BUILD_DIR)/bench-priors/{off,rivals}/priors.csv; fails when either gave a trusted wrong answer.
+PRIORS_ARGS ?= --wrong 20 --right 10
+.PHONY: bench-priors
+bench-priors: build
+	@rc=0; for check in off rivals; do \
+	  $(PYTHON) bench/prior_sweep.py --build-dir $(BUILD_DIR) --check $$check $(PRIORS_ARGS) \
+	    --out $(BUILD_DIR)/bench-priors/$$check || rc=1; \
+	done; exit $$rc
 
 # `make bench-merge`: the synthetic multi-robot merge (docs/merge.md, "Synthetic fleet"): a
 # seeded fleet of MERGE_MAPS mini-maps with GPS-like priors, merged with ground truth (time and
