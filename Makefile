@@ -137,8 +137,8 @@ fuzz: deps
 .PHONY: build-fuzz
 build-fuzz:
 	cmake -S . -B $(FUZZ_BUILD_DIR) -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=Release \
-	  -DCMAKE_CXX_FLAGS_RELEASE=-O1 -DLMALIGN_FUZZ=ON -DLMALIGN_BUILD_TESTS=OFF -DLMALIGN_BUILD_APPS=OFF -DLMALIGN_BUILD_VO=OFF \
-	  -DLMALIGN_BUILD_BENCH=OFF -DLMALIGN_WITH_PCL=OFF
+	  -DCMAKE_CXX_FLAGS_RELEASE=-O1 -DLMALIGN_FUZZ=ON -DLMALIGN_BUILD_TESTS=OFF \
+	  -DLMALIGN_BUILD_APPS=OFF -DLMALIGN_BUILD_VO=OFF -DLMALIGN_BUILD_BENCH=OFF -DLMALIGN_WITH_PCL=OFF
 	cmake --build $(FUZZ_BUILD_DIR) -j $(JOBS) --target fuzz_map_reader fuzz_experiment_config \
 	  fuzz_bundler_reader fuzz_colmap_reader fuzz_ply_reader fuzz_stella_vslam_reader \
 	  fuzz_default_alignment fuzz_merge_manifest fuzz_cli_options
