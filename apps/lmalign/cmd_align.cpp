@@ -444,11 +444,8 @@ int run_align(const AlignArgs& a) {
                           "' has no landmarks (after the --min-observations filter)");
 
   // The paper displaces the source about the world origin, then starts ICP at the identity. Its
-  // covariances and up axis move with it (C' = R C R^T).
-  SourceLandmarks src;
-  src.positions = transform_points(T_displace, source.positions());
-  src.covariances_m2 = transform_covariances(T_displace, source.covariances_m2());
-  if (const std::optional<Vec3> up = estimate_up_axis(source)) src.up = T_displace.linear() * *up;
+  // covariances, up axis and viewing directions move with it (C' = R C R^T).
+  const SourceLandmarks src = SourceLandmarks::from_map(source).moved(T_displace);
   // Truth for the displaced source. Errors are measured on the recovered map-to-map transform
   // T_est * T_displace against T_gt, so they do not depend on the artificial displacement.
   o.S_displace = Similarity3{1.0, T_displace};

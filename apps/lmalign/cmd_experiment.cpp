@@ -354,6 +354,8 @@ int run_experiment(ExperimentArgs a) {
   const std::vector<Mat3> source_covariances = in.source.covariances_m2();
   ro.source_covariances_m2 = &source_covariances;
   ro.source_up = estimate_up_axis(in.source);
+  const std::vector<Vec3> source_view_directions = in.source.view_directions();
+  ro.source_view_directions = &source_view_directions;
   ro.source_header = in.source.header;
   ro.target_header = in.target.header;
 

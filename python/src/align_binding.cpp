@@ -31,6 +31,7 @@ class ThreadCount {
 
 AlignOutcome run_alignment(const Points3& source_points,
                            const std::vector<Mat3>& source_covariances_m2,
+                           const std::vector<Vec3>& source_view_directions,
                            const PreparedTarget& target, const AlignRequest& request) {
   const Preset preset =
       request.strategy.empty() ? recommended_preset() : find_preset(request.strategy);
@@ -57,6 +58,7 @@ AlignOutcome run_alignment(const Points3& source_points,
   view.positions = &source_points;
   view.covariances_m2 = &source_covariances_m2;
   view.up = request.source_up;
+  view.view_directions = &source_view_directions;
   out.summary = align(preset, view, target, r);
   out.finished_s = now_s();
   return out;

@@ -52,11 +52,13 @@ struct AlignOutcome {
 };
 
 /// Runs the preset through align() with the limits and settings as the CLI passes them.
-/// `source_covariances_m2` may be empty. Throws InvalidArgument (bad strategy name, setting or
+/// `source_covariances_m2` and `source_view_directions` (unit, source frame, zero where unknown:
+/// Map::view_directions()) may be empty. Throws InvalidArgument (bad strategy name, setting or
 /// option; a prior for a preset whose initialiser uses none) and what align() throws.
 /// Does not touch Python: the caller releases the GIL around it.
 AlignOutcome run_alignment(const Points3& source_points,
                            const std::vector<Mat3>& source_covariances_m2,
+                           const std::vector<Vec3>& source_view_directions,
                            const PreparedTarget& target, const AlignRequest& request);
 
 }  // namespace lmalign::python

@@ -553,6 +553,7 @@ PYBIND11_MODULE(_lmalign, m) {
         // Source: a Map, or (N, 3) points with optional (N, 3, 3) covariances.
         Points3 source_points;
         std::vector<Mat3> source_cov;
+        std::vector<Vec3> source_views;
         if (py::isinstance<Map>(source)) {
           if (!source_covariances.is_none())
             throw InvalidArgument(
@@ -560,6 +561,7 @@ PYBIND11_MODULE(_lmalign, m) {
           const Map& s = source.cast<const Map&>();
           source_points = s.positions();
           source_cov = s.covariances_m2();
+          source_views = s.view_directions();
           req.source_up = estimate_up_axis(s);
           req.source_header = s.header;
         } else {
@@ -596,7 +598,7 @@ PYBIND11_MODULE(_lmalign, m) {
           }
         }
         py::gil_scoped_release release;
-        return python::run_alignment(source_points, source_cov, *prepared, req);
+        return python::run_alignment(source_points, source_cov, source_views, *prepared, req);
       },
       py::arg("source"), py::arg("target"), py::arg("strategy"), py::arg("initial_guess"),
       py::arg("prior_sigma"), py::arg("threads"), py::arg("source_covariances"),
@@ -744,6 +746,8 @@ PYBIND11_MODULE(_lmalign, m) {
         ro.threads = threads;
         ro.source_covariances_m2 = &source_covariances;
         ro.source_up = estimate_up_axis(in.source);
+        const std::vector<Vec3> source_view_directions = in.source.view_directions();
+        ro.source_view_directions = &source_view_directions;
         ro.source_header = in.source.header;
         ro.target_header = in.target.header;
         RunnerOutcome outcome;

@@ -164,6 +164,11 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
       throw InvalidArgument("runner: case " + c.id() +
                             ": one source covariance per source point expected");
     }
+    if (options.source_view_directions != nullptr &&
+        options.source_view_directions->size() != source_points.size()) {
+      throw InvalidArgument("runner: case " + c.id() +
+                            ": one source viewing direction per source point expected");
+    }
     if (!is_finite(c.D))
       throw InvalidArgument("runner: case " + c.id() + " has a non-finite displacement");
   }
@@ -241,12 +246,16 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     const bool history = options.history_case && *options.history_case == c.index;
     // As `lmalign align` runs it: the source displaced by D, its covariances and up axis with
     // it (C' = R_D C R_D^T), the config's k, limits, scale and settings.
-    SourceLandmarks moved;
-    moved.positions = transform_points(c.D, source_points);
+    SourceLandmarks undisplaced;
+    undisplaced.positions = source_points;
     if (options.source_covariances_m2 != nullptr) {
-      moved.covariances_m2 = transform_covariances(c.D, *options.source_covariances_m2);
+      undisplaced.covariances_m2 = *options.source_covariances_m2;
     }
-    if (options.source_up) moved.up = c.D.linear() * *options.source_up;
+    undisplaced.up = options.source_up;
+    if (options.source_view_directions != nullptr) {
+      undisplaced.view_directions = *options.source_view_directions;
+    }
+    const SourceLandmarks moved = undisplaced.moved(c.D);
     AlignRequest request = run_request(config, s, c.k, options);
     request.record_history = history;
     const Summary summary = align(preset_of.at(s), moved.view(), target, request);

@@ -59,6 +59,28 @@ std::vector<Mat3> Map::covariances_m2() const {
   return covariances;
 }
 
+std::vector<Vec3> Map::view_directions() const {
+  std::vector<Vec3> directions;
+  directions.reserve(landmarks.size());
+  for (const Landmark& landmark : landmarks) {
+    Vec3 sum = Vec3::Zero();
+    std::size_t rays = 0;
+    for (const Observation& o : landmark.observations) {
+      const Frame* frame = find_frame(o.frame_id);
+      if (frame == nullptr) continue;
+      const Vec3 ray = landmark.p_world - frame->p_world_camera;
+      const double length = ray.norm();
+      if (!(length > 0.0) || !std::isfinite(length)) continue;
+      sum += ray / length;
+      ++rays;
+    }
+    const double mean_length = rays > 0 ? sum.norm() / static_cast<double>(rays) : 0.0;
+    directions.push_back(mean_length >= kMinViewConcentration ? Vec3(sum.normalized())
+                                                              : Vec3::Zero());
+  }
+  return directions;
+}
+
 void Map::validate() const {
   std::unordered_map<Id, std::size_t> frame_ids;
   frame_ids.reserve(frames.size());

@@ -29,6 +29,10 @@ OwnedPart part_of(const SourceView& source, const std::vector<std::uint32_t>& in
     p.covariances_m2.reserve(indices.size());
     for (std::uint32_t i : indices) p.covariances_m2.push_back((*source.covariances_m2)[i]);
   }
+  if (source.has_view_directions()) {
+    p.view_directions.reserve(indices.size());
+    for (std::uint32_t i : indices) p.view_directions.push_back((*source.view_directions)[i]);
+  }
   return p;
 }
 

@@ -30,7 +30,10 @@ bool floor_is_a_setting(const Settings& settings);
 struct OwnedPart {
   Points3 positions;
   std::vector<Mat3> covariances_m2;
-  SourceView view(const SourceView& of) const { return {&positions, &covariances_m2, of.up}; }
+  std::vector<Vec3> view_directions;
+  SourceView view(const SourceView& of) const {
+    return {&positions, &covariances_m2, of.up, &view_directions};
+  }
 };
 OwnedPart part_of(const SourceView& source, const std::vector<std::uint32_t>& indices);
 
@@ -48,7 +51,10 @@ class ScaledSource {
 
   void set_scale(double scale);
   double scale() const { return scale_; }
-  SourceView view() const { return {&positions_, &covariances_, original_.up}; }
+  /// (Viewing directions do not change with the scale: the original's.)
+  SourceView view() const {
+    return {&positions_, &covariances_, original_.up, original_.view_directions};
+  }
   const Scales* scales() const { return scales_ ? &*scales_ : nullptr; }
   /// A context of every landmark of this source (the rest as `of`).
   RefineContext context(const RefineContext& of) const;

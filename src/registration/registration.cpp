@@ -36,6 +36,22 @@ PreparedTarget::PreparedTarget(const Map& target, const WeightOptions& weight_op
   }
   covariances_ = target.covariances_m2();
   up_axis_ = estimate_up_axis(target);
+  view_directions_ = target.view_directions();
+}
+
+void PreparedTarget::set_view_directions(std::vector<Vec3> directions) {
+  if (!directions.empty() && directions.size() != tree_.size()) {
+    throw InvalidArgument("set_view_directions: " + std::to_string(directions.size()) +
+                          " directions for " + std::to_string(tree_.size()) + " target points");
+  }
+  for (std::size_t i = 0; i < directions.size(); ++i) {
+    const double norm = directions[i].norm();
+    if (!directions[i].allFinite() || (norm != 0.0 && std::abs(norm - 1.0) > 1e-6)) {
+      throw InvalidArgument("set_view_directions: direction " + std::to_string(i) +
+                            " must be a unit vector or zero");
+    }
+  }
+  view_directions_ = std::move(directions);
 }
 
 void PreparedTarget::set_up_axis(std::optional<Vec3> up) {

@@ -3,6 +3,7 @@
 #include "lmalign/registration/seams.hpp"
 
 #include "lmalign/core/enum_names.hpp"
+#include "lmalign/core/geometry.hpp"
 #include "lmalign/map/map.hpp"
 #include "lmalign/registration/registration.hpp"
 #include "lmalign/registration/score.hpp"
@@ -25,7 +26,18 @@ SourceLandmarks SourceLandmarks::from_map(const Map& map) {
   s.positions = map.positions();
   s.covariances_m2 = map.covariances_m2();
   s.up = estimate_up_axis(map);
+  s.view_directions = map.view_directions();
   return s;
+}
+
+SourceLandmarks SourceLandmarks::moved(const Isometry3& T) const {
+  SourceLandmarks m;
+  m.positions = transform_points(T, positions);
+  m.covariances_m2 = transform_covariances(T, covariances_m2);
+  if (up) m.up = T.linear() * *up;
+  m.view_directions.reserve(view_directions.size());
+  for (const Vec3& v : view_directions) m.view_directions.push_back(T.linear() * v);
+  return m;
 }
 
 FitnessScore Matcher::fitness(const RefineContext& context, StageState* state, const Isometry3& T,

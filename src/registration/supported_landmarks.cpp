@@ -67,6 +67,11 @@ SupportedLandmarks keep_supported_landmarks(const SourceView& source,
                              ? without(*source.covariances_m2, source_out)
                              : *source.covariances_m2;  // a mismatch: the pipeline reports it
     }
+    if (source.has_view_directions()) {
+      s.view_directions = source.view_directions->size() == positions.size()
+                              ? without(*source.view_directions, source_out)
+                              : *source.view_directions;  // a mismatch: the gate reports it
+    }
     s.up = source.up;
     out.source = std::move(s);
   }
@@ -84,6 +89,9 @@ SupportedLandmarks keep_supported_landmarks(const SourceView& source,
     }
     if (target.has_covariances()) t.set_covariances(without(target.covariances_m2(), target_out));
     t.set_up_axis(target.up_axis());
+    if (!target.view_directions().empty()) {
+      t.set_view_directions(without(target.view_directions(), target_out));
+    }
   }
   return out;
 }

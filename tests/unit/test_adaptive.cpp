@@ -414,6 +414,68 @@ TEST(MahalanobisGate, PicksTheMahalanobisBestAmongTheKEuclideanNearest) {
   EXPECT_EQ(pairs[0].target_index, 2u);
 }
 
+TEST(MahalanobisGate, PairsOnlyLandmarksSeenFromCompatibleDirections) {
+  // Two target landmarks 2 cm apart, seen along +x and along -x. The source landmark lies on the
+  // second (-x) and was seen along +y in the source frame. The source frame is the target frame
+  // turned by T (90 deg about z), so its +y is the target's -x: under T it matches the second,
+  // the Mahalanobis nearer; under T turned by another 180 deg about z its direction is +x, the
+  // second is on the wrong side (180 deg), and the first, 2 cm away, is paired instead.
+  const Points3 tgt = {Vec3(0.02, 0, 0), Vec3::Zero()};
+  PreparedTarget target =
+      make_target(tgt, std::vector<Mat3>(2, covariance(Mat3::Identity(), 0.01, 0.01, 0.01)));
+  target.set_view_directions({Vec3::UnitX(), -Vec3::UnitX()});
+  const Isometry3 T = pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 90);
+  const Points3 src = {Vec3::Zero()};
+  const std::vector<Vec3> views = {Vec3::UnitY()};
+  GateSide side;
+  side.points = &src;
+  side.view_directions = &views;
+  std::vector<GatedPair> pairs;
+  MahalanobisGateOptions o;
+  o.k = 2;
+  gate_correspondences(side, target, T, 1e-3, PoseSigma{}, o, nullptr, &pairs);
+  ASSERT_EQ(pairs.size(), 1u);
+  EXPECT_EQ(pairs[0].target_index, 1u);  // seen from the same side
+  const Isometry3 turned = pose_from_xyz_rpy_deg(0, 0, 0, 0, 0, 180) * T;
+  gate_correspondences(side, target, turned, 1e-3, PoseSigma{}, o, nullptr, &pairs);
+  ASSERT_EQ(pairs.size(), 1u);
+  EXPECT_EQ(pairs[0].target_index, 0u);  // the landmark on the other side is not a candidate
+  // With only the landmark on the wrong side within reach, nothing is paired; with the test off
+  // (180 deg) or no source directions, it is.
+  o.k = 1;
+  const Points3 on_it = {turned.inverse() * Vec3::Zero()};
+  side.points = &on_it;
+  gate_correspondences(side, target, turned, 1e-3, PoseSigma{}, o, nullptr, &pairs);
+  EXPECT_TRUE(pairs.empty());
+  o.max_view_angle_deg = 180.0;
+  gate_correspondences(side, target, turned, 1e-3, PoseSigma{}, o, nullptr, &pairs);
+  EXPECT_EQ(pairs.size(), 1u);
+  o.max_view_angle_deg = 90.0;
+  side.view_directions = nullptr;
+  gate_correspondences(side, target, turned, 1e-3, PoseSigma{}, o, nullptr, &pairs);
+  EXPECT_EQ(pairs.size(), 1u);
+  // An unknown (zero) direction on either side passes.
+  const std::vector<Vec3> unknown = {Vec3::Zero()};
+  side.view_directions = &unknown;
+  gate_correspondences(side, target, turned, 1e-3, PoseSigma{}, o, nullptr, &pairs);
+  EXPECT_EQ(pairs.size(), 1u);
+  side.view_directions = &views;
+  target.set_view_directions({Vec3::UnitX(), Vec3::Zero()});
+  gate_correspondences(side, target, turned, 1e-3, PoseSigma{}, o, nullptr, &pairs);
+  EXPECT_EQ(pairs.size(), 1u);
+  // Bad input: a count that does not match, an angle outside (0, 180], a direction not unit.
+  const std::vector<Vec3> two = {Vec3::UnitX(), Vec3::UnitY()};
+  side.view_directions = &two;
+  EXPECT_THROW(gate_correspondences(side, target, turned, 1e-3, PoseSigma{}, o, nullptr, &pairs),
+               InvalidArgument);
+  for (double a : {0.0, -1.0, 180.5, kNaN}) {
+    o.max_view_angle_deg = a;
+    EXPECT_FALSE(o.is_valid());
+  }
+  EXPECT_THROW(target.set_view_directions({Vec3(2, 0, 0), Vec3::Zero()}), InvalidArgument);
+  EXPECT_THROW(target.set_view_directions({Vec3::UnitX()}), InvalidArgument);
+}
+
 TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
   std::mt19937_64 rng(5);
   std::uniform_real_distribution<double> u(-5.0, 5.0);

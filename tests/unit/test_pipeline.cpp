@@ -263,6 +263,53 @@ TEST_F(ComposedPipelines, APriorIsRefusedByAnInitialiserThatUsesNone) {
                        "the initialiser 'guess' of 'custom' uses no prior"));
 }
 
+TEST(SigmaSchedule, ATwoCycleAtZeroUncertaintyEndsTheRunAsSettled) {
+  // A final refinement (zero pose uncertainty): steps of 1 mm, well above the settle threshold
+  // (1e-3 x the 1 cm floor), alternate back and forth: the second one ends the run (the two
+  // together do not move the source's centre). Two steps the same way do not.
+  PipelineSpec spec;
+  spec.matcher = "mahalanobis_gate";
+  spec.estimator = "p2d_step";
+  spec.schedule = "sigma_anneal";
+  const Pipeline p(spec);
+  Scales scales;
+  scales.floor_m = 0.01;
+  scales.source.radius_m = 1.0;
+  scales.source.centre_m = Vec3(0.5, 0.0, 0.0);
+  RefineContext c;
+  c.scales = &scales;
+  const Schedule& schedule = p.schedule();
+  const Pairs pairs;
+  auto step_by = [](const Vec3& t_m) {
+    Step s;
+    s.increment.translation() = t_m;
+    return s;
+  };
+  for (const bool back_and_forth : {true, false}) {
+    LoopState loop;
+    loop.phase = Phase::kFinal;
+    const std::unique_ptr<StageState> state = schedule.begin(c, Hypothesis{}, &loop);
+    const Vec3 t(0.001, 0.0, 0.0);
+    EXPECT_EQ(schedule.after_step(c, state.get(), step_by(t), pairs, &loop),
+              TerminationReason::kNotTerminated);
+    const TerminationReason second =
+        schedule.after_step(c, state.get(), step_by(back_and_forth ? Vec3(-t) : t), pairs, &loop);
+    EXPECT_EQ(second,
+              back_and_forth ? TerminationReason::kTransform : TerminationReason::kNotTerminated);
+  }
+  // While the pose uncertainty is above zero, a 2-cycle only shrinks it (the next level).
+  LoopState loop;
+  loop.phase = Phase::kHypothesis;
+  Hypothesis h;
+  h.start_sigma_m = 0.1;
+  h.start_sigma_rad = 0.1;
+  const std::unique_ptr<StageState> state = schedule.begin(c, h, &loop);
+  EXPECT_EQ(schedule.after_step(c, state.get(), step_by(Vec3(0.05, 0, 0)), pairs, &loop),
+            TerminationReason::kNotTerminated);
+  EXPECT_EQ(schedule.after_step(c, state.get(), step_by(Vec3(-0.05, 0, 0)), pairs, &loop),
+            TerminationReason::kNotTerminated);
+}
+
 TEST_F(ComposedPipelines, AHypothesisCapsItsOwnRefinement) {
   // A search refines many candidates briefly (complete_search): Hypothesis::max_iterations and
   // max_iterations_per_level cap one refinement below the schedule's own budget.

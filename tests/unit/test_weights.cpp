@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/map/map.hpp"
 #include "lmalign/weights/weights.hpp"
 
 namespace lmalign {
@@ -43,6 +45,39 @@ Map two_frame_map() {
   l2.id = 3;
   map.landmarks = {l0, l1, l2};
   return map;
+}
+
+TEST(ViewDirections, TheMeanUnitRayFromTheObservingCentresOrZero) {
+  Map map = two_frame_map();
+  // l0 at the origin, seen from (3, 4, 0) and (0, 0, 2): rays (-0.6, -0.8, 0) and (0, 0, -1).
+  // l1 at (0, 0, 1), seen twice from (0, 0, 2) and once from (3, 4, 0): rays (0, 0, -1) twice
+  // and (-3, -4, 1) / sqrt(26). l2: no observations.
+  std::vector<Vec3> v = map.view_directions();
+  ASSERT_EQ(v.size(), 3u);
+  EXPECT_LT((v[0] - Vec3(-0.6, -0.8, -1.0).normalized()).norm(), 1e-12);
+  const Vec3 sum1 = 2.0 * Vec3(0, 0, -1) + Vec3(-3, -4, 1) / std::sqrt(26.0);
+  EXPECT_LT((v[1] - sum1.normalized()).norm(), 1e-12);
+  EXPECT_EQ(v[2], Vec3::Zero());
+  // Seen from opposite sides: the mean ray is shorter than kMinViewConcentration, the direction
+  // unknown (zero). Seen from a camera at the landmark itself, or from an unknown frame: no ray.
+  Frame c;
+  c.id = 11;
+  c.p_world_camera = Vec3(-3, -4, 0);
+  map.frames.push_back(c);
+  map.landmarks[0].observations = {{7, 1, 2}, {11, 1, 2}};
+  map.landmarks[2].p_world = Vec3(0, 0, 2);
+  map.landmarks[2].observations = {{9, 1, 1}, {12, 1, 1}};
+  v = map.view_directions();
+  EXPECT_EQ(v[0], Vec3::Zero());
+  EXPECT_EQ(v[2], Vec3::Zero());
+  // Every direction is unit or zero, and moves with the map: after transform_map, the rotated.
+  const Isometry3 T = pose_from_xyz_rpy_deg(1, 2, 3, 10, -20, 30);
+  const Map moved = transform_map(two_frame_map(), T);
+  const std::vector<Vec3> before = two_frame_map().view_directions();
+  const std::vector<Vec3> after = moved.view_directions();
+  for (std::size_t i = 0; i < before.size(); ++i) {
+    EXPECT_LT((after[i] - T.linear() * before[i]).norm(), 1e-12) << i;
+  }
 }
 
 TEST(MeanDistanceWeight, HandComputed) {

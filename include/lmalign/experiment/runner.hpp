@@ -123,6 +123,10 @@ struct RunnerOptions {
   /// The undisplaced source map's up axis (source frame; estimate_up_axis()), for the adaptive
   /// strategy's yaw search; each run rotates it by its displacement. None: the pipeline's default.
   std::optional<Vec3> source_up;
+  /// The undisplaced source landmarks' unit mean viewing directions (source frame;
+  /// Map::view_directions()), for the gate's viewing-direction test; each run rotates them by
+  /// its displacement. Not owned; null = none.
+  const std::vector<Vec3>* source_view_directions = nullptr;
   /// What the two maps' headers say (scale, assumed covariances), passed to every run with
   /// AlignRequest::describe_maps, so a config's `scale: auto` means what `lmalign align --scale
   /// auto` means. Default: metric, measured covariances.

@@ -115,6 +115,16 @@ class Map {
   Points3 positions() const;
   /// Landmark position covariances in the world frame (m^2), in landmark order.
   std::vector<Mat3> covariances_m2() const;
+  /// Each landmark's mean viewing direction in the world frame, in landmark order: the mean of
+  /// the unit vectors from the centres of the frames that observed it to the landmark, normalised
+  /// (unit, dimensionless). The zero vector where it says nothing: no observation of a known
+  /// frame, a landmark at a camera centre, or rays so spread that their mean is shorter than
+  /// kMinViewConcentration (seen from all around). What a SLAM map knows beyond a point cloud:
+  /// the Mahalanobis gate pairs two landmarks only when they were seen from compatible
+  /// directions (stages/mahalanobis_gate.hpp, match.max_view_angle_deg).
+  std::vector<Vec3> view_directions() const;
+  /// Below this length of the mean unit ray, a landmark's viewing direction is zero (unknown).
+  static constexpr double kMinViewConcentration = 0.5;
 
   /// Throws InvalidArgument if an id is negative or duplicated, an observation names an unknown
   /// frame, a value is not finite, or a frame quaternion is zero. The message names the id.

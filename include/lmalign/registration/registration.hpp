@@ -50,7 +50,7 @@ struct RegistrationResult {
 class PreparedTarget {
  public:
   /// From a map: builds the kd-tree over the landmark positions, computes all four weights and
-  /// keeps the landmark covariances (for the point-to-distribution cost).
+  /// keeps the landmark covariances (for the point-to-distribution cost) and viewing directions.
   /// Throws InvalidArgument if the map is invalid (see Map::validate()).
   explicit PreparedTarget(const Map& target, const WeightOptions& weight_options = {});
   /// From bare points: only uniform weights until set_weights() provides others, and no
@@ -76,6 +76,13 @@ class PreparedTarget {
   /// Sets it (normalised); nullopt clears it. Throws InvalidArgument for a zero or non-finite axis.
   void set_up_axis(std::optional<Vec3> up);
 
+  /// Each landmark's unit mean viewing direction (target frame, zero where unknown;
+  /// Map::view_directions()), or empty: none (built from bare points). Read by the Mahalanobis
+  /// gate's viewing-direction test.
+  const std::vector<Vec3>& view_directions() const { return view_directions_; }
+  /// Sets them: one per point, each unit or zero, or empty for none. Throws InvalidArgument.
+  void set_view_directions(std::vector<Vec3> directions);
+
   const KdTree& tree() const { return tree_; }
   const Points3& points() const { return tree_.points(); }
   std::size_t size() const { return tree_.size(); }
@@ -85,6 +92,7 @@ class PreparedTarget {
   std::map<WeightKind, std::vector<double>> weights_;
   std::vector<Mat3> covariances_;
   std::optional<Vec3> up_axis_;
+  std::vector<Vec3> view_directions_;
 };
 
 }  // namespace lmalign

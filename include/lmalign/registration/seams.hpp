@@ -57,9 +57,15 @@ struct SourceView {
   const Points3* positions = nullptr;
   const std::vector<Mat3>* covariances_m2 = nullptr;
   std::optional<Vec3> up;
+  /// Unit mean viewing directions (source frame; Map::view_directions()), zero where unknown;
+  /// null or empty = none.
+  const std::vector<Vec3>* view_directions = nullptr;
 
   std::size_t size() const { return positions != nullptr ? positions->size() : 0; }
   bool has_covariances() const { return covariances_m2 != nullptr && !covariances_m2->empty(); }
+  bool has_view_directions() const {
+    return view_directions != nullptr && !view_directions->empty();
+  }
 };
 
 /// The source landmarks, owned: what front ends build from a map or from arrays.
@@ -67,10 +73,15 @@ struct SourceLandmarks {
   Points3 positions;
   std::vector<Mat3> covariances_m2;  ///< empty = none
   std::optional<Vec3> up;
-  /// From a map: positions, covariances and the up axis of its frames (estimate_up_axis()).
-  /// Throws InvalidArgument if the map is invalid.
+  std::vector<Vec3> view_directions;  ///< unit, source frame, zero where unknown; empty = none
+  /// From a map: positions, covariances, the up axis of its frames (estimate_up_axis()) and the
+  /// landmarks' viewing directions (Map::view_directions()). Throws InvalidArgument if the map
+  /// is invalid.
   static SourceLandmarks from_map(const Map& map);
-  SourceView view() const { return {&positions, &covariances_m2, up}; }
+  /// The same landmarks displaced by T (p' = T p, C' = R C R^T, the up axis and the viewing
+  /// directions rotated by R): the paper's protocol moves the source so before aligning it.
+  SourceLandmarks moved(const Isometry3& T) const;
+  SourceView view() const { return {&positions, &covariances_m2, up, &view_directions}; }
 };
 
 /// The scales read off the data (stages/data_scales.hpp), for the stages that need them.
@@ -245,6 +256,17 @@ struct LoopState {
   bool distribution_step = false;
   /// The scale is estimated too (Sim(3)): an estimator that estimates_scale() solves 7 DoF.
   bool free_scale = false;
+  /// The pairs score a pose (the scorer, the trust judge) instead of feeding a step. The gate's
+  /// viewing-direction test (match.max_view_angle_deg) applies only then: inside the loop, a
+  /// pair at the test's boundary flips in and out from one step to the next (full weight, unlike
+  /// the chi-square boundary where the kernel's weight is small) and the refinement never
+  /// settles (measured on a real desk window: a 2-cycle of 843/844 pairs to the iteration limit).
+  bool scoring = false;
+  static LoopState for_scoring() {
+    LoopState s;
+    s.scoring = true;
+    return s;
+  }
 };
 
 /// The pairs of one iteration. Point matchers fill `moved` and `points`; distribution matchers

@@ -36,6 +36,8 @@ struct CompleteInitOptions {
   /// search runs too and its modes compete with the prior's hypotheses; "strict", they are the
   /// verdict's rivals but never the answer; "off", the prior's search alone.
   std::string prior_check = "off";
+  /// The gate the search's votes are scored with: the matcher's (match.*).
+  MahalanobisGateOptions gate;
 };
 
 class CompleteSearchInit : public Initialiser {
@@ -110,6 +112,7 @@ class CompleteSearchInit : public Initialiser {
     CompleteSearchInput in;
     in.source.points = c.source.positions;
     in.source.covariances_m2 = c.source.covariances_m2;
+    in.source.view_directions = c.source.view_directions;
     in.target = c.target;
     in.ups_source = report->ups_source;
     in.ups_target = report->ups_target;
@@ -117,6 +120,7 @@ class CompleteSearchInit : public Initialiser {
     in.source_radius_m = sc.source.radius_m;
     in.cell_m = cell;
     in.floor_m = sc.floor_m;
+    in.gate = o_.gate;
     in.coarse_sigma.translation_m = o_.start_sigma_factor * 2.0 * cell;
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
     CompleteSearchOptions so = o_.search;
@@ -232,6 +236,9 @@ std::unique_ptr<Stage> make_init_complete_search(const Settings& s) {
   o.start_sigma_factor = s.real("init.start_sigma_factor");
   o.second_up_min_angle_deg = s.real("init.second_up_min_angle_deg");
   o.prior_check = s.choice("init.prior_check");
+  o.gate.k = static_cast<int>(s.integer("match.k"));
+  o.gate.chi2_threshold = s.real("match.chi2_threshold");
+  o.gate.max_view_angle_deg = s.real("match.max_view_angle_deg");
   auto n = [&](const char* key) { return static_cast<std::size_t>(s.integer(key)); };
   o.search.vote_source_samples = n("search.vote_source_samples");
   o.search.vote_target_samples = n("search.vote_target_samples");

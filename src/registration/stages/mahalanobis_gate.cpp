@@ -42,6 +42,12 @@ void check_inputs(const GateSide& source, const PreparedTarget& target, double f
                           " source covariances for " + std::to_string(source.points->size()) +
                           " source landmarks");
   }
+  if (source.view_directions != nullptr && !source.view_directions->empty() &&
+      source.view_directions->size() != source.points->size()) {
+    throw InvalidArgument("Mahalanobis gate: " + std::to_string(source.view_directions->size()) +
+                          " source viewing directions for " +
+                          std::to_string(source.points->size()) + " source landmarks");
+  }
   if (!(floor_m > 0.0) || !std::isfinite(floor_m)) {
     throw InvalidArgument("Mahalanobis gate: floor_m must be > 0 and finite");
   }
@@ -56,9 +62,12 @@ void check_inputs(const GateSide& source, const PreparedTarget& target, double f
 // The best target landmark of one source landmark; false when none passes the gate.
 // `seeds`, `num_seeds` (may be null / 0): the landmark's neighbours at the previous call; the
 // found neighbours are written back there.
+// `view_t`: the target's viewing directions (null: none); `view_s`: the source landmark's,
+// rotated into the target frame (zero: unknown); `min_cos`: the cosine of the largest angle.
 bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
               const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
-              double chi2, GatedPair* out, PointIndex* seeds, std::uint8_t* num_seeds) {
+              double chi2, const std::vector<Vec3>* view_t, const Vec3& view_s, double min_cos,
+              GatedPair* out, PointIndex* seeds, std::uint8_t* num_seeds) {
   const Vec3 x = T * p_s;
   PointIndex idx[kMaxK];
   double d2e[kMaxK];
@@ -96,7 +105,13 @@ bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const Prepar
   Mat3 S_src = Mat3::Zero();
   if (C_s != nullptr) S_src = T.linear() * (*C_s) * T.linear().transpose();
   double best = std::numeric_limits<double>::infinity();
+  const bool check_view = view_t != nullptr && !view_s.isZero();
   for (std::size_t c = 0; c < found; ++c) {
+    // Seen from incompatible directions (an unknown target direction, zero, passes).
+    if (check_view) {
+      const Vec3& v_t = (*view_t)[idx[c]];
+      if (!v_t.isZero() && view_s.dot(v_t) < min_cos) continue;
+    }
     const Vec3 r = target.points()[idx[c]] - x;
     Mat3 S = S_src;
     if (C_t != nullptr) S += (*C_t)[idx[c]];
@@ -126,6 +141,9 @@ bool MahalanobisGateOptions::is_valid(std::string* why) const {
   if (!(chi2_threshold > 0.0) || !std::isfinite(chi2_threshold)) {
     return fail("chi2_threshold must be > 0 and finite");
   }
+  if (!(max_view_angle_deg > 0.0 && max_view_angle_deg <= 180.0)) {
+    return fail("max_view_angle_deg must be in (0, 180]");
+  }
   return true;
 }
 
@@ -147,6 +165,12 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
       target.has_covariances() && target.size() > 0 ? &target.covariances_m2() : nullptr;
   const std::size_t n = subset != nullptr ? subset->size() : P.size();
   const double iso_base = floor_m * floor_m + pose_sigma.translation_m * pose_sigma.translation_m;
+  // The viewing-direction test, when both sides have directions and it is on.
+  const bool views = options.max_view_angle_deg < 180.0 && source.view_directions != nullptr &&
+                     !source.view_directions->empty() && !target.view_directions().empty();
+  const std::vector<Vec3>* view_t = views ? &target.view_directions() : nullptr;
+  const double min_cos = std::cos(options.max_view_angle_deg * kPi / 180.0);
+  const Mat3 R = T_target_source.linear();
   std::vector<GatedPair> slot(n);
   std::vector<unsigned char> kept(n, 0);
   FirstException error;  // an exception may not leave the parallel loop
@@ -161,8 +185,9 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
           cache != nullptr ? &cache->indices[i * static_cast<std::size_t>(options.k)] : nullptr;
       std::uint8_t* num_seeds = cache != nullptr ? &cache->counts[i] : nullptr;
       if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
-                   tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, &g, seeds,
-                   num_seeds)) {
+                   tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, view_t,
+                   views ? Vec3(R * (*source.view_directions)[i]) : Vec3::Zero(), min_cos, &g,
+                   seeds, num_seeds)) {
         slot[static_cast<std::size_t>(j)] = g;
         kept[static_cast<std::size_t>(j)] = 1;
       }

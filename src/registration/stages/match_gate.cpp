@@ -31,6 +31,7 @@ class GateMatcher : public Matcher {
     GateSide side;
     side.points = c.source.positions;
     side.covariances_m2 = c.source.covariances_m2;
+    if (loop.scoring) side.view_directions = c.source.view_directions;  // (LoopState::scoring)
     pairs->kind = Pairs::Kind::kDistributions;
     pairs->chi2_threshold = options_.chi2_threshold;
     gate_correspondences(side, *c.target, T, c.scales->floor_m, loop.sigma, options_, nullptr,
@@ -50,13 +51,19 @@ std::vector<SettingRow> match_gate_settings() {
                       "count", "Euclidean nearest target landmarks examined per source landmark"),
           real_setting("match.chi2_threshold", "MahalanobisGateOptions::chi2_threshold",
                        d.chi2_threshold, SettingBound::above(0.0), "1",
-                       "gate on the Mahalanobis d^2 (chi-square, 3 dof, 0.99)")};
+                       "gate on the Mahalanobis d^2 (chi-square, 3 dof, 0.99)"),
+          real_setting("match.max_view_angle_deg", "MahalanobisGateOptions::max_view_angle_deg",
+                       d.max_view_angle_deg, SettingBound::open_closed(0.0, 180.0), "deg",
+                       "largest angle between two landmarks' mean viewing directions (the "
+                       "source's rotated into the target frame) for them to be paired; 180: off; "
+                       "unknown directions pass")};
 }
 
 std::unique_ptr<Stage> make_match_gate(const Settings& s) {
   MahalanobisGateOptions o;
   o.k = static_cast<int>(s.integer("match.k"));
   o.chi2_threshold = s.real("match.chi2_threshold");
+  o.max_view_angle_deg = s.real("match.max_view_angle_deg");
   return std::make_unique<GateMatcher>(o);
 }
 

@@ -32,7 +32,7 @@ class GatedScorer : public Scorer {
   double score(const RefineContext& c, const Pipeline& pipeline,
                const Isometry3& T) const override {
     Pairs pairs;
-    pipeline.matcher().match(c, nullptr, T, LoopState{}, &pairs);
+    pipeline.matcher().match(c, nullptr, T, LoopState::for_scoring(), &pairs);
     double score = 0.0;
     for (const GatedPair& g : pairs.gated) score += 1.0 - g.d2 / pairs.chi2_threshold;
     return score;

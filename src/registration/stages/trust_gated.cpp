@@ -115,7 +115,7 @@ class GatedJudge : public TrustJudge {
     Verdict v;
     {
       Pairs inliers;
-      j.pipeline->matcher().match(c, nullptr, T, LoopState{}, &inliers);
+      j.pipeline->matcher().match(c, nullptr, T, LoopState::for_scoring(), &inliers);
       double sum_d2 = 0.0;
       std::vector<double> d2;
       for (const GatedPair& g : inliers.gated) {
@@ -133,7 +133,7 @@ class GatedJudge : public TrustJudge {
       }
     }
     {
-      LoopState wide;
+      LoopState wide = LoopState::for_scoring();  // the overlap as the inliers count it
       wide.sigma.translation_m = j.init->resolution_m;
       wide.sigma.pivot_m = T * sc.source.centre_m;
       Pairs near;
