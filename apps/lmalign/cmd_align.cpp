@@ -603,9 +603,10 @@ CommandRunner add_align_command(CLI::App& root) {
   cmd->add_option(
       "--prior-sigma", args->prior_sigma,
       "ROT_DEG,TRANS_M: standard deviations of --initial-guess (identity if none), "
-      "degrees and metres, each > 0: a searching strategy searches within 3 sigma of it, and "
-      "an answer outside that window is never trusted (--set init.prior_check=rivals "
-      "also runs the global search against it; docs/accuracy.md)");
+      "degrees and metres, each > 0: a hint, checked against the maps. The default runs its "
+      "global search too; a pose outside 3 sigma that scores as well makes the answer untrusted, "
+      "and an answer outside that window is never trusted (--set init.prior_check=off: the "
+      "search within 3 sigma alone; docs/accuracy.md, \"Priors are hints\")");
   cmd->add_option("--scale", args->scale,
                   "auto, free or fixed: whether the scale is estimated too (a similarity, "
                   "p_target = scale * R * p_source + t, for maps without a common metric scale; "

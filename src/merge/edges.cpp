@@ -1,6 +1,7 @@
 // Edges of a merge (include/lmalign/merge/edges.hpp).
 #include "lmalign/merge/edges.hpp"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 
@@ -57,13 +58,25 @@ AlignRequest edge_request(const Preset& preset, const CandidatePair& pair,
                           const EdgeOptions& options) {
   AlignRequest request;
   request.max_iterations = options.max_iterations;
-  request.settings = options.settings;
+  const Pipeline pipeline(preset.spec);
+  // A merge plans many prior edges: each one checked by the global search (the default of a
+  // single alignment, init.prior_check=rivals) would cost a complete search per edge. Until that
+  // search is cheap (issue 39), a merge's edges keep the prior's search alone (off), still
+  // checked against the prior's window by the verdict, and against each other by the pose
+  // graph's cycles; a manifest's or a caller's own init.prior_check wins.
+  const bool set_by_caller =
+      std::any_of(options.settings.begin(), options.settings.end(),
+                  [](const auto& kv) { return kv.first == "init.prior_check"; });
+  if (pair.prior && !set_by_caller && pipeline.settings().has("init.prior_check")) {
+    request.settings.emplace_back("init.prior_check", SettingValue(std::string("off")));
+  }
+  request.settings.insert(request.settings.end(), options.settings.begin(), options.settings.end());
   request.initial_guess = pair.initial_guess;
   request.scale = options.scale;
   request.source_metric = pair.source_metric;
   request.target_metric = pair.target_metric;
   request.covariances_assumed = pair.covariances_assumed;
-  if (pair.prior && Pipeline(preset.spec).initialiser().uses_prior()) request.prior = pair.prior;
+  if (pair.prior && pipeline.initialiser().uses_prior()) request.prior = pair.prior;
   return request;
 }
 

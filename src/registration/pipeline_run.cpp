@@ -506,11 +506,11 @@ void PipelineRun::check_prior_window(Conclusion* c) const {
   window.T_target_source_guess = guess;
   window.rotation_sd_rad = request_.prior->rotation_deg * kPi / 180.0;
   window.translation_sd_m = request_.prior->translation_m;
-  const double rot_rad = Eigen::AngleAxisd(answer.linear() * guess.linear().transpose()).angle();
-  const double moved_m = (answer * centre - guess * centre).norm();
-  const double max_rot = 3.0 * window.rotation_sd_rad + s.initialisation.resolution_rad;
-  const double max_moved = 3.0 * window.point_sd_m(centre) + s.initialisation.resolution_m;
-  if (rot_rad <= max_rot && moved_m <= max_moved) return;
+  const PoseWindow::Check w =
+      window.check(answer, centre, s.initialisation.resolution_m, s.initialisation.resolution_rad);
+  if (w.inside()) return;
+  const double rot_rad = w.rotation_rad, moved_m = w.moved_m;
+  const double max_rot = w.max_rotation_rad, max_moved = w.max_moved_m;
   s.verdict.trustworthy = false;
   const std::string where = message_number(moved_m) + " m / " +
                             message_number(rot_rad * 180.0 / kPi) + " deg from the guess";

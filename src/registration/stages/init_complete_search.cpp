@@ -35,7 +35,7 @@ struct CompleteInitOptions {
   /// With a prior (issue 41: a prior is a hint, checked against the maps): "rivals", the global
   /// search runs too and its modes compete with the prior's hypotheses; "strict", they are the
   /// verdict's rivals but never the answer; "off", the prior's search alone.
-  std::string prior_check = "off";
+  std::string prior_check = "rivals";
   /// The gate the search's votes are scored with: the matcher's (match.*).
   MahalanobisGateOptions gate;
 };
@@ -51,29 +51,54 @@ class CompleteSearchInit : public Initialiser {
                                   InitialiserReport* report) const override {
     if (c.pipeline == nullptr || c.refine_context == nullptr) return bounded_->propose(c, report);
     if (!c.prior_sigma_deg_m.has_value()) return global(c, report);
-    std::vector<Hypothesis> out = bounded_->propose(c, report);
-    if (o_.prior_check == "off") return out;
-    // The prior's hypotheses first, then the global search's modes: the refinement and the
-    // scorer treat them alike, and the trust judge's rival test sees what the maps prefer
-    // outside the window. The report keeps the prior's initialisation ("prior" or "given"),
-    // with the global search's resolution (coarser: it measures which poses are distinct).
-    const std::size_t from_prior = out.size();
+    if (o_.prior_check == "off") return bounded_->propose(c, report);
+    // The global search first (as without a prior); its modes are the hypotheses, and the trust
+    // judge's rival test sees what the maps prefer outside the prior's window. When one of them
+    // lies inside the window, it is the prior's hypothesis: the prior's own search would find
+    // that basin again, and is skipped (a prior then costs what no prior costs). Otherwise the
+    // prior's search proposes its hypotheses first. With "strict" the modes outside the window
+    // are only the verdict's rivals, never the answer. The report keeps the initialisation
+    // "prior", with the coarser of the searches' resolutions (it measures which poses are
+    // distinct).
     InitialiserContext open = c;
     open.prior_sigma_deg_m.reset();
     open.initial_guess.reset();
     InitialiserReport global_report;
     std::vector<Hypothesis> modes = global(open, &global_report);
-    std::size_t rivals = 0;
+    PoseWindow window;
+    window.T_target_source_guess = c.initial_guess.value_or(Isometry3::Identity());
+    window.rotation_sd_rad = c.prior_sigma_deg_m->first * kPi / 180.0;
+    window.translation_sd_m = c.prior_sigma_deg_m->second;
+    const Vec3 centre = c.scales != nullptr ? c.scales->source.centre_m : Vec3::Zero();
+    std::vector<Hypothesis> inside, outside;
     for (Hypothesis& h : modes) {
       if (h.origin != "search") continue;
-      h.origin = "global check";
-      h.rival_only = o_.prior_check == "strict";
-      out.push_back(h);
-      ++rivals;
+      if (window
+              .check(h.T_target_source, centre, global_report.resolution_m,
+                     global_report.resolution_rad)
+              .inside()) {
+        h.origin = "global, inside the prior's window";
+        inside.push_back(h);
+      } else {
+        h.origin = "global check";
+        h.rival_only = o_.prior_check == "strict";
+        outside.push_back(h);
+      }
     }
-    report->notes.emplace_back("prior search resolution (m)", report->resolution_m);
-    report->notes.emplace_back("prior hypotheses", static_cast<double>(from_prior));
-    report->notes.emplace_back("global check modes", static_cast<double>(rivals));
+    std::vector<Hypothesis> out;
+    if (inside.empty()) {
+      out = bounded_->propose(c, report);
+      report->notes.emplace_back("prior search resolution (m)", report->resolution_m);
+      report->notes.emplace_back("prior hypotheses", static_cast<double>(out.size()));
+    } else {
+      *report = global_report;
+      report->initialisation = "prior";
+      out = inside;
+      report->notes.emplace_back("global modes inside the prior's window",
+                                 static_cast<double>(inside.size()));
+    }
+    out.insert(out.end(), outside.begin(), outside.end());
+    report->notes.emplace_back("global check modes", static_cast<double>(outside.size()));
     report->resolution_m = std::max(report->resolution_m, global_report.resolution_m);
     report->resolution_rad = std::max(report->resolution_rad, global_report.resolution_rad);
     report->prior_checked = true;

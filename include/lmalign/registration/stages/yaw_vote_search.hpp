@@ -67,6 +67,24 @@ struct PoseWindow {
   double point_sd_m(const Vec3& point_m) const {
     return translation_sd_m + rotation_sd_rad * (T_target_source_guess * point_m).norm();
   }
+  /// How far `T` (T_target_source) is from the guess, and the window's bounds there: its rotation
+  /// (radians) against 3 rotation sigmas, and the move of `centre_m` (source frame) against
+  /// 3 point_sd_m(centre_m), each widened by a search's resolution (metres, radians).
+  struct Check {
+    double rotation_rad = 0.0, max_rotation_rad = 0.0;
+    double moved_m = 0.0, max_moved_m = 0.0;
+    bool inside() const { return rotation_rad <= max_rotation_rad && moved_m <= max_moved_m; }
+  };
+  Check check(const Isometry3& T, const Vec3& centre_m, double resolution_m,
+              double resolution_rad) const {
+    Check c;
+    c.rotation_rad =
+        Eigen::AngleAxisd(T.linear() * T_target_source_guess.linear().transpose()).angle();
+    c.moved_m = (T * centre_m - T_target_source_guess * centre_m).norm();
+    c.max_rotation_rad = 3.0 * rotation_sd_rad + resolution_rad;
+    c.max_moved_m = 3.0 * point_sd_m(centre_m) + resolution_m;
+    return c;
+  }
 };
 
 struct YawHypothesis {
