@@ -19,6 +19,7 @@
 #include "lmalign/merge/evaluation.hpp"
 #include "lmalign/merge/merge.hpp"
 #include "lmalign/merge/output.hpp"
+#include "lmalign/registration/presets.hpp"
 
 namespace lmalign::cli {
 
@@ -38,8 +39,29 @@ struct MergeArgs {
   std::string dask_scheduler;
   bool no_plots = false;
   bool plan_only = false;
-  std::string scale = "auto";  // --scale auto|free|fixed
+  std::string scale = "auto";         // --scale auto|free|fixed
+  std::vector<std::string> settings;  // --set KEY=VALUE, every edge
 };
+
+/// --set KEY=VALUE, checked against the default's settings table now (one line naming the key,
+/// not one error per edge later), as EdgeOptions::settings.
+std::vector<std::pair<std::string, SettingValue>> edge_settings(
+    const std::vector<std::string>& assignments) {
+  AlignRequest request;
+  for (const std::string& s : assignments) {
+    try {
+      request.add_assignment(s);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(std::string("--set ") + e.what());
+    }
+  }
+  try {
+    request.resolve(recommended_preset());  // every key and value read by its row
+  } catch (const InvalidArgument& e) {
+    throw InvalidArgument(std::string("--set: ") + e.what());
+  }
+  return request.settings;
+}
 
 /// --dask-scheduler: the pairs run on a Dask cluster through the Python package; this process
 /// becomes `python3 -c <bootstrap> ARGS` (lmalign.merge_cli, docs/merge.md "Scale-out on Dask").
@@ -139,7 +161,12 @@ bool plot_merge(const std::string& out_dir) {
 }
 
 int run_merge_command(const MergeArgs& a) {
+  if (!a.dask_scheduler.empty() && !a.settings.empty()) {
+    throw InvalidArgument(
+        "--set is not handed over to a Dask cluster yet: run the merge without --dask-scheduler");
+  }
   if (!a.dask_scheduler.empty()) return exec_python_merge(a);
+  const std::vector<std::pair<std::string, SettingValue>> settings = edge_settings(a.settings);
   if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
   if (a.threads < 0) throw InvalidArgument("--threads must be >= 0 (0 = all)");
   const std::vector<double> thr =
@@ -193,6 +220,7 @@ int run_merge_command(const MergeArgs& a) {
   options.candidates.max_pairs = static_cast<std::size_t>(a.max_pairs);
   options.threads = a.threads;
   options.edges.scale = scale_mode;
+  options.edges.settings = settings;
   options.edge_cache_dir = (fs::path(a.out_dir) / "edges").string();
   if (a.plan_only) return plan_only(maps, names, priors, options, a.out_dir);
   const StopSignals signals;
@@ -323,6 +351,11 @@ CommandRunner add_merge_command(CLI::App& root) {
                   "estimated too. fixed: rigid (SE(3)) edges and poses for every map")
       ->check(CLI::IsMember({"auto", "free", "fixed"}))
       ->capture_default_str();
+  cmd->add_option("--set", args->settings,
+                  "KEY=VALUE: a setting of every pair's alignment (repeatable; lmalign options "
+                  "adaptive lists them with their bounds). A pair with a prior runs the prior's "
+                  "search alone unless --set init.prior_check=rivals (or strict): then the "
+                  "global search checks it too, at its cost per pair (docs/merge.md)");
   cmd->add_flag("--resume", args->resume, "Reuse the finished edges in OUTDIR/edges/");
   cmd->add_option("--threads", args->threads,
                   "OpenMP threads over the pairs (0 = all); the result does not depend on it")

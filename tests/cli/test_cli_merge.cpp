@@ -108,6 +108,44 @@ TEST_F(CliMerge, MapsAloneInTheirPartsAreReportedNotPlaced) {
       << r.out;
 }
 
+// --set reaches every edge's alignment: a prior edge runs the prior's search alone by default
+// and is checked by the global search with --set init.prior_check=rivals (issue 41); a bad key
+// or value is one line naming it, before any alignment; --set with Dask is refused.
+TEST_F(CliMerge, SetReachesEveryEdgeAndABadSettingIsOneLine) {
+  const std::string scene = path("fleet");
+  ASSERT_EQ(run("simulate --scene fleet --maps 2 --twins 0 --seed 4 --out " + shell_quote(scene))
+                .exit_code,
+            0);
+  auto merge = [&](const std::string& out, const std::string& extra) {
+    return run("merge " + shell_quote(scene + "/manifest.yaml") + " -o " + shell_quote(out) +
+               " --no-plots " + extra);
+  };
+  auto edge_json = [](const std::string& out) {
+    std::string text;
+    for (const auto& e : fs::directory_iterator(out + "/edges")) text += read_text(e.path());
+    return text;
+  };
+  const test::CliRun plain = merge(path("plain"), "");
+  ASSERT_EQ(plain.exit_code, 0) << plain.err;
+  EXPECT_NE(edge_json(path("plain")).find("\"prior_checked\":false"), std::string::npos);
+  const test::CliRun checked = merge(path("checked"), "--set init.prior_check=rivals");
+  ASSERT_EQ(checked.exit_code, 0) << checked.err;
+  const std::string edges = edge_json(path("checked"));
+  EXPECT_NE(edges.find("\"prior_checked\":true"), std::string::npos) << edges.substr(0, 2000);
+  EXPECT_EQ(edges.find("\"prior_checked\":false"), std::string::npos);
+  for (const auto& [extra, expected] : std::map<std::string, std::string>{
+           {"--set init.prior_chek=rivals", "init.prior_check"},
+           {"--set init.prior_check=maybe", "init.prior_check"},
+           {"--set novalue", "expected KEY=VALUE"},
+           {"--set init.prior_check=off --dask-scheduler tcp://127.0.0.1:1", "Dask"}}) {
+    const test::CliRun bad = merge(path("bad"), extra);
+    EXPECT_EQ(bad.exit_code, 2) << extra;
+    EXPECT_NE(bad.err.find(expected), std::string::npos) << extra << ": " << bad.err;
+    EXPECT_EQ(count_lines(bad.err), 1u) << extra << ": " << bad.err;
+    EXPECT_FALSE(fs::exists(path("bad") + "/edges")) << extra;
+  }
+}
+
 TEST_F(CliMerge, WithoutMatplotlibThePlotsAreSkippedWithAWarning) {
   const std::string scene = path("fleet"), out = path("out");
   ASSERT_EQ(run("simulate --scene fleet --maps 2 --twins 0 --out " + shell_quote(scene)).exit_code,
