@@ -106,9 +106,12 @@ def align(source, target, strategy=RECOMMENDED_STRATEGY, initial_guess=None, thr
         NAME.yaml; lmalign.options(strategy) lists its settings.
     initial_guess: (4, 4) rigid T_target_source to start from (default identity). For a
         searching strategy, one more hypothesis of its search, or with prior_sigma the centre of
-        the bounded search.
+        the prior's window.
     prior_sigma: (rot_deg, trans_m), each > 0: the standard deviations of initial_guess;
-        searching strategies only (the CLI's --prior-sigma).
+        searching strategies only (the CLI's --prior-sigma). A hint, checked against the maps:
+        the default's global search runs too, and an answer that a pose outside 3 sigma
+        outscores or nearly matches is not trusted (settings={'init.prior_check': 'off'}: the
+        search within 3 sigma alone; docs/accuracy.md, "Priors are hints").
     threads: OpenMP threads for this call (0: every core). The result does not depend on it.
     settings: {key: value} of the strategy's settings (the CLI's --set; bool, int, float, a name
         or a list of floats, or text as the CLI reads it). An unknown key raises InvalidArgument
