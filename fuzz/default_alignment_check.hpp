@@ -108,10 +108,7 @@ inline void check_default_alignment_bytes(const std::uint8_t* data, std::size_t 
   Summary o;
   try {
     const PreparedTarget prepared(target);
-    SourceLandmarks src;
-    src.positions = source_points;
-    src.covariances_m2 = source.covariances_m2();
-    src.up = estimate_up_axis(source);
+    const SourceLandmarks src = SourceLandmarks::from_map(source);  // with viewing directions
     AlignRequest request;  // the CLI's default, but a smaller search budget (time per input)
     for (const auto& [key, value] : fuzz_search_budget()) {
       request.settings.emplace_back(key, SettingValue(value));
