@@ -21,6 +21,16 @@
 
 namespace lmalign::cli {
 
+void add_set_options(const std::vector<std::string>& assignments, AlignRequest* request) {
+  for (const std::string& s : assignments) {
+    try {
+      request->add_assignment(s);
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument(std::string("--set ") + e.what());
+    }
+  }
+}
+
 std::vector<double> parse_number_list(const std::string& option, const std::string& text,
                                       std::size_t count, const std::string& expected) {
   std::vector<double> values;

@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "lmalign/core/types.hpp"
+#include "lmalign/registration/presets.hpp"
 
 namespace lmalign::cli {
 
@@ -22,6 +23,10 @@ namespace lmalign::cli {
 /// Throws InvalidArgument("<option> \"<text>\": expected ...").
 std::vector<double> parse_number_list(const std::string& option, const std::string& text,
                                       std::size_t count, const std::string& expected);
+
+/// Adds each --set "KEY=VALUE" to `request` (AlignRequest::add_assignment; the values are read
+/// by resolve()). Throws InvalidArgument("--set '<text>': expected KEY=VALUE").
+void add_set_options(const std::vector<std::string>& assignments, AlignRequest* request);
 
 /// Parses --image-size "W,H" (two positive integers, pixels; Bundler's pixels are centred on the
 /// image, so its reader needs the size). Throws InvalidArgument naming the option and the text.

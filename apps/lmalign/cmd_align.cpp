@@ -178,13 +178,7 @@ AlignPlan plan_align(const AlignArgs& a) {
     throw InvalidArgument(std::string("--scale: ") + e.what());
   }
   request.record_history = a.history;
-  for (const std::string& s : a.settings) {
-    try {
-      request.add_assignment(s);
-    } catch (const InvalidArgument& e) {
-      throw InvalidArgument(std::string("--set ") + e.what());
-    }
-  }
+  add_set_options(a.settings, &request);
   std::vector<AlignRequest>& requests = plan.requests;
 
   WeightOptions& wopt = plan.wopt;

@@ -48,13 +48,7 @@ struct MergeArgs {
 std::vector<std::pair<std::string, SettingValue>> edge_settings(
     const std::vector<std::string>& assignments) {
   AlignRequest request;
-  for (const std::string& s : assignments) {
-    try {
-      request.add_assignment(s);
-    } catch (const InvalidArgument& e) {
-      throw InvalidArgument(std::string("--set ") + e.what());
-    }
-  }
+  add_set_options(assignments, &request);
   try {
     request.resolve(recommended_preset());  // every key and value read by its row
   } catch (const InvalidArgument& e) {
