@@ -16,6 +16,7 @@
 
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/stages/complete_search.hpp"
+#include "lmalign/registration/stages/correspondence_search.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
 #include "stage.hpp"
 
@@ -28,6 +29,9 @@ namespace {
 
 struct CompleteInitOptions {
   CompleteSearchOptions search;
+  /// The correspondence search whose poses join the complete search's pool (issue 39);
+  /// hypotheses = 0: none.
+  CorrespondenceSearchOptions correspondences;
   std::size_t hypotheses = 6;
   double vote_cell_factor = 1.5;
   double start_sigma_factor = 0.3;
@@ -148,6 +152,21 @@ class CompleteSearchInit : public Initialiser {
     in.gate = o_.gate;
     in.coarse_sigma.translation_m = o_.start_sigma_factor * 2.0 * cell;
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
+    if (o_.correspondences.hypotheses > 0) {
+      CorrespondenceSearchInput ci;
+      ci.source = in.source;
+      ci.target = c.target;
+      ci.ups_source = in.ups_source;
+      ci.ups_target = in.ups_target;
+      ci.floor_m = sc.floor_m;
+      const CorrespondenceSearchResult cr = correspondence_search(ci, o_.correspondences);
+      for (const CorrespondenceHypothesis& h : cr.hypotheses) {
+        in.extra_candidates.push_back(h.T_target_source);
+      }
+      report->notes.emplace_back("correspondence matches", static_cast<double>(cr.matches));
+      report->notes.emplace_back("correspondence poses",
+                                 static_cast<double>(cr.hypotheses.size()));
+    }
     CompleteSearchOptions so = o_.search;
     so.modes = o_.hypotheses;
     const Pipeline& pipeline = *c.pipeline;
@@ -250,6 +269,23 @@ std::vector<SettingRow> init_complete_search_settings() {
                        "iterations of the second round's refinements"));
   rows.push_back(count("search.round2_samples", "CompleteSearchOptions::round2_samples",
                        d.round2_samples, 16, 1000000, "source landmarks of the second round"));
+  const CorrespondenceSearchOptions cs;
+  rows.push_back(count("search.correspondence_poses", "CorrespondenceSearchOptions::hypotheses",
+                       cs.hypotheses, 0, 4096,
+                       "poses of the correspondence search (descriptors, a consistency graph, "
+                       "cliques) added to the pool; 0 = none"));
+  rows.push_back(count("search.correspondence_keypoints", "CorrespondenceSearchOptions::keypoints",
+                       cs.keypoints, 3, 1000000,
+                       "source landmarks the correspondence search describes and matches"));
+  rows.push_back(count("search.descriptor_neighbours", "CorrespondenceSearchOptions::neighbours",
+                       cs.neighbours, 4, 256,
+                       "the descriptor radius is the target's median distance to this "
+                       "neighbour"));
+  rows.push_back(real_setting("search.consistency_sigmas",
+                              "CorrespondenceSearchOptions::consistency_sigmas",
+                              cs.consistency_sigmas, SettingBound::open_closed(0.0, 100.0), "1",
+                              "two matches agree when their distances agree within this many "
+                              "standard deviations of the four landmarks"));
   return rows;
 }
 
@@ -279,6 +315,11 @@ std::unique_ptr<Stage> make_init_complete_search(const Settings& s) {
   o.search.round1_keep = n("search.round1_keep");
   o.search.round2_iterations = static_cast<int>(s.integer("search.round2_iterations"));
   o.search.round2_samples = n("search.round2_samples");
+  o.correspondences.hypotheses = n("search.correspondence_poses");
+  o.correspondences.seeds = std::max<std::size_t>(1, 4 * o.correspondences.hypotheses);
+  o.correspondences.keypoints = n("search.correspondence_keypoints");
+  o.correspondences.neighbours = n("search.descriptor_neighbours");
+  o.correspondences.consistency_sigmas = s.real("search.consistency_sigmas");
   return std::make_unique<CompleteSearchInit>(o, make_init_yaw_vote(s));
 }
 

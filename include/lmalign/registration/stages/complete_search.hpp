@@ -15,7 +15,8 @@
 //      because a neighbouring yaw did better.
 //   2. Pool. The candidates are ranked twice, by prominence and by the gated score at the coarse
 //      resolution on screen_samples landmarks; the pool takes them from the two rankings in
-//      turn, dropping near-duplicates, up to `pool`. (Indoors, repeated structure spreads the
+//      turn, dropping near-duplicates, up to `pool`; then the input's extra candidates (the
+//      correspondence search's poses) join it. (Indoors, repeated structure spreads the
 //      votes and the score ranks best; on a street the score at the coarse resolution is flatter
 //      than the true peak is narrow, and the prominence ranks best.)
 //   3. Snap. Each pooled candidate moves to the peak of a finer vote about it: yaws within one
@@ -87,6 +88,9 @@ struct CompleteSearchInput {
   /// The pose uncertainty of the coarse resolution (the gate's start from a coarse candidate);
   /// the fine one is a third of it.
   PoseSigma coarse_sigma;
+  /// Poses found otherwise (the correspondence search's, correspondence_search.hpp), added to
+  /// the pool after the coarse vote's candidates: snapped, ranked and refined like them.
+  std::vector<Isometry3> extra_candidates;
 };
 
 /// The refinement the search uses: from `start`, with the gate's pose uncertainty starting at

@@ -1,0 +1,82 @@
+// The correspondence search (issue 39, item 1): global hypotheses from matched landmarks rather
+// than from a vote over every pose. For each pair of up-axis candidates (source, target):
+//
+//   1. Descriptors. Each described landmark gets a histogram of its neighbours within a radius
+//      (the target's median distance to its `neighbours`-th nearest landmark): horizontal
+//      distance x height above or below it, both along the map's up axis, so that it does not
+//      change under a yaw about that axis or any translation. Where both maps know a landmark's
+//      viewing direction, its elevation above the horizontal is appended (a SLAM map's
+//      knowledge beyond the points). Square roots of the normalised counts (the Hellinger
+//      embedding), compared by Euclidean distance.
+//   2. Matches. Every source keypoint (evenly strided) takes its `matches_per_keypoint` nearest
+//      target descriptors.
+//   3. A consistency graph. Two matches (i, j) and (i', j') agree when the source pair and the
+//      target pair have the same horizontal distance and the same height difference, each within
+//      `consistency_sigmas` standard deviations of the four landmarks' positions (from their
+//      covariances, at least the covariance floor; G3Reg's covariance-aware test, in 4 DoF).
+//      Landmarks vaguer than a quarter of the descriptor radius match nothing: a landmark that
+//      gates in anywhere tells nothing about where the maps meet.
+//   4. Cliques. The graph's k-core numbers order the matches; from each of the best-ordered
+//      `seeds`, a clique grows greedily (the candidate with the most neighbours among the
+//      remaining candidates first). Each clique of at least `min_inliers` matches gives a 4-DoF
+//      pose (estimate_4dof_transform after turning the source's up onto the target's); the
+//      distinct poses, by decreasing clique size, are the hypotheses.
+//
+// The pipeline then refines and scores them with everything else (best-first verification is the
+// pipeline's ranking by the score the verdict uses). Frames: T_target_source, p_target =
+// T_target_source * p_source. Deterministic: strided keypoints, no random draws, stable orders.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "lmalign/core/types.hpp"
+#include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/stages/mahalanobis_gate.hpp"
+
+namespace lmalign {
+
+/// Settings of correspondence_search(). Plain struct; check with is_valid().
+struct CorrespondenceSearchOptions {
+  std::size_t keypoints = 512;          ///< source landmarks described and matched, >= 3
+  std::size_t target_keypoints = 4096;  ///< target landmarks described, >= 3
+  std::size_t neighbours = 24;          ///< sets the descriptor radius, [4, 256]
+  std::size_t matches_per_keypoint = 3; ///< [1, 16]
+  double consistency_sigmas = 3.0;      ///< > 0
+  std::size_t seeds = 128;              ///< cliques grown, >= 1
+  std::size_t min_inliers = 5;          ///< >= 3
+  std::size_t hypotheses = 32;          ///< poses per pair of up axes at most, >= 1
+  bool is_valid(std::string* why = nullptr) const;
+};
+
+struct CorrespondenceSearchInput {
+  /// The source landmarks (source frame; covariances and viewing directions may be null or
+  /// empty) and the prepared target (its covariances and viewing directions are used if set).
+  GateSide source;
+  const PreparedTarget* target = nullptr;
+  /// Up-axis candidates (unit, each in its own frame); every pair is searched.
+  std::vector<Vec3> ups_source;
+  std::vector<Vec3> ups_target;
+  /// The covariance floor, metres (> 0): the smallest position standard deviation assumed.
+  double floor_m = 0.0;
+};
+
+struct CorrespondenceHypothesis {
+  Isometry3 T_target_source = Isometry3::Identity();
+  std::size_t inliers = 0;  ///< matches in its clique
+};
+
+struct CorrespondenceSearchResult {
+  std::vector<CorrespondenceHypothesis> hypotheses;  ///< distinct, by decreasing inliers
+  std::size_t matches = 0;                            ///< graph nodes, over the up-axis pairs
+  double radius_m = 0.0;                              ///< descriptor radius
+};
+
+/// Runs the search (see the file comment). Throws InvalidArgument on invalid options or input
+/// (no target, no up axes, a floor that is not finite and > 0). Maps with fewer than 3
+/// landmarks, or too sparse for a descriptor, give no hypotheses.
+CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput& input,
+                                                 const CorrespondenceSearchOptions& options);
+
+}  // namespace lmalign

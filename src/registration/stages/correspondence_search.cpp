@@ -1,0 +1,350 @@
+// The correspondence search: descriptors, matches, a covariance-aware consistency graph, cliques
+// (include/lmalign/registration/stages/correspondence_search.hpp).
+#include "lmalign/registration/stages/correspondence_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/estimation_4dof.hpp"
+#include "lmalign/registration/stages/complete_search.hpp"
+#include "lmalign/registration/stages/yaw_vote_search.hpp"
+#include "lmalign/search/kdtree.hpp"
+
+namespace lmalign {
+
+bool CorrespondenceSearchOptions::is_valid(std::string* why) const {
+  auto fail = [&](const std::string& m) {
+    if (why != nullptr) *why = m;
+    return false;
+  };
+  if (keypoints < 3 || target_keypoints < 3) return fail("keypoints must be >= 3");
+  if (neighbours < 4 || neighbours > 256) return fail("neighbours must be in [4, 256]");
+  if (matches_per_keypoint < 1 || matches_per_keypoint > 16) {
+    return fail("matches_per_keypoint must be in [1, 16]");
+  }
+  if (!(consistency_sigmas > 0.0) || !std::isfinite(consistency_sigmas)) {
+    return fail("consistency_sigmas must be > 0 and finite");
+  }
+  if (seeds < 1 || min_inliers < 3 || hypotheses < 1) {
+    return fail("seeds and hypotheses must be >= 1, min_inliers >= 3");
+  }
+  return true;
+}
+
+namespace {
+
+constexpr int kRadialBins = 4;
+constexpr int kHeightBins = 5;
+constexpr int kShapeDims = kRadialBins * kHeightBins;
+// The weight of the viewing direction's elevation beside the unit-norm shape histogram.
+constexpr float kElevationWeight = 0.5f;
+
+// One side of the search: its landmarks, their standard deviations, a tree over them.
+struct Side {
+  const Points3* points = nullptr;
+  const KdTree* tree = nullptr;
+  std::vector<double> sigma_m;  // per landmark: sqrt(trace(C) / 3), at least the floor
+  const std::vector<Vec3>* views = nullptr;
+  bool has_views() const { return views != nullptr && views->size() == points->size(); }
+};
+
+std::vector<double> sigmas(const Points3& points, const std::vector<Mat3>* cov, double floor_m) {
+  std::vector<double> s(points.size(), floor_m);
+  if (cov == nullptr || cov->size() != points.size()) return s;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    const double v = (*cov)[i].trace() / 3.0;
+    if (std::isfinite(v)) s[i] = std::max(floor_m, std::sqrt(std::max(v, 0.0)));
+  }
+  return s;
+}
+
+// The descriptor of landmark i (dims floats; false if it has too few neighbours).
+bool describe(const Side& side, std::size_t i, const Vec3& up, double radius_m,
+              std::size_t neighbours, bool elevation, float* out) {
+  const Points3& P = *side.points;
+  std::vector<PointIndex> idx(neighbours + 1);
+  std::vector<double> d2(neighbours + 1);
+  const std::size_t found = side.tree->knn(P[i], neighbours + 1, idx.data(), d2.data());
+  std::fill(out, out + kShapeDims + (elevation ? 1 : 0), 0.0f);
+  double total = 0.0;
+  const double r2 = radius_m * radius_m;
+  for (std::size_t j = 0; j < found; ++j) {
+    if (idx[j] == i || d2[j] > r2) continue;
+    const Vec3 d = P[idx[j]] - P[i];
+    const double h = d.dot(up);
+    const double r = std::sqrt(std::max(d.squaredNorm() - h * h, 0.0));
+    // Bilinear (soft) assignment between bin centres.
+    const double fr = std::clamp(r / radius_m * kRadialBins - 0.5, 0.0, kRadialBins - 1.0);
+    const double fh =
+        std::clamp((h / radius_m + 1.0) * 0.5 * kHeightBins - 0.5, 0.0, kHeightBins - 1.0);
+    const int r0 = std::min(static_cast<int>(fr), kRadialBins - 1);
+    const int h0 = std::min(static_cast<int>(fh), kHeightBins - 1);
+    const int r1 = std::min(r0 + 1, kRadialBins - 1), h1 = std::min(h0 + 1, kHeightBins - 1);
+    const double ar = fr - r0, ah = fh - h0;
+    out[r0 * kHeightBins + h0] += static_cast<float>((1 - ar) * (1 - ah));
+    out[r1 * kHeightBins + h0] += static_cast<float>(ar * (1 - ah));
+    out[r0 * kHeightBins + h1] += static_cast<float>((1 - ar) * ah);
+    out[r1 * kHeightBins + h1] += static_cast<float>(ar * ah);
+    total += 1.0;
+  }
+  if (total < 4.0) return false;
+  for (int b = 0; b < kShapeDims; ++b) out[b] = std::sqrt(out[b] / static_cast<float>(total));
+  if (elevation) {
+    const Vec3& v = (*side.views)[i];
+    out[kShapeDims] = kElevationWeight * static_cast<float>(v.dot(up));
+  }
+  return true;
+}
+
+struct Match {
+  PointIndex s, t;
+};
+
+// Greedy cliques of the consistency graph (see the header): lists of match indices.
+std::vector<std::vector<std::size_t>> cliques(const std::vector<std::vector<std::uint64_t>>& adj,
+                                              const std::vector<std::vector<std::uint32_t>>& nbr,
+                                              std::size_t seeds, std::size_t min_size) {
+  const std::size_t n = adj.size();
+  std::vector<std::vector<std::size_t>> out;
+  if (n == 0) return out;
+  const std::size_t words = adj[0].size();
+  // Core numbers (Batagelj-Zaversnik, by repeated removal of a vertex of smallest degree).
+  std::vector<std::size_t> degree(n), core(n, 0);
+  for (std::size_t v = 0; v < n; ++v) degree[v] = nbr[v].size();
+  {
+    std::vector<char> removed(n, 0);
+    std::vector<std::size_t> deg = degree;
+    std::size_t max_deg = 0;
+    for (std::size_t d : deg) max_deg = std::max(max_deg, d);
+    std::vector<std::vector<std::uint32_t>> bucket(max_deg + 1);
+    for (std::size_t v = 0; v < n; ++v) bucket[deg[v]].push_back(static_cast<std::uint32_t>(v));
+    std::size_t k = 0;
+    for (std::size_t done = 0; done < n;) {
+      std::size_t d = 0;
+      while (d <= max_deg && bucket[d].empty()) ++d;
+      const std::uint32_t v = bucket[d].back();
+      bucket[d].pop_back();
+      if (removed[v] || deg[v] != d) continue;
+      removed[v] = 1;
+      ++done;
+      k = std::max(k, d);
+      core[v] = k;
+      for (std::uint32_t u : nbr[v]) {
+        if (!removed[u] && deg[u] > 0) {
+          --deg[u];
+          bucket[deg[u]].push_back(u);
+        }
+      }
+    }
+  }
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return core[a] != core[b] ? core[a] > core[b] : degree[a] > degree[b];
+  });
+  std::vector<char> used(n, 0);
+  std::vector<std::uint64_t> cand(words);
+  for (std::size_t v : order) {
+    if (out.size() >= seeds || core[v] + 1 < min_size) break;
+    if (used[v]) continue;
+    std::vector<std::size_t> clique{v};
+    cand = adj[v];
+    for (;;) {
+      std::size_t best = n, best_links = 0;
+      for (std::size_t w = 0; w < words; ++w) {
+        for (std::uint64_t bits = cand[w]; bits != 0; bits &= bits - 1) {
+          const std::size_t u = w * 64 + static_cast<std::size_t>(__builtin_ctzll(bits));
+          std::size_t links = 0;
+          for (std::size_t x = 0; x < words; ++x) {
+            links += static_cast<std::size_t>(__builtin_popcountll(adj[u][x] & cand[x]));
+          }
+          if (best == n || links > best_links) {
+            best = u;
+            best_links = links;
+          }
+        }
+      }
+      if (best == n) break;
+      clique.push_back(best);
+      for (std::size_t x = 0; x < words; ++x) cand[x] &= adj[best][x];
+    }
+    if (clique.size() < min_size) continue;
+    for (std::size_t u : clique) used[u] = 1;
+    out.push_back(std::move(clique));
+  }
+  return out;
+}
+
+// The poses by decreasing inliers, without near-duplicates (the source's centre moved by less
+// than `near_m` and a turn under 5 deg), at most `keep`.
+std::vector<CorrespondenceHypothesis> distinct_poses(std::vector<CorrespondenceHypothesis> poses,
+                                                     const Points3& source, double near_m,
+                                                     std::size_t keep) {
+  std::stable_sort(poses.begin(), poses.end(),
+                   [](const CorrespondenceHypothesis& a, const CorrespondenceHypothesis& b) {
+                     return a.inliers > b.inliers;
+                   });
+  Vec3 centre = Vec3::Zero();
+  for (const Vec3& p : source) centre += p;
+  centre /= static_cast<double>(source.size());
+  std::vector<CorrespondenceHypothesis> out;
+  for (const CorrespondenceHypothesis& h : poses) {
+    if (out.size() >= keep) break;
+    bool dup = false;
+    for (const CorrespondenceHypothesis& k : out) {
+      const double moved = (h.T_target_source * centre - k.T_target_source * centre).norm();
+      const double turn =
+          rotation_angle_deg(h.T_target_source.linear().transpose() * k.T_target_source.linear());
+      dup = dup || (moved < near_m && turn < 5.0);
+    }
+    if (!dup) out.push_back(h);
+  }
+  return out;
+}
+
+}  // namespace
+
+CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput& in,
+                                                 const CorrespondenceSearchOptions& o) {
+  std::string why;
+  if (!o.is_valid(&why)) throw InvalidArgument("correspondence search: " + why);
+  if (in.source.points == nullptr || in.target == nullptr) {
+    throw InvalidArgument("correspondence search: no source or target");
+  }
+  if (in.ups_source.empty() || in.ups_target.empty()) {
+    throw InvalidArgument("correspondence search: no up-axis candidates");
+  }
+  if (!(in.floor_m > 0.0) || !std::isfinite(in.floor_m)) {
+    throw InvalidArgument("correspondence search: the covariance floor must be > 0 and finite");
+  }
+  CorrespondenceSearchResult result;
+  const Points3& P = *in.source.points;
+  const Points3& Q = in.target->points();
+  if (P.size() < 3 || Q.size() < 3) return result;
+
+  const KdTree source_tree(P);
+  Side src{&P, &source_tree, sigmas(P, in.source.covariances_m2, in.floor_m),
+           in.source.view_directions};
+  Side tgt{&Q, &in.target->tree(),
+           sigmas(Q, in.target->has_covariances() ? &in.target->covariances_m2() : nullptr,
+                  in.floor_m),
+           &in.target->view_directions()};
+  const bool elevation = src.has_views() && tgt.has_views();
+  const int dims = kShapeDims + (elevation ? 1 : 0);
+
+  // The descriptor radius: the target's median distance to its neighbours-th nearest landmark.
+  const std::vector<std::uint32_t> tkeys = strided_indices(Q.size(), o.target_keypoints);
+  const std::vector<std::uint32_t> skeys = strided_indices(P.size(), o.keypoints);
+  {
+    const std::size_t k = std::min(o.neighbours + 1, Q.size());
+    std::vector<PointIndex> idx(k);
+    std::vector<double> d2(k), kth;
+    for (std::size_t j = 0; j < tkeys.size(); j += std::max<std::size_t>(1, tkeys.size() / 512)) {
+      const std::size_t f = tgt.tree->knn(Q[tkeys[j]], k, idx.data(), d2.data());
+      if (f > 0) kth.push_back(d2[f - 1]);
+    }
+    if (kth.empty()) return result;
+    std::nth_element(kth.begin(), kth.begin() + static_cast<std::ptrdiff_t>(kth.size() / 2),
+                     kth.end());
+    result.radius_m = std::sqrt(kth[kth.size() / 2]);
+  }
+  const double radius = result.radius_m;
+  if (!(radius > 0.0) || !std::isfinite(radius)) return result;
+  const double vague_m = 0.25 * radius;
+
+  const std::size_t neighbourhood = std::min<std::size_t>(4 * o.neighbours, 512);
+  for (const Vec3& us_in : in.ups_source) {
+    for (const Vec3& ut_in : in.ups_target) {
+      const Vec3 us = us_in.normalized(), ut = ut_in.normalized();
+      // 1. descriptors
+      std::vector<float> sd(skeys.size() * dims), td(tkeys.size() * dims);
+      std::vector<char> sok(skeys.size(), 0), tok(tkeys.size(), 0);
+      for (std::size_t a = 0; a < skeys.size(); ++a) {
+        sok[a] = src.sigma_m[skeys[a]] <= vague_m &&
+                 describe(src, skeys[a], us, radius, neighbourhood, elevation, &sd[a * dims]);
+      }
+      for (std::size_t b = 0; b < tkeys.size(); ++b) {
+        tok[b] = tgt.sigma_m[tkeys[b]] <= vague_m &&
+                 describe(tgt, tkeys[b], ut, radius, neighbourhood, elevation, &td[b * dims]);
+      }
+      // 2. matches: each keypoint's nearest target descriptors
+      std::vector<Match> matches;
+      const std::size_t m = o.matches_per_keypoint;
+      std::vector<std::pair<float, std::uint32_t>> best;
+      for (std::size_t a = 0; a < skeys.size(); ++a) {
+        if (!sok[a]) continue;
+        best.clear();
+        for (std::size_t b = 0; b < tkeys.size(); ++b) {
+          if (!tok[b]) continue;
+          float d = 0.0f;
+          for (int x = 0; x < dims; ++x) {
+            const float e = sd[a * dims + x] - td[b * dims + x];
+            d += e * e;
+          }
+          if (best.size() < m || d < best.back().first) {
+            const std::pair<float, std::uint32_t> e{d, static_cast<std::uint32_t>(b)};
+            best.insert(std::upper_bound(best.begin(), best.end(), e), e);
+            if (best.size() > m) best.pop_back();
+          }
+        }
+        for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
+      }
+      result.matches += matches.size();
+      // 3. the consistency graph
+      const std::size_t n = matches.size();
+      const std::size_t words = (n + 63) / 64;
+      std::vector<std::vector<std::uint64_t>> adj(n, std::vector<std::uint64_t>(words, 0));
+      std::vector<std::vector<std::uint32_t>> nbr(n);
+      const double c2 = o.consistency_sigmas * o.consistency_sigmas;
+      for (std::size_t a = 0; a < n; ++a) {
+        for (std::size_t b = a + 1; b < n; ++b) {
+          const Match& x = matches[a];
+          const Match& y = matches[b];
+          if (x.s == y.s || x.t == y.t) continue;
+          const Vec3 ds = P[y.s] - P[x.s], dt = Q[y.t] - Q[x.t];
+          const double hs = ds.dot(us), ht = dt.dot(ut);
+          const double tol2 = c2 * (src.sigma_m[x.s] * src.sigma_m[x.s] +
+                                    src.sigma_m[y.s] * src.sigma_m[y.s] +
+                                    tgt.sigma_m[x.t] * tgt.sigma_m[x.t] +
+                                    tgt.sigma_m[y.t] * tgt.sigma_m[y.t]);
+          if ((hs - ht) * (hs - ht) > tol2) continue;
+          const double rs = std::sqrt(std::max(ds.squaredNorm() - hs * hs, 0.0));
+          const double rt = std::sqrt(std::max(dt.squaredNorm() - ht * ht, 0.0));
+          if ((rs - rt) * (rs - rt) > tol2) continue;
+          adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
+          adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
+          nbr[a].push_back(static_cast<std::uint32_t>(b));
+          nbr[b].push_back(static_cast<std::uint32_t>(a));
+        }
+      }
+      // 4. cliques -> 4-DoF poses
+      std::vector<CorrespondenceHypothesis> found;
+      const Mat3 R_up = rotation_between(us, ut);
+      for (const std::vector<std::size_t>& clique : cliques(adj, nbr, o.seeds, o.min_inliers)) {
+        Points3 s_pts, t_pts;
+        Correspondences corr;
+        for (std::size_t a : clique) {
+          corr.push_back({static_cast<PointIndex>(s_pts.size()),
+                          static_cast<PointIndex>(t_pts.size()), 0.0});
+          s_pts.push_back(R_up * P[matches[a].s]);
+          t_pts.push_back(Q[matches[a].t]);
+        }
+        Isometry3 T = estimate_4dof_transform(s_pts, t_pts, corr, nullptr, ut);
+        T.linear() = T.linear() * R_up;
+        found.push_back({T, clique.size()});
+      }
+      // Each pair of up axes keeps its own best `hypotheses` distinct poses: a wrong pair's
+      // cliques never crowd out the right pair's.
+      const std::vector<CorrespondenceHypothesis> kept = distinct_poses(found, P, radius, o.hypotheses);
+      result.hypotheses.insert(result.hypotheses.end(), kept.begin(), kept.end());
+    }
+  }
+  return result;
+}
+
+}  // namespace lmalign

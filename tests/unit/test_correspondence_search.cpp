@@ -1,0 +1,134 @@
+// The correspondence search (registration/stages/correspondence_search.hpp): descriptors,
+// matches, the covariance-aware consistency graph and its cliques, on seeded simulated streets;
+// and the default, whose complete search refines its poses.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <string>
+#include <vector>
+
+#include "lmalign/core/error.hpp"
+#include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/stages/correspondence_search.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
+#include "lmalign/sim/street_sim.hpp"
+#include "support/align_preset.hpp"
+
+namespace lmalign {
+namespace {
+
+// `lmalign simulate --scene street --overlap 0.25 --frames 30 --landmarks 3000 --transform
+// 20,5,0,0,0,120 --seed SEED`: the pairs.
+sim::SlamMapPair street(std::uint64_t seed) {
+  sim::StreetSimOptions o;
+  o.seed = seed;
+  o.overlap = 0.25;
+  o.window_frames = 30;
+  o.num_landmarks = 3000;
+  o.T_target_source = pose_from_xyz_rpy_deg(20.0, 5.0, 0.0, 0.0, 0.0, 120.0);
+  return sim::simulate_street_pair(o);
+}
+
+struct Search {
+  SourceLandmarks source;
+  PreparedTarget target;
+  CorrespondenceSearchInput input;
+  explicit Search(const sim::SlamMapPair& pair)
+      : source(SourceLandmarks::from_map(pair.source)), target(pair.target) {
+    input.source.points = &source.positions;
+    input.source.covariances_m2 = &source.covariances_m2;
+    input.source.view_directions = &source.view_directions;
+    input.target = &target;
+    input.ups_source = {source.up.value_or(Vec3::UnitZ())};
+    input.ups_target = {target.up_axis().value_or(Vec3::UnitZ())};
+    input.floor_m = estimate_data_scales(source.positions, &source.covariances_m2).floor_m;
+  }
+};
+
+bool near_truth(const CorrespondenceSearchResult& r, const Isometry3& truth) {
+  for (const CorrespondenceHypothesis& h : r.hypotheses) {
+    const TransformError e = transform_error(h.T_target_source, truth);
+    if (e.rotation_deg < 5.0 && e.translation_m < 3.0) return true;
+  }
+  return false;
+}
+
+TEST(CorrespondenceSearch, OneOfItsPosesIsNearTheTruthOnAStreetAndTheRunRepeats) {
+  // Measured on seeds 1-9 of the street (one pair of up axes, 32 poses): a pose within
+  // 5 deg / 3 m of the truth on 7 of 9; on seed 5 it is the 15th by clique size.
+  const sim::SlamMapPair pair = street(5);
+  const Search s(pair);
+  const CorrespondenceSearchOptions o;
+  const CorrespondenceSearchResult r = correspondence_search(s.input, o);
+  EXPECT_GT(r.matches, 100u);
+  EXPECT_GT(r.radius_m, 0.0);
+  ASSERT_FALSE(r.hypotheses.empty());
+  EXPECT_LE(r.hypotheses.size(), o.hypotheses);
+  for (std::size_t i = 1; i < r.hypotheses.size(); ++i) {
+    EXPECT_GE(r.hypotheses[i - 1].inliers, r.hypotheses[i].inliers);
+    EXPECT_GE(r.hypotheses[i].inliers, o.min_inliers);
+  }
+  EXPECT_TRUE(near_truth(r, pair.T_target_source));
+  // Deterministic, whatever the thread count.
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const CorrespondenceSearchResult again = correspondence_search(s.input, o);
+  omp_set_num_threads(saved);
+  ASSERT_EQ(again.hypotheses.size(), r.hypotheses.size());
+  for (std::size_t i = 0; i < r.hypotheses.size(); ++i) {
+    EXPECT_TRUE(again.hypotheses[i].T_target_source.matrix() ==
+                r.hypotheses[i].T_target_source.matrix());
+  }
+}
+
+TEST(CorrespondenceSearch, VagueLandmarksMatchNothing) {
+  // Covariances far wider than the descriptor radius: no landmark can tell where the maps
+  // meet, so there are no matches and no poses (and no crash).
+  const sim::SlamMapPair pair = street(2);
+  Search s(pair);
+  std::vector<Mat3> vague(s.source.positions.size(), Mat3::Identity() * 1e4);
+  s.input.source.covariances_m2 = &vague;
+  const CorrespondenceSearchResult r = correspondence_search(s.input, {});
+  EXPECT_EQ(r.matches, 0u);
+  EXPECT_TRUE(r.hypotheses.empty());
+}
+
+TEST(CorrespondenceSearch, TinyMapsGiveNoPosesAndBadInputThrows) {
+  Points3 three{Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(0, 1, 0)};
+  Points3 two{Vec3(0, 0, 0), Vec3(1, 0, 0)};
+  const PreparedTarget target(three);
+  CorrespondenceSearchInput in;
+  in.source.points = &two;
+  in.target = &target;
+  in.ups_source = {Vec3::UnitZ()};
+  in.ups_target = {Vec3::UnitZ()};
+  in.floor_m = 0.01;
+  EXPECT_TRUE(correspondence_search(in, {}).hypotheses.empty());
+  in.source.points = &three;  // too sparse for a descriptor: no poses either
+  EXPECT_TRUE(correspondence_search(in, {}).hypotheses.empty());
+  CorrespondenceSearchOptions bad;
+  bad.neighbours = 2;
+  EXPECT_THROW(correspondence_search(in, bad), InvalidArgument);
+  in.floor_m = 0.0;
+  EXPECT_THROW(correspondence_search(in, {}), InvalidArgument);
+  in.floor_m = 0.01;
+  in.ups_target.clear();
+  EXPECT_THROW(correspondence_search(in, {}), InvalidArgument);
+}
+
+TEST(AdaptiveStreet, TheCorrespondencePosesFindAPairTheVoteMisses) {
+  // Seed 5 of the street: without the correspondence poses the default ends 24 deg /
+  // 49 m off (a search failure: refined from the truth the same maps score 364 against 296);
+  // with them it ends at the truth, trusted.
+  const sim::SlamMapPair pair = street(5);
+  const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
+  const PreparedTarget target(pair.target);
+  const Summary s = test::align_with("adaptive", source, target, test::Ask{});
+  const TransformError e = transform_error(s.registration.T_target_source, pair.T_target_source);
+  EXPECT_LT(e.rotation_deg, 0.5);
+  EXPECT_LT(e.translation_m, 0.2);
+  EXPECT_TRUE(s.verdict.trustworthy) << s.verdict.reason;
+}
+
+}  // namespace
+}  // namespace lmalign
