@@ -105,10 +105,83 @@ struct Match {
   PointIndex s, t;
 };
 
+// The consistency graph: adjacency as bit rows and as lists.
+struct Graph {
+  std::vector<std::vector<std::uint64_t>> adj;
+  std::vector<std::vector<std::uint32_t>> nbr;
+};
+
+// Each valid source descriptor's `m` nearest valid target descriptors (Euclidean; ties by the
+// earlier target keypoint), as matches of landmark indices.
+std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
+                                       const std::vector<float>& sd, const std::vector<char>& sok,
+                                       const std::vector<std::uint32_t>& tkeys,
+                                       const std::vector<float>& td, const std::vector<char>& tok,
+                                       int dims, std::size_t m) {
+  std::vector<Match> matches;
+  std::vector<std::pair<float, std::uint32_t>> best;
+  for (std::size_t a = 0; a < skeys.size(); ++a) {
+    if (!sok[a]) continue;
+    best.clear();
+    for (std::size_t b = 0; b < tkeys.size(); ++b) {
+      if (!tok[b]) continue;
+      float d = 0.0f;
+      for (int x = 0; x < dims; ++x) {
+        const float e = sd[a * dims + x] - td[b * dims + x];
+        d += e * e;
+      }
+      if (best.size() < m || d < best.back().first) {
+        const std::pair<float, std::uint32_t> e{d, static_cast<std::uint32_t>(b)};
+        best.insert(std::upper_bound(best.begin(), best.end(), e), e);
+        if (best.size() > m) best.pop_back();
+      }
+    }
+    for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
+  }
+  return matches;
+}
+
+// Two matches agree when the source pair and the target pair have the same horizontal distance
+// and height difference (about each map's up axis) within `sigmas` standard deviations of the
+// four landmarks; matches sharing a landmark never agree.
+Graph consistency_graph(const std::vector<Match>& matches, const Side& src, const Vec3& us,
+                        const Side& tgt, const Vec3& ut, double sigmas) {
+  const Points3& P = *src.points;
+  const Points3& Q = *tgt.points;
+  const std::size_t n = matches.size();
+  const std::size_t words = (n + 63) / 64;
+  Graph g;
+  g.adj.assign(n, std::vector<std::uint64_t>(words, 0));
+  g.nbr.resize(n);
+  const double c2 = sigmas * sigmas;
+  auto var = [](double s) { return s * s; };
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t b = a + 1; b < n; ++b) {
+      const Match& x = matches[a];
+      const Match& y = matches[b];
+      if (x.s == y.s || x.t == y.t) continue;
+      const Vec3 ds = P[y.s] - P[x.s], dt = Q[y.t] - Q[x.t];
+      const double hs = ds.dot(us), ht = dt.dot(ut);
+      const double tol2 = c2 * (var(src.sigma_m[x.s]) + var(src.sigma_m[y.s]) +
+                                var(tgt.sigma_m[x.t]) + var(tgt.sigma_m[y.t]));
+      if ((hs - ht) * (hs - ht) > tol2) continue;
+      const double rs = std::sqrt(std::max(ds.squaredNorm() - hs * hs, 0.0));
+      const double rt = std::sqrt(std::max(dt.squaredNorm() - ht * ht, 0.0));
+      if ((rs - rt) * (rs - rt) > tol2) continue;
+      g.adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
+      g.adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
+      g.nbr[a].push_back(static_cast<std::uint32_t>(b));
+      g.nbr[b].push_back(static_cast<std::uint32_t>(a));
+    }
+  }
+  return g;
+}
+
 // Greedy cliques of the consistency graph (see the header): lists of match indices.
-std::vector<std::vector<std::size_t>> cliques(const std::vector<std::vector<std::uint64_t>>& adj,
-                                              const std::vector<std::vector<std::uint32_t>>& nbr,
-                                              std::size_t seeds, std::size_t min_size) {
+std::vector<std::vector<std::size_t>> cliques(const Graph& graph, std::size_t seeds,
+                                              std::size_t min_size) {
+  const std::vector<std::vector<std::uint64_t>>& adj = graph.adj;
+  const std::vector<std::vector<std::uint32_t>>& nbr = graph.nbr;
   const std::size_t n = adj.size();
   std::vector<std::vector<std::size_t>> out;
   if (n == 0) return out;
@@ -272,60 +345,15 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
         tok[b] = tgt.sigma_m[tkeys[b]] <= vague_m &&
                  describe(tgt, tkeys[b], ut, radius, neighbourhood, elevation, &td[b * dims]);
       }
-      // 2. matches: each keypoint's nearest target descriptors
-      std::vector<Match> matches;
-      const std::size_t m = o.matches_per_keypoint;
-      std::vector<std::pair<float, std::uint32_t>> best;
-      for (std::size_t a = 0; a < skeys.size(); ++a) {
-        if (!sok[a]) continue;
-        best.clear();
-        for (std::size_t b = 0; b < tkeys.size(); ++b) {
-          if (!tok[b]) continue;
-          float d = 0.0f;
-          for (int x = 0; x < dims; ++x) {
-            const float e = sd[a * dims + x] - td[b * dims + x];
-            d += e * e;
-          }
-          if (best.size() < m || d < best.back().first) {
-            const std::pair<float, std::uint32_t> e{d, static_cast<std::uint32_t>(b)};
-            best.insert(std::upper_bound(best.begin(), best.end(), e), e);
-            if (best.size() > m) best.pop_back();
-          }
-        }
-        for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
-      }
+      // 2. matches, 3. the consistency graph
+      const std::vector<Match> matches =
+          nearest_descriptors(skeys, sd, sok, tkeys, td, tok, dims, o.matches_per_keypoint);
       result.matches += matches.size();
-      // 3. the consistency graph
-      const std::size_t n = matches.size();
-      const std::size_t words = (n + 63) / 64;
-      std::vector<std::vector<std::uint64_t>> adj(n, std::vector<std::uint64_t>(words, 0));
-      std::vector<std::vector<std::uint32_t>> nbr(n);
-      const double c2 = o.consistency_sigmas * o.consistency_sigmas;
-      for (std::size_t a = 0; a < n; ++a) {
-        for (std::size_t b = a + 1; b < n; ++b) {
-          const Match& x = matches[a];
-          const Match& y = matches[b];
-          if (x.s == y.s || x.t == y.t) continue;
-          const Vec3 ds = P[y.s] - P[x.s], dt = Q[y.t] - Q[x.t];
-          const double hs = ds.dot(us), ht = dt.dot(ut);
-          const double tol2 = c2 * (src.sigma_m[x.s] * src.sigma_m[x.s] +
-                                    src.sigma_m[y.s] * src.sigma_m[y.s] +
-                                    tgt.sigma_m[x.t] * tgt.sigma_m[x.t] +
-                                    tgt.sigma_m[y.t] * tgt.sigma_m[y.t]);
-          if ((hs - ht) * (hs - ht) > tol2) continue;
-          const double rs = std::sqrt(std::max(ds.squaredNorm() - hs * hs, 0.0));
-          const double rt = std::sqrt(std::max(dt.squaredNorm() - ht * ht, 0.0));
-          if ((rs - rt) * (rs - rt) > tol2) continue;
-          adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
-          adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
-          nbr[a].push_back(static_cast<std::uint32_t>(b));
-          nbr[b].push_back(static_cast<std::uint32_t>(a));
-        }
-      }
+      const Graph graph = consistency_graph(matches, src, us, tgt, ut, o.consistency_sigmas);
       // 4. cliques -> 4-DoF poses
       std::vector<CorrespondenceHypothesis> found;
       const Mat3 R_up = rotation_between(us, ut);
-      for (const std::vector<std::size_t>& clique : cliques(adj, nbr, o.seeds, o.min_inliers)) {
+      for (const std::vector<std::size_t>& clique : cliques(graph, o.seeds, o.min_inliers)) {
         Points3 s_pts, t_pts;
         Correspondences corr;
         for (std::size_t a : clique) {
