@@ -12,6 +12,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/estimation_4dof.hpp"
 #include "lmalign/registration/stages/complete_search.hpp"
+#include "lmalign/registration/stages/landmark_descriptors.hpp"
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
 #include "lmalign/search/kdtree.hpp"
 
@@ -38,9 +39,6 @@ bool CorrespondenceSearchOptions::is_valid(std::string* why) const {
 
 namespace {
 
-constexpr int kRadialBins = 4;
-constexpr int kHeightBins = 5;
-constexpr int kShapeDims = kRadialBins * kHeightBins;
 // The weight of the viewing direction's elevation beside the unit-norm shape histogram.
 constexpr float kElevationWeight = 0.5f;
 
@@ -63,42 +61,12 @@ std::vector<double> sigmas(const Points3& points, const std::vector<Mat3>* cov, 
   return s;
 }
 
-// The descriptor of landmark i (dims floats; false if it has too few neighbours).
+// The descriptor of landmark i of a side (landmark_descriptors.hpp), with the viewing
+// elevation when `elevation`.
 bool describe(const Side& side, std::size_t i, const Vec3& up, double radius_m,
               std::size_t neighbours, bool elevation, float* out) {
-  const Points3& P = *side.points;
-  std::vector<PointIndex> idx(neighbours + 1);
-  std::vector<double> d2(neighbours + 1);
-  const std::size_t found = side.tree->knn(P[i], neighbours + 1, idx.data(), d2.data());
-  std::fill(out, out + kShapeDims + (elevation ? 1 : 0), 0.0f);
-  double total = 0.0;
-  const double r2 = radius_m * radius_m;
-  for (std::size_t j = 0; j < found; ++j) {
-    if (idx[j] == i || d2[j] > r2) continue;
-    const Vec3 d = P[idx[j]] - P[i];
-    const double h = d.dot(up);
-    const double r = std::sqrt(std::max(d.squaredNorm() - h * h, 0.0));
-    // Bilinear (soft) assignment between bin centres.
-    const double fr = std::clamp(r / radius_m * kRadialBins - 0.5, 0.0, kRadialBins - 1.0);
-    const double fh =
-        std::clamp((h / radius_m + 1.0) * 0.5 * kHeightBins - 0.5, 0.0, kHeightBins - 1.0);
-    const int r0 = std::min(static_cast<int>(fr), kRadialBins - 1);
-    const int h0 = std::min(static_cast<int>(fh), kHeightBins - 1);
-    const int r1 = std::min(r0 + 1, kRadialBins - 1), h1 = std::min(h0 + 1, kHeightBins - 1);
-    const double ar = fr - r0, ah = fh - h0;
-    out[r0 * kHeightBins + h0] += static_cast<float>((1 - ar) * (1 - ah));
-    out[r1 * kHeightBins + h0] += static_cast<float>(ar * (1 - ah));
-    out[r0 * kHeightBins + h1] += static_cast<float>((1 - ar) * ah);
-    out[r1 * kHeightBins + h1] += static_cast<float>(ar * ah);
-    total += 1.0;
-  }
-  if (total < 4.0) return false;
-  for (int b = 0; b < kShapeDims; ++b) out[b] = std::sqrt(out[b] / static_cast<float>(total));
-  if (elevation) {
-    const Vec3& v = (*side.views)[i];
-    out[kShapeDims] = kElevationWeight * static_cast<float>(v.dot(up));
-  }
-  return true;
+  return describe_landmark(*side.points, *side.tree, i, up, radius_m, neighbours, out,
+                           elevation ? &(*side.views)[i] : nullptr, kElevationWeight);
 }
 
 struct Match {
@@ -308,23 +276,17 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
                   in.floor_m),
            &in.target->view_directions()};
   const bool elevation = src.has_views() && tgt.has_views();
-  const int dims = kShapeDims + (elevation ? 1 : 0);
+  const int dims = kLandmarkDescriptorDims + (elevation ? 1 : 0);
 
   // The descriptor radius: the target's median distance to its neighbours-th nearest landmark.
   const std::vector<std::uint32_t> tkeys = strided_indices(Q.size(), o.target_keypoints);
   const std::vector<std::uint32_t> skeys = strided_indices(P.size(), o.keypoints);
   {
-    const std::size_t k = std::min(o.neighbours + 1, Q.size());
-    std::vector<PointIndex> idx(k);
-    std::vector<double> d2(k), kth;
+    std::vector<std::uint32_t> sample;
     for (std::size_t j = 0; j < tkeys.size(); j += std::max<std::size_t>(1, tkeys.size() / 512)) {
-      const std::size_t f = tgt.tree->knn(Q[tkeys[j]], k, idx.data(), d2.data());
-      if (f > 0) kth.push_back(d2[f - 1]);
+      sample.push_back(tkeys[j]);
     }
-    if (kth.empty()) return result;
-    std::nth_element(kth.begin(), kth.begin() + static_cast<std::ptrdiff_t>(kth.size() / 2),
-                     kth.end());
-    result.radius_m = std::sqrt(kth[kth.size() / 2]);
+    result.radius_m = descriptor_radius(Q, *tgt.tree, o.neighbours, sample);
   }
   const double radius = result.radius_m;
   if (!(radius > 0.0) || !std::isfinite(radius)) return result;
