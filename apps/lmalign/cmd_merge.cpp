@@ -32,6 +32,7 @@ struct MergeArgs {
   std::string out_dir;
   std::string ground_truth;
   long long max_pairs = 0;
+  long long candidates_per_map = 4;
   bool resume = false;
   int threads = 0;
   std::string thresholds = "5,0.1";
@@ -159,9 +160,15 @@ int run_merge_command(const MergeArgs& a) {
     throw InvalidArgument(
         "--set is not handed over to a Dask cluster yet: run the merge without --dask-scheduler");
   }
+  if (!a.dask_scheduler.empty() && a.candidates_per_map != 4) {
+    throw InvalidArgument(
+        "--candidates-per-map is not handed over to a Dask cluster yet: run the merge without "
+        "--dask-scheduler");
+  }
   if (!a.dask_scheduler.empty()) return exec_python_merge(a);
   const std::vector<std::pair<std::string, SettingValue>> settings = edge_settings(a.settings);
   if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
+  if (a.candidates_per_map < 1) throw InvalidArgument("--candidates-per-map must be >= 1");
   if (a.threads < 0) throw InvalidArgument("--threads must be >= 0 (0 = all)");
   const std::vector<double> thr =
       parse_number_list("--thresholds", a.thresholds, 2, "ROT_DEG,TRANS_M, e.g. 5,0.1");
@@ -212,6 +219,7 @@ int run_merge_command(const MergeArgs& a) {
   }
   MergeOptions options;
   options.candidates.max_pairs = static_cast<std::size_t>(a.max_pairs);
+  options.candidates.keep_per_map = static_cast<std::size_t>(a.candidates_per_map);
   options.threads = a.threads;
   options.edges.scale = scale_mode;
   options.edges.settings = settings;
@@ -336,6 +344,11 @@ CommandRunner add_merge_command(CLI::App& root) {
                   "(5,0.1 indoors; 5,1 outdoors)")
       ->capture_default_str();
   cmd->add_option("--max-pairs", args->max_pairs, "At most this many candidate pairs (0 = all)")
+      ->capture_default_str();
+  cmd->add_option("--candidates-per-map", args->candidates_per_map,
+                  "Without priors, beyond 12 maps: each map's K most similar maps by retrieval "
+                  "(a bag of words over its landmarks' neighbourhood descriptors) are its "
+                  "candidates (docs/merge.md, \"Candidates\")")
       ->capture_default_str();
   cmd->add_option("--scale", args->scale,
                   "auto: a map without metric scale (its header: COLMAP, Bundler, monocular "

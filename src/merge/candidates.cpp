@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <set>
 
@@ -14,6 +15,8 @@
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
+#include "lmalign/registration/stages/landmark_descriptors.hpp"
+#include "lmalign/search/kdtree.hpp"
 
 namespace lmalign {
 
@@ -36,6 +39,173 @@ double worst_sd(const Mat3& C) {
   return std::sqrt(std::max(0.0, eig.eigenvalues().maxCoeff()));
 }
 
+// A map needs this many descriptors to be retrieved by its words.
+constexpr std::size_t kMinWords = 8;
+
+// The retrieval's words of one map (MapSummary::local_descriptors, local_regions).
+void describe_for_retrieval(const Points3& p, const Vec3& up, const CandidateOptions& options,
+                            MapSummary* s) {
+  if (p.size() < 8) return;
+  const KdTree tree(p);
+  std::vector<std::uint32_t> sample;
+  const std::size_t want = std::min<std::size_t>(512, p.size());
+  for (std::size_t j = 0; j < want; ++j) sample.push_back(static_cast<std::uint32_t>(j * p.size() / want));
+  const double radius = descriptor_radius(p, tree, options.descriptor_neighbours, sample);
+  if (!(radius > 0.0) || !std::isfinite(radius)) return;
+  // The main horizontal axis: the largest eigenvector of the horizontal scatter.
+  Mat3 scatter = Mat3::Zero();
+  for (const Vec3& x : p) {
+    Vec3 d = x - s->centroid;
+    d -= d.dot(up) * up;
+    scatter += d * d.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Mat3> eig(scatter);
+  const Vec3 axis = eig.eigenvectors().col(2);
+  const std::size_t m = std::min(options.retrieval_landmarks, p.size());
+  std::vector<double> along;
+  float desc[kLandmarkDescriptorDims];
+  for (std::size_t j = 0; j < m; ++j) {
+    const std::size_t i = j * p.size() / m;
+    if (!describe_landmark(p, tree, i, up, radius, 4 * options.descriptor_neighbours, desc)) {
+      continue;
+    }
+    s->local_descriptors.insert(s->local_descriptors.end(), desc, desc + kLandmarkDescriptorDims);
+    along.push_back((p[i] - s->centroid).dot(axis));
+  }
+  std::vector<double> sorted = along;
+  if (sorted.empty()) return;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
+                   sorted.end());
+  const double median = sorted[sorted.size() / 2];
+  for (double a : along) s->local_regions.push_back(a >= median ? 1 : 0);
+}
+
+
+// The retrieval (see the header): a vocabulary learned by k-means over the maps' descriptors
+// (at most 20,000 of them, evenly strided over the maps in order; initial centres evenly
+// strided among those; 10 Lloyd iterations; ties to the lower word), each map's tf-idf bags of
+// words for the whole map and its two halves, and the distance 1 - the best cosine over the
+// nine pairs of bags. Deterministic (the parallel loops write one slot each).
+class Retrieval {
+ public:
+  Retrieval(const std::vector<MapSummary>& maps, std::size_t words) : n_(maps.size()) {
+    constexpr int D = kLandmarkDescriptorDims;
+    std::vector<const float*> all;
+    for (const MapSummary& m : maps) {
+      if (m.local_descriptors.size() / D < kMinWords) continue;
+      for (std::size_t i = 0; i < m.local_descriptors.size(); i += D) {
+        all.push_back(&m.local_descriptors[i]);
+      }
+    }
+    const std::size_t want = std::min<std::size_t>(all.size(), 20000);
+    if (want < 2) return;
+    std::vector<const float*> train(want);
+    for (std::size_t j = 0; j < want; ++j) train[j] = all[j * all.size() / want];
+    k_ = std::min(words, want);
+    centres_.resize(k_ * D);
+    for (std::size_t c = 0; c < k_; ++c) {
+      std::copy(train[c * want / k_], train[c * want / k_] + D, &centres_[c * D]);
+    }
+    std::vector<std::uint32_t> label(want);
+    for (int iteration = 0; iteration < 10; ++iteration) {
+#pragma omp parallel for schedule(static)
+      for (std::ptrdiff_t j = 0; j < static_cast<std::ptrdiff_t>(want); ++j) {
+        label[j] = word(train[j]);
+      }
+      std::vector<double> sum(k_ * D, 0.0);
+      std::vector<std::size_t> count(k_, 0);
+      for (std::size_t j = 0; j < want; ++j) {
+        ++count[label[j]];
+        for (int x = 0; x < D; ++x) sum[label[j] * D + x] += train[j][x];
+      }
+      for (std::size_t c = 0; c < k_; ++c) {
+        if (count[c] == 0) continue;  // an empty word keeps its centre
+        for (int x = 0; x < D; ++x) {
+          centres_[c * D + x] = static_cast<float>(sum[c * D + x] / static_cast<double>(count[c]));
+        }
+      }
+    }
+    // Bags of words: whole, half 0, half 1.
+    bags_.assign(n_ * 3, std::vector<double>(k_, 0.0));
+    has_.assign(n_, 0);
+#pragma omp parallel for schedule(dynamic)
+    for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n_); ++i) {
+      const MapSummary& m = maps[i];
+      const std::size_t count = m.local_descriptors.size() / D;
+      if (count < kMinWords || m.local_regions.size() != count) continue;
+      has_[i] = 1;
+      for (std::size_t d = 0; d < count; ++d) {
+        const std::uint32_t w = word(&m.local_descriptors[d * D]);
+        bags_[i * 3][w] += 1.0;
+        bags_[i * 3 + 1 + m.local_regions[d]][w] += 1.0;
+      }
+    }
+    std::vector<double> idf(k_, 0.0);
+    std::size_t retrieved = 0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (!has_[i]) continue;
+      ++retrieved;
+      for (std::size_t w = 0; w < k_; ++w) idf[w] += bags_[i * 3][w] > 0.0 ? 1.0 : 0.0;
+    }
+    for (std::size_t w = 0; w < k_; ++w) {
+      idf[w] = std::log((static_cast<double>(retrieved) + 1.0) / (idf[w] + 1.0));
+    }
+    for (std::vector<double>& bag : bags_) {
+      double norm = 0.0;
+      for (std::size_t w = 0; w < k_; ++w) {
+        bag[w] *= idf[w];
+        norm += bag[w] * bag[w];
+      }
+      if (norm > 0.0) {
+        for (double& v : bag) v /= std::sqrt(norm);
+      }
+    }
+  }
+
+  /// Whether map i has words.
+  bool has(std::size_t i) const { return i < has_.size() && has_[i] != 0; }
+
+  /// 1 - the best cosine between the bags of maps i and j (both with words), in [0, 1].
+  double distance(std::size_t i, std::size_t j) const {
+    double best = 0.0;
+    for (std::size_t a = 0; a < 3; ++a) {
+      for (std::size_t b = 0; b < 3; ++b) {
+        const std::vector<double>& x = bags_[i * 3 + a];
+        const std::vector<double>& y = bags_[j * 3 + b];
+        double dot = 0.0;
+        for (std::size_t w = 0; w < k_; ++w) dot += x[w] * y[w];
+        best = std::max(best, dot);
+      }
+    }
+    return 1.0 - std::min(best, 1.0);
+  }
+
+ private:
+  std::uint32_t word(const float* d) const {
+    constexpr int D = kLandmarkDescriptorDims;
+    std::uint32_t best = 0;
+    float best_d = std::numeric_limits<float>::infinity();
+    for (std::size_t c = 0; c < k_; ++c) {
+      float e = 0.0f;
+      for (int x = 0; x < D; ++x) {
+        const float t = d[x] - centres_[c * D + x];
+        e += t * t;
+      }
+      if (e < best_d) {
+        best_d = e;
+        best = static_cast<std::uint32_t>(c);
+      }
+    }
+    return best;
+  }
+
+  std::size_t n_ = 0;
+  std::size_t k_ = 0;
+  std::vector<float> centres_;
+  std::vector<std::vector<double>> bags_;
+  std::vector<char> has_;
+};
+
 }  // namespace
 
 bool CandidateOptions::is_valid(std::string* why) const {
@@ -51,6 +221,13 @@ bool CandidateOptions::is_valid(std::string* why) const {
   }
   if (bins < 2 || bins > 1024) return bad("bins must be in [2, 1024]");
   if (distance_samples < 16) return bad("distance_samples must be >= 16");
+  if (retrieval_landmarks < 8) return bad("retrieval_landmarks must be >= 8");
+  if (descriptor_neighbours < 4 || descriptor_neighbours > 256) {
+    return bad("descriptor_neighbours must be in [4, 256]");
+  }
+  if (vocabulary_words < 2 || vocabulary_words > 4096) {
+    return bad("vocabulary_words must be in [2, 4096]");
+  }
   return true;
 }
 
@@ -98,6 +275,7 @@ MapSummary summarise_map(const Map& map, const CandidateOptions& options, std::u
   s.descriptor = quantiles(heights, options.bins);
   const std::vector<double> dq = quantiles(pair_dist, options.bins);
   s.descriptor.insert(s.descriptor.end(), dq.begin(), dq.end());
+  describe_for_retrieval(p, up, options, &s);
   return s;
 }
 
@@ -170,13 +348,17 @@ std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summar
   if (n <= options.all_pairs_max_maps) {
     for (const auto& [i, j] : without) out.push_back(CandidatePair{i, j, 0.0, {}, {}});
   } else if (!without.empty()) {
+    const Retrieval retrieval(summaries, options.vocabulary_words);
+    // Retrieved pairs rank by 1 - cosine, in [0, 1]; a pair with a map without words by the
+    // histograms' L1 distance, after them.
     auto distance = [&](std::size_t i, std::size_t j) {
+      if (retrieval.has(i) && retrieval.has(j)) return retrieval.distance(i, j);
       const auto& a = summaries[i].descriptor;
       const auto& b = summaries[j].descriptor;
       if (a.size() != b.size() || a.empty()) return std::numeric_limits<double>::infinity();
       double d = 0.0;
       for (std::size_t k = 0; k < a.size(); ++k) d += std::abs(a[k] - b[k]);
-      return d / static_cast<double>(a.size());
+      return 1.0 + d / static_cast<double>(a.size());
     };
     // Per map: its keep_per_map nearest partners among the pairs without priors.
     std::vector<std::vector<std::pair<double, std::size_t>>> near(n);

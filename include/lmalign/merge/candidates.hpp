@@ -3,15 +3,21 @@
 //     their priors, overlap within 3 sigma of the relative prior's translation (plus the
 //     rotation sigma times the radius).
 //   - Otherwise, N <= all_pairs_max_maps: every pair.
-//   - Otherwise a cheap, rotation-invariant pre-filter ranks the pairs: each map gets a
-//     descriptor (a histogram of its landmarks' heights along its up axis, relative to its
-//     median camera height, and a histogram of distances between seeded random landmark
-//     pairs); each map keeps its keep_per_map most similar maps (L1 distance of the
-//     normalised histograms); the union of those is the candidate set.
+//   - Otherwise map retrieval ranks the pairs (issue 37): a bag of words over the landmarks'
+//     yaw-invariant neighbourhood descriptors (landmark_descriptors.hpp, at each map's own
+//     descriptor radius), with a vocabulary learned by k-means from the maps at hand, tf-idf
+//     weights and cosine similarity; each map is also split in two halves along its main
+//     horizontal axis, and a pair's similarity is the best over {whole, halves} x {whole,
+//     halves} (two maps often share only a corner). Each map keeps its keep_per_map most
+//     similar maps; the union of those is the candidate set. A map with too few descriptors
+//     falls back to the earlier histograms (its landmarks' heights along its up axis relative to
+//     its median camera height, and distances between seeded random landmark pairs; L1
+//     distance), ranked after every retrieved pair.
 //   - At most max_pairs pairs (the best ranked first).
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -59,6 +65,12 @@ struct CandidateOptions {
   std::size_t bins = 16;
   /// Random landmark pairs per map for the distance histogram (seeded by the map index).
   std::size_t distance_samples = 4000;
+  /// Retrieval: landmarks described per map (evenly strided), >= 8; the descriptor radius is
+  /// the map's median distance to its descriptor_neighbours-th nearest landmark, [4, 256].
+  std::size_t retrieval_landmarks = 512;
+  std::size_t descriptor_neighbours = 24;
+  /// Words of the vocabulary learned from the maps (k-means), [2, 4096].
+  std::size_t vocabulary_words = 1024;
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -67,6 +79,10 @@ struct MapSummary {
   Vec3 centroid = Vec3::Zero();  ///< map frame, metres
   double radius_m = 0.0;
   std::vector<double> descriptor;  ///< normalised histograms (see the file comment)
+  /// Retrieval: the described landmarks' descriptors, kLandmarkDescriptorDims floats each, and
+  /// each one's half of the map (0 or 1, along its main horizontal axis).
+  std::vector<float> local_descriptors;
+  std::vector<std::uint8_t> local_regions;
   std::size_t num_landmarks = 0;
   bool metric = true;               ///< MapHeader::scale == MapScale::kMetric
   bool covariance_assumed = false;  ///< MapHeader::covariance_assumed
