@@ -137,7 +137,9 @@ TEST_F(CliMerge, SetReachesEveryEdgeAndABadSettingIsOneLine) {
            {"--set init.prior_chek=rivals", "init.prior_check"},
            {"--set init.prior_check=maybe", "init.prior_check"},
            {"--set novalue", "expected KEY=VALUE"},
-           {"--set init.prior_check=off --dask-scheduler tcp://127.0.0.1:1", "Dask"}}) {
+           {"--set init.prior_check=off --dask-scheduler tcp://127.0.0.1:1", "Dask"},
+           {"--candidates-per-map 0", "--candidates-per-map must be >= 1"},
+           {"--candidates-per-map 6 --dask-scheduler tcp://127.0.0.1:1", "Dask"}}) {
     const test::CliRun bad = merge(path("bad"), extra);
     EXPECT_EQ(bad.exit_code, 2) << extra;
     EXPECT_NE(bad.err.find(expected), std::string::npos) << extra << ": " << bad.err;
