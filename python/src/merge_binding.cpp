@@ -351,7 +351,8 @@ void bind_merge(py::module_& m) {
       "The candidate pairs of `maps` (docs/merge.md, 'Candidates'), as `lmalign merge` plans "
       "them: with priors on both maps, pairs whose prior-placed extents overlap; else every "
       "pair up to all_pairs_max_maps maps, more maps keep their keep_per_map most similar "
-      "(rotation-invariant descriptor); at most max_pairs (0 = no limit), best first. priors: "
+      "(map retrieval: a bag of words over the landmarks' yaw-invariant descriptors); at most "
+      "max_pairs (0 = no limit), best first. priors: "
       "one MapPrior or None per map (default none). Deterministic. Raises InvalidArgument.");
 
   // ------------------------------------------------------------ edges
