@@ -55,7 +55,8 @@ bool near_truth(const CorrespondenceSearchResult& r, const Isometry3& truth) {
 
 TEST(CorrespondenceSearch, OneOfItsPosesIsNearTheTruthOnAStreetAndTheRunRepeats) {
   // Measured on seeds 1-9 of the street (one pair of up axes, 32 poses): a pose within
-  // 5 deg / 3 m of the truth on 7 of 9; on seed 5 it is the 15th by clique size.
+  // 5 deg / 3 m of the truth on 7 of 9; on seed 5 it is the 15th by clique size, within the
+  // default 16.
   const sim::SlamMapPair pair = street(5);
   const Search s(pair);
   const CorrespondenceSearchOptions o;

@@ -293,6 +293,7 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
   const double vague_m = 0.25 * radius;
 
   const std::size_t neighbourhood = std::min<std::size_t>(4 * o.neighbours, 512);
+  std::vector<std::vector<CorrespondenceHypothesis>> per_pair;
   for (const Vec3& us_in : in.ups_source) {
     for (const Vec3& ut_in : in.ups_target) {
       const Vec3 us = us_in.normalized(), ut = ut_in.normalized();
@@ -328,11 +329,21 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
         T.linear() = T.linear() * R_up;
         found.push_back({T, clique.size()});
       }
-      // Each pair of up axes keeps its own best `hypotheses` distinct poses: a wrong pair's
-      // cliques never crowd out the right pair's.
-      const std::vector<CorrespondenceHypothesis> kept = distinct_poses(found, P, radius, o.hypotheses);
-      result.hypotheses.insert(result.hypotheses.end(), kept.begin(), kept.end());
+      // Each pair of up axes ranks its own distinct poses: a wrong pair's cliques never crowd
+      // out the right pair's.
+      per_pair.push_back(distinct_poses(found, P, radius, o.hypotheses));
     }
+  }
+  // The pairs' lists taken in turn (best of each pair first), `hypotheses` in all.
+  for (std::size_t rank = 0; result.hypotheses.size() < o.hypotheses; ++rank) {
+    bool any = false;
+    for (const std::vector<CorrespondenceHypothesis>& list : per_pair) {
+      if (rank < list.size() && result.hypotheses.size() < o.hypotheses) {
+        result.hypotheses.push_back(list[rank]);
+        any = true;
+      }
+    }
+    if (!any) break;
   }
   return result;
 }

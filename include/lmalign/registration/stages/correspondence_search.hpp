@@ -19,8 +19,9 @@
 //   4. Cliques. The graph's k-core numbers order the matches; from each of the best-ordered
 //      `seeds`, a clique grows greedily (the candidate with the most neighbours among the
 //      remaining candidates first). Each clique of at least `min_inliers` matches gives a 4-DoF
-//      pose (estimate_4dof_transform after turning the source's up onto the target's); the
-//      distinct poses, by decreasing clique size, are the hypotheses.
+//      pose (estimate_4dof_transform after turning the source's up onto the target's). Each pair
+//      of up axes ranks its distinct poses by decreasing clique size; the hypotheses are the
+//      pairs' lists taken in turn, `hypotheses` in all.
 //
 // The pipeline then refines and scores them with everything else (best-first verification is the
 // pipeline's ranking by the score the verdict uses). Frames: T_target_source, p_target =
@@ -46,7 +47,7 @@ struct CorrespondenceSearchOptions {
   double consistency_sigmas = 3.0;      ///< > 0
   std::size_t seeds = 128;              ///< cliques grown, >= 1
   std::size_t min_inliers = 5;          ///< >= 3
-  std::size_t hypotheses = 32;          ///< poses per pair of up axes at most, >= 1
+  std::size_t hypotheses = 16;          ///< poses at most, over every pair of up axes, >= 1
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -68,7 +69,8 @@ struct CorrespondenceHypothesis {
 };
 
 struct CorrespondenceSearchResult {
-  std::vector<CorrespondenceHypothesis> hypotheses;  ///< distinct, by decreasing inliers
+  /// Distinct within each pair of up axes; the pairs' best first, in turn.
+  std::vector<CorrespondenceHypothesis> hypotheses;
   std::size_t matches = 0;                            ///< graph nodes, over the up-axis pairs
   double radius_m = 0.0;                              ///< descriptor radius
 };
