@@ -49,7 +49,8 @@ void describe_for_retrieval(const Points3& p, const Vec3& up, const CandidateOpt
   const KdTree tree(p);
   std::vector<std::uint32_t> sample;
   const std::size_t want = std::min<std::size_t>(512, p.size());
-  for (std::size_t j = 0; j < want; ++j) sample.push_back(static_cast<std::uint32_t>(j * p.size() / want));
+  for (std::size_t j = 0; j < want; ++j)
+    sample.push_back(static_cast<std::uint32_t>(j * p.size() / want));
   const double radius = descriptor_radius(p, tree, options.descriptor_neighbours, sample);
   if (!(radius > 0.0) || !std::isfinite(radius)) return;
   // The main horizontal axis: the largest eigenvector of the horizontal scatter.
@@ -79,7 +80,6 @@ void describe_for_retrieval(const Points3& p, const Vec3& up, const CandidateOpt
   const double median = sorted[sorted.size() / 2];
   for (double a : along) s->local_regions.push_back(a >= median ? 1 : 0);
 }
-
 
 // The retrieval (see the header): a vocabulary learned by k-means over the maps' descriptors
 // (at most 20,000 of them, evenly strided over the maps in order; initial centres evenly

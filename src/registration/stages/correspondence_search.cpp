@@ -271,10 +271,10 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
   const KdTree source_tree(P);
   Side src{&P, &source_tree, sigmas(P, in.source.covariances_m2, in.floor_m),
            in.source.view_directions};
-  Side tgt{&Q, &in.target->tree(),
-           sigmas(Q, in.target->has_covariances() ? &in.target->covariances_m2() : nullptr,
-                  in.floor_m),
-           &in.target->view_directions()};
+  Side tgt{
+      &Q, &in.target->tree(),
+      sigmas(Q, in.target->has_covariances() ? &in.target->covariances_m2() : nullptr, in.floor_m),
+      &in.target->view_directions()};
   const bool elevation = src.has_views() && tgt.has_views();
   const int dims = kLandmarkDescriptorDims + (elevation ? 1 : 0);
 
@@ -320,8 +320,8 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
         Points3 s_pts, t_pts;
         Correspondences corr;
         for (std::size_t a : clique) {
-          corr.push_back({static_cast<PointIndex>(s_pts.size()),
-                          static_cast<PointIndex>(t_pts.size()), 0.0});
+          corr.push_back(
+              {static_cast<PointIndex>(s_pts.size()), static_cast<PointIndex>(t_pts.size()), 0.0});
           s_pts.push_back(R_up * P[matches[a].s]);
           t_pts.push_back(Q[matches[a].t]);
         }

@@ -164,8 +164,7 @@ class CompleteSearchInit : public Initialiser {
         in.extra_candidates.push_back(h.T_target_source);
       }
       report->notes.emplace_back("correspondence matches", static_cast<double>(cr.matches));
-      report->notes.emplace_back("correspondence poses",
-                                 static_cast<double>(cr.hypotheses.size()));
+      report->notes.emplace_back("correspondence poses", static_cast<double>(cr.hypotheses.size()));
     }
     CompleteSearchOptions so = o_.search;
     so.modes = o_.hypotheses;

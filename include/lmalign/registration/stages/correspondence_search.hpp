@@ -40,14 +40,14 @@ namespace lmalign {
 
 /// Settings of correspondence_search(). Plain struct; check with is_valid().
 struct CorrespondenceSearchOptions {
-  std::size_t keypoints = 512;          ///< source landmarks described and matched, >= 3
-  std::size_t target_keypoints = 4096;  ///< target landmarks described, >= 3
-  std::size_t neighbours = 24;          ///< sets the descriptor radius, [4, 256]
-  std::size_t matches_per_keypoint = 3; ///< [1, 16]
-  double consistency_sigmas = 3.0;      ///< > 0
-  std::size_t seeds = 128;              ///< cliques grown, >= 1
-  std::size_t min_inliers = 5;          ///< >= 3
-  std::size_t hypotheses = 16;          ///< poses at most, over every pair of up axes, >= 1
+  std::size_t keypoints = 512;           ///< source landmarks described and matched, >= 3
+  std::size_t target_keypoints = 4096;   ///< target landmarks described, >= 3
+  std::size_t neighbours = 24;           ///< sets the descriptor radius, [4, 256]
+  std::size_t matches_per_keypoint = 3;  ///< [1, 16]
+  double consistency_sigmas = 3.0;       ///< > 0
+  std::size_t seeds = 128;               ///< cliques grown, >= 1
+  std::size_t min_inliers = 5;           ///< >= 3
+  std::size_t hypotheses = 16;           ///< poses at most, over every pair of up axes, >= 1
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -71,8 +71,8 @@ struct CorrespondenceHypothesis {
 struct CorrespondenceSearchResult {
   /// Distinct within each pair of up axes; the pairs' best first, in turn.
   std::vector<CorrespondenceHypothesis> hypotheses;
-  std::size_t matches = 0;                            ///< graph nodes, over the up-axis pairs
-  double radius_m = 0.0;                              ///< descriptor radius
+  std::size_t matches = 0;  ///< graph nodes, over the up-axis pairs
+  double radius_m = 0.0;    ///< descriptor radius
 };
 
 /// Runs the search (see the file comment). Throws InvalidArgument on invalid options or input
