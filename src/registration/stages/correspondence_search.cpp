@@ -293,21 +293,34 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
   const double vague_m = 0.25 * radius;
 
   const std::size_t neighbourhood = std::min<std::size_t>(4 * o.neighbours, 512);
+  // 1. descriptors: once per up axis of each side (a descriptor depends on its own map's up
+  // only), valid where the landmark is not vague and has enough neighbours.
+  struct Described {
+    std::vector<float> d;
+    std::vector<char> ok;
+  };
+  auto describe_all = [&](const Side& side, const std::vector<std::uint32_t>& keys,
+                          const Vec3& up) {
+    Described out{std::vector<float>(keys.size() * dims), std::vector<char>(keys.size(), 0)};
+    for (std::size_t a = 0; a < keys.size(); ++a) {
+      out.ok[a] = side.sigma_m[keys[a]] <= vague_m &&
+                  describe(side, keys[a], up, radius, neighbourhood, elevation, &out.d[a * dims]);
+    }
+    return out;
+  };
+  std::vector<Described> by_source_up, by_target_up;
+  for (const Vec3& u : in.ups_source)
+    by_source_up.push_back(describe_all(src, skeys, u.normalized()));
+  for (const Vec3& u : in.ups_target)
+    by_target_up.push_back(describe_all(tgt, tkeys, u.normalized()));
   std::vector<std::vector<CorrespondenceHypothesis>> per_pair;
-  for (const Vec3& us_in : in.ups_source) {
-    for (const Vec3& ut_in : in.ups_target) {
-      const Vec3 us = us_in.normalized(), ut = ut_in.normalized();
-      // 1. descriptors
-      std::vector<float> sd(skeys.size() * dims), td(tkeys.size() * dims);
-      std::vector<char> sok(skeys.size(), 0), tok(tkeys.size(), 0);
-      for (std::size_t a = 0; a < skeys.size(); ++a) {
-        sok[a] = src.sigma_m[skeys[a]] <= vague_m &&
-                 describe(src, skeys[a], us, radius, neighbourhood, elevation, &sd[a * dims]);
-      }
-      for (std::size_t b = 0; b < tkeys.size(); ++b) {
-        tok[b] = tgt.sigma_m[tkeys[b]] <= vague_m &&
-                 describe(tgt, tkeys[b], ut, radius, neighbourhood, elevation, &td[b * dims]);
-      }
+  for (std::size_t i = 0; i < in.ups_source.size(); ++i) {
+    for (std::size_t j = 0; j < in.ups_target.size(); ++j) {
+      const Vec3 us = in.ups_source[i].normalized(), ut = in.ups_target[j].normalized();
+      const std::vector<float>& sd = by_source_up[i].d;
+      const std::vector<char>& sok = by_source_up[i].ok;
+      const std::vector<float>& td = by_target_up[j].d;
+      const std::vector<char>& tok = by_target_up[j].ok;
       // 2. matches, 3. the consistency graph
       const std::vector<Match> matches =
           nearest_descriptors(skeys, sd, sok, tkeys, td, tok, dims, o.matches_per_keypoint);
