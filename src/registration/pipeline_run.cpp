@@ -151,7 +151,8 @@ void PipelineRun::validate() const {
 bool PipelineRun::begin_search(double factor) {
   const std::vector<Mat3>* target_cov =
       target_.has_covariances() ? &target_.covariances_m2() : nullptr;
-  if (request_.free_scale && !scale_search_) {
+  const bool first = request_.free_scale && !scale_search_;
+  if (first) {
     // The initial scale from the data: the spacings of the source as given and of the target.
     const ScaleSearchOptions o = scale_search_options(settings_);
     const DataScales a = estimate_data_scales(*source_.positions, source_.covariances_m2);
@@ -159,54 +160,67 @@ bool PipelineRun::begin_search(double factor) {
     scale_search_.emplace(o, request_.initial_scale.value_or(initial_scale_from_spacing(
                                  a.spacing_m, b.spacing_m, o.initial_min, o.initial_max)));
   }
-  Summary& s = base_;
-  s = Summary{};
-  s.preset = pipeline_.spec().name;
-  s.stages = pipeline_.spec();
-  for (const SettingRow& row : settings_.table()) {
-    s.settings.emplace_back(row.key, row.text(settings_.value(row.key)));
+  // Twice when the first search of a free scale measures the scale (ScaleSearch::
+  // set_measured): the source again at the measured initial scale.
+  for (bool measure = first && scale_search_->measure_steps() > 0;; measure = false) {
+    Summary& s = base_;
+    s = Summary{};
+    s.preset = pipeline_.spec().name;
+    s.stages = pipeline_.spec();
+    for (const SettingRow& row : settings_.table()) {
+      s.settings.emplace_back(row.key, row.text(settings_.value(row.key)));
+    }
+    s.registration.T_target_source = guess_;
+    search_source_.reset();
+    if (scale_search_) {
+      search_source_ = std::make_unique<ScaledSource>(source_, nullptr, true,
+                                                      scale_search_->initial_scale() * factor);
+    }
+    const SourceView src = search_source_ ? search_source_->view() : source_;
+    if (pipeline_.needs_scales()) {
+      if (src.size() < 3 || target_.size() < 3) return false;
+      Scales scales;
+      scales.source = estimate_data_scales(*src.positions, src.covariances_m2);
+      scales.target = estimate_data_scales(target_.points(), target_cov, 4096, &target_.tree());
+      const double floor_setting = settings_.real("scales.floor_m");
+      scales.floor_m = floor_setting > 0.0 ? floor_setting
+                                           : std::max(scales.source.floor_m, scales.target.floor_m);
+      const Vec3 default_up = stages::unit_vector(settings_, "scales.default_up");
+      scales.up_source = src.up.value_or(default_up).normalized();
+      scales.up_target = target_.up_axis().value_or(default_up).normalized();
+      s.scales = scales;
+    }
+    RefineContext all;
+    all.source = src;
+    all.target = &target_;
+    all.init = &s.initialisation;
+    all.scales = s.scales ? &*s.scales : nullptr;
+    InitialiserContext ic;
+    ic.source = src;
+    ic.target = &target_;
+    ic.scales = all.scales;
+    ic.initial_guess = request_.initial_guess;
+    if (request_.prior) {
+      ic.prior_sigma_deg_m =
+          std::make_pair(request_.prior->rotation_deg, request_.prior->translation_m);
+    }
+    ic.pipeline = &pipeline_;
+    ic.refine_context = &all;
+    if (measure) {
+      const std::optional<double> f = pipeline_.initialiser().measure_scale(
+          ic, scale_search_->measure_steps(), scale_search_->rung_ratio(),
+          scale_search_->measure_margin());
+      if (f) {
+        scale_search_->set_measured(*f);
+        continue;
+      }
+    }
+    hypotheses_ = pipeline_.initialiser().propose(ic, &s.initialisation);
+    if (hypotheses_.empty()) {
+      throw Error("initialiser '" + pipeline_.spec().initialiser + "' proposed nothing");
+    }
+    return true;
   }
-  s.registration.T_target_source = guess_;
-  search_source_.reset();
-  if (scale_search_) {
-    search_source_ = std::make_unique<ScaledSource>(source_, nullptr, true,
-                                                    scale_search_->initial_scale() * factor);
-  }
-  const SourceView src = search_source_ ? search_source_->view() : source_;
-  if (pipeline_.needs_scales()) {
-    if (src.size() < 3 || target_.size() < 3) return false;
-    Scales scales;
-    scales.source = estimate_data_scales(*src.positions, src.covariances_m2);
-    scales.target = estimate_data_scales(target_.points(), target_cov, 4096, &target_.tree());
-    const double floor_setting = settings_.real("scales.floor_m");
-    scales.floor_m = floor_setting > 0.0 ? floor_setting
-                                         : std::max(scales.source.floor_m, scales.target.floor_m);
-    const Vec3 default_up = stages::unit_vector(settings_, "scales.default_up");
-    scales.up_source = src.up.value_or(default_up).normalized();
-    scales.up_target = target_.up_axis().value_or(default_up).normalized();
-    s.scales = scales;
-  }
-  RefineContext all;
-  all.source = src;
-  all.target = &target_;
-  all.init = &s.initialisation;
-  all.scales = s.scales ? &*s.scales : nullptr;
-  InitialiserContext ic;
-  ic.source = src;
-  ic.target = &target_;
-  ic.scales = all.scales;
-  ic.initial_guess = request_.initial_guess;
-  if (request_.prior) {
-    ic.prior_sigma_deg_m =
-        std::make_pair(request_.prior->rotation_deg, request_.prior->translation_m);
-  }
-  ic.pipeline = &pipeline_;
-  ic.refine_context = &all;
-  hypotheses_ = pipeline_.initialiser().propose(ic, &s.initialisation);
-  if (hypotheses_.empty()) {
-    throw Error("initialiser '" + pipeline_.spec().initialiser + "' proposed nothing");
-  }
-  return true;
 }
 
 Summary PipelineRun::too_few_landmarks() const {
@@ -483,6 +497,7 @@ void PipelineRun::judge(Conclusion* c) const {
     e.free = true;
     e.scale = c->scale;
     e.initial_scale = scale_search_->initial_scale();
+    e.measured_factor = scale_search_->measured_factor();
     if (c->scale_covariance && c->scale_covariance->valid && c->scale_covariance->has_scale) {
       Mat7 c7 = c->scale_covariance->covariance_7x7;
       if (s.verdict.covariance_scale > 1.0) c7 *= s.verdict.covariance_scale;

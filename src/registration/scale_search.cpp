@@ -40,6 +40,15 @@ std::vector<SettingRow> scale_search_settings() {
                   SettingBound::closed(0, 20), "count",
                   "free scale: searches again on each side, at rung_ratio^k times the initial "
                   "scale, while none is trusted"),
+      int_setting("scale.measure_steps", "ScaleSearchOptions::measure_steps", d.measure_steps,
+                  SettingBound::closed(0, 20), "count",
+                  "free scale: the correspondences measure the scale at rung_ratio^k times the "
+                  "initial scale, |k| <= this, before the first search; a measured scale "
+                  "replaces the searches again; 0 = not measured"),
+      real_setting("scale.measure_margin", "ScaleSearchOptions::measure_margin", d.measure_margin,
+                   SettingBound::at_least(1.0), "1",
+                   "free scale: a measured scale counts when its largest clique has this many "
+                   "times the matches of the largest at a scale more than a rung away"),
       real_setting("scale.settle", "ScaleSearchOptions::settle", d.settle, SettingBound::above(0.0),
                    "1",
                    "free scale: a refinement goes on while its last step changed the scale by "
@@ -58,6 +67,8 @@ ScaleSearchOptions scale_search_options(const Settings& s) {
   o.rung_ratio = s.real("scale.rung_ratio");
   o.rungs = static_cast<int>(s.integer("scale.rungs"));
   o.researches = static_cast<int>(s.integer("scale.researches"));
+  o.measure_steps = static_cast<int>(s.integer("scale.measure_steps"));
+  o.measure_margin = s.real("scale.measure_margin");
   o.settle = s.real("scale.settle");
   return o;
 }
@@ -80,7 +91,17 @@ std::vector<ScaleAttempt> ScaleSearch::rungs() const {
   return out;
 }
 
+void ScaleSearch::set_measured(double factor) {
+  if (!std::isfinite(factor) || !(factor > 0.0)) {
+    throw InvalidArgument("measured scale factor " + std::to_string(factor) +
+                          ": expected finite and > 0");
+  }
+  measured_factor_ = factor;
+  initial_scale_ *= factor;
+}
+
 std::vector<ScaleAttempt> ScaleSearch::researches(double refined_scale) const {
+  if (std::isfinite(measured_factor_)) return {};
   // The side the first result's refined scale leans to first; each step of the ratio, nearest
   // first, beyond the rungs already concluded.
   const double up = refined_scale > initial_scale_ ? o_.rung_ratio : 1.0 / o_.rung_ratio;

@@ -102,9 +102,13 @@ std::string Summary::FullReport() const {
   if (scale.free) {
     line("scale", "free: " + fmt("%.6g", scale.scale) + " +- " + fmt("%.2g", scale.scale_sd) +
                       " target units per source unit (initial " + fmt("%.4g", scale.initial_scale) +
-                      " from the spacings, " + std::to_string(scale.rounds) +
-                      " 7-DoF refinements kept, " + std::to_string(scale.attempts) +
-                      " scales concluded over " + std::to_string(scale.searches) + " searches)");
+                      (std::isfinite(scale.measured_factor)
+                           ? ": the spacings' times " + fmt("%.4g", scale.measured_factor) +
+                                 " measured by the correspondences, "
+                           : " from the spacings, ") +
+                      std::to_string(scale.rounds) + " 7-DoF refinements kept, " +
+                      std::to_string(scale.attempts) + " scales concluded over " +
+                      std::to_string(scale.searches) + " searches)");
   }
   line("initialisation",
        initialisation.initialisation +
@@ -188,11 +192,14 @@ std::string to_json(const Summary& s, int indent) {
         for (int k = 0; k < 7; ++k) c.push_back((*s.scale.covariance_7x7)(i, k));
       }
     }
-    e["scale_report"] = {{"initial_scale", s.scale.initial_scale},
-                         {"rounds", s.scale.rounds},
-                         {"attempts", s.scale.attempts},
-                         {"searches", s.scale.searches},
-                         {"covariance_7x7", c}};
+    e["scale_report"] = {
+        {"initial_scale", s.scale.initial_scale},
+        {"measured_factor",
+         std::isfinite(s.scale.measured_factor) ? json(s.scale.measured_factor) : json(nullptr)},
+        {"rounds", s.scale.rounds},
+        {"attempts", s.scale.attempts},
+        {"searches", s.scale.searches},
+        {"covariance_7x7", c}};
   }
   e["converged"] = r.converged;
   e["termination"] = to_string(r.termination);

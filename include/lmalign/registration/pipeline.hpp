@@ -74,7 +74,8 @@ struct PipelineRequest {
   /// on every landmark, then again in 7 DoF by the estimator (Umeyama with scale for point
   /// pairs, the 7-DoF point-to-distribution step for distribution pairs), kept when the
   /// scorer's score at the similarity is at least that of the rigid refinement. Without a
-  /// trusted verdict the ScaleSearch concludes the hypotheses again at its rungs, then searches
+  /// trusted verdict the ScaleSearch concludes the hypotheses again at its rungs, then, unless
+  /// the landmarks' correspondences measured the scale before the first search, searches
   /// again at other initial scales (settings scale.*). Needs a 6-DoF estimator that estimates
   /// the scale. False: rigid, as before (the scale stays exactly 1).
   bool free_scale = false;
@@ -97,8 +98,13 @@ struct ScaleEstimate {
   /// Its standard deviation (target units per source unit; first order from the 7x7 covariance
   /// of log scale); NaN when fixed or not determined.
   double scale_sd = std::numeric_limits<double>::quiet_NaN();
-  /// The initial scale from the data (target / source median landmark spacing, in [1/10, 10]).
+  /// Where the search started: the initial scale from the data (target / source median
+  /// landmark spacing, in [1/10, 10]) times the measured factor, if any.
   double initial_scale = 1.0;
+  /// The factor the landmarks' correspondences measured on the spacings' scale before the first
+  /// search (ScaleSearch::set_measured); NaN when none was measured (then the search went on
+  /// at other initial scales while none was trusted).
+  double measured_factor = std::numeric_limits<double>::quiet_NaN();
   /// 7-DoF refinements kept (their score was at least the rigid refinement's), over every
   /// concluded scale.
   int rounds = 0;

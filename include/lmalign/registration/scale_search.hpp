@@ -9,6 +9,7 @@
 // Frames: p_target = scale * R * p_source + t; scale is target units per source unit.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -45,6 +46,15 @@ struct ScaleSearchOptions {
   /// (the side the first result's refined scale leans to first), each concluded at its own
   /// initial scale alone, while none is trusted.
   int researches = 2;
+  /// Before the first search, the initialiser measures the scale from the landmarks'
+  /// correspondences (Initialiser::measure_scale: consistent cliques at rung_ratio^k times the
+  /// initial scale, |k| <= measure_steps); a decisive measurement (measure_margin) becomes the
+  /// initial scale and replaces the searches again (issue 39, item 4: the scale from
+  /// scale-invariant pairs, not whole re-runs). 0: not measured, the searches again as before.
+  int measure_steps = 6;
+  /// A measurement counts when its largest clique has at least this many times the matches of
+  /// the largest clique at a scale more than a rung away.
+  double measure_margin = 2.0;
   /// A free-scale refinement goes on while its last step changed the scale by more than this
   /// (relative), within its schedule's budget.
   double settle = 1e-6;
@@ -69,15 +79,24 @@ class ScaleSearch {
   ScaleSearch(const ScaleSearchOptions& options, double initial_scale);
 
   double initial_scale() const { return initial_scale_; }
+  /// The factor the correspondences measured (finite, > 0): the initial scale is multiplied by
+  /// it and researches() is then empty. Throws InvalidArgument otherwise.
+  void set_measured(double factor);
+  /// The measured factor; NaN when none.
+  double measured_factor() const { return measured_factor_; }
+  int measure_steps() const { return o_.measure_steps; }
+  double measure_margin() const { return o_.measure_margin; }
+  double rung_ratio() const { return o_.rung_ratio; }
   /// The rungs of the first search, in order: factor 1 first, then the rungs nearest first.
   std::vector<ScaleAttempt> rungs() const;
   /// The searches again, in order, after the first search's result refined to `refined_scale`
-  /// (its side first).
+  /// (its side first); none once a scale was measured.
   std::vector<ScaleAttempt> researches(double refined_scale) const;
 
  private:
   ScaleSearchOptions o_;
   double initial_scale_;
+  double measured_factor_ = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// The scale that brings the source's typical landmark spacing (median nearest-neighbour

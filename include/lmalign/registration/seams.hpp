@@ -223,6 +223,16 @@ class Initialiser : public Stage {
                                           InitialiserReport* report) const = 0;
   /// True when the initialiser searches on its own and ignores an initial guess it is not given.
   virtual bool uses_prior() const { return false; }
+  /// Free scale (registration/scale_search.hpp): the factor by which the source's lengths
+  /// should be multiplied to match the target's, as the maps' own correspondences measure it
+  /// (target units per source unit, relative to context.source; tried at ratio^k, |k| <=
+  /// steps). Empty when this initialiser measures nothing (the default), or when its evidence
+  /// is not decisive: fewer than `margin` times the evidence for a scale more than a ratio
+  /// away. Deterministic.
+  virtual std::optional<double> measure_scale(const InitialiserContext& /*context*/, int /*steps*/,
+                                              double /*ratio*/, double /*margin*/) const {
+    return std::nullopt;
+  }
 };
 
 // ----------------------------------------------------------------------------- the loop

@@ -34,6 +34,10 @@ bool CorrespondenceSearchOptions::is_valid(std::string* why) const {
   if (seeds < 1 || min_inliers < 3 || hypotheses < 1) {
     return fail("seeds and hypotheses must be >= 1, min_inliers >= 3");
   }
+  if (scale_steps < 0 || scale_steps > 64) return fail("scale_steps must be in [0, 64]");
+  if (!(scale_ratio > 1.0) || !std::isfinite(scale_ratio)) {
+    return fail("scale_ratio must be > 1 and finite");
+  }
   return true;
 }
 
@@ -109,18 +113,24 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
   return matches;
 }
 
-// Two matches agree when the source pair and the target pair have the same horizontal distance
-// and height difference (about each map's up axis) within `sigmas` standard deviations of the
-// four landmarks; matches sharing a landmark never agree.
-Graph consistency_graph(const std::vector<Match>& matches, const Side& src, const Vec3& us,
-                        const Side& tgt, const Vec3& ut, double sigmas) {
+// Two matches agree when the source pair times a factor and the target pair have the same
+// horizontal distance and height difference (about each map's up axis) within `sigmas` standard
+// deviations of the four landmarks, plus `relative` times the target's distance (the scale's
+// tolerance; 0 when rigid); matches sharing a landmark never agree. One graph per factor, each
+// pair's geometry computed once.
+std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const Side& src,
+                                      const Vec3& us, const Side& tgt, const Vec3& ut,
+                                      double sigmas, const std::vector<double>& factors,
+                                      double relative) {
   const Points3& P = *src.points;
   const Points3& Q = *tgt.points;
   const std::size_t n = matches.size();
   const std::size_t words = (n + 63) / 64;
-  Graph g;
-  g.adj.assign(n, std::vector<std::uint64_t>(words, 0));
-  g.nbr.resize(n);
+  std::vector<Graph> graphs(factors.size());
+  for (Graph& g : graphs) {
+    g.adj.assign(n, std::vector<std::uint64_t>(words, 0));
+    g.nbr.resize(n);
+  }
   const double c2 = sigmas * sigmas;
   auto var = [](double s) { return s * s; };
   for (std::size_t a = 0; a < n; ++a) {
@@ -130,20 +140,55 @@ Graph consistency_graph(const std::vector<Match>& matches, const Side& src, cons
       if (x.s == y.s || x.t == y.t) continue;
       const Vec3 ds = P[y.s] - P[x.s], dt = Q[y.t] - Q[x.t];
       const double hs = ds.dot(us), ht = dt.dot(ut);
-      const double tol2 = c2 * (var(src.sigma_m[x.s]) + var(src.sigma_m[y.s]) +
-                                var(tgt.sigma_m[x.t]) + var(tgt.sigma_m[y.t]));
-      if ((hs - ht) * (hs - ht) > tol2) continue;
+      const double vs = var(src.sigma_m[x.s]) + var(src.sigma_m[y.s]);
+      const double vtx = var(tgt.sigma_m[x.t]), vty = var(tgt.sigma_m[y.t]);
+      const double dt2 = dt.squaredNorm();
       const double rs = std::sqrt(std::max(ds.squaredNorm() - hs * hs, 0.0));
-      const double rt = std::sqrt(std::max(dt.squaredNorm() - ht * ht, 0.0));
-      if ((rs - rt) * (rs - rt) > tol2) continue;
-      g.adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
-      g.adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
-      g.nbr[a].push_back(static_cast<std::uint32_t>(b));
-      g.nbr[b].push_back(static_cast<std::uint32_t>(a));
+      const double rt = std::sqrt(std::max(dt2 - ht * ht, 0.0));
+      for (std::size_t k = 0; k < factors.size(); ++k) {
+        const double f = factors[k];
+        const double noise2 = c2 * (f * f * vs + vtx + vty);
+        const double tol2 = relative > 0.0 ? noise2 + var(relative) * dt2 : noise2;
+        if ((f * hs - ht) * (f * hs - ht) > tol2) continue;
+        if ((f * rs - rt) * (f * rs - rt) > tol2) continue;
+        Graph& g = graphs[k];
+        g.adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
+        g.adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
+        g.nbr[a].push_back(static_cast<std::uint32_t>(b));
+        g.nbr[b].push_back(static_cast<std::uint32_t>(a));
+      }
     }
   }
-  return g;
+  return graphs;
 }
+
+// The set bits of a & b over `words` words: with the CPU's popcnt instruction where it has one
+// (x86-64's baseline lacks it, and the generic bit count was a third of a free-scale alignment's
+// time), chosen once at run time.
+std::size_t common_bits_generic(const std::uint64_t* a, const std::uint64_t* b, std::size_t words) {
+  std::size_t n = 0;
+  for (std::size_t x = 0; x < words; ++x) {
+    n += static_cast<std::size_t>(__builtin_popcountll(a[x] & b[x]));
+  }
+  return n;
+}
+using CommonBits = std::size_t (*)(const std::uint64_t*, const std::uint64_t*, std::size_t);
+#if defined(__x86_64__) && defined(__GNUC__)
+__attribute__((target("popcnt"))) std::size_t common_bits_popcnt(const std::uint64_t* a,
+                                                                 const std::uint64_t* b,
+                                                                 std::size_t words) {
+  std::size_t n = 0;
+  for (std::size_t x = 0; x < words; ++x) {
+    n += static_cast<std::size_t>(__builtin_popcountll(a[x] & b[x]));
+  }
+  return n;
+}
+CommonBits common_bits_function() {
+  return __builtin_cpu_supports("popcnt") ? &common_bits_popcnt : &common_bits_generic;
+}
+#else
+CommonBits common_bits_function() { return &common_bits_generic; }
+#endif
 
 // Greedy cliques of the consistency graph (see the header): lists of match indices.
 std::vector<std::vector<std::size_t>> cliques(const Graph& graph, std::size_t seeds,
@@ -190,6 +235,7 @@ std::vector<std::vector<std::size_t>> cliques(const Graph& graph, std::size_t se
   });
   std::vector<char> used(n, 0);
   std::vector<std::uint64_t> cand(words);
+  static const CommonBits common_bits = common_bits_function();
   for (std::size_t v : order) {
     if (out.size() >= seeds || core[v] + 1 < min_size) break;
     if (used[v]) continue;
@@ -200,10 +246,7 @@ std::vector<std::vector<std::size_t>> cliques(const Graph& graph, std::size_t se
       for (std::size_t w = 0; w < words; ++w) {
         for (std::uint64_t bits = cand[w]; bits != 0; bits &= bits - 1) {
           const std::size_t u = w * 64 + static_cast<std::size_t>(__builtin_ctzll(bits));
-          std::size_t links = 0;
-          for (std::size_t x = 0; x < words; ++x) {
-            links += static_cast<std::size_t>(__builtin_popcountll(adj[u][x] & cand[x]));
-          }
+          const std::size_t links = common_bits(adj[u].data(), cand.data(), words);
           if (best == n || links > best_links) {
             best = u;
             best_links = links;
@@ -222,10 +265,11 @@ std::vector<std::vector<std::size_t>> cliques(const Graph& graph, std::size_t se
 }
 
 // The poses by decreasing inliers, without near-duplicates (the source's centre moved by less
-// than `near_m` and a turn under 5 deg), at most `keep`.
+// than `near_m`, a turn under 5 deg and scales within `same_scale` of each other as a ratio),
+// at most `keep`.
 std::vector<CorrespondenceHypothesis> distinct_poses(std::vector<CorrespondenceHypothesis> poses,
                                                      const Points3& source, double near_m,
-                                                     std::size_t keep) {
+                                                     double same_scale, std::size_t keep) {
   std::stable_sort(poses.begin(), poses.end(),
                    [](const CorrespondenceHypothesis& a, const CorrespondenceHypothesis& b) {
                      return a.inliers > b.inliers;
@@ -238,14 +282,60 @@ std::vector<CorrespondenceHypothesis> distinct_poses(std::vector<CorrespondenceH
     if (out.size() >= keep) break;
     bool dup = false;
     for (const CorrespondenceHypothesis& k : out) {
-      const double moved = (h.T_target_source * centre - k.T_target_source * centre).norm();
+      const double moved =
+          (h.T_target_source * (h.scale * centre) - k.T_target_source * (k.scale * centre)).norm();
       const double turn =
           rotation_angle_deg(h.T_target_source.linear().transpose() * k.T_target_source.linear());
-      dup = dup || (moved < near_m && turn < 5.0);
+      const bool scale = std::abs(std::log(h.scale / k.scale)) < std::log(same_scale);
+      dup = dup || (moved < near_m && turn < 5.0 && scale);
     }
     if (!dup) out.push_back(h);
   }
   return out;
+}
+
+// A clique's pose: 4-DoF (estimate_4dof_transform after turning the source's up onto the
+// target's) with the source times `factor`; with `measure_scale`, the clique's own scale
+// (Umeyama's, from the rotation at `factor`) and the pose again at that scale.
+CorrespondenceHypothesis clique_pose(const std::vector<std::size_t>& clique,
+                                     const std::vector<Match>& matches, const Points3& P,
+                                     const Points3& Q, const Mat3& R_up, const Vec3& ut,
+                                     double factor, bool measure_scale) {
+  Points3 s_pts, t_pts;
+  Correspondences corr;
+  for (std::size_t a : clique) {
+    corr.push_back(
+        {static_cast<PointIndex>(s_pts.size()), static_cast<PointIndex>(t_pts.size()), 0.0});
+    s_pts.push_back(R_up * P[matches[a].s]);
+    t_pts.push_back(Q[matches[a].t]);
+  }
+  auto pose_at = [&](double scale) {
+    Points3 scaled = s_pts;
+    for (Vec3& p : scaled) p *= scale;
+    return estimate_4dof_transform(scaled, t_pts, corr, nullptr, ut);
+  };
+  double scale = factor;
+  Isometry3 T = pose_at(scale);
+  if (measure_scale) {
+    Vec3 ms = Vec3::Zero(), mt = Vec3::Zero();
+    for (std::size_t i = 0; i < s_pts.size(); ++i) {
+      ms += s_pts[i];
+      mt += t_pts[i];
+    }
+    ms /= static_cast<double>(s_pts.size());
+    mt /= static_cast<double>(t_pts.size());
+    double num = 0.0, den = 0.0;
+    for (std::size_t i = 0; i < s_pts.size(); ++i) {
+      num += (t_pts[i] - mt).dot(T.linear() * (s_pts[i] - ms));
+      den += (s_pts[i] - ms).squaredNorm();
+    }
+    if (den > 0.0 && num > 0.0 && std::isfinite(num / den)) {
+      scale = num / den;
+      T = pose_at(scale);
+    }
+  }
+  T.linear() = T.linear() * R_up;
+  return {T, clique.size(), scale};
 }
 
 }  // namespace
@@ -325,26 +415,26 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
       const std::vector<Match> matches =
           nearest_descriptors(skeys, sd, sok, tkeys, td, tok, dims, o.matches_per_keypoint);
       result.matches += matches.size();
-      const Graph graph = consistency_graph(matches, src, us, tgt, ut, o.consistency_sigmas);
-      // 4. cliques -> 4-DoF poses
+      // 4. cliques -> 4-DoF poses, at each factor of the scale ladder (the factor 1 alone when
+      // rigid)
       std::vector<CorrespondenceHypothesis> found;
       const Mat3 R_up = rotation_between(us, ut);
-      for (const std::vector<std::size_t>& clique : cliques(graph, o.seeds, o.min_inliers)) {
-        Points3 s_pts, t_pts;
-        Correspondences corr;
-        for (std::size_t a : clique) {
-          corr.push_back(
-              {static_cast<PointIndex>(s_pts.size()), static_cast<PointIndex>(t_pts.size()), 0.0});
-          s_pts.push_back(R_up * P[matches[a].s]);
-          t_pts.push_back(Q[matches[a].t]);
+      const double relative = o.scale_steps > 0 ? std::sqrt(o.scale_ratio) - 1.0 : 0.0;
+      std::vector<double> factors;
+      for (int k = -o.scale_steps; k <= o.scale_steps; ++k) {
+        factors.push_back(std::pow(o.scale_ratio, k));
+      }
+      const std::vector<Graph> graphs =
+          consistency_graphs(matches, src, us, tgt, ut, o.consistency_sigmas, factors, relative);
+      for (std::size_t k = 0; k < factors.size(); ++k) {
+        for (const std::vector<std::size_t>& clique : cliques(graphs[k], o.seeds, o.min_inliers)) {
+          found.push_back(
+              clique_pose(clique, matches, P, Q, R_up, ut, factors[k], o.scale_steps > 0));
         }
-        Isometry3 T = estimate_4dof_transform(s_pts, t_pts, corr, nullptr, ut);
-        T.linear() = T.linear() * R_up;
-        found.push_back({T, clique.size()});
       }
       // Each pair of up axes ranks its own distinct poses: a wrong pair's cliques never crowd
       // out the right pair's.
-      per_pair.push_back(distinct_poses(found, P, radius, o.hypotheses));
+      per_pair.push_back(distinct_poses(found, P, radius, std::sqrt(o.scale_ratio), o.hypotheses));
     }
   }
   // The pairs' lists taken in turn (best of each pair first), `hypotheses` in all.

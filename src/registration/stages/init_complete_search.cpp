@@ -109,7 +109,65 @@ class CompleteSearchInit : public Initialiser {
     return out;
   }
 
+  std::optional<double> measure_scale(const InitialiserContext& c, int steps, double ratio,
+                                      double margin) const override {
+    // The correspondence search on a ladder of scales (correspondence_search.hpp, step 5): the
+    // scale of its largest clique (the first of the largest: deterministic), if decisive.
+    if (steps <= 0 || o_.correspondences.hypotheses == 0 || c.scales == nullptr) {
+      return std::nullopt;
+    }
+    const Scales& sc = *c.scales;
+    CorrespondenceSearchInput ci;
+    ci.source.points = c.source.positions;
+    ci.source.covariances_m2 = c.source.covariances_m2;
+    ci.source.view_directions = c.source.view_directions;
+    ci.target = c.target;
+    ci.ups_source = up_candidates(sc.up_source, *c.source.positions, sc.source.spacing_m);
+    ci.ups_target = up_candidates(sc.up_target, c.target->points(), sc.target.spacing_m);
+    ci.floor_m = sc.floor_m;
+    CorrespondenceSearchOptions co = o_.correspondences;
+    co.scale_steps = steps;
+    co.scale_ratio = ratio;
+    co.seeds = std::min<std::size_t>(co.seeds, 16);  // only the largest clique counts here
+    const CorrespondenceSearchResult cr = correspondence_search(ci, co);
+    const CorrespondenceHypothesis* best = nullptr;
+    for (const CorrespondenceHypothesis& h : cr.hypotheses) {
+      if (best == nullptr || h.inliers > best->inliers) best = &h;
+    }
+    if (best == nullptr) return std::nullopt;
+    // Decisive only: at least `margin` times the matches of the largest clique at a scale more
+    // than a rung away (on a street's repeated structure the largest cliques are often at
+    // wrong scales and poses, and nearly as large as each other).
+    std::size_t other = 0;
+    for (const CorrespondenceHypothesis& h : cr.hypotheses) {
+      if (std::abs(std::log(h.scale / best->scale)) > std::log(ratio)) {
+        other = std::max(other, h.inliers);
+      }
+    }
+    if (static_cast<double>(best->inliers) < margin * static_cast<double>(other)) {
+      return std::nullopt;
+    }
+    return best->scale;
+  }
+
  private:
+  // A map's up-axis candidates: its frames' axis, its landmark plane's normal when that
+  // disagrees by more than init.second_up_min_angle_deg, its dominant plane's normal when that
+  // disagrees with both by more than a degree.
+  std::vector<Vec3> up_candidates(const Vec3& up, const Points3& points, double spacing_m) const {
+    const double min_cos = std::cos(o_.second_up_min_angle_deg * kPi / 180.0);
+    std::vector<Vec3> ups{up};
+    const std::optional<Vec3> plane = landmark_plane_normal(points, up);
+    if (plane && plane->dot(up) < min_cos) ups.push_back(*plane);
+    const std::optional<Vec3> floor = dominant_plane_normal(points, up, spacing_m);
+    if (floor) {
+      bool fresh = true;
+      for (const Vec3& u : ups) fresh = fresh && floor->dot(u) < std::cos(kPi / 180.0);
+      if (fresh) ups.push_back(*floor);
+    }
+    return ups;
+  }
+
   std::vector<Hypothesis> global(const InitialiserContext& c, InitialiserReport* report) const {
     const Scales& sc = *c.scales;
     const Points3& source = *c.source.positions;
@@ -122,21 +180,8 @@ class CompleteSearchInit : public Initialiser {
     report->resolution_m = cell;
     report->resolution_rad = step_rad;
 
-    const double min_cos = std::cos(o_.second_up_min_angle_deg * kPi / 180.0);
-    auto candidates = [&](const Vec3& up, const Points3& points, double spacing_m) {
-      std::vector<Vec3> ups{up};
-      const std::optional<Vec3> plane = landmark_plane_normal(points, up);
-      if (plane && plane->dot(up) < min_cos) ups.push_back(*plane);
-      const std::optional<Vec3> floor = dominant_plane_normal(points, up, spacing_m);
-      if (floor) {
-        bool fresh = true;
-        for (const Vec3& u : ups) fresh = fresh && floor->dot(u) < std::cos(kPi / 180.0);
-        if (fresh) ups.push_back(*floor);
-      }
-      return ups;
-    };
-    report->ups_source = candidates(sc.up_source, source, sc.source.spacing_m);
-    report->ups_target = candidates(sc.up_target, target, sc.target.spacing_m);
+    report->ups_source = up_candidates(sc.up_source, source, sc.source.spacing_m);
+    report->ups_target = up_candidates(sc.up_target, target, sc.target.spacing_m);
 
     CompleteSearchInput in;
     in.source.points = c.source.positions;
@@ -160,6 +205,7 @@ class CompleteSearchInit : public Initialiser {
       ci.ups_target = in.ups_target;
       ci.floor_m = sc.floor_m;
       const CorrespondenceSearchResult cr = correspondence_search(ci, o_.correspondences);
+      // (Rigid here: with a free scale the pipeline measured the scale before this search.)
       for (const CorrespondenceHypothesis& h : cr.hypotheses) {
         in.extra_candidates.push_back(h.T_target_source);
       }

@@ -22,6 +22,10 @@
 //      pose (estimate_4dof_transform after turning the source's up onto the target's). Each pair
 //      of up axes ranks its distinct poses by decreasing clique size; the hypotheses are the
 //      pairs' lists taken in turn, `hypotheses` in all.
+//   5. Scale (free-scale runs only). The pairwise test compares the target's distances with the
+//      source's times a factor, at each rung of a ladder of factors, with half a rung's
+//      tolerance; a clique's distances then fix its scale (TEASER++ measures scale from
+//      scale-invariant pairs the same way, by their distances' ratios).
 //
 // The pipeline then refines and scores them with everything else (best-first verification is the
 // pipeline's ranking by the score the verdict uses). Frames: T_target_source, p_target =
@@ -48,6 +52,12 @@ struct CorrespondenceSearchOptions {
   std::size_t seeds = 128;               ///< cliques grown, >= 1
   std::size_t min_inliers = 5;           ///< >= 3
   std::size_t hypotheses = 16;           ///< poses at most, over every pair of up axes, >= 1
+  /// Free scale (issue 39, item 4): the graph is also built at scale factors
+  /// scale_ratio^k, |k| <= scale_steps (target units per source unit, relative to the source
+  /// as given), each with a tolerance of half a step on every distance; each clique then
+  /// measures its own scale. 0: rigid, the factor 1 alone.
+  int scale_steps = 0;        ///< [0, 64]
+  double scale_ratio = 1.12;  ///< > 1
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -64,8 +74,12 @@ struct CorrespondenceSearchInput {
 };
 
 struct CorrespondenceHypothesis {
+  /// p_target = T_target_source * (scale * p_source).
   Isometry3 T_target_source = Isometry3::Identity();
   std::size_t inliers = 0;  ///< matches in its clique
+  /// The clique's scale, target units per source unit (1 unless options.scale_steps > 0):
+  /// Umeyama's, sum (t - t_mean).R(s - s_mean) / sum |s - s_mean|^2 over its matches.
+  double scale = 1.0;
 };
 
 struct CorrespondenceSearchResult {
