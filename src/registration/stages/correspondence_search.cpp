@@ -165,23 +165,24 @@ std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const S
 // The set bits of a & b over `words` words: with the CPU's popcnt instruction where it has one
 // (x86-64's baseline lacks it, and the generic bit count was a third of a free-scale alignment's
 // time), chosen once at run time.
-std::size_t common_bits_generic(const std::uint64_t* a, const std::uint64_t* b, std::size_t words) {
+inline __attribute__((always_inline)) std::size_t count_common_bits(const std::uint64_t* a,
+                                                                    const std::uint64_t* b,
+                                                                    std::size_t words) {
   std::size_t n = 0;
   for (std::size_t x = 0; x < words; ++x) {
     n += static_cast<std::size_t>(__builtin_popcountll(a[x] & b[x]));
   }
   return n;
 }
+std::size_t common_bits_generic(const std::uint64_t* a, const std::uint64_t* b, std::size_t words) {
+  return count_common_bits(a, b, words);
+}
 using CommonBits = std::size_t (*)(const std::uint64_t*, const std::uint64_t*, std::size_t);
 #if defined(__x86_64__) && defined(__GNUC__)
 __attribute__((target("popcnt"))) std::size_t common_bits_popcnt(const std::uint64_t* a,
                                                                  const std::uint64_t* b,
                                                                  std::size_t words) {
-  std::size_t n = 0;
-  for (std::size_t x = 0; x < words; ++x) {
-    n += static_cast<std::size_t>(__builtin_popcountll(a[x] & b[x]));
-  }
-  return n;
+  return count_common_bits(a, b, words);
 }
 CommonBits common_bits_function() {
   return __builtin_cpu_supports("popcnt") ? &common_bits_popcnt : &common_bits_generic;

@@ -13,6 +13,7 @@
 // refined from a third of it.
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/stages/complete_search.hpp"
@@ -117,14 +118,9 @@ class CompleteSearchInit : public Initialiser {
       return std::nullopt;
     }
     const Scales& sc = *c.scales;
-    CorrespondenceSearchInput ci;
-    ci.source.points = c.source.positions;
-    ci.source.covariances_m2 = c.source.covariances_m2;
-    ci.source.view_directions = c.source.view_directions;
-    ci.target = c.target;
-    ci.ups_source = up_candidates(sc.up_source, *c.source.positions, sc.source.spacing_m);
-    ci.ups_target = up_candidates(sc.up_target, c.target->points(), sc.target.spacing_m);
-    ci.floor_m = sc.floor_m;
+    const CorrespondenceSearchInput ci = correspondence_input(
+        c, up_candidates(sc.up_source, *c.source.positions, sc.source.spacing_m),
+        up_candidates(sc.up_target, c.target->points(), sc.target.spacing_m));
     CorrespondenceSearchOptions co = o_.correspondences;
     co.scale_steps = steps;
     co.scale_ratio = ratio;
@@ -151,6 +147,21 @@ class CompleteSearchInit : public Initialiser {
   }
 
  private:
+  // The correspondence search's input: the context's maps, these up axes, the scales' floor.
+  static CorrespondenceSearchInput correspondence_input(const InitialiserContext& c,
+                                                        std::vector<Vec3> ups_source,
+                                                        std::vector<Vec3> ups_target) {
+    CorrespondenceSearchInput ci;
+    ci.source.points = c.source.positions;
+    ci.source.covariances_m2 = c.source.covariances_m2;
+    ci.source.view_directions = c.source.view_directions;
+    ci.target = c.target;
+    ci.ups_source = std::move(ups_source);
+    ci.ups_target = std::move(ups_target);
+    ci.floor_m = c.scales->floor_m;
+    return ci;
+  }
+
   // A map's up-axis candidates: its frames' axis, its landmark plane's normal when that
   // disagrees by more than init.second_up_min_angle_deg, its dominant plane's normal when that
   // disagrees with both by more than a degree.
@@ -198,13 +209,8 @@ class CompleteSearchInit : public Initialiser {
     in.coarse_sigma.translation_m = o_.start_sigma_factor * 2.0 * cell;
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
     if (o_.correspondences.hypotheses > 0) {
-      CorrespondenceSearchInput ci;
-      ci.source = in.source;
-      ci.target = c.target;
-      ci.ups_source = in.ups_source;
-      ci.ups_target = in.ups_target;
-      ci.floor_m = sc.floor_m;
-      const CorrespondenceSearchResult cr = correspondence_search(ci, o_.correspondences);
+      const CorrespondenceSearchResult cr = correspondence_search(
+          correspondence_input(c, in.ups_source, in.ups_target), o_.correspondences);
       // (Rigid here: with a free scale the pipeline measured the scale before this search.)
       for (const CorrespondenceHypothesis& h : cr.hypotheses) {
         in.extra_candidates.push_back(h.T_target_source);
