@@ -10,8 +10,10 @@
 #               `apt install ./lmalign_*.deb` (docs/packaging.md). Python alone: `pip install
 #               --no-build-isolation .` in a venv, or a wheel (docs/python.md).
 # Also: make bench (against PCL and Open3D), make bench-merge (the synthetic 200-map merge),
-# make bench-merge-real (configs/merge_desk.yaml, merge_kitti.yaml), make bench-priors (wrong
-# and right priors on every real dataset; also the end of make bench-accuracy),
+# make bench-merge-real (configs/merge_desk.yaml, merge_kitti.yaml), make bench-accuracy (every
+# dataset, the default beside Open3D FPFH + RANSAC + ICP), make bench-sizes (simulated streets of
+# 1,000-60,000 landmarks), make bench-priors (wrong and right priors on every real dataset; also
+# the end of make bench-accuracy),
 # make test-sanitize (the sanitizer half alone),
 # make fuzz (libFuzzer targets, FUZZ_SECONDS each; .ci/run runs it after make test).
 # Real data: ../shared/data by default; set LMALIGN_DATA to point elsewhere.
@@ -165,7 +167,8 @@ bench: build
 # windows of the whole drive, simulated streets and periodic roads, from the 39 protocol
 # displacements and 100 seeded random starts each; for the default also its search regret, the
 # basin of its refinement and its time. Writes $(BUILD_DIR)/bench-accuracy/ (accuracy.csv,
-# default.csv, accuracy.json, plots/) and bench/results/accuracy.json.
+# default.csv, peers.csv: Open3D FPFH + RANSAC + ICP beside the default, accuracy.json, plots/)
+# and bench/results/accuracy.json; then the size sweep and the prior sweep.
 # ACCURACY_ARGS=--quick runs a fraction; --strategies a,b and --datasets x,y select
 # (docs/accuracy.md, "Multi-dataset benchmark").
 ACCURACY_ARGS ?=
@@ -174,7 +177,17 @@ bench-accuracy: build
 	@if [ ! -f "$(GT_PAIR)/desk_gt_a.txt" ]; then \
 	  echo "lmalign bench-accuracy: real data not found: looked for $(GT_PAIR)/desk_gt_a.txt" >&2; exit 1; fi
 	$(PYTHON) bench/run_accuracy.py --build-dir $(BUILD_DIR) $(ACCURACY_ARGS)
+	$(MAKE) --no-print-directory bench-sizes
 	$(MAKE) --no-print-directory bench-priors
+
+# `make bench-sizes` (also part of `make bench-accuracy`): the default and Open3D FPFH + RANSAC +
+# ICP on simulated streets of 1,000 to 60,000 landmarks per map, several seeds and transforms, one
+# thread each: answer and time per size (issue 39; docs/accuracy.md "Size sweep"). Writes
+# $(BUILD_DIR)/bench-sizes/{sizes.csv,sizes.json,sizes.md}. SIZES_ARGS=--sizes 1000,3000 selects.
+SIZES_ARGS ?=
+.PHONY: bench-sizes
+bench-sizes: build
+	$(PYTHON) bench/size_sweep.py --build-dir $(BUILD_DIR) $(SIZES_ARGS)
 
 # `make bench-priors` (also the end of `make bench-accuracy`): wrong and right priors on every
 # real dataset (issue 41, docs/accuracy.md "Priors are hints"), with the default's prior check

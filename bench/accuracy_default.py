@@ -178,6 +178,8 @@ class Aligner:
             args += ["--prior-sigma", "%.17g,%.17g" % tuple(prior), "--set",
                      "init.prior_check=off"]
             key_parts += args[-4:]
+        if omp_threads is not None:  # a time measured on that many threads
+            key_parts += ["omp_threads", str(omp_threads)]
         key = hashlib.sha1("\n".join([self.binary_key] + key_parts).encode()).hexdigest()[:20]
         out = os.path.join(self.folder, "runs", key + ".json")
         if os.path.isfile(out):

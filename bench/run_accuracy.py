@@ -18,10 +18,13 @@ recall (trustworthy against right basin), the mean and median NEES of the right-
 --strategy; bench/accuracy_default.py) it adds, per dataset, the search regret of every start
 (the score refined from the truth minus the score of the answer), the basin of its refinement
 alone along each axis and in yaw, and its time per alignment (--no-regret, --no-basin skip them).
-Output in --output (default build/bench-accuracy): accuracy.csv, default.csv, accuracy.json,
-accuracy.md (the tables as Markdown), plots/<dataset>.png (success against start offset, random
-starts, one line per strategy), and per dataset its maps, configs and experiment folders. A full
-run (no --quick, every dataset and every configured strategy) also writes
+Beside the default, its peer Open3D FPFH + RANSAC + ICP on the maps as given, one thread each:
+right basin, errors, CPU time (bench/accuracy_peers.py; --no-peers skips it, and it is skipped
+with a note when libopen3d-dev was not found).
+Output in --output (default build/bench-accuracy): accuracy.csv, default.csv, peers.csv,
+accuracy.json, accuracy.md (the tables as Markdown), plots/<dataset>.png (success against start
+offset, random starts, one line per strategy), and per dataset its maps, configs and experiment
+folders. A full run (no --quick, every dataset and every configured strategy) also writes
 bench/results/accuracy.json.
 """
 import argparse
@@ -39,6 +42,7 @@ import time
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 import accuracy_default  # noqa: E402
+import accuracy_peers  # noqa: E402
 import accuracy_similarity  # noqa: E402
 DEFAULT_CONFIG = os.path.join(ROOT, "bench", "accuracy.yaml")
 RESULTS_JSON = os.path.join(ROOT, "bench", "results", "accuracy.json")
@@ -575,6 +579,17 @@ def default_report(lmalign, d, source, target, truth, rows, folder, log, spec, a
     return out
 
 
+def peers_report(peer, lmalign, d, source, target, truth, folder, log):
+    """Open3D's global registration beside the default on dataset d (bench/accuracy_peers.py)."""
+    thresholds = (float(d["rotation_deg"]), float(d["translation_m"]))
+    aligner = accuracy_default.Aligner(lmalign, source, target, truth, thresholds,
+                                       os.path.join(folder, "default"), log)
+    try:
+        return accuracy_peers.peer_report(peer, aligner, source, target, thresholds, folder, log)
+    except (accuracy_peers.PeerError, accuracy_default.DefaultError) as e:
+        raise BenchError("dataset %s: %s" % (d["name"], e))
+
+
 def default_line(dflt):
     """One line of the default's numbers for the progress output."""
     parts = []
@@ -711,6 +726,10 @@ def parse_args(argv):
                    help="skip the default's search regret (and its own alignment per start)")
     p.add_argument("--no-basin", action="store_true",
                    help="skip the default's refinement basin (bisection along each axis)")
+    p.add_argument("--peer", help="Open3D's peer binary (default: "
+                   "BUILD_DIR/bench/lmalign_peer_open3d_global when built)")
+    p.add_argument("--no-peers", action="store_true",
+                   help="skip the peers (Open3D FPFH + RANSAC + ICP beside the default)")
     p.add_argument("--no-similarity", action="store_true",
                    help="skip the Sim(3) datasets (the config's similarity: list)")
     return p.parse_args(argv)
@@ -743,6 +762,12 @@ def main(argv=None):
               "host": os.uname().nodename, "cores": os.cpu_count(), "threads": a.threads,
               "quick": a.quick, "random": random_spec, "protocol_cases": len(protocol),
               "strategies": strategies, "datasets": {}}
+    peer = None if a.no_peers else (a.peer or accuracy_peers.peer_binary(a.build_dir))
+    if peer is not None and not os.access(peer, os.X_OK):
+        raise BenchError("--peer: not an executable: %s" % peer)
+    if peer is None and not a.no_peers:
+        print("accuracy benchmark: Open3D's peer (build/bench/lmalign_peer_open3d_global) was "
+              "not built (libopen3d-dev missing?): no peers table", flush=True)
     started = time.time()
     prepared = {}
     for d in datasets:
@@ -775,6 +800,8 @@ def main(argv=None):
         if not (a.no_regret and a.no_basin):
             rep["default"] = default_report(lmalign, d, source, target, truth, rows, folder, log,
                                             cfg["default"], a)
+        if peer is not None:
+            rep["peers"] = peers_report(peer, lmalign, d, source, target, truth, folder, log)
         rep["wall_time_s"] = time.time() - t0
         report["datasets"][name] = rep
         if not a.no_plots:
@@ -784,6 +811,13 @@ def main(argv=None):
             if m["success_rate"] is not None)), flush=True)
         if rep.get("default"):
             print("%-16s         %s" % ("", default_line(rep["default"])), flush=True)
+        if rep.get("peers"):
+            p = rep["peers"]
+            print("%-16s         Open3D FPFH+RANSAC+ICP: right %d of %d, CPU %.2f s (%s the "
+                  "default's)" % ("", p["peer_right_basin"], len(p["peer_runs"]),
+                                  p["peer_median_cpu_s"],
+                                  "-" if p["cpu_ratio_peer_over_default"] is None
+                                  else "%.2fx" % p["cpu_ratio_peer_over_default"]), flush=True)
     # Sim(3): each entry whose rigid dataset ran, on a similarity-moved copy of its source.
     report["similarity"] = {}
     keys = ["x_m", "y_m", "z_m", "roll_deg", "pitch_deg", "yaw_deg"]
@@ -817,12 +851,16 @@ def main(argv=None):
     write_csv(os.path.join(out, "default.csv"), default_csv_rows(report), DEFAULT_COLUMNS)
     write_csv(os.path.join(out, "similarity.csv"),
               accuracy_similarity.csv_rows(report["similarity"]), accuracy_similarity.COLUMNS)
+    write_csv(os.path.join(out, "peers.csv"), accuracy_peers.csv_rows(report["datasets"]),
+              accuracy_peers.COLUMNS)
     write_json(os.path.join(out, "accuracy.json"), report)
     write_text(os.path.join(out, "accuracy.md"),
-               markdown_tables(report) + accuracy_similarity.markdown(report["similarity"]))
+               markdown_tables(report) + accuracy_peers.markdown(report["datasets"]) +
+               accuracy_similarity.markdown(report["similarity"]))
     if full:
         write_json(RESULTS_JSON, report)
-    print("accuracy benchmark: %s/accuracy.csv, default.csv, similarity.csv, accuracy.json, "
+    print("accuracy benchmark: %s/accuracy.csv, default.csv, peers.csv, similarity.csv, "
+          "accuracy.json, "
           "accuracy.md, plots/ "
           "(%.0f s)%s"
           % (out, report["wall_time_s"], "; bench/results/accuracy.json" if full else ""))

@@ -18,6 +18,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 import accuracy_default  # noqa: E402
 import run_accuracy  # noqa: E402
+import size_sweep  # noqa: E402
 
 # A stand-in for the `lmalign` subcommands the driver calls. experiment: one row per case and
 # strategy, the case's offset in `value`; strategy "good" succeeds (error 1 deg, 2 cm, trusted),
@@ -113,6 +114,22 @@ else:
     sys.exit(2)
 '''
 
+# A stand-in for bench/peer_open3d_global.cpp (see the peers test): the transform and CPU time
+# by --seed; every call is appended to CALLS as ["peer", ...].
+FAKE_PEER = r'''#!/usr/bin/python3
+import json, math, os, sys
+with open(os.environ["FAKE_CALLS"], "a") as f:
+    f.write(json.dumps(["peer"] + sys.argv[1:]) + "\n")
+seed = int(sys.argv[sys.argv.index("--seed") + 1])
+T = [[float(r == c) for c in range(4)] for r in range(4)]
+if seed == 2:
+    c, s = math.cos(math.radians(10)), math.sin(math.radians(10))
+    T[0][:2], T[1][:2] = [c, -s], [s, c]
+if seed == 3:
+    T[1][3] = 0.2
+print(json.dumps({"T_target_source": T, "cpu_s": {1: 0.1, 2: 0.5, 3: 0.3}[seed], "voxel_m": 0.02}))
+'''
+
 CONFIG = """
 strategies: [good, far, bad]
 k: 5
@@ -202,6 +219,37 @@ class Metrics(unittest.TestCase):
                 row("s", False, True, value=0.1, experiment="protocol")]
         self.assertEqual(run_accuracy.binned_success(rows, edges),
                          [[2, 1], [0, 0], [0, 0], [0, 0], [2, 2]])
+
+
+class SizeSweep(unittest.TestCase):
+    """bench/size_sweep.py's per-size summary and its table (issue 39, item 6)."""
+
+    def test_counts_trusted_wrong_median_time_and_time_per_thousand(self):
+        def run(size, right, trusted, t, peer_right=False, peer_t=1.0):
+            return {"landmarks": size, "default_right": right, "default_trusted": trusted,
+                    "default_time_s": t, "peer_right": peer_right, "peer_cpu_s": peer_t}
+        rows = [run(1000, True, True, 0.5), run(1000, False, False, 2.5, True, 0.3),
+                run(1000, False, True, 1.0),  # trusted and wrong: counted apart
+                run(4000, True, True, 2.0), run(4000, True, False, 4.0)]
+        s = size_sweep.summary(rows)
+        self.assertEqual(list(s), [1000, 4000])
+        a, b = s[1000], s[4000]
+        self.assertEqual((a["runs"], a["default_right"], a["default_trusted"],
+                          a["default_trusted_wrong"]), (3, 1, 2, 1))
+        self.assertAlmostEqual(a["default_median_time_s"], 1.0)
+        self.assertAlmostEqual(a["default_max_time_s"], 2.5)
+        self.assertAlmostEqual(a["default_median_time_per_1000_s"], 1.0)
+        self.assertAlmostEqual(b["default_median_time_per_1000_s"], 3.0 / 4.0)
+        self.assertEqual((a["peer_right"], a["peer_median_cpu_s"]), (1, 1.0))
+        md = size_sweep.markdown({"date_utc": "D", "host": "h", "cores": 2, "seeds": [1],
+                                  "transforms": ["0,0,0,0,0,0"], "sizes": s})
+        self.assertIn("| 1,000 | 3 | 1 | 2 (1) | 1.00 / 2.50 | 1.000 | 1 | 1.00 |", md)
+
+    def test_bad_lists_are_one_error(self):
+        with self.assertRaises(size_sweep.SweepError):
+            size_sweep.parse_list("1000,x", int, "--sizes")
+        with self.assertRaises(size_sweep.SweepError):
+            size_sweep.main(["--transforms", "1,2,3", "--build-dir", "/nonexistent"])
 
 
 class StubAligner:
@@ -315,7 +363,8 @@ class Driver(unittest.TestCase):
     def run_driver(self, *extra, default=False):
         """The driver on the test config; the default's regret and basin (many fake alignments)
         only when asked."""
-        flags = [] if default else ["--no-regret", "--no-basin"]
+        flags = ([] if default else ["--no-regret", "--no-basin"]) + (
+            [] if "--peer" in extra else ["--no-peers"])
         return run_accuracy.main(["--config", self.config, "--lmalign", self.fake, "--output",
                                   self.out, "--threads", "1"] + flags + list(extra))
 
@@ -447,6 +496,52 @@ class Driver(unittest.TestCase):
         self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
                                          "--datasets", "files", default=True), 0)
         self.assertEqual(len(self.calls_of("align")), n_align)
+
+    def test_peer_beside_the_default_right_basin_cpu_ratio_and_cache(self):
+        # A stand-in for lmalign_peer_open3d_global: seed 1 finds the truth (identity) in 0.1 s,
+        # seed 2 is 10 deg off (0.5 s), seed 3 is 0.2 m off (0.3 s; the threshold is 0.1 m).
+        peer = os.path.join(self.tmp, "peer")
+        with open(peer, "w") as f:
+            f.write(FAKE_PEER)
+        os.chmod(peer, os.stat(peer).st_mode | stat.S_IEXEC)
+        self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
+                                         "--datasets", "files", "--peer", peer), 0)
+        with open(os.path.join(self.out, "accuracy.json")) as f:
+            p = json.load(f)["datasets"]["files"]["peers"]
+        self.assertEqual([r["seed"] for r in p["peer_runs"]], [1, 2, 3])
+        self.assertEqual([r["right_basin"] for r in p["peer_runs"]], [True, False, False])
+        self.assertAlmostEqual(p["peer_runs"][1]["rotation_error_deg"], 10.0)
+        self.assertAlmostEqual(p["peer_runs"][2]["translation_error_m"], 0.2)
+        self.assertEqual(p["peer_right_basin"], 1)
+        self.assertAlmostEqual(p["peer_median_cpu_s"], 0.3)
+        # The default once, on the maps as given (displacement 0), on one thread.
+        self.assertTrue(p["default"]["right_basin"] and p["default"]["trustworthy"])
+        self.assertAlmostEqual(p["cpu_ratio_peer_over_default"], 0.3 / 0.2)
+        aligns = [c for c in self.calls_of("align") if "--displace" in c]
+        self.assertEqual([c[c.index("--displace") + 1] for c in aligns], ["0,0,0,0,0,0"])
+        with open(os.path.join(self.out, "peers.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual([(r["dataset"], r["peer_right"], r["peer_runs"]) for r in rows],
+                         [("files", "1", "3")])
+        with open(os.path.join(self.out, "accuracy.md")) as f:
+            md = f.read()
+        self.assertIn("| files | 1200 / 1300 | right, trusted, 0.50° / 0.01 m | 0.20 | 1 of 3 "
+                      "| 0.00° / 0 m | 0.30 | 1.50x |", md)  # medians of (0, 10, 0) deg, (0, 0, 0.2) m
+        # A second run reuses the peer's runs and the default's (cached by arguments, binary).
+        n_peer, n_align = len(self.calls_of("peer")), len(aligns)
+        self.assertEqual(n_peer, 3)
+        self.assertEqual(self.run_driver("--quick", "--no-plots", "--strategies", "good",
+                                         "--datasets", "files", "--peer", peer), 0)
+        self.assertEqual(len(self.calls_of("peer")), n_peer)
+        self.assertEqual(len([c for c in self.calls_of("align") if "--displace" in c]), n_align)
+        # A peer that fails is one error naming it, not a traceback.
+        with open(peer, "w") as f:
+            f.write("#!/bin/sh\necho 'bad map' >&2\nexit 2\n")
+        shutil.rmtree(os.path.join(self.out, "files", "peers"))
+        with self.assertRaises(run_accuracy.BenchError) as e:
+            self.run_driver("--quick", "--no-plots", "--strategies", "good", "--datasets",
+                            "files", "--peer", peer)
+        self.assertIn("bad map", str(e.exception))
 
     def test_similarity_datasets_move_the_source_and_time_it_against_rigid(self):
         with open(self.config, "a") as f:
