@@ -345,6 +345,16 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   Summary first = run.conclude(1.0);
   int attempts = 1;
   int searches = 1;
+  if (run.first_pass() && !first.verdict.trustworthy) {
+    // The initialiser's first pass (the correspondence search's poses alone) gave no trusted
+    // answer: its complete search, whose answer is the result (docs/accuracy.md, "The first
+    // pass"). Not counted among the scale axis's searches and attempts.
+    run.deepen();
+    if (run.begin_search(1.0)) {
+      first = run.conclude(1.0);
+      first.initialisation.notes.emplace_back("complete search after an untrusted first pass", 1.0);
+    }
+  }
   const bool judged = trust_ != nullptr && run.scale_free();
   if (!judged || first.verdict.trustworthy) return run.finish(std::move(first), 1, 1);
   // The scale axis (ScaleSearch, docs/scale.md): the first search's hypotheses concluded at its

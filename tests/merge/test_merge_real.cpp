@@ -161,13 +161,17 @@ TEST(MergeReal, DeskWindowsWithoutPriors) {
   // Known gap (docs/merge.md): consecutive 30-frame windows of this map share no frame and ~1%
   // of their landmarks, and the default's complete search finds, for most pairs, a distinct
   // pose scoring nearly as well as the best (measured 2026-11-23: frames 30-59 / 60-89 answer a
-  // pose 149 deg off, its rival scores 93%; 60-89 / 90-119 answer 2.2 deg / 4.6 cm off, a rival
-  // 20 deg away scores 87%): the verdict refuses them as ambiguous, so the graph stays in parts.
+  // pose 149 deg off, its rival scores 93%): the verdict refuses them as ambiguous, so the graph
+  // stays in parts. Since the first pass (2026-11-25) the pairs 0-29 / 30-59 and 60-89 / 90-119
+  // are trusted from the correspondence poses alone, 2.1-2.2 deg off (4-6 cm at the landmarks;
+  // the vote's rival 20 deg away at 87% refused the second before).
   // Checked: at least one edge is kept; every window a kept edge reaches is placed within
-  // 2 deg / 5 cm in its part; no kept edge is false; only the largest part counts as placed.
+  // 2 deg / 5 cm in its part; no kept edge is false (5 deg, and 0.25 m at the target origin:
+  // the windows are moved up to 3 m from it, where 5 deg is 0.26 m); only the largest part
+  // counts as placed.
   ASSERT_FALSE(run.cancelled);
   const MergeEvaluation ev = evaluate_merge(run.result, run.edges, w.truth, {2.0, 0.05});
-  const MergeEvaluation edges = evaluate_merge(run.result, run.edges, w.truth, {5.0, 0.1});
+  const MergeEvaluation edges = evaluate_merge(run.result, run.edges, w.truth, {5.0, 0.25});
   std::size_t used = 0;
   for (const EdgeReport& e : run.result.edges) used += e.used ? 1 : 0;
   EXPECT_GE(used, 1u);

@@ -197,6 +197,10 @@ struct InitialiserReport {
   /// With a prior: the global search ran too and its modes are among the hypotheses (issue 41);
   /// the verdict then checks that the answer lies in the prior's window.
   bool prior_checked = false;
+  /// The hypotheses come from the initialiser's first, cheaper pass, and a deeper search is
+  /// available: Pipeline::run runs it (InitialiserContext::deep) when the first pass's answer is
+  /// not trusted, and reports that answer instead.
+  bool deeper_pass = false;
   /// Other numbers worth a line in the report (name, value).
   std::vector<std::pair<std::string, double>> notes;
 };
@@ -214,6 +218,10 @@ struct InitialiserContext {
   /// the pipeline's own refinement (Pipeline::refine_part, Phase::kHypothesis).
   const Pipeline* pipeline = nullptr;
   const RefineContext* refine_context = nullptr;
+  /// False: the initialiser may propose from a first, cheaper pass (and say so in
+  /// InitialiserReport::deeper_pass). True: its complete search, after a first pass whose
+  /// answer was not trusted.
+  bool deep = false;
 };
 
 class Initialiser : public Stage {

@@ -156,7 +156,7 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
   // --- 1. coarse vote: every peak of every yaw, for every pair of up axes
   std::vector<SearchMode> candidates;
   std::vector<double> votes;
-  {
+  if (o.vote) {
     YawVoteOptions vo;
     vo.yaw_step_deg = o.yaw_step_deg;
     vo.source_samples = o.vote_source_samples;
@@ -185,7 +185,7 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
 
   // --- 2. the pool: by votes and by the coarse score, in turn, without near-duplicates
   std::vector<SearchMode> pool;
-  {
+  if (!candidates.empty()) {
     const std::vector<double> coarse =
         scores(in, candidates, in.coarse_sigma, strided_indices(P.size(), o.screen_samples));
     const std::vector<std::size_t> by_score = by_decreasing(coarse);

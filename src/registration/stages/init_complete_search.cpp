@@ -1,16 +1,21 @@
 // Initialiser "complete_search" (the adaptive default's; stages/complete_search.hpp): without a
-// prior, the complete search over every pair of up-axis candidates, every yaw and every
-// translation, its candidates refined with the pipeline's own refinement in rounds; its distinct
-// modes are the hypotheses, plus the initial guess if given. Each map's up-axis candidates are
+// prior, first the correspondence search's poses alone (search.first_pass; its descriptor radius
+// at search.first_pass_neighbours), snapped and refined in the complete search's rounds without
+// its vote; Pipeline::run asks for the deep pass when that answer is not trusted (or at once when
+// the first pass finds no pose): the complete search over every pair of up-axis candidates,
+// every yaw and every translation, with the correspondence poses in its pool, its candidates
+// refined with the pipeline's own refinement in rounds. The distinct modes are the hypotheses,
+// plus the initial guess if given. Each map's up-axis candidates are
 // its frames' axis, its landmark plane's normal when that disagrees by more than
 // init.second_up_min_angle_deg, and its dominant plane's normal (a floor, a desk, a road) when
 // that disagrees with both by more than a degree. With a prior it is the "yaw_vote" initialiser
 // (the vote bounded by the prior), and, with init.prior_check "rivals" or "strict", the complete
 // search too: its modes join the prior's hypotheses, so that a pose the maps prefer outside the
 // prior's window wins ("rivals") or is the trust judge's rival ("strict") (issue 41;
-// docs/accuracy.md, "Priors are hints"). The vote cell, the search's coarse resolution, is
-// init.vote_cell_factor x max(target spacing, 2 sin(step / 2) x source radius); the modes are
-// refined from a third of it.
+// docs/accuracy.md, "Priors are hints"); the first pass checks a prior only when one of its
+// poses lies inside the prior's window, else the complete search runs at once. The vote cell, the
+// search's coarse resolution, is init.vote_cell_factor x max(target spacing, 2 sin(step / 2) x
+// source radius); the modes are refined from a third of it.
 #include <algorithm>
 #include <cmath>
 #include <utility>
@@ -33,6 +38,11 @@ struct CompleteInitOptions {
   /// The correspondence search whose poses join the complete search's pool (issue 39);
   /// hypotheses = 0: none.
   CorrespondenceSearchOptions correspondences;
+  /// The first pass (without a prior): the correspondence search's poses alone, with the
+  /// descriptor radius at first_pass_neighbours, snapped and refined without the vote; the
+  /// complete search runs only when that answer is not trusted (Pipeline::run).
+  bool first_pass = true;
+  std::size_t first_pass_neighbours = 48;
   std::size_t hypotheses = 6;
   double vote_cell_factor = 1.5;
   double start_sigma_factor = 0.3;
@@ -68,27 +78,42 @@ class CompleteSearchInit : public Initialiser {
     InitialiserContext open = c;
     open.prior_sigma_deg_m.reset();
     open.initial_guess.reset();
-    InitialiserReport global_report;
-    std::vector<Hypothesis> modes = global(open, &global_report);
     PoseWindow window;
     window.T_target_source_guess = c.initial_guess.value_or(Isometry3::Identity());
     window.rotation_sd_rad = c.prior_sigma_deg_m->first * kPi / 180.0;
     window.translation_sd_m = c.prior_sigma_deg_m->second;
     const Vec3 centre = c.scales != nullptr ? c.scales->source.centre_m : Vec3::Zero();
+    InitialiserReport global_report;
+    std::vector<Hypothesis> modes = global(open, &global_report);
     std::vector<Hypothesis> inside, outside;
-    for (Hypothesis& h : modes) {
-      if (h.origin != "search") continue;
-      if (window
-              .check(h.T_target_source, centre, global_report.resolution_m,
-                     global_report.resolution_rad)
-              .inside()) {
-        h.origin = "global, inside the prior's window";
-        inside.push_back(h);
-      } else {
-        h.origin = "global check";
-        h.rival_only = o_.prior_check == "strict";
-        outside.push_back(h);
+    auto split = [&] {
+      inside.clear();
+      outside.clear();
+      for (Hypothesis& h : modes) {
+        if (h.origin != "search") continue;
+        if (window
+                .check(h.T_target_source, centre, global_report.resolution_m,
+                       global_report.resolution_rad)
+                .inside()) {
+          h.origin = "global, inside the prior's window";
+          inside.push_back(h);
+        } else {
+          h.origin = "global check";
+          h.rival_only = o_.prior_check == "strict";
+          outside.push_back(h);
+        }
       }
+    };
+    split();
+    if (global_report.deeper_pass && inside.empty()) {
+      // The first pass checks a prior only by agreeing with it: a pose the correspondences
+      // found on their own inside the prior's window (then Pipeline::run runs the complete
+      // search if that answer is not trusted). None: the prior's own search is checked against
+      // the complete search, at once.
+      open.deep = true;
+      global_report = InitialiserReport{};
+      modes = global(open, &global_report);
+      split();
     }
     std::vector<Hypothesis> out;
     if (inside.empty()) {
@@ -208,7 +233,27 @@ class CompleteSearchInit : public Initialiser {
     in.gate = o_.gate;
     in.coarse_sigma.translation_m = o_.start_sigma_factor * 2.0 * cell;
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
-    if (o_.correspondences.hypotheses > 0) {
+    CompleteSearchOptions so = o_.search;
+    so.modes = o_.hypotheses;
+    if (o_.correspondences.hypotheses > 0 && o_.first_pass && !c.deep) {
+      // The first pass: the correspondence poses alone, at the first pass's descriptor radius.
+      // None found: the complete search at once.
+      CorrespondenceSearchOptions first = o_.correspondences;
+      first.neighbours = o_.first_pass_neighbours;
+      const CorrespondenceSearchResult cr =
+          correspondence_search(correspondence_input(c, in.ups_source, in.ups_target), first);
+      for (const CorrespondenceHypothesis& h : cr.hypotheses) {
+        in.extra_candidates.push_back(h.T_target_source);
+      }
+      report->notes.emplace_back("first pass correspondence matches",
+                                 static_cast<double>(cr.matches));
+      report->notes.emplace_back("first pass correspondence poses",
+                                 static_cast<double>(cr.hypotheses.size()));
+      so.vote = in.extra_candidates.empty();
+      report->deeper_pass = !so.vote;
+      if (so.vote) in.extra_candidates.clear();
+    }
+    if (o_.correspondences.hypotheses > 0 && so.vote) {
       const CorrespondenceSearchResult cr = correspondence_search(
           correspondence_input(c, in.ups_source, in.ups_target), o_.correspondences);
       // (Rigid here: with a free scale the pipeline measured the scale before this search.)
@@ -218,8 +263,6 @@ class CompleteSearchInit : public Initialiser {
       report->notes.emplace_back("correspondence matches", static_cast<double>(cr.matches));
       report->notes.emplace_back("correspondence poses", static_cast<double>(cr.hypotheses.size()));
     }
-    CompleteSearchOptions so = o_.search;
-    so.modes = o_.hypotheses;
     const Pipeline& pipeline = *c.pipeline;
     const RefineContext& all = *c.refine_context;
     const SearchRefineFn refine = [&](const Isometry3& start, const PoseSigma& sigma,
@@ -325,6 +368,15 @@ std::vector<SettingRow> init_complete_search_settings() {
                        cs.hypotheses, 0, 4096,
                        "poses of the correspondence search (descriptors, a consistency graph, "
                        "cliques) added to the pool; 0 = none"));
+  rows.push_back(bool_setting(
+      "search.first_pass", "CompleteInitOptions::first_pass", CompleteInitOptions{}.first_pass,
+      "without a prior: the correspondence poses alone are refined and judged first; the "
+      "complete search (the vote and its pool, with the correspondence poses) runs only when "
+      "that answer is not trusted"));
+  rows.push_back(count("search.first_pass_neighbours", "CompleteInitOptions::first_pass_neighbours",
+                       CompleteInitOptions{}.first_pass_neighbours, 4, 256,
+                       "the first pass's descriptor radius is the target's median distance to "
+                       "this neighbour"));
   rows.push_back(count("search.correspondence_keypoints", "CorrespondenceSearchOptions::keypoints",
                        cs.keypoints, 3, 1000000,
                        "source landmarks the correspondence search describes and matches"));
@@ -367,6 +419,8 @@ std::unique_ptr<Stage> make_init_complete_search(const Settings& s) {
   o.search.round2_iterations = static_cast<int>(s.integer("search.round2_iterations"));
   o.search.round2_samples = n("search.round2_samples");
   o.correspondences.hypotheses = n("search.correspondence_poses");
+  o.first_pass = s.boolean("search.first_pass");
+  o.first_pass_neighbours = n("search.first_pass_neighbours");
   o.correspondences.seeds = std::max<std::size_t>(1, 4 * o.correspondences.hypotheses);
   o.correspondences.keypoints = n("search.correspondence_keypoints");
   o.correspondences.neighbours = n("search.descriptor_neighbours");

@@ -66,6 +66,9 @@ struct CompleteSearchOptions {
   std::size_t round2_samples = 512;        ///< >= 16
   std::size_t modes = 6;                   ///< >= 1
   double distinct_cells = 4.0;             ///< > 0
+  /// False: no coarse vote (steps 1 and 2); the pool is the input's extra candidates alone,
+  /// snapped and refined in the rounds (the correspondence search's first pass).
+  bool vote = true;
   bool is_valid(std::string* why = nullptr) const;
 };
 
