@@ -38,9 +38,10 @@ struct CompleteInitOptions {
   /// The correspondence search whose poses join the complete search's pool (issue 39);
   /// hypotheses = 0: none.
   CorrespondenceSearchOptions correspondences;
-  /// The first pass (without a prior): the correspondence search's poses alone, with the
-  /// descriptor radius at first_pass_neighbours, snapped and refined without the vote; the
-  /// complete search runs only when that answer is not trusted (Pipeline::run).
+  /// The first pass: the correspondence search's poses alone, with the descriptor radius at
+  /// first_pass_neighbours, snapped and refined without the vote (with a prior, only when one of
+  /// them lies inside its window); the complete search runs only when that answer is not
+  /// trusted (Pipeline::run).
   bool first_pass = true;
   std::size_t first_pass_neighbours = 48;
   std::size_t hypotheses = 6;
@@ -370,9 +371,9 @@ std::vector<SettingRow> init_complete_search_settings() {
                        "cliques) added to the pool; 0 = none"));
   rows.push_back(bool_setting(
       "search.first_pass", "CompleteInitOptions::first_pass", CompleteInitOptions{}.first_pass,
-      "without a prior: the correspondence poses alone are refined and judged first; the "
-      "complete search (the vote and its pool, with the correspondence poses) runs only when "
-      "that answer is not trusted"));
+      "the correspondence poses alone are refined and judged first (with a prior, only when one "
+      "lies inside its window); the complete search (the vote and its pool, with the "
+      "correspondence poses) runs only when that answer is not trusted"));
   rows.push_back(count("search.first_pass_neighbours", "CompleteInitOptions::first_pass_neighbours",
                        CompleteInitOptions{}.first_pass_neighbours, 4, 256,
                        "the first pass's descriptor radius is the target's median distance to "
