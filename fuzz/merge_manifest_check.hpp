@@ -32,10 +32,10 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/symmetric_eigen.hpp"
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/merge/candidates.hpp"
 #include "lmalign/merge/manifest.hpp"
@@ -95,7 +95,7 @@ inline void check_merge_manifest_bytes(const std::uint8_t* data, std::size_t siz
     LMALIGN_FUZZ_CHECK(C.allFinite() && (C - C.transpose()).cwiseAbs().maxCoeff() <=
                                             1e-9 * C.cwiseAbs().maxCoeff(),
                        "an accepted prior covariance is not symmetric");
-    LMALIGN_FUZZ_CHECK(Eigen::SelfAdjointEigenSolver<Mat6>(C).eigenvalues().minCoeff() > 0.0,
+    LMALIGN_FUZZ_CHECK(symmetric_eigen(C, false).values.minCoeff() > 0.0,
                        "an accepted prior covariance is not positive definite");
     try {
       check_prior_in_supported_range(*e.prior, "prior");

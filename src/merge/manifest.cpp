@@ -9,11 +9,11 @@
 #include <set>
 #include <sstream>
 
-#include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/core/supported_range.hpp"
+#include "lmalign/core/symmetric_eigen.hpp"
 #include "lmalign/registration/pipeline.hpp"
 
 namespace lmalign {
@@ -77,8 +77,7 @@ void check_covariance_in_supported_range(const Mat6& C, const std::string& what)
         std::sqrt(C(i, i)), kMinSigma * to_unit,
         (rotation ? kMaxAngleDeg : kMaxCoordinateM) * to_unit, rotation ? "rad" : "m");
   }
-  const double smallest =
-      Eigen::SelfAdjointEigenSolver<Mat6>(C, Eigen::EigenvaluesOnly).eigenvalues().minCoeff();
+  const double smallest = symmetric_eigen(C, false).values.minCoeff();
   const double floor = std::pow(kMinSigma * kRadPerDeg, 2);
   if (!(smallest >= floor)) {
     throw InvalidArgument(
@@ -157,11 +156,11 @@ MapPrior parse_prior(const std::string& file, const YAML::Node& entry, const std
       fail(file, cn, where + ".prior_covariance: not symmetric");
     }
     const Mat6 C6 = C;
-    Eigen::SelfAdjointEigenSolver<Mat6> eig(C6);
-    if (eig.eigenvalues().minCoeff() <= 0.0) {
+    const SymmetricEigen<6> eig = symmetric_eigen(C6);
+    if (eig.values.minCoeff() <= 0.0) {
       fail(file, cn,
            where + ".prior_covariance: not positive definite (smallest eigenvalue " +
-               std::to_string(eig.eigenvalues().minCoeff()) + ")");
+               std::to_string(eig.values.minCoeff()) + ")");
     }
     // Standard deviations within the supported range: rows 0-2 in metres, 3-5 in radians.
     in_range(cn, [&] { check_covariance_in_supported_range(C6, where + ".prior_covariance"); });

@@ -10,10 +10,10 @@
 #include <numeric>
 
 #include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/symmetric_eigen.hpp"
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/registration/uncertainty.hpp"
@@ -127,10 +127,10 @@ std::optional<Mat6> whitening(const Mat6& C) {
 std::optional<Mat6> floored(const Mat6& C_in, double floor_t_m2, double floor_r_rad2) {
   if (!C_in.allFinite()) return std::nullopt;
   Mat6 C = 0.5 * (C_in + C_in.transpose());
-  Eigen::SelfAdjointEigenSolver<Mat6> eig(C);
-  Eigen::Matrix<double, 6, 1> ev = eig.eigenvalues();
+  const SymmetricEigen<6> eig = symmetric_eigen(C);
+  Eigen::Matrix<double, 6, 1> ev = eig.values;
   // Floor in the eigenbasis: each eigenvector's floor is its mix of the two blocks' floors.
-  const Mat6& V = eig.eigenvectors();
+  const Mat6& V = eig.vectors;
   for (int k = 0; k < 6; ++k) {
     const double wt = V.col(k).head<3>().squaredNorm();
     const double f = wt * floor_t_m2 + (1.0 - wt) * floor_r_rad2;

@@ -10,6 +10,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/core/symmetric_eigen.hpp"
 
 namespace lmalign {
 
@@ -76,14 +77,14 @@ PoseCovariance point_to_point_n(const Points3& moved_source, const Points3& targ
     sum_sq += w * r.squaredNorm();
   }
   if (n < 3) return out;
-  const Eigen::SelfAdjointEigenSolver<MatN> eig(H);
-  const double lmax = eig.eigenvalues().maxCoeff();
-  if (!(eig.eigenvalues().minCoeff() > 1e-12 * lmax)) return out;  // singular: a line
+  const SymmetricEigen<N> eig = symmetric_eigen(H);
+  const double lmax = eig.values.maxCoeff();
+  if (!(eig.values.minCoeff() > 1e-12 * lmax)) return out;  // singular: a line
   const double dof = 3.0 * static_cast<double>(n) - static_cast<double>(N);
   const double sigma2 = sum_sq / dof;
   out.sigma_m = std::sqrt(sigma2);
-  const MatN cov = sigma2 * (eig.eigenvectors() * eig.eigenvalues().cwiseInverse().asDiagonal() *
-                             eig.eigenvectors().transpose());
+  const MatN cov =
+      sigma2 * (eig.vectors * eig.values.cwiseInverse().asDiagonal() * eig.vectors.transpose());
   const MatN symmetric = 0.5 * (cov + cov.transpose());  // exactly symmetric
   if constexpr (N == 7) {
     out.has_scale = true;
@@ -131,26 +132,26 @@ Vec6 pose_error_twist(const Isometry3& T_est, const Isometry3& T_true) {
 }
 
 namespace {
-template <typename M>
-M covariance_max_n(const M& floor, const M& other) {
+template <int N>
+Eigen::Matrix<double, N, N> covariance_max_n(const Eigen::Matrix<double, N, N>& floor,
+                                             const Eigen::Matrix<double, N, N>& other) {
+  using M = Eigen::Matrix<double, N, N>;
   const Eigen::LLT<M> llt(floor);
   if (llt.info() != Eigen::Success) return floor;
   const M L = llt.matrixL();
   const M L_inv = L.inverse();
   M K = L_inv * other * L_inv.transpose();
   K = (0.5 * (K + K.transpose())).eval();
-  const Eigen::SelfAdjointEigenSolver<M> eig(K);
-  const typename Eigen::SelfAdjointEigenSolver<M>::RealVectorType d =
-      eig.eigenvalues().cwiseMax(1.0);
-  const M raised =
-      L * eig.eigenvectors() * d.asDiagonal() * eig.eigenvectors().transpose() * L.transpose();
+  const SymmetricEigen<N> eig = symmetric_eigen(K);
+  const Eigen::Matrix<double, N, 1> d = eig.values.cwiseMax(1.0);
+  const M raised = L * eig.vectors * d.asDiagonal() * eig.vectors.transpose() * L.transpose();
   return raised.allFinite() ? raised : floor;
 }
 }  // namespace
 
-Mat6 covariance_max(const Mat6& floor, const Mat6& other) { return covariance_max_n(floor, other); }
+Mat6 covariance_max(const Mat6& floor, const Mat6& other) { return covariance_max_n<6>(floor, other); }
 
-Mat7 covariance_max(const Mat7& floor, const Mat7& other) { return covariance_max_n(floor, other); }
+Mat7 covariance_max(const Mat7& floor, const Mat7& other) { return covariance_max_n<7>(floor, other); }
 
 double nees(const Vec6& error, const PoseCovariance& covariance) {
   if (!covariance.valid) return std::numeric_limits<double>::infinity();
