@@ -348,6 +348,30 @@ struct KdTree::Impl {
     }
   }
 
+  // Appends the points of the subtree at `node` within sqrt(r2) of q: cells pruned by their lower
+  // bound, as in search() (the same offsets), leaves scanned exactly.
+  void within(std::uint32_t node, int level, double* off, double r2, const Vec3& q,
+              std::vector<PointIndex>* out) const {
+    if (norm2(off) > r2) return;
+    if (level == depth) {
+      const std::uint32_t leaf = node - static_cast<std::uint32_t>(nodes.size());
+      for (std::uint32_t s = leaf_begin[leaf]; s < leaf_begin[leaf + 1]; ++s) {
+        if (squared_distance(q, points[perm[s]]) <= r2) out->push_back(perm[s]);
+      }
+      return;
+    }
+    const Node& nd = nodes[node];
+    const std::uint32_t axis = nd.axis;
+    const double keep = off[axis];
+    const double to_left = std::max(q[axis] - static_cast<double>(nd.left_max), 0.0);
+    const double to_right = std::min(q[axis] - static_cast<double>(nd.right_min), 0.0);
+    off[axis] = to_left != 0.0 ? to_left : keep;
+    within(2 * node + 1, level + 1, off, r2, q, out);
+    off[axis] = to_right != 0.0 ? to_right : keep;
+    within(2 * node + 2, level + 1, off, r2, q, out);
+    off[axis] = keep;
+  }
+
   std::size_t query(const Vec3& q, std::size_t k, const PointIndex* seed_idx, const double* seed_d2,
                     std::size_t num_seeds, PointIndex* indices, double* d2,
                     std::uint64_t* seed_marks = nullptr) const {
@@ -434,6 +458,21 @@ std::size_t KdTree::knn_seeded(const Vec3& query, std::size_t k, const PointInde
 }
 
 std::size_t KdTree::seed_mark_words() const { return (impl_->points.size() + 63) / 64; }
+
+void KdTree::within(const Vec3& query, double radius_m, std::vector<PointIndex>* out) const {
+  out->clear();
+  if (impl_->points.empty() || !query.allFinite() || !(radius_m >= 0.0) || !std::isfinite(radius_m)) {
+    return;
+  }
+  double off[3];
+  for (int d = 0; d < 3; ++d) {
+    const double q = query[d];
+    off[d] = q < impl_->box_min[d] ? q - impl_->box_min[d]
+                                   : q > impl_->box_max[d] ? q - impl_->box_max[d] : 0.0;
+  }
+  impl_->within(0, 0, off, radius_m * radius_m, query, out);
+  std::sort(out->begin(), out->end());
+}
 
 bool KdTree::nearest(const Vec3& query, PointIndex* index, double* distance_sq_m2) const {
   return knn(query, 1, index, distance_sq_m2) == 1;

@@ -5,6 +5,8 @@
 #include <omp.h>
 
 #include <cmath>
+#include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -14,6 +16,7 @@
 #include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/stages/correspondence_search.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
+#include "lmalign/registration/stages/landmark_descriptors.hpp"
 #include "lmalign/sim/fleet_sim.hpp"
 #include "lmalign/sim/street_sim.hpp"
 #include "support/align_preset.hpp"
@@ -69,10 +72,20 @@ TEST(CorrespondenceSearch, OneOfItsPosesIsNearTheTruthOnAStreetAndTheRunRepeats)
   EXPECT_GT(r.radius_m, 0.0);
   ASSERT_FALSE(r.hypotheses.empty());
   EXPECT_LE(r.hypotheses.size(), o.hypotheses);
-  for (std::size_t i = 1; i < r.hypotheses.size(); ++i) {
-    EXPECT_GE(r.hypotheses[i - 1].inliers, r.hypotheses[i].inliers);
-    EXPECT_GE(r.hypotheses[i].inliers, o.min_inliers);
+  // Each descriptor kind's poses by decreasing clique size (one pair of up axes here); the
+  // street knows its viewing directions, so both kinds propose, in turn.
+  for (const bool oriented : {false, true}) {
+    std::size_t last = std::numeric_limits<std::size_t>::max(), count = 0;
+    for (const CorrespondenceHypothesis& h : r.hypotheses) {
+      EXPECT_GE(h.inliers, o.min_inliers);
+      if (h.oriented != oriented) continue;
+      EXPECT_LE(h.inliers, last);
+      last = h.inliers;
+      ++count;
+    }
+    EXPECT_GT(count, 0u) << (oriented ? "oriented" : "yaw-invariant");
   }
+  EXPECT_NE(r.hypotheses[0].oriented, r.hypotheses[1].oriented);
   EXPECT_TRUE(near_truth(r, pair.T_target_source));
   // Deterministic, whatever the thread count.
   const int saved = omp_get_max_threads();
@@ -84,6 +97,86 @@ TEST(CorrespondenceSearch, OneOfItsPosesIsNearTheTruthOnAStreetAndTheRunRepeats)
     EXPECT_TRUE(again.hypotheses[i].T_target_source.matrix() ==
                 r.hypotheses[i].T_target_source.matrix());
   }
+}
+
+// The oriented descriptors on seed 2 of the street (measured 2026-11-25): the
+// yaw-invariant kind's pose nearest the truth rests on a clique of 27 matches, 2.3 deg /
+// 0.49 m off; the oriented kind's on a clique of 80, 0.35 deg / 0.09 m off. The landmark's
+// horizontal viewing direction orients its neighbourhood, so that a descriptor tells apart what
+// lies ahead of a facade from what lies along it (the true counterpart among a landmark's 3
+// nearest descriptors: 16% against 3-5% on the street's seeds).
+TEST(CorrespondenceSearch, OrientedDescriptorsMatchMoreOfTheTrueCorrespondences) {
+  const sim::SlamMapPair pair = street(2);
+  const Search s(pair);
+  const CorrespondenceSearchResult r = correspondence_search(s.input, {});
+  std::size_t best[2] = {0, 0};
+  double error_m[2] = {1e9, 1e9};
+  for (const CorrespondenceHypothesis& h : r.hypotheses) {
+    const TransformError e = transform_error(h.T_target_source, pair.T_target_source);
+    if (e.rotation_deg > 5.0 || e.translation_m > 3.0 || h.inliers <= best[h.oriented]) continue;
+    best[h.oriented] = h.inliers;
+    error_m[h.oriented] = e.translation_m;
+  }
+  EXPECT_GE(best[1], 2 * best[0]);
+  EXPECT_LT(error_m[1], 0.3);
+  EXPECT_LT(error_m[1], error_m[0]);
+  // Without the oriented kind (or without viewing directions), the yaw-invariant poses alone.
+  CorrespondenceSearchOptions off;
+  off.oriented = false;
+  for (const CorrespondenceHypothesis& h : correspondence_search(s.input, off).hypotheses) {
+    EXPECT_FALSE(h.oriented);
+  }
+  Search blind(pair);
+  blind.input.source.view_directions = nullptr;
+  for (const CorrespondenceHypothesis& h : correspondence_search(blind.input, {}).hypotheses) {
+    EXPECT_FALSE(h.oriented);
+  }
+}
+
+// A landmark's oriented descriptor is its neighbourhood's, whatever the map's yaw about the up
+// axis and its translation (the viewing direction turns with the map); it needs a viewing
+// direction away from the up axis and 4 neighbours.
+TEST(LandmarkDescriptors, TheOrientedOneIsInvariantToYawAndTranslation) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  Points3 pts;
+  for (int i = 0; i < 400; ++i) pts.emplace_back(3.0 * u(rng), 3.0 * u(rng), u(rng));
+  const Vec3 up = Vec3::UnitZ();
+  const Vec3 view = Vec3(0.6, -0.3, 0.2).normalized();
+  const Isometry3 T = pose_from_xyz_rpy_deg(12.0, -4.0, 2.0, 0.0, 0.0, 73.0);
+  const KdTree tree(pts);
+  const KdTree moved_tree(transform_points(T, pts));
+  std::vector<float> a(kOrientedDescriptorDims), b(kOrientedDescriptorDims);
+  std::vector<PointIndex> scratch;
+  int described = 0;
+  for (std::size_t i = 0; i < pts.size(); i += 20) {
+    const bool ok = describe_landmark_oriented(pts, tree, i, up, view, 0.8, a.data(), &scratch);
+    const bool ok_moved = describe_landmark_oriented(moved_tree.points(), moved_tree, i, up,
+                                                     T.linear() * view, 0.8, b.data(), &scratch);
+    ASSERT_EQ(ok, ok_moved);
+    if (!ok) continue;
+    ++described;
+    double norm2 = 0.0;
+    for (int x = 0; x < kOrientedDescriptorDims; ++x) {
+      EXPECT_NEAR(a[x], b[x], 1e-5) << "landmark " << i << ", component " << x;
+      norm2 += static_cast<double>(a[x]) * a[x];
+    }
+    EXPECT_NEAR(norm2, 1.0, 1e-5);  // Hellinger: the square roots of a distribution
+  }
+  EXPECT_GT(described, 10);
+  // A different viewing direction is a different descriptor; looking straight down, none.
+  ASSERT_TRUE(describe_landmark_oriented(pts, tree, 0, up, view, 0.8, a.data(), &scratch));
+  ASSERT_TRUE(describe_landmark_oriented(pts, tree, 0, up, Vec3(-view.x(), -view.y(), view.z()),
+                                         0.8, b.data(), &scratch));
+  double diff = 0.0;
+  for (int x = 0; x < kOrientedDescriptorDims; ++x) diff += std::abs(a[x] - b[x]);
+  EXPECT_GT(diff, 0.1);
+  EXPECT_FALSE(describe_landmark_oriented(pts, tree, 0, up, -up, 0.8, a.data(), &scratch));
+  EXPECT_FALSE(describe_landmark_oriented(pts, tree, 0, up, Vec3::Zero(), 0.8, a.data(), &scratch));
+  EXPECT_FALSE(describe_landmark_oriented(pts, tree, 0, up, view, 1e-6, a.data(), &scratch));
+  EXPECT_FALSE(
+      describe_landmark_oriented(pts, tree, 0, up, view, std::nan(""), a.data(), &scratch));
+  for (const float x : a) EXPECT_EQ(x, 0.0f);
 }
 
 TEST(CorrespondenceSearch, VagueLandmarksMatchNothing) {

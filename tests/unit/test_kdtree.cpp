@@ -1,4 +1,6 @@
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <numeric>
 #include <random>
 
@@ -64,6 +66,37 @@ TEST(KdTree, EmptyAndInvalid) {
   EXPECT_FALSE(empty.nearest(Vec3::Zero(), &i, &d));
   EXPECT_EQ(empty.size(), 0u);
   EXPECT_THROW(KdTree(Points3{Vec3(0, std::nan(""), 0)}), InvalidArgument);
+}
+
+TEST(KdTree, WithinIsEveryPointInTheBallInIndexOrder) {
+  // Against a brute-force scan with the same squared distance, for radii from empty balls to
+  // the whole set, and a point exactly on the sphere (squared distance 1 for radius 1: kept).
+  Points3 pts = random_points(3000, 13);
+  pts.push_back(Vec3(1.0, 0.0, 0.0));
+  const KdTree tree(pts);
+  std::vector<PointIndex> got;
+  for (const double r : {0.0, 0.05, 0.3, 1.0, 10.0}) {
+    for (const Vec3& q : random_points(50, 14, 1.5)) {
+      tree.within(q, r, &got);
+      std::vector<PointIndex> want;
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        if (squared_distance(q, pts[i]) <= r * r) want.push_back(static_cast<PointIndex>(i));
+      }
+      EXPECT_EQ(got, want) << "radius " << r;
+    }
+  }
+  tree.within(Vec3::Zero(), 1.0, &got);
+  EXPECT_NE(std::find(got.begin(), got.end(), static_cast<PointIndex>(pts.size() - 1)), got.end());
+  // Not finite, or negative: nothing (and the previous contents are gone).
+  tree.within(Vec3(std::nan(""), 0, 0), 1.0, &got);
+  EXPECT_TRUE(got.empty());
+  tree.within(Vec3::Zero(), -1.0, &got);
+  EXPECT_TRUE(got.empty());
+  tree.within(Vec3::Zero(), std::numeric_limits<double>::infinity(), &got);
+  EXPECT_TRUE(got.empty());
+  const KdTree empty{Points3{}};
+  empty.within(Vec3::Zero(), 1.0, &got);
+  EXPECT_TRUE(got.empty());
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "lmalign/core/types.hpp"
 
@@ -74,6 +75,11 @@ class KdTree {
                          std::uint64_t* seed_marks = nullptr) const;
   /// Size in 64-bit words of knn_seeded()'s `seed_marks` scratch: one bit per point.
   std::size_t seed_mark_words() const;
+
+  /// Every point within `radius_m` of `query` (squared_distance() <= radius_m^2), as indices in
+  /// increasing order, replacing the contents of `out`. None for a query or radius that is not
+  /// finite, or a negative radius.
+  void within(const Vec3& query, double radius_m, std::vector<PointIndex>* out) const;
 
   /// The nearest point; false if the set is empty (or the query is not finite).
   bool nearest(const Vec3& query, PointIndex* index, double* distance_sq_m2) const;

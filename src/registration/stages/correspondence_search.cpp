@@ -43,6 +43,11 @@ bool CorrespondenceSearchOptions::is_valid(std::string* why) const {
 
 namespace {
 
+// The oriented descriptor's radius over the yaw-invariant one's: a wider neighbourhood tells
+// more apart, and in it the azimuth bins are wider in metres (measured on the street seeds and
+// the real pairs: recall of the true counterpart about that of radii r and 2r together, at half
+// the components).
+constexpr double kOrientedRadiusFactor = 1.5;
 // The weight of the viewing direction's elevation beside the unit-norm shape histogram.
 constexpr float kElevationWeight = 0.5f;
 
@@ -65,10 +70,21 @@ std::vector<double> sigmas(const Points3& points, const std::vector<Mat3>* cov, 
   return s;
 }
 
-// The descriptor of landmark i of a side (landmark_descriptors.hpp), with the viewing
-// elevation when `elevation`.
+// The descriptor of landmark i of a side (landmark_descriptors.hpp): the oriented one when
+// `oriented` (the sides know their viewing directions), else the yaw-invariant one; with the
+// viewing elevation appended when `elevation`.
 bool describe(const Side& side, std::size_t i, const Vec3& up, double radius_m,
-              std::size_t neighbours, bool elevation, float* out) {
+              std::size_t neighbours, bool elevation, bool oriented, float* out,
+              std::vector<PointIndex>* scratch) {
+  if (oriented) {
+    const Vec3& view = (*side.views)[i];
+    if (!describe_landmark_oriented(*side.points, *side.tree, i, up, view,
+                                    kOrientedRadiusFactor * radius_m, out, scratch)) {
+      return false;
+    }
+    out[kOrientedDescriptorDims] = kElevationWeight * static_cast<float>(view.dot(up));
+    return true;
+  }
   return describe_landmark(*side.points, *side.tree, i, up, radius_m, neighbours, out,
                            elevation ? &(*side.views)[i] : nullptr, kElevationWeight);
 }
@@ -83,24 +99,69 @@ struct Graph {
   std::vector<std::vector<std::uint32_t>> nbr;
 };
 
+// The descriptors' components reordered by decreasing variance over the target's valid
+// descriptors (ties by index), so that a partial distance exceeds a bound as early as it can.
+std::vector<int> by_variance(const std::vector<float>& td, const std::vector<char>& tok, int dims) {
+  std::vector<double> sum(dims, 0.0), sum2(dims, 0.0);
+  double n = 0.0;
+  for (std::size_t b = 0; b < tok.size(); ++b) {
+    if (!tok[b]) continue;
+    n += 1.0;
+    for (int x = 0; x < dims; ++x) {
+      const double v = td[b * dims + x];
+      sum[x] += v;
+      sum2[x] += v * v;
+    }
+  }
+  std::vector<double> var(dims, 0.0);
+  for (int x = 0; x < dims && n > 0.0; ++x) var[x] = sum2[x] / n - (sum[x] / n) * (sum[x] / n);
+  std::vector<int> order(dims);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return var[a] > var[b]; });
+  return order;
+}
+
+// Copies of the descriptors with their components in `order`.
+std::vector<float> permuted(const std::vector<float>& d, const std::vector<int>& order) {
+  const std::size_t dims = order.size();
+  std::vector<float> out(d.size());
+  for (std::size_t a = 0; a * dims < d.size(); ++a) {
+    for (std::size_t x = 0; x < dims; ++x) out[a * dims + x] = d[a * dims + order[x]];
+  }
+  return out;
+}
+
 // Each valid source descriptor's `m` nearest valid target descriptors (Euclidean; ties by the
-// earlier target keypoint), as matches of landmark indices.
+// earlier target keypoint), as matches of landmark indices. Exact: a candidate's sum stops once
+// it exceeds the m-th best so far, which it can then never beat (the components are summed in
+// decreasing order of their variance, so that this happens early).
 std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
-                                       const std::vector<float>& sd, const std::vector<char>& sok,
+                                       const std::vector<float>& sd_in,
+                                       const std::vector<char>& sok,
                                        const std::vector<std::uint32_t>& tkeys,
-                                       const std::vector<float>& td, const std::vector<char>& tok,
-                                       int dims, std::size_t m) {
+                                       const std::vector<float>& td_in,
+                                       const std::vector<char>& tok, int dims, std::size_t m) {
+  const std::vector<int> order = by_variance(td_in, tok, dims);
+  const std::vector<float> sd = permuted(sd_in, order), td = permuted(td_in, order);
   std::vector<Match> matches;
   std::vector<std::pair<float, std::uint32_t>> best;
+  constexpr int kBlock = 16;  // components summed between two tests of the bound
   for (std::size_t a = 0; a < skeys.size(); ++a) {
     if (!sok[a]) continue;
     best.clear();
+    const float* q = &sd[a * dims];
     for (std::size_t b = 0; b < tkeys.size(); ++b) {
       if (!tok[b]) continue;
+      const float* t = &td[b * dims];
+      const float bound =
+          best.size() < m ? std::numeric_limits<float>::infinity() : best.back().first;
       float d = 0.0f;
-      for (int x = 0; x < dims; ++x) {
-        const float e = sd[a * dims + x] - td[b * dims + x];
-        d += e * e;
+      for (int x0 = 0; x0 < dims && d <= bound; x0 += kBlock) {
+        const int x1 = std::min(dims, x0 + kBlock);
+        for (int x = x0; x < x1; ++x) {
+          const float e = q[x] - t[x];
+          d += e * e;
+        }
       }
       if (best.size() < m || d < best.back().first) {
         const std::pair<float, std::uint32_t> e{d, static_cast<std::uint32_t>(b)};
@@ -235,28 +296,50 @@ std::vector<std::vector<std::size_t>> cliques(const Graph& graph, std::size_t se
     return core[a] != core[b] ? core[a] > core[b] : degree[a] > degree[b];
   });
   std::vector<char> used(n, 0);
-  std::vector<std::uint64_t> cand(words);
+  std::vector<std::uint64_t> cand(words), removed(words);
+  // links[u]: u's neighbours among the candidates, for every candidate u; kept as the candidates
+  // shrink (each one removed lowers its candidate neighbours' counts once), so that a clique of
+  // C vertices costs the seed's degree times the words once, not C times.
+  std::vector<std::uint32_t> links(n, 0);
   static const CommonBits common_bits = common_bits_function();
+  auto for_each_bit = [words](const std::vector<std::uint64_t>& set, auto&& f) {
+    for (std::size_t w = 0; w < words; ++w) {
+      for (std::uint64_t bits = set[w]; bits != 0; bits &= bits - 1) {
+        f(w * 64 + static_cast<std::size_t>(__builtin_ctzll(bits)));
+      }
+    }
+  };
   for (std::size_t v : order) {
     if (out.size() >= seeds || core[v] + 1 < min_size) break;
     if (used[v]) continue;
     std::vector<std::size_t> clique{v};
     cand = adj[v];
+    for_each_bit(cand, [&](std::size_t u) {
+      links[u] = static_cast<std::uint32_t>(common_bits(adj[u].data(), cand.data(), words));
+    });
     for (;;) {
+      // The candidate with the most links to the others, the first (lowest index) on a tie.
       std::size_t best = n, best_links = 0;
-      for (std::size_t w = 0; w < words; ++w) {
-        for (std::uint64_t bits = cand[w]; bits != 0; bits &= bits - 1) {
-          const std::size_t u = w * 64 + static_cast<std::size_t>(__builtin_ctzll(bits));
-          const std::size_t links = common_bits(adj[u].data(), cand.data(), words);
-          if (best == n || links > best_links) {
-            best = u;
-            best_links = links;
-          }
+      for_each_bit(cand, [&](std::size_t u) {
+        if (best == n || links[u] > best_links) {
+          best = u;
+          best_links = links[u];
         }
-      }
+      });
       if (best == n) break;
       clique.push_back(best);
-      for (std::size_t x = 0; x < words; ++x) cand[x] &= adj[best][x];
+      for (std::size_t x = 0; x < words; ++x) {
+        removed[x] = cand[x] & ~adj[best][x];  // best itself among them (no self-loops)
+        cand[x] &= adj[best][x];
+      }
+      for_each_bit(removed, [&](std::size_t r) {
+        const std::uint64_t* row = adj[r].data();
+        for (std::size_t x = 0; x < words; ++x) {
+          for (std::uint64_t bits = row[x] & cand[x]; bits != 0; bits &= bits - 1) {
+            --links[x * 64 + static_cast<std::size_t>(__builtin_ctzll(bits))];
+          }
+        }
+      });
     }
     if (clique.size() < min_size) continue;
     for (std::size_t u : clique) used[u] = 1;
@@ -367,7 +450,6 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
       sigmas(Q, in.target->has_covariances() ? &in.target->covariances_m2() : nullptr, in.floor_m),
       &in.target->view_directions()};
   const bool elevation = src.has_views() && tgt.has_views();
-  const int dims = kLandmarkDescriptorDims + (elevation ? 1 : 0);
 
   // The descriptor radius: the target's median distance to its neighbours-th nearest landmark.
   const std::vector<std::uint32_t> tkeys = strided_indices(Q.size(), o.target_keypoints);
@@ -382,60 +464,71 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
   const double radius = result.radius_m;
   if (!(radius > 0.0) || !std::isfinite(radius)) return result;
   const double vague_m = 0.25 * radius;
-
   const std::size_t neighbourhood = std::min<std::size_t>(4 * o.neighbours, 512);
-  // 1. descriptors: once per up axis of each side (a descriptor depends on its own map's up
-  // only), valid where the landmark is not vague and has enough neighbours.
-  struct Described {
-    std::vector<float> d;
-    std::vector<char> ok;
-  };
-  auto describe_all = [&](const Side& side, const std::vector<std::uint32_t>& keys,
-                          const Vec3& up) {
-    Described out{std::vector<float>(keys.size() * dims), std::vector<char>(keys.size(), 0)};
-    for (std::size_t a = 0; a < keys.size(); ++a) {
-      out.ok[a] = side.sigma_m[keys[a]] <= vague_m &&
-                  describe(side, keys[a], up, radius, neighbourhood, elevation, &out.d[a * dims]);
-    }
-    return out;
-  };
-  std::vector<Described> by_source_up, by_target_up;
-  for (const Vec3& u : in.ups_source)
-    by_source_up.push_back(describe_all(src, skeys, u.normalized()));
-  for (const Vec3& u : in.ups_target)
-    by_target_up.push_back(describe_all(tgt, tkeys, u.normalized()));
+
+  // Each descriptor kind (the yaw-invariant one; the oriented one too where both maps know their
+  // viewing directions) and each pair of up axes ranks its own distinct poses: a wrong pair's
+  // cliques never crowd out the right pair's, nor one kind's the other's.
   std::vector<std::vector<CorrespondenceHypothesis>> per_pair;
-  for (std::size_t i = 0; i < in.ups_source.size(); ++i) {
-    for (std::size_t j = 0; j < in.ups_target.size(); ++j) {
-      const Vec3 us = in.ups_source[i].normalized(), ut = in.ups_target[j].normalized();
-      const std::vector<float>& sd = by_source_up[i].d;
-      const std::vector<char>& sok = by_source_up[i].ok;
-      const std::vector<float>& td = by_target_up[j].d;
-      const std::vector<char>& tok = by_target_up[j].ok;
-      // 2. matches, 3. the consistency graph
-      const std::vector<Match> matches =
-          nearest_descriptors(skeys, sd, sok, tkeys, td, tok, dims, o.matches_per_keypoint);
-      result.matches += matches.size();
-      // 4. cliques -> 4-DoF poses, at each factor of the scale ladder (the factor 1 alone when
-      // rigid)
-      std::vector<CorrespondenceHypothesis> found;
-      const Mat3 R_up = rotation_between(us, ut);
-      const double relative = o.scale_steps > 0 ? std::sqrt(o.scale_ratio) - 1.0 : 0.0;
-      std::vector<double> factors;
-      for (int k = -o.scale_steps; k <= o.scale_steps; ++k) {
-        factors.push_back(std::pow(o.scale_ratio, k));
+  for (const bool oriented : {false, true}) {
+    if (oriented && !(elevation && o.oriented)) continue;
+    const int dims =
+        (oriented ? kOrientedDescriptorDims : kLandmarkDescriptorDims) + (elevation ? 1 : 0);
+    // 1. descriptors: once per up axis of each side (a descriptor depends on its own map's up
+    // only), valid where the landmark is not vague and has enough neighbours.
+    struct Described {
+      std::vector<float> d;
+      std::vector<char> ok;
+    };
+    auto describe_all = [&](const Side& side, const std::vector<std::uint32_t>& keys,
+                            const Vec3& up) {
+      Described out{std::vector<float>(keys.size() * dims), std::vector<char>(keys.size(), 0)};
+      std::vector<PointIndex> scratch;
+      for (std::size_t a = 0; a < keys.size(); ++a) {
+        out.ok[a] = side.sigma_m[keys[a]] <= vague_m &&
+                    describe(side, keys[a], up, radius, neighbourhood, elevation, oriented,
+                             &out.d[a * dims], &scratch);
       }
-      const std::vector<Graph> graphs =
-          consistency_graphs(matches, src, us, tgt, ut, o.consistency_sigmas, factors, relative);
-      for (std::size_t k = 0; k < factors.size(); ++k) {
-        for (const std::vector<std::size_t>& clique : cliques(graphs[k], o.seeds, o.min_inliers)) {
-          found.push_back(
-              clique_pose(clique, matches, P, Q, R_up, ut, factors[k], o.scale_steps > 0));
+      return out;
+    };
+    std::vector<Described> by_source_up, by_target_up;
+    for (const Vec3& u : in.ups_source) {
+      by_source_up.push_back(describe_all(src, skeys, u.normalized()));
+    }
+    for (const Vec3& u : in.ups_target) {
+      by_target_up.push_back(describe_all(tgt, tkeys, u.normalized()));
+    }
+    for (std::size_t i = 0; i < in.ups_source.size(); ++i) {
+      for (std::size_t j = 0; j < in.ups_target.size(); ++j) {
+        const Vec3 us = in.ups_source[i].normalized(), ut = in.ups_target[j].normalized();
+        // 2. matches, 3. the consistency graph
+        const std::vector<Match> matches =
+            nearest_descriptors(skeys, by_source_up[i].d, by_source_up[i].ok, tkeys,
+                                by_target_up[j].d, by_target_up[j].ok, dims,
+                                o.matches_per_keypoint);
+        result.matches += matches.size();
+        // 4. cliques -> 4-DoF poses, at each factor of the scale ladder (the factor 1 alone
+        // when rigid)
+        std::vector<CorrespondenceHypothesis> found;
+        const Mat3 R_up = rotation_between(us, ut);
+        const double relative = o.scale_steps > 0 ? std::sqrt(o.scale_ratio) - 1.0 : 0.0;
+        std::vector<double> factors;
+        for (int k = -o.scale_steps; k <= o.scale_steps; ++k) {
+          factors.push_back(std::pow(o.scale_ratio, k));
         }
+        const std::vector<Graph> graphs = consistency_graphs(
+            matches, src, us, tgt, ut, o.consistency_sigmas, factors, relative);
+        for (std::size_t k = 0; k < factors.size(); ++k) {
+          for (const std::vector<std::size_t>& clique :
+               cliques(graphs[k], o.seeds, o.min_inliers)) {
+            found.push_back(
+                clique_pose(clique, matches, P, Q, R_up, ut, factors[k], o.scale_steps > 0));
+            found.back().oriented = oriented;
+          }
+        }
+        per_pair.push_back(
+            distinct_poses(found, P, radius, std::sqrt(o.scale_ratio), o.hypotheses));
       }
-      // Each pair of up axes ranks its own distinct poses: a wrong pair's cliques never crowd
-      // out the right pair's.
-      per_pair.push_back(distinct_poses(found, P, radius, std::sqrt(o.scale_ratio), o.hypotheses));
     }
   }
   // The pairs' lists taken in turn (best of each pair first), `hypotheses` in all.

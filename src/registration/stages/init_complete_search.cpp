@@ -385,6 +385,11 @@ std::vector<SettingRow> init_complete_search_settings() {
                        cs.neighbours, 4, 256,
                        "the descriptor radius is the target's median distance to this "
                        "neighbour"));
+  rows.push_back(bool_setting(
+      "search.oriented_descriptors", "CorrespondenceSearchOptions::oriented", cs.oriented,
+      "where both maps know their landmarks' viewing directions, describe each landmark's "
+      "neighbourhood about the up axis and its horizontal viewing direction (else, or false: "
+      "about the up axis alone)"));
   rows.push_back(real_setting("search.consistency_sigmas",
                               "CorrespondenceSearchOptions::consistency_sigmas",
                               cs.consistency_sigmas, SettingBound::open_closed(0.0, 100.0), "1",
@@ -426,6 +431,7 @@ std::unique_ptr<Stage> make_init_complete_search(const Settings& s) {
   o.correspondences.keypoints = n("search.correspondence_keypoints");
   o.correspondences.neighbours = n("search.descriptor_neighbours");
   o.correspondences.consistency_sigmas = s.real("search.consistency_sigmas");
+  o.correspondences.oriented = s.boolean("search.oriented_descriptors");
   return std::make_unique<CompleteSearchInit>(o, make_init_yaw_vote(s));
 }
 

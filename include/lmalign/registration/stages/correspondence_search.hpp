@@ -1,13 +1,17 @@
 // The correspondence search (issue 39, item 1): global hypotheses from matched landmarks rather
 // than from a vote over every pose. For each pair of up-axis candidates (source, target):
 //
-//   1. Descriptors. Each described landmark gets a histogram of its neighbours within a radius
-//      (the target's median distance to its `neighbours`-th nearest landmark): horizontal
-//      distance x height above or below it, both along the map's up axis, so that it does not
-//      change under a yaw about that axis or any translation. Where both maps know a landmark's
-//      viewing direction, its elevation above the horizontal is appended (a SLAM map's
-//      knowledge beyond the points). Square roots of the normalised counts (the Hellinger
-//      embedding), compared by Euclidean distance.
+//   1. Descriptors, of two kinds. The yaw-invariant one: each described landmark gets a
+//      histogram of its neighbours within a radius (the target's median distance to its
+//      `neighbours`-th nearest landmark): horizontal distance x height above or below it, both
+//      along the map's up axis, so that it does not change under a yaw about that axis or any
+//      translation. The oriented one, where both maps know their landmarks' viewing directions
+//      (`oriented`): the neighbourhood within 1.5 times that radius in the landmark's own frame,
+//      the up axis and the horizontal part of its mean viewing direction, with 8 bins of
+//      azimuth (describe_landmark_oriented): what a SLAM map knows beyond the points tells a
+//      facade's front from its side. Both append the viewing direction's elevation where both
+//      maps know it. Square roots of the normalised counts (the Hellinger embedding), compared
+//      by Euclidean distance. Each kind is matched, graphed and cut into cliques on its own.
 //   2. Matches. Every source keypoint (evenly strided) takes its `matches_per_keypoint` nearest
 //      target descriptors.
 //   3. A consistency graph. Two matches (i, j) and (i', j') agree when the source pair and the
@@ -19,9 +23,9 @@
 //   4. Cliques. The graph's k-core numbers order the matches; from each of the best-ordered
 //      `seeds`, a clique grows greedily (the candidate with the most neighbours among the
 //      remaining candidates first). Each clique of at least `min_inliers` matches gives a 4-DoF
-//      pose (estimate_4dof_transform after turning the source's up onto the target's). Each pair
-//      of up axes ranks its distinct poses by decreasing clique size; the hypotheses are the
-//      pairs' lists taken in turn, `hypotheses` in all.
+//      pose (estimate_4dof_transform after turning the source's up onto the target's). Each
+//      descriptor kind and pair of up axes ranks its distinct poses by decreasing clique size;
+//      the hypotheses are those lists taken in turn, `hypotheses` in all.
 //   5. Scale (free-scale runs only). The pairwise test compares the target's distances with the
 //      source's times a factor, at each rung of a ladder of factors, with half a rung's
 //      tolerance; a clique's distances then fix its scale (TEASER++ measures scale from
@@ -49,6 +53,10 @@ struct CorrespondenceSearchOptions {
   std::size_t neighbours = 24;           ///< sets the descriptor radius, [4, 256]
   std::size_t matches_per_keypoint = 3;  ///< [1, 16]
   double consistency_sigmas = 3.0;       ///< > 0
+  /// When both maps know their landmarks' viewing directions, the oriented descriptors
+  /// (describe_landmark_oriented: the neighbourhood about the up axis and the horizontal viewing
+  /// direction, at the radius and twice it); otherwise, or when false, the yaw-invariant ones.
+  bool oriented = true;
   std::size_t seeds = 128;               ///< cliques grown, >= 1
   std::size_t min_inliers = 5;           ///< >= 3
   std::size_t hypotheses = 16;           ///< poses at most, over every pair of up axes, >= 1
@@ -80,10 +88,14 @@ struct CorrespondenceHypothesis {
   /// The clique's scale, target units per source unit (1 unless options.scale_steps > 0):
   /// Umeyama's, sum (t - t_mean).R(s - s_mean) / sum |s - s_mean|^2 over its matches.
   double scale = 1.0;
+  /// Whether its clique's matches come from the oriented descriptors (else the yaw-invariant).
+  bool oriented = false;
 };
 
 struct CorrespondenceSearchResult {
-  /// Distinct within each pair of up axes; the pairs' best first, in turn.
+  /// Distinct within each descriptor kind and pair of up axes, each such list by decreasing
+  /// clique size; the lists' best first, in turn (the yaw-invariant kind's pairs, then the
+  /// oriented kind's).
   std::vector<CorrespondenceHypothesis> hypotheses;
   std::size_t matches = 0;  ///< graph nodes, over the up-axis pairs
   double radius_m = 0.0;    ///< descriptor radius
