@@ -185,13 +185,24 @@ void print_summary(const ReportSummary& summary) {
   }
 }
 
-int run_experiment(ExperimentArgs a) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const bool resuming = !a.resume.empty();
+// Where an experiment reads and writes: its config (resolved), the output folder, and for
+// --resume the config the interrupted run stored.
+struct ExperimentPlan {
+  ExperimentConfig config;
+  bool resuming = false;
+  std::string stored_config;  // --resume: the resolved config.yaml of the interrupted run
+  std::string out_dir;
+  fs::path out;
+  std::string csv_path;
+};
+
+// The config to run and the folder to write, checked before anything is read or written.
+ExperimentPlan plan_experiment(ExperimentArgs& a) {
+  ExperimentPlan p;
+  p.resuming = !a.resume.empty();
   if (!a.output.empty()) refuse_standard_output_folder("--output", a.output);
-  if (resuming) refuse_standard_output_folder("--resume", a.resume);
-  std::string stored_config;  // resume: the resolved config.yaml of the interrupted run
-  if (resuming) {
+  if (p.resuming) refuse_standard_output_folder("--resume", a.resume);
+  if (p.resuming) {
     if (!a.output.empty() &&
         fs::path(a.output).lexically_normal() != fs::path(a.resume).lexically_normal()) {
       throw InvalidArgument("--resume '" + a.resume + "' and --output '" + a.output +
@@ -204,71 +215,64 @@ int run_experiment(ExperimentArgs a) {
                               ")");
       }
     }
-    stored_config = read_whole_file((fs::path(a.resume) / "config.yaml").string());
+    p.stored_config = read_whole_file((fs::path(a.resume) / "config.yaml").string());
   } else if (a.config.empty()) {
     throw InvalidArgument("experiment: CONFIG is required (or --resume OUTDIR)");
   }
   ConfigLoadOptions lo;
   lo.data_dir = data_dir();
-  ExperimentConfig config;
   if (!a.config.empty()) {
-    config = load_experiment_config(a.config, lo);
+    p.config = load_experiment_config(a.config, lo);
   } else {
     // --resume alone: the run's own config.yaml, reported under the name it was resolved from
     // (so that summary.json and tables.md read as those of an uninterrupted run).
     a.config = (fs::path(a.resume) / "config.yaml").string();
-    config = load_experiment_config(a.config, lo);
-    if (const std::string from = resolved_from(stored_config); !from.empty()) {
-      config.path = from;
-      config.name = fs::path(from).stem().string();
+    p.config = load_experiment_config(a.config, lo);
+    if (const std::string from = resolved_from(p.stored_config); !from.empty()) {
+      p.config.path = from;
+      p.config.name = fs::path(from).stem().string();
     }
   }
-  if (!a.only.empty()) select_experiments(config, a.only);
-  const std::string out_dir = resuming           ? a.resume
-                              : a.output.empty() ? (fs::path("out") / config.name).string()
-                                                 : a.output;
-
-  const fs::path out(out_dir);
-  const std::string csv_path = (out / "results.csv").string();
-  std::vector<std::string> inputs{config.source.path, config.target.path, config.ground_truth.path};
-  if (!resuming) inputs.push_back(a.config);  // --resume reads and rewrites its config.yaml
+  if (!a.only.empty()) select_experiments(p.config, a.only);
+  p.out_dir = p.resuming         ? a.resume
+              : a.output.empty() ? (fs::path("out") / p.config.name).string()
+                                 : a.output;
+  p.out = fs::path(p.out_dir);
+  p.csv_path = (p.out / "results.csv").string();
+  std::vector<std::string> inputs{p.config.source.path, p.config.target.path,
+                                  p.config.ground_truth.path};
+  if (!p.resuming) inputs.push_back(a.config);  // --resume reads and rewrites its config.yaml
   for (const char* name : {"config.yaml", "results.csv", "summary.json", "tables.md", "history.csv",
                            "alignment_points.csv"}) {
-    refuse_output_over_input(resuming ? "--resume" : "--output", (out / name).string(), inputs);
+    refuse_output_over_input(p.resuming ? "--resume" : "--output", (p.out / name).string(), inputs);
   }
+  std::error_code ec;
+  if (fs::exists(p.out, ec) && !fs::is_directory(p.out, ec)) {
+    throw InvalidArgument("--output '" + p.out_dir + "' exists and is not a folder");
+  }
+  return p;
+}
 
-  {
-    std::error_code ec;
-    if (fs::exists(out, ec) && !fs::is_directory(out, ec)) {
-      throw InvalidArgument("--output '" + out_dir + "' exists and is not a folder");
-    }
+// --resume: the same config exactly, and the finished cases of results.csv.
+std::vector<RunRecord> finished_records(const ExperimentPlan& p, const std::string& resolved,
+                                        const std::vector<Case>& cases) {
+  if (!p.resuming) return {};
+  if (config_body(resolved) != config_body(p.stored_config)) {
+    throw InvalidArgument("--resume '" + p.out_dir +
+                          "': the config differs from the one of the "
+                          "interrupted run (" +
+                          (p.out / "config.yaml").string() +
+                          "); resume with that config, or start a new run");
   }
+  std::ifstream in(p.csv_path, std::ios::binary);
+  if (!in) throw IoError("cannot read '" + p.csv_path + "'");
+  return read_results_csv(in, p.csv_path, cases);
+}
 
-  const ExperimentInputs in = load_experiment_inputs(config);
-  const Points3 source_points = in.source.positions();
-  const std::vector<Case> cases = expand_cases(config, source_points);
-  if (!a.plot_case.empty()) {
-    config.plot_case = a.plot_case;
-  } else if (!a.only.empty() && !config.plot_case.empty() && !find_case(cases, config.plot_case)) {
-    config.plot_case.clear();  // the config's plot case is in an experiment left out by --only
-  }
-  const std::optional<std::size_t> plot_case = default_plot_case(config, cases);
-  const std::string resolved = resolved_config_yaml(config);
-
-  // --resume: the same config exactly, and the finished cases of results.csv.
-  std::vector<RunRecord> already_finished;
-  if (resuming) {
-    if (config_body(resolved) != config_body(stored_config)) {
-      throw InvalidArgument("--resume '" + out_dir +
-                            "': the config differs from the one of the "
-                            "interrupted run (" +
-                            (out / "config.yaml").string() +
-                            "); resume with that config, or start a new run");
-    }
-    std::ifstream in(csv_path, std::ios::binary);
-    if (!in) throw IoError("cannot read '" + csv_path + "'");
-    already_finished = read_results_csv(in, csv_path, cases);
-  }
+void print_plan(const ExperimentArgs& a, const ExperimentPlan& p, const ExperimentInputs& in,
+                const std::vector<Case>& cases, const std::vector<RunRecord>& already_finished,
+                int threads) {
+  const ExperimentConfig& config = p.config;
   std::size_t cases_already_finished = 0;
   for (std::size_t i = 0; i < already_finished.size(); ++i) {
     if (i == 0 || already_finished[i].case_index != already_finished[i - 1].case_index)
@@ -276,9 +280,7 @@ int run_experiment(ExperimentArgs a) {
   }
   std::size_t runs = 0;
   for (const Case& c : cases) runs += c.strategies.size();
-  const int threads = a.threads > 0 ? a.threads : std::max(1, omp_get_num_procs());
-
-  say("lmalign experiment: %s -> %s\n", a.config.c_str(), out_dir.c_str());
+  say("lmalign experiment: %s -> %s\n", a.config.c_str(), p.out_dir.c_str());
   say("  source %s (%zu landmarks), target %s (%zu landmarks)\n", config.source.path.c_str(),
       in.source.landmarks.size(), config.target.path.c_str(), in.target.landmarks.size());
   if (in.source_left_out + in.target_left_out > 0) {
@@ -295,57 +297,67 @@ int run_experiment(ExperimentArgs a) {
   }
   say("  %zu experiments, %zu cases, %zu runs (case x strategy), %d threads\n",
       config.experiments.size(), cases.size(), runs, threads);
-  if (resuming) {
+  if (p.resuming) {
     say("  resuming: %zu cases (%zu runs) already finished in %s are not run again\n",
-        cases_already_finished, already_finished.size(), csv_path.c_str());
+        cases_already_finished, already_finished.size(), p.csv_path.c_str());
   }
   std::fflush(stdout);
+}
 
-  // The folder starts with the resolved config and a valid results.csv (header-only, or the
-  // finished cases when resuming); stale outputs of an earlier run are removed so that nothing in
-  // it disagrees with this run. When resuming, the plot case's files stay if it is finished.
+// The folder starts with the resolved config and a valid results.csv (header-only, or the
+// finished cases when resuming); stale outputs of an earlier run are removed so that nothing in
+// it disagrees with this run. When resuming, the plot case's files stay if it is finished.
+void start_output_folder(const ExperimentPlan& p, const std::string& resolved,
+                         const std::vector<Case>& cases,
+                         const std::vector<RunRecord>& already_finished,
+                         std::optional<std::size_t> plot_case) {
   const bool plot_case_finished =
       plot_case && std::any_of(already_finished.begin(), already_finished.end(),
                                [&](const RunRecord& r) { return r.case_index == *plot_case; });
   std::error_code ec;
-  create_output_folder(out_dir);
-  for (const char* name : {"summary.json", "tables.md"}) fs::remove(out / name, ec);
+  create_output_folder(p.out_dir);
+  for (const char* name : {"summary.json", "tables.md"}) fs::remove(p.out / name, ec);
   if (!plot_case_finished) {
-    for (const char* name : {"history.csv", "alignment_points.csv"}) fs::remove(out / name, ec);
+    for (const char* name : {"history.csv", "alignment_points.csv"}) fs::remove(p.out / name, ec);
   }
-  if (fs::is_directory(out / "plots", ec)) {
-    for (const auto& entry : fs::directory_iterator(out / "plots", ec)) {
+  if (fs::is_directory(p.out / "plots", ec)) {
+    for (const auto& entry : fs::directory_iterator(p.out / "plots", ec)) {
       if (entry.path().extension() == ".png") fs::remove(entry.path(), ec);
     }
   }
-  if (!resuming) {
-    write_output((out / "config.yaml").string(), [&](std::ostream& o) { o << resolved; });
+  if (!p.resuming) {
+    write_output((p.out / "config.yaml").string(), [&](std::ostream& o) { o << resolved; });
   }
-  write_output(csv_path, [&](std::ostream& o) { write_results_csv(o, cases, already_finished); });
+  write_output(p.csv_path, [&](std::ostream& o) { write_results_csv(o, cases, already_finished); });
+}
 
-  const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
-
-  // Finished cases, flushed to results.csv (whole file, atomically) as each one completes; the
-  // plot case's history and alignment as soon as it completes (so that a resumed run has them).
-  std::map<std::size_t, std::vector<RunRecord>> finished;
-  for (const RunRecord& r : already_finished) finished[r.case_index].push_back(r);
+// The cases on the runner, with a progress bar; finished cases flushed to results.csv (whole
+// file, atomically) as each one completes, the plot case's history and alignment as soon as it
+// completes (so that a resumed run has them). `finished` gets every finished case's records.
+RunnerOutcome run_with_progress(const ExperimentPlan& p, const ExperimentInputs& in,
+                                const std::vector<Case>& cases, const PreparedTarget& target,
+                                const std::vector<RunRecord>& already_finished,
+                                std::optional<std::size_t> plot_case, int threads,
+                                std::map<std::size_t, std::vector<RunRecord>>* finished) {
+  const Points3 source_points = in.source.positions();
+  for (const RunRecord& r : already_finished) (*finished)[r.case_index].push_back(r);
   ProgressBar bar;
   RunnerOptions ro;
   ro.threads = threads;
   ro.history_case = plot_case;
   ro.cancel = &stop_flag();
-  ro.on_progress = [&](const RunnerProgress& p) { bar.update(p); };
+  ro.on_progress = [&](const RunnerProgress& pr) { bar.update(pr); };
   ro.on_case_finished = [&](const Case& c, const std::vector<RunRecord>& records) {
-    finished[c.index] = records;
-    write_output(csv_path, [&](std::ostream& o) {
+    (*finished)[c.index] = records;
+    write_output(p.csv_path, [&](std::ostream& o) {
       std::vector<RunRecord> rows;
-      for (const auto& [index, recs] : finished) rows.insert(rows.end(), recs.begin(), recs.end());
+      for (const auto& [index, recs] : *finished) rows.insert(rows.end(), recs.begin(), recs.end());
       write_results_csv(o, cases, rows);
     });
     if (plot_case && c.index == *plot_case) {
-      write_output((out / "history.csv").string(),
+      write_output((p.out / "history.csv").string(),
                    [&](std::ostream& o) { write_history_csv(o, c, records); });
-      write_output((out / "alignment_points.csv").string(), [&](std::ostream& o) {
+      write_output((p.out / "alignment_points.csv").string(), [&](std::ostream& o) {
         write_alignment_points_csv(o, c, source_points, target.points(), records);
       });
     }
@@ -363,24 +375,81 @@ int run_experiment(ExperimentArgs a) {
   RunnerOutcome outcome;
   {
     const StopSignals signals;
-    outcome = run_cases(config, cases, source_points, target, in.ground_truth, ro);
+    outcome = run_cases(p.config, cases, source_points, target, in.ground_truth, ro);
     bar.finish();
   }
+  return outcome;
+}
 
-  write_output(csv_path, [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
+// The plots (scripts/plot_experiment.py); a warning, never an error, when they cannot be drawn.
+// Returns whether they were drawn.
+bool plot_experiment(const ExperimentPlan& p, std::optional<std::size_t> plot_case) {
+  std::error_code ec;
+  const std::string script = find_script("plot_experiment.py", "LMALIGN_PLOT_SCRIPT");
+  if (script.empty() || !fs::exists(script, ec)) {
+    std::fprintf(stderr,
+                 "lmalign: warning: no plots: plot_experiment.py is neither installed beside "
+                 "this executable (../share/lmalign/scripts) nor in its source checkout (set "
+                 "LMALIGN_PLOT_SCRIPT); the report is complete without them\n");
+    return false;
+  }
+  std::vector<std::string> argv{p.out_dir, "--quiet"};
+  if (plot_case) {
+    argv.push_back("--case");
+    argv.push_back(std::to_string(*plot_case));
+  }
+  const int rc = draw_plots(script, argv, (p.out / "plots").string());
+  if (rc != 0) {
+    std::fprintf(stderr,
+                 "lmalign: warning: plotting failed (%s %s exited with %d; it needs matplotlib "
+                 "and numpy; set LMALIGN_PYTHON to choose the interpreter). The report is "
+                 "complete without plots; rerun: %s %s %s\n",
+                 python_interpreter().c_str(), script.c_str(), rc, python_interpreter().c_str(),
+                 script.c_str(), p.out_dir.c_str());
+    return false;
+  }
+  say("plots: %s (drawn by %s)\n", (p.out / "plots").string().c_str(), script.c_str());
+  return true;
+}
+
+int run_experiment(ExperimentArgs a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ExperimentPlan p = plan_experiment(a);
+  ExperimentConfig& config = p.config;
+  const ExperimentInputs in = load_experiment_inputs(config);
+  const std::vector<Case> cases = expand_cases(config, in.source.positions());
+  if (!a.plot_case.empty()) {
+    config.plot_case = a.plot_case;
+  } else if (!a.only.empty() && !config.plot_case.empty() && !find_case(cases, config.plot_case)) {
+    config.plot_case.clear();  // the config's plot case is in an experiment left out by --only
+  }
+  const std::optional<std::size_t> plot_case = default_plot_case(config, cases);
+  const std::string resolved = resolved_config_yaml(config);
+  const std::vector<RunRecord> already_finished = finished_records(p, resolved, cases);
+  const int threads = a.threads > 0 ? a.threads : std::max(1, omp_get_num_procs());
+  print_plan(a, p, in, cases, already_finished, threads);
+  start_output_folder(p, resolved, cases, already_finished, plot_case);
+
+  const PreparedTarget target(in.target, WeightOptions{config.covariance_norm});
+  std::map<std::size_t, std::vector<RunRecord>> finished;
+  const RunnerOutcome outcome =
+      run_with_progress(p, in, cases, target, already_finished, plot_case, threads, &finished);
+
+  write_output(p.csv_path, [&](std::ostream& o) { write_results_csv(o, cases, outcome.records); });
   const ReportSummary summary = summarize(config, cases, outcome);
-  write_output((out / "summary.json").string(),
+  write_output((p.out / "summary.json").string(),
                [&](std::ostream& o) { write_summary_json(o, config, summary); });
-  write_output((out / "tables.md").string(),
+  write_output((p.out / "tables.md").string(),
                [&](std::ostream& o) { write_tables_markdown(o, config, cases, outcome, summary); });
+  std::error_code ec;
   const bool have_plot_case = plot_case && finished.count(*plot_case) != 0 &&
-                              fs::exists(out / "history.csv", ec) &&
-                              fs::exists(out / "alignment_points.csv", ec);
+                              fs::exists(p.out / "history.csv", ec) &&
+                              fs::exists(p.out / "alignment_points.csv", ec);
 
   if (outcome.cancelled) {
     say("interrupted: %zu of %zu cases finished; results.csv holds them (%s); finish "
         "with: lmalign experiment --resume %s\n",
-        outcome.cases_finished, outcome.cases_planned, csv_path.c_str(), out_dir.c_str());
+        outcome.cases_finished, outcome.cases_planned, p.csv_path.c_str(), p.out_dir.c_str());
     std::fflush(stdout);
     return 130;
   }
@@ -393,36 +462,8 @@ int run_experiment(ExperimentArgs a) {
     say(" (%zu identical to another run: run once)", outcome.runs_shared);
   if (outcome.cases_skipped > 0) say(" (%zu escalation levels not needed)", outcome.cases_skipped);
   say("\n");
-
-  bool plotted = false;
-  if (!a.no_plots) {
-    const std::string script = find_script("plot_experiment.py", "LMALIGN_PLOT_SCRIPT");
-    if (script.empty() || !fs::exists(script, ec)) {
-      std::fprintf(stderr,
-                   "lmalign: warning: no plots: plot_experiment.py is neither installed beside "
-                   "this executable (../share/lmalign/scripts) nor in its source checkout (set "
-                   "LMALIGN_PLOT_SCRIPT); the report is complete without them\n");
-    } else {
-      std::vector<std::string> argv{out_dir, "--quiet"};
-      if (have_plot_case) {
-        argv.push_back("--case");
-        argv.push_back(std::to_string(*plot_case));
-      }
-      const int rc = draw_plots(script, argv, (out / "plots").string());
-      if (rc != 0) {
-        std::fprintf(stderr,
-                     "lmalign: warning: plotting failed (%s %s exited with %d; it needs matplotlib "
-                     "and numpy; set LMALIGN_PYTHON to choose the interpreter). The report is "
-                     "complete without plots; rerun: %s %s %s\n",
-                     python_interpreter().c_str(), script.c_str(), rc, python_interpreter().c_str(),
-                     script.c_str(), out_dir.c_str());
-      } else {
-        plotted = true;
-        say("plots: %s (drawn by %s)\n", (out / "plots").string().c_str(), script.c_str());
-      }
-    }
-  }
-  say("report: %s (results.csv, summary.json, tables.md%s)\n", out_dir.c_str(),
+  const bool plotted = !a.no_plots && plot_experiment(p, have_plot_case ? plot_case : std::nullopt);
+  say("report: %s (results.csv, summary.json, tables.md%s)\n", p.out_dir.c_str(),
       plotted ? ", plots/" : "");
   return 0;
 }

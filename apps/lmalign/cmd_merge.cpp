@@ -155,6 +155,110 @@ bool plot_merge(const std::string& out_dir) {
   return true;
 }
 
+// The merge's summary on the standard output: edges, parts, scales, rejected edges.
+void print_merge_summary(const std::vector<Map>& maps, const std::vector<std::string>& names,
+                         const MergeRun& run) {
+  std::size_t used = 0, rejected = 0, trusted = 0;
+  for (std::size_t e = 0; e < run.edges.size(); ++e) {
+    trusted += run.edges[e].trusted ? 1 : 0;
+    used += run.result.edges[e].used ? 1 : 0;
+    rejected += run.result.edges[e].rejected ? 1 : 0;
+  }
+  say("merged %zu maps: %zu candidate pairs (%zu reused), %zu trusted, %zu in the graph, %zu "
+      "rejected by it; %zu component(s); final chi2 %.3f (edge covariance scale %.3g)\n",
+      maps.size(), run.candidates.size(), run.edges_reused, trusted, used, rejected,
+      run.result.num_components, run.result.final_chi2, run.result.edge_covariance_scale);
+  say("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    const MapPose& p = run.result.maps[i];
+    if (!p.scale_free && p.scale == 1.0) continue;
+    say("scale of %s: %.6g world units per map unit (sd %.2g)%s\n", names[i].c_str(), p.scale,
+        p.scale_sd, p.scale_free ? "" : " (held)");
+  }
+  for (std::size_t e = 0; e < run.edges.size(); ++e) {
+    const EdgeReport& r = run.result.edges[e];
+    if (!r.rejected) continue;
+    if (r.reject_reason.empty()) {
+      say("rejected edge: %s -> %s (chi2 %.1f after optimisation)\n",
+          names[run.edges[e].source].c_str(), names[run.edges[e].target].c_str(), r.chi2);
+    } else {
+      say("rejected edge: %s -> %s (%s)\n", names[run.edges[e].source].c_str(),
+          names[run.edges[e].target].c_str(), r.reject_reason.c_str());
+    }
+  }
+}
+
+// The merge against the ground truth (merge --ground-truth), map by map.
+void print_ground_truth(const std::vector<Map>& maps, const std::vector<std::string>& names,
+                        const MergeRun& run, const std::vector<Similarity3>& truth,
+                        const std::vector<double>& thr) {
+  GroundTruthThresholds t;
+  t.rotation_deg = thr[0];
+  t.translation_m = thr[1];
+  const MergeEvaluation ev = evaluate_merge(run.result, run.edges, truth, t);
+  say("ground truth (within %g deg / %g m): %zu part(s), the largest of %zu map(s); the kept "
+      "edges join the maps into %zu piece(s)\n",
+      t.rotation_deg, t.translation_m, ev.num_parts, ev.largest_part, ev.num_edge_parts);
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    const MapError& e = ev.maps[i];
+    if (std::isnan(e.rotation_deg)) {
+      say("  %-20s component %zu  not placed: alone in its part\n", names[i].c_str(),
+          run.result.maps[i].component);
+      continue;
+    }
+    say("  %-20s component %zu  rotation %.3f deg  translation %.4f m  scale error %.2e%s\n",
+        names[i].c_str(), run.result.maps[i].component, e.rotation_deg, e.translation_m,
+        e.scale_error,
+        !e.placed  ? "  (not placed: in a part apart from the others)"
+        : e.within ? ""
+                   : "  (outside)");
+  }
+  const std::size_t pairs = maps.size() * (maps.size() - 1) / 2;
+  char pair_text[96] = "not computed (over 2000 maps)";
+  if (!std::isnan(ev.pair_fraction_within)) {
+    std::snprintf(pair_text, sizeof pair_text, "%zu of %zu (%.1f%%)", ev.pairs_within, pairs,
+                  100.0 * ev.pair_fraction_within);
+  }
+  say("  within: %.1f%% of the maps (placed: %zu of %zu); pairs within: %s; edges kept %zu, "
+      "false kept %zu, precision %.3f, recall %.3f; largest scale error: maps %.2e, pairs "
+      "%.2e\n",
+      100.0 * ev.fraction_within, ev.placed, maps.size(), pair_text, ev.kept_edges,
+      ev.false_kept_edges, ev.edge_precision, ev.edge_recall, ev.max_scale_error,
+      ev.max_pair_scale_error);
+}
+
+// The folder -o, checked before anything is read: not a file, no edges of an earlier run
+// without --resume, never over an input.
+void check_merge_output(const MergeArgs& a, const std::vector<std::string>& inputs) {
+  refuse_standard_output_folder("-o", a.out_dir);
+  std::error_code ec;
+  if (fs::exists(a.out_dir, ec) && !fs::is_directory(a.out_dir, ec)) {
+    throw InvalidArgument("-o " + a.out_dir + ": exists and is not a folder");
+  }
+  if (!a.resume && fs::exists(fs::path(a.out_dir) / "edges", ec) &&
+      !fs::is_empty(fs::path(a.out_dir) / "edges", ec)) {
+    throw InvalidArgument("-o " + a.out_dir +
+                          ": holds edges/ of an earlier run; pass --resume to reuse them, or "
+                          "choose another folder");
+  }
+  for (const std::string& in : inputs) refuse_output_over_input("-o", a.out_dir, {in});
+}
+
+// The supported range (core/supported_range.hpp): such landmarks are left out of every edge (each
+// edge's trust reason counts them) and of the merged map (summary.json); said once per map.
+void warn_far_landmarks(const std::vector<Map>& maps, const std::vector<std::string>& names) {
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    std::size_t far = 0;
+    for (const Landmark& l : maps[i].landmarks) far += within_supported_range(l.p_world) ? 0 : 1;
+    if (far > 0) {
+      std::fprintf(stderr,
+                   "lmalign merge: map '%s': %zu landmark(s) beyond the supported range "
+                   "(|coordinate| > %g m) left out\n",
+                   names[i].c_str(), far, kMaxCoordinateM);
+    }
+  }
+}
+
 int run_merge_command(const MergeArgs& a) {
   if (!a.dask_scheduler.empty() && !a.settings.empty()) {
     throw InvalidArgument(
@@ -183,33 +287,11 @@ int run_merge_command(const MergeArgs& a) {
     priors.push_back(e.prior);
     inputs.push_back(e.path);
   }
-  refuse_standard_output_folder("-o", a.out_dir);
-  std::error_code ec;
-  if (fs::exists(a.out_dir, ec) && !fs::is_directory(a.out_dir, ec)) {
-    throw InvalidArgument("-o " + a.out_dir + ": exists and is not a folder");
-  }
-  if (!a.resume && fs::exists(fs::path(a.out_dir) / "edges", ec) &&
-      !fs::is_empty(fs::path(a.out_dir) / "edges", ec)) {
-    throw InvalidArgument("-o " + a.out_dir +
-                          ": holds edges/ of an earlier run; pass --resume to reuse them, or "
-                          "choose another folder");
-  }
-  for (const std::string& in : inputs) refuse_output_over_input("-o", a.out_dir, {in});
+  check_merge_output(a, inputs);
   std::vector<Similarity3> truth;
   std::fprintf(stderr, "lmalign merge: reading %zu maps\n", manifest.maps.size());
   const std::vector<Map> maps = load_manifest_maps(manifest);
-  for (std::size_t i = 0; i < maps.size(); ++i) {
-    // The supported range (core/supported_range.hpp): such landmarks are left out of every edge
-    // (each edge's trust reason counts them) and of the merged map (summary.json).
-    std::size_t far = 0;
-    for (const Landmark& l : maps[i].landmarks) far += within_supported_range(l.p_world) ? 0 : 1;
-    if (far > 0) {
-      std::fprintf(stderr,
-                   "lmalign merge: map '%s': %zu landmark(s) beyond the supported range "
-                   "(|coordinate| > %g m) left out\n",
-                   names[i].c_str(), far, kMaxCoordinateM);
-    }
-  }
+  warn_far_landmarks(maps, names);
   if (!a.ground_truth.empty()) {
     if (a.ground_truth == "identity") {
       truth.assign(maps.size(), Similarity3{});
@@ -242,69 +324,8 @@ int run_merge_command(const MergeArgs& a) {
   MergeOutputOptions oo;
   oo.fuse_landmarks = !a.no_fuse;
   write_merge_outputs(a.out_dir, names, sessions, maps, run.edges, run.result, oo);
-  std::size_t used = 0, rejected = 0, trusted = 0;
-  for (std::size_t e = 0; e < run.edges.size(); ++e) {
-    trusted += run.edges[e].trusted ? 1 : 0;
-    used += run.result.edges[e].used ? 1 : 0;
-    rejected += run.result.edges[e].rejected ? 1 : 0;
-  }
-  say("merged %zu maps: %zu candidate pairs (%zu reused), %zu trusted, %zu in the graph, %zu "
-      "rejected by it; %zu component(s); final chi2 %.3f (edge covariance scale %.3g)\n",
-      maps.size(), run.candidates.size(), run.edges_reused, trusted, used, rejected,
-      run.result.num_components, run.result.final_chi2, run.result.edge_covariance_scale);
-  say("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
-  for (std::size_t i = 0; i < maps.size(); ++i) {
-    const MapPose& p = run.result.maps[i];
-    if (!p.scale_free && p.scale == 1.0) continue;
-    say("scale of %s: %.6g world units per map unit (sd %.2g)%s\n", names[i].c_str(), p.scale,
-        p.scale_sd, p.scale_free ? "" : " (held)");
-  }
-  for (std::size_t e = 0; e < run.edges.size(); ++e) {
-    const EdgeReport& r = run.result.edges[e];
-    if (!r.rejected) continue;
-    if (r.reject_reason.empty()) {
-      say("rejected edge: %s -> %s (chi2 %.1f after optimisation)\n",
-          names[run.edges[e].source].c_str(), names[run.edges[e].target].c_str(), r.chi2);
-    } else {
-      say("rejected edge: %s -> %s (%s)\n", names[run.edges[e].source].c_str(),
-          names[run.edges[e].target].c_str(), r.reject_reason.c_str());
-    }
-  }
-  if (!truth.empty()) {
-    GroundTruthThresholds t;
-    t.rotation_deg = thr[0];
-    t.translation_m = thr[1];
-    const MergeEvaluation ev = evaluate_merge(run.result, run.edges, truth, t);
-    say("ground truth (within %g deg / %g m): %zu part(s), the largest of %zu map(s); the kept "
-        "edges join the maps into %zu piece(s)\n",
-        t.rotation_deg, t.translation_m, ev.num_parts, ev.largest_part, ev.num_edge_parts);
-    for (std::size_t i = 0; i < maps.size(); ++i) {
-      const MapError& e = ev.maps[i];
-      if (std::isnan(e.rotation_deg)) {
-        say("  %-20s component %zu  not placed: alone in its part\n", names[i].c_str(),
-            run.result.maps[i].component);
-        continue;
-      }
-      say("  %-20s component %zu  rotation %.3f deg  translation %.4f m  scale error %.2e%s\n",
-          names[i].c_str(), run.result.maps[i].component, e.rotation_deg, e.translation_m,
-          e.scale_error,
-          !e.placed  ? "  (not placed: in a part apart from the others)"
-          : e.within ? ""
-                     : "  (outside)");
-    }
-    const std::size_t pairs = maps.size() * (maps.size() - 1) / 2;
-    char pair_text[96] = "not computed (over 2000 maps)";
-    if (!std::isnan(ev.pair_fraction_within)) {
-      std::snprintf(pair_text, sizeof pair_text, "%zu of %zu (%.1f%%)", ev.pairs_within, pairs,
-                    100.0 * ev.pair_fraction_within);
-    }
-    say("  within: %.1f%% of the maps (placed: %zu of %zu); pairs within: %s; edges kept %zu, "
-        "false kept %zu, precision %.3f, recall %.3f; largest scale error: maps %.2e, pairs "
-        "%.2e\n",
-        100.0 * ev.fraction_within, ev.placed, maps.size(), pair_text, ev.kept_edges,
-        ev.false_kept_edges, ev.edge_precision, ev.edge_recall, ev.max_scale_error,
-        ev.max_pair_scale_error);
-  }
+  print_merge_summary(maps, names, run);
+  if (!truth.empty()) print_ground_truth(maps, names, run, truth, thr);
   const bool plotted = !a.no_plots && plot_merge(a.out_dir);
   say("wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map%s, edges/%s)\n",
       a.out_dir.c_str(), run.result.num_components > 1 ? "s per component" : "",

@@ -195,8 +195,10 @@ ManifestEntry entry_from_state(const py::tuple& t) {
 
 }  // namespace
 
-void bind_merge(py::module_& m) {
-  // ------------------------------------------------------------ manifest
+namespace {
+
+// The merge API: manifest.
+void bind_manifest(py::module_& m) {
   py::class_<MapPrior>(m, "MapPrior",
                        "A prior pose of a map in the common world frame: T_world_map (4, 4), "
                        "p_world = T_world_map @ p_map, metres, and its (6, 6) covariance of a left "
@@ -283,8 +285,10 @@ void bind_merge(py::module_& m) {
       py::arg("entry"),
       "Reads one map of a manifest exactly as load_manifest_maps() does (what a Dask task "
       "does). Raises as load_manifest_maps().");
+}
 
-  // ------------------------------------------------------------ candidates
+// The merge API: candidates.
+void bind_candidates(py::module_& m) {
   py::class_<CandidatePair>(m, "CandidatePair",
                             "A pair of maps to align (merge/candidates.hpp): the edge estimates "
                             "T_target_source, p_target = T @ p_source. Picklable.")
@@ -354,8 +358,10 @@ void bind_merge(py::module_& m) {
       "(map retrieval: a bag of words over the landmarks' yaw-invariant descriptors); at most "
       "max_pairs (0 = no limit), best first. priors: "
       "one MapPrior or None per map (default none). Deterministic. Raises InvalidArgument.");
+}
 
-  // ------------------------------------------------------------ edges
+// The merge API: edges.
+void bind_edges(py::module_& m) {
   py::class_<Edge>(m, "Edge",
                    "One aligned pair (merge/edges.hpp). Picklable (bit for bit), so that it can "
                    "come back from a Dask worker.")
@@ -463,8 +469,10 @@ void bind_merge(py::module_& m) {
       "read_edge_file",
       [](const std::filesystem::path& path) { return read_edge_file(path.string()); },
       py::arg("path"), "The edge in the file, or None if it does not exist. Raises ParseError.");
+}
 
-  // ------------------------------------------------------------ pose graph
+// The merge API: pose graph.
+void bind_pose_graph(py::module_& m) {
   py::class_<MapPose>(m, "MapPose", "One map's place after the pose graph.")
       .def_property_readonly(
           "T_world_map", [](const MapPose& p) { return matrix_out<4, 4>(p.T_world_map.matrix()); },
@@ -537,8 +545,10 @@ void bind_merge(py::module_& m) {
       py::arg("result"), py::arg("fuse_landmarks") = true,
       "Writes poses.yaml, poses.json, edges.csv, summary.json and the merged map(s) into out_dir "
       "(created), each atomically, as `lmalign merge`. Raises IoError, InvalidArgument.");
+}
 
-  // ------------------------------------------------------------ ground truth
+// The merge API: ground truth.
+void bind_ground_truth(py::module_& m) {
   m.def(
       "read_ground_truth",
       [](const std::filesystem::path& path, const std::vector<std::string>& names) {
@@ -614,8 +624,10 @@ void bind_merge(py::module_& m) {
       "above 2000 maps), pairs_within, max_rotation_deg, max_translation_m, edge_precision, "
       "edge_recall, kept_edges, false_kept_edges, edge_true (list of bool per edge). Raises "
       "InvalidArgument.");
+}
 
-  // ------------------------------------------------------------ in process
+// The merge API: in process.
+void bind_in_process(py::module_& m) {
   m.def(
       "_run_merge",
       [](const std::vector<Map>& maps, const std::vector<std::string>& names,
@@ -637,6 +649,17 @@ void bind_merge(py::module_& m) {
       },
       py::arg("maps"), py::arg("names"), py::arg("priors"), py::arg("max_pairs"),
       py::arg("threads"), py::arg("edge_cache_dir"), py::arg("scale") = "auto");
+}
+
+}  // namespace
+
+void bind_merge(py::module_& m) {
+  bind_manifest(m);
+  bind_candidates(m);
+  bind_edges(m);
+  bind_pose_graph(m);
+  bind_ground_truth(m);
+  bind_in_process(m);
 }
 
 }  // namespace lmalign::python

@@ -124,11 +124,9 @@ PyObject* new_exception(py::module_& m, const char* name, PyObject* bases, const
 
 void raise(PyObject* type, const std::string& message) { PyErr_SetString(type, message.c_str()); }
 
-}  // namespace
+// ---------------------------------------------------------------- the module, by area
 
-PYBIND11_MODULE(_lmalign, m) {
-  m.doc() = "lmalign's compiled core; use the lmalign package (docs/python.md).";
-
+void bind_exceptions(py::module_& m) {
   g_error = new_exception(m, "Error", PyExc_Exception,
                           "Base class of every error lmalign raises on purpose.");
   g_invalid_argument = new_exception(
@@ -161,8 +159,9 @@ PYBIND11_MODULE(_lmalign, m) {
       raise(g_error, e.what());
     }
   });
+}
 
-  // ------------------------------------------------------------ Map
+void bind_map(py::module_& m) {
   py::class_<Map>(m, "Map",
                   "A landmark map: frames (keyframe poses) and landmarks, in the map's world "
                   "frame; metres, m^2. Array properties are copies (float64, C-contiguous).")
@@ -285,8 +284,9 @@ PYBIND11_MODULE(_lmalign, m) {
       "_create_output_folder",
       [](const std::filesystem::path& folder) { create_output_folder(folder.string()); },
       py::arg("folder"), "Creates an output folder (io/output_file.hpp). Raises IoError.");
+}
 
-  // ------------------------------------------------------------ geometry helpers
+void bind_geometry(py::module_& m) {
   m.def(
       "pose_from_xyz_rpy_deg",
       [](double x, double y, double z, double roll, double pitch, double yaw) {
@@ -312,16 +312,18 @@ PYBIND11_MODULE(_lmalign, m) {
             transform_covariances(transform_from(T, "T"), covariances_from(a, "covariances", -1)));
       },
       py::arg("T"), py::arg("covariances"), "(N, 3, 3) covariances (m^2) rotated by T: R C R^T.");
+}
 
-  // ------------------------------------------------------------ align
-  py::class_<python::AlignOutcome>(m, "AlignmentResult",
-                                   "What lmalign.align() returns (see its docstring).")
-      .def_property_readonly(
-          "T_target_source",
-          [](const python::AlignOutcome& o) {
-            return matrix_out<4, 4>(o.summary.registration.T_target_source.matrix());
-          },
-          "(4, 4) float64: the estimate, p_target = T_target_source @ p_source (metres).")
+using AlignmentResultClass = py::class_<python::AlignOutcome>;
+
+// AlignmentResult: the estimate and its run.
+void bind_alignment_estimate(AlignmentResultClass& c) {
+  c.def_property_readonly(
+       "T_target_source",
+       [](const python::AlignOutcome& o) {
+         return matrix_out<4, 4>(o.summary.registration.T_target_source.matrix());
+       },
+       "(4, 4) float64: the estimate, p_target = T_target_source @ p_source (metres).")
       .def_property_readonly("strategy", [](const python::AlignOutcome& o) { return o.strategy; })
       .def_property_readonly(
           "converged",
@@ -358,11 +360,14 @@ PYBIND11_MODULE(_lmalign, m) {
       .def_property_readonly(
           "finished_s", [](const python::AlignOutcome& o) { return o.finished_s; },
           "When the alignment and its trust verdict ended, seconds on the clock of "
-          "time.monotonic().")
-      .def_property_readonly(
-          "trustworthy",
-          [](const python::AlignOutcome& o) { return o.summary.verdict.trustworthy; },
-          "The verdict of the strategy's trust judge, without ground truth (docs/accuracy.md).")
+          "time.monotonic().");
+}
+
+// AlignmentResult: the trust verdict and what it measured.
+void bind_alignment_verdict(AlignmentResultClass& c) {
+  c.def_property_readonly(
+       "trustworthy", [](const python::AlignOutcome& o) { return o.summary.verdict.trustworthy; },
+       "The verdict of the strategy's trust judge, without ground truth (docs/accuracy.md).")
       .def_property_readonly(
           "trust_reason", [](const python::AlignOutcome& o) { return o.summary.verdict.reason; },
           "'ok', or why the estimate is not trusted; either followed by '; N source landmarks "
@@ -443,11 +448,15 @@ PYBIND11_MODULE(_lmalign, m) {
           },
           "Judge 'gated' only (else None, also when there is none): the best distinct refined "
           "pose, (4, 4) float64 T_target_source (metres), whose score over the best's is "
-          "`ambiguity`.")
-      .def_property_readonly(
-          "scale", [](const python::AlignOutcome& o) { return o.summary.scale.scale; },
-          "Target units per source unit: p_target = scale * R @ p_source + t (1.0 when the scale "
-          "was fixed).")
+          "`ambiguity`.");
+}
+
+// AlignmentResult: the scale, the uncertainty and the reports.
+void bind_alignment_uncertainty(AlignmentResultClass& c) {
+  c.def_property_readonly(
+       "scale", [](const python::AlignOutcome& o) { return o.summary.scale.scale; },
+       "Target units per source unit: p_target = scale * R @ p_source + t (1.0 when the scale "
+       "was fixed).")
       .def_property_readonly(
           "scale_sd",
           [](const python::AlignOutcome& o) -> py::object {
@@ -499,6 +508,14 @@ PYBIND11_MODULE(_lmalign, m) {
       .def("__repr__", [](const python::AlignOutcome& o) {
         return "<lmalign.AlignmentResult " + o.summary.BriefReport() + ">";
       });
+}
+
+void bind_align(py::module_& m) {
+  AlignmentResultClass result(m, "AlignmentResult",
+                              "What lmalign.align() returns (see its docstring).");
+  bind_alignment_estimate(result);
+  bind_alignment_verdict(result);
+  bind_alignment_uncertainty(result);
 
   m.def(
       "_align",
@@ -631,8 +648,9 @@ PYBIND11_MODULE(_lmalign, m) {
       "The strategy's settings, one dict per setting: key, value (as text), unit, bound, doc "
       "(`lmalign options NAME`). Any of them can be given to align(..., settings={key: value}).");
   m.attr("RECOMMENDED_STRATEGY") = recommended_preset().name;
+}
 
-  // ------------------------------------------------------------ split
+void bind_split(py::module_& m) {
   m.def(
       "split",
       [](const Map& map, Id first, Id last, std::size_t min_observations, bool retriangulate,
@@ -671,8 +689,9 @@ PYBIND11_MODULE(_lmalign, m) {
       "with what `lmalign split` prints: frames_kept, landmarks_kept, "
       "landmarks_outside_window, dropped_too_few_observations, dropped_low_parallax, "
       "dropped_triangulation_failed. Raises InvalidArgument.");
+}
 
-  // ------------------------------------------------------------ trajectories
+void bind_trajectories(py::module_& m) {
   m.def(
       "read_tum_trajectory",
       [](const std::filesystem::path& path) {
@@ -723,8 +742,9 @@ PYBIND11_MODULE(_lmalign, m) {
       "maps the estimate's world onto the ground truth's), ate_translation_m, ate_rotation_deg, "
       "rpe_translation_m, rpe_rotation_deg (each: count, rmse, mean, median, std, min, max). "
       "Raises InvalidArgument (fewer than 3 associated poses), ParseError, IoError.");
+}
 
-  // ------------------------------------------------------------ experiment
+void bind_experiment(py::module_& m) {
   m.def(
       "_experiment",
       [](const std::filesystem::path& config_path, const std::filesystem::path& output_dir,
@@ -768,6 +788,19 @@ PYBIND11_MODULE(_lmalign, m) {
       },
       py::arg("config"), py::arg("output_dir"), py::arg("only"), py::arg("threads"),
       py::arg("data_dir"));
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_lmalign, m) {
+  m.doc() = "lmalign's compiled core; use the lmalign package (docs/python.md).";
+  bind_exceptions(m);
+  bind_map(m);
+  bind_geometry(m);
+  bind_align(m);
+  bind_split(m);
+  bind_trajectories(m);
+  bind_experiment(m);
 
   // ------------------------------------------------------------ merge (lmalign::merge)
 #ifdef LMALIGN_HAVE_MERGE

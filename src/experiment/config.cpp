@@ -513,6 +513,112 @@ class Parser {
     return values;
   }
 
+  // An experiment's displacement, the keys `varied` left out (they are its own).
+  void pose_without(const MapView& m, const std::vector<std::string>& varied,
+                    ExperimentSpec* e) const {
+    if (m.has("pose")) e->pose = pose(m.get("pose"), m.path("pose"), varied);
+  }
+
+  // type neighbourhood: its k values.
+  void neighbourhood_keys(const MapView& m, ExperimentSpec* out) const {
+    ExperimentSpec& e = *out;
+    m.require("k_values", "the neighbourhood sizes to try");
+    const YAML::Node& kv = m.get("k_values");
+    const std::string w = m.path("k_values");
+    if (!kv.IsSequence() || kv.size() == 0)
+      fail(kv, w, "expected a non-empty list of integers in [1, 4096]");
+    std::size_t i = 0;
+    for (auto it = kv.begin(); it != kv.end(); ++it, ++i) {
+      const int k = static_cast<int>(integer(*it, w + "[" + std::to_string(i) + "]", 1, kMaxK));
+      if (std::find(e.k_values.begin(), e.k_values.end(), k) != e.k_values.end()) {
+        fail(*it, w, "k = " + std::to_string(k) + " is listed twice");
+      }
+      e.k_values.push_back(k);
+    }
+    pose_without(m, {}, &e);
+  }
+
+  // type xy: fixed offsets per quadrant, or an escalation.
+  void xy_keys(const MapView& m, const std::string& where, ExperimentSpec* out) const {
+    ExperimentSpec& e = *out;
+    if (m.has("offsets_m") == m.has("escalate")) {
+      fail(m.node(), where,
+           "give exactly one of 'offsets_m' (fixed offsets per quadrant) and 'escalate'");
+    }
+    if (m.has("offsets_m")) {
+      if (m.has("quadrants")) {
+        fail(m.key_node("quadrants"), m.path("quadrants"),
+             "only applies with 'escalate' (offsets_m names its quadrants)");
+      }
+      const YAML::Node& o = m.get("offsets_m");
+      const std::string w = m.path("offsets_m");
+      if (!o.IsMap() || o.size() == 0) {
+        fail(o, w,
+             "expected a mapping from quadrant (+X+Y, -X+Y, -X-Y, +X-Y) to a list of offsets "
+             "in metres");
+      }
+      std::vector<std::string> names;
+      for (const Quadrant& q : Quadrant::all()) names.push_back(q.name());
+      const MapView om(*this, o, w, names);
+      for (auto it = o.begin(); it != o.end(); ++it) {
+        Quadrant q;
+        Quadrant::parse(it->first.Scalar(), &q);
+        const std::string qw = w + "." + q.name();
+        std::vector<double> offsets = number_list(it->second, qw);
+        require_distinct(it->second, qw, offsets);
+        for (double v : offsets) {
+          if (!(v > 0.0)) fail(it->second, qw, "offsets must be > 0, got " + shortest(v));
+        }
+        e.offsets_m.emplace_back(q, std::move(offsets));
+      }
+    } else {
+      e.escalate = true;
+      const MapView em(*this, m.get("escalate"), m.path("escalate"), keys_of(kEscalate));
+      read_rows(em, kEscalate, "", Owner::kEscalation, &e.escalation);
+      if (e.escalation.max_m < e.escalation.start_m) {
+        fail(m.get("escalate"), m.path("escalate"),
+             "max_m (" + shortest(e.escalation.max_m) + ") < start_m (" +
+                 shortest(e.escalation.start_m) + ")");
+      }
+      if ((e.escalation.max_m - e.escalation.start_m) / e.escalation.step_m > 10000) {
+        fail(m.get("escalate"), m.path("escalate"), "more than 10000 levels; use a larger step_m");
+      }
+      e.quadrants =
+          m.has("quadrants") ? quadrants(m.get("quadrants"), m.path("quadrants")) : Quadrant::all();
+    }
+    pose_without(m, {"x_m", "y_m"}, &e);
+  }
+
+  // type basin: its levels and draws.
+  void basin_keys(const MapView& m, const std::string& where, const std::string& type,
+                  const ExperimentConfig& config, ExperimentSpec* e) const {
+    BasinSpec& b = e->basin;
+    b.seed = config.seed;
+    if (m.has("levels")) {
+      const MapView lm(*this, m.get("levels"), m.path("levels"), keys_of(kLevels));
+      b.yaw_levels_deg.clear();
+      b.translation_levels_m.clear();
+      if (lm.has("yaw_deg")) b.yaw_levels_deg = levels(lm, "yaw_deg", 0.0, 180.0);
+      if (lm.has("translation_m")) {
+        b.translation_levels_m =
+            levels(lm, "translation_m", 0.0, std::numeric_limits<double>::infinity());
+      }
+      if (b.yaw_levels_deg.empty() && b.translation_levels_m.empty()) {
+        fail(m.get("levels"), m.path("levels"), "expected yaw_deg and/or translation_m levels");
+      }
+    }
+    read_rows(m, kExperiments, type, Owner::kBasin, &b);
+    // levels x samples is unbounded otherwise (up to 2e10 cases): cap it like one list
+    // (docs/robustness.md; found by fuzz_experiment_config).
+    if (const std::size_t cases = (b.yaw_levels_deg.size() + b.translation_levels_m.size()) *
+                                  static_cast<std::size_t>(b.samples);
+        cases > kMaxCasesPerList) {
+      fail(m.has("samples") ? m.get("samples") : m.node(), where,
+           "levels x samples = " + std::to_string(cases) + " cases, more than " +
+               std::to_string(kMaxCasesPerList));
+    }
+  }
+
   ExperimentSpec experiment(const YAML::Node& n, const std::string& where,
                             const ExperimentConfig& config) const {
     ExperimentSpec e;
@@ -552,83 +658,21 @@ class Parser {
            "expected 1-64 letters, digits, '_', '-' or '.', got '" + e.name + "'");
     }
     if (m.has("strategies")) e.strategies = strategies(m.get("strategies"), m.path("strategies"));
-    auto pose_without = [&](const std::vector<std::string>& varied) {
-      if (m.has("pose")) e.pose = pose(m.get("pose"), m.path("pose"), varied);
-    };
 
     switch (e.type) {
       case ExperimentType::kNeighbourhood: {
-        m.require("k_values", "the neighbourhood sizes to try");
-        const YAML::Node& kv = m.get("k_values");
-        const std::string w = m.path("k_values");
-        if (!kv.IsSequence() || kv.size() == 0)
-          fail(kv, w, "expected a non-empty list of integers in [1, 4096]");
-        std::size_t i = 0;
-        for (auto it = kv.begin(); it != kv.end(); ++it, ++i) {
-          const int k = static_cast<int>(integer(*it, w + "[" + std::to_string(i) + "]", 1, kMaxK));
-          if (std::find(e.k_values.begin(), e.k_values.end(), k) != e.k_values.end()) {
-            fail(*it, w, "k = " + std::to_string(k) + " is listed twice");
-          }
-          e.k_values.push_back(k);
-        }
-        pose_without({});
+        neighbourhood_keys(m, &e);
         break;
       }
       case ExperimentType::kYaw: {
         m.require("yaw_deg", "the yaws to try, degrees");
         e.yaw_deg = number_list(m.get("yaw_deg"), m.path("yaw_deg"));
         require_distinct(m.get("yaw_deg"), m.path("yaw_deg"), e.yaw_deg);
-        pose_without({"yaw_deg"});
+        pose_without(m, {"yaw_deg"}, &e);
         break;
       }
       case ExperimentType::kXy: {
-        if (m.has("offsets_m") == m.has("escalate")) {
-          fail(m.node(), where,
-               "give exactly one of 'offsets_m' (fixed offsets per quadrant) and 'escalate'");
-        }
-        if (m.has("offsets_m")) {
-          if (m.has("quadrants")) {
-            fail(m.key_node("quadrants"), m.path("quadrants"),
-                 "only applies with 'escalate' (offsets_m names its quadrants)");
-          }
-          const YAML::Node& o = m.get("offsets_m");
-          const std::string w = m.path("offsets_m");
-          if (!o.IsMap() || o.size() == 0) {
-            fail(o, w,
-                 "expected a mapping from quadrant (+X+Y, -X+Y, -X-Y, +X-Y) to a list of offsets "
-                 "in metres");
-          }
-          std::vector<std::string> names;
-          for (const Quadrant& q : Quadrant::all()) names.push_back(q.name());
-          const MapView om(*this, o, w, names);
-          for (auto it = o.begin(); it != o.end(); ++it) {
-            Quadrant q;
-            Quadrant::parse(it->first.Scalar(), &q);
-            const std::string qw = w + "." + q.name();
-            std::vector<double> offsets = number_list(it->second, qw);
-            require_distinct(it->second, qw, offsets);
-            for (double v : offsets) {
-              if (!(v > 0.0)) fail(it->second, qw, "offsets must be > 0, got " + shortest(v));
-            }
-            e.offsets_m.emplace_back(q, std::move(offsets));
-          }
-        } else {
-          e.escalate = true;
-          const MapView em(*this, m.get("escalate"), m.path("escalate"), keys_of(kEscalate));
-          read_rows(em, kEscalate, "", Owner::kEscalation, &e.escalation);
-          if (e.escalation.max_m < e.escalation.start_m) {
-            fail(m.get("escalate"), m.path("escalate"),
-                 "max_m (" + shortest(e.escalation.max_m) + ") < start_m (" +
-                     shortest(e.escalation.start_m) + ")");
-          }
-          if ((e.escalation.max_m - e.escalation.start_m) / e.escalation.step_m > 10000) {
-            fail(m.get("escalate"), m.path("escalate"),
-                 "more than 10000 levels; use a larger step_m");
-          }
-          e.quadrants = m.has("quadrants") ? quadrants(m.get("quadrants"), m.path("quadrants"))
-                                           : Quadrant::all();
-        }
-        pose_without({"x_m", "y_m"});
+        xy_keys(m, where, &e);
         break;
       }
       case ExperimentType::kXyYaw: {
@@ -637,7 +681,7 @@ class Parser {
         require_distinct(m.get("yaw_deg"), m.path("yaw_deg"), e.yaw_deg);
         e.quadrants = m.has("quadrants") ? quadrants(m.get("quadrants"), m.path("quadrants"))
                                          : Quadrant::all();
-        pose_without({"x_m", "y_m", "yaw_deg"});
+        pose_without(m, {"x_m", "y_m", "yaw_deg"}, &e);
         break;
       }
       case ExperimentType::kPoses: {
@@ -655,31 +699,7 @@ class Parser {
         break;
       }
       case ExperimentType::kBasin: {
-        BasinSpec& b = e.basin;
-        b.seed = config.seed;
-        if (m.has("levels")) {
-          const MapView lm(*this, m.get("levels"), m.path("levels"), keys_of(kLevels));
-          b.yaw_levels_deg.clear();
-          b.translation_levels_m.clear();
-          if (lm.has("yaw_deg")) b.yaw_levels_deg = levels(lm, "yaw_deg", 0.0, 180.0);
-          if (lm.has("translation_m")) {
-            b.translation_levels_m =
-                levels(lm, "translation_m", 0.0, std::numeric_limits<double>::infinity());
-          }
-          if (b.yaw_levels_deg.empty() && b.translation_levels_m.empty()) {
-            fail(m.get("levels"), m.path("levels"), "expected yaw_deg and/or translation_m levels");
-          }
-        }
-        read_rows(m, kExperiments, type, Owner::kBasin, &b);
-        // levels x samples is unbounded otherwise (up to 2e10 cases): cap it like one list
-        // (docs/robustness.md; found by fuzz_experiment_config).
-        if (const std::size_t cases = (b.yaw_levels_deg.size() + b.translation_levels_m.size()) *
-                                      static_cast<std::size_t>(b.samples);
-            cases > kMaxCasesPerList) {
-          fail(m.has("samples") ? m.get("samples") : m.node(), where,
-               "levels x samples = " + std::to_string(cases) + " cases, more than " +
-                   std::to_string(kMaxCasesPerList));
-        }
+        basin_keys(m, where, type, config, &e);
         break;
       }
       case ExperimentType::kRandom: {

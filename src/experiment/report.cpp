@@ -490,9 +490,11 @@ void write_summary_json(std::ostream& out, const ExperimentConfig& config,
   out << j.dump(2) << "\n";
 }
 
-void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
-                           const std::vector<Case>& cases, const RunnerOutcome& outcome,
-                           const ReportSummary& summary) {
+namespace {
+
+// The report's head: the config, the maps, the limits, what success means, what ran.
+void write_report_intro(std::ostream& out, const ExperimentConfig& config,
+                        const ReportSummary& summary) {
   const bool gt = summary.has_ground_truth;
   out << "# Experiment report: " << config.name << "\n\n";
   out << "- config: `" << config.path << "`\n";
@@ -527,8 +529,12 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
     out << "; " << summary.cases_skipped << " escalation levels not needed";
   if (summary.interrupted) out << "; **interrupted: partial results**";
   out << "\n\n";
+}
 
-  // --- overview
+// The overview tables: success rate (and accuracy with a ground truth) per experiment and
+// strategy.
+void write_overview(std::ostream& out, const ReportSummary& summary) {
+  const bool gt = summary.has_ground_truth;
   std::vector<std::string> all_strategies;
   for (const StrategySummary& s : summary.overall) all_strategies.push_back(s.strategy);
   std::vector<std::string> header{"experiment"};
@@ -580,8 +586,102 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
                   false);
   }
   out << "\n";
+}
 
-  // --- per experiment
+// A basin experiment's table: success rate per level.
+void write_basin_table(std::ostream& out, const ExperimentSpec& spec, const ExperimentSummary& es,
+                       const std::vector<std::string>& h) {
+  out << "Success rate per level (" << spec.basin.samples << " seeded draws per level, seed "
+      << spec.basin.seed << "; yaw pivot: " << to_string(spec.basin.yaw_pivot)
+      << "); highest of each row in bold.\n\n"
+      << md_row(h) << md_rule(h.size());
+  for (const BasinLevelSummary& b : es.basin_levels) {
+    std::vector<std::optional<double>> values;
+    std::vector<std::string> texts, marks;
+    bool any = false;
+    for (const std::string& s : spec.strategies) {
+      const auto it = std::find_if(b.strategies.begin(), b.strategies.end(),
+                                   [&](const StrategySummary& x) { return x.strategy == s; });
+      if (it == b.strategies.end()) {
+        values.push_back(std::nullopt);
+        texts.emplace_back();
+      } else {
+        any = true;
+        values.push_back(it->success_rate);
+        texts.push_back(rate_text(it->successes, it->runs));
+      }
+      marks.emplace_back();
+    }
+    if (!any) continue;
+    std::vector<std::string> cells{b.axis == "yaw" ? "yaw " + shortest(b.level) + "°"
+                                                   : "translation " + shortest(b.level) + " m"};
+    for (const std::string& c : bold_best(values, texts, marks, true)) cells.push_back(c);
+    out << md_row(cells);
+  }
+  out << "\n";
+}
+
+// The other experiments' tables: one row per finished case, per metric.
+void write_case_tables(std::ostream& out, const std::vector<Case>& cases,
+                       const RunnerOutcome& outcome, bool gt, std::size_t ei,
+                       const ExperimentSpec& spec, const std::vector<std::string>& h) {
+  // One row per finished case.
+  std::map<std::size_t, std::vector<const RunRecord*>> by_case;
+  for (const RunRecord& r : outcome.records) {
+    if (cases.at(r.case_index).experiment_index == ei) by_case[r.case_index].push_back(&r);
+  }
+  struct Metric {
+    std::string title;
+    std::function<double(const RunRecord&)> value;
+    std::function<std::string(double)> text;
+  };
+  std::vector<Metric> metrics{{"Final score (×10⁻³ m²)",
+                               [](const RunRecord& r) { return r.final_score_m2; },
+                               [](double v) { return fixed(v * 1e3, 4); }}};
+  if (gt) {
+    metrics.push_back({"Rotation error (°)",
+                       [](const RunRecord& r) { return r.error ? r.error->rotation_deg : NAN; },
+                       [](double v) { return fixed(v, 2); }});
+    metrics.push_back({"Translation error (cm)",
+                       [](const RunRecord& r) { return r.error ? r.error->translation_m : NAN; },
+                       [](double v) { return fixed(v * 100.0, 1); }});
+  }
+  for (const Metric& m : metrics) {
+    out << m.title << ": lowest of each row in bold; ✗ = failed ("
+        << (gt ? "wrong basin" : "score above the threshold") << ").\n\n"
+        << md_row(h) << md_rule(h.size());
+    for (const auto& [ci, runs] : by_case) {
+      std::vector<std::optional<double>> values;
+      std::vector<std::string> texts, marks;
+      for (const std::string& s : spec.strategies) {
+        const auto it = std::find_if(runs.begin(), runs.end(),
+                                     [&](const RunRecord* r) { return r->strategy == s; });
+        if (it == runs.end()) {
+          values.push_back(std::nullopt);
+          texts.emplace_back();
+          marks.emplace_back();
+        } else {
+          const double v = m.value(**it);
+          values.push_back(v);
+          texts.push_back(m.text(v));
+          marks.push_back((*it)->decision.success ? "" : " ✗");
+        }
+      }
+      std::vector<std::string> cells{cases[ci].label};
+      for (const std::string& c : bold_best(values, texts, marks, false)) cells.push_back(c);
+      out << md_row(cells);
+    }
+    out << "\n";
+  }
+}
+
+}  // namespace
+
+void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
+                           const std::vector<Case>& cases, const RunnerOutcome& outcome,
+                           const ReportSummary& summary) {
+  write_report_intro(out, config, summary);
+  write_overview(out, summary);
   for (std::size_t ei = 0; ei < config.experiments.size(); ++ei) {
     const ExperimentSpec& spec = config.experiments[ei];
     const ExperimentSummary& es = summary.experiments[ei];
@@ -593,83 +693,9 @@ void write_tables_markdown(std::ostream& out, const ExperimentConfig& config,
       continue;
     }
     if (spec.type == ExperimentType::kBasin) {
-      out << "Success rate per level (" << spec.basin.samples << " seeded draws per level, seed "
-          << spec.basin.seed << "; yaw pivot: " << to_string(spec.basin.yaw_pivot)
-          << "); highest of each row in bold.\n\n"
-          << md_row(h) << md_rule(h.size());
-      for (const BasinLevelSummary& b : es.basin_levels) {
-        std::vector<std::optional<double>> values;
-        std::vector<std::string> texts, marks;
-        bool any = false;
-        for (const std::string& s : spec.strategies) {
-          const auto it = std::find_if(b.strategies.begin(), b.strategies.end(),
-                                       [&](const StrategySummary& x) { return x.strategy == s; });
-          if (it == b.strategies.end()) {
-            values.push_back(std::nullopt);
-            texts.emplace_back();
-          } else {
-            any = true;
-            values.push_back(it->success_rate);
-            texts.push_back(rate_text(it->successes, it->runs));
-          }
-          marks.emplace_back();
-        }
-        if (!any) continue;
-        std::vector<std::string> cells{b.axis == "yaw" ? "yaw " + shortest(b.level) + "°"
-                                                       : "translation " + shortest(b.level) + " m"};
-        for (const std::string& c : bold_best(values, texts, marks, true)) cells.push_back(c);
-        out << md_row(cells);
-      }
-      out << "\n";
-      continue;
-    }
-    // One row per finished case.
-    std::map<std::size_t, std::vector<const RunRecord*>> by_case;
-    for (const RunRecord& r : outcome.records) {
-      if (cases.at(r.case_index).experiment_index == ei) by_case[r.case_index].push_back(&r);
-    }
-    struct Metric {
-      std::string title;
-      std::function<double(const RunRecord&)> value;
-      std::function<std::string(double)> text;
-    };
-    std::vector<Metric> metrics{{"Final score (×10⁻³ m²)",
-                                 [](const RunRecord& r) { return r.final_score_m2; },
-                                 [](double v) { return fixed(v * 1e3, 4); }}};
-    if (gt) {
-      metrics.push_back({"Rotation error (°)",
-                         [](const RunRecord& r) { return r.error ? r.error->rotation_deg : NAN; },
-                         [](double v) { return fixed(v, 2); }});
-      metrics.push_back({"Translation error (cm)",
-                         [](const RunRecord& r) { return r.error ? r.error->translation_m : NAN; },
-                         [](double v) { return fixed(v * 100.0, 1); }});
-    }
-    for (const Metric& m : metrics) {
-      out << m.title << ": lowest of each row in bold; ✗ = failed ("
-          << (gt ? "wrong basin" : "score above the threshold") << ").\n\n"
-          << md_row(h) << md_rule(h.size());
-      for (const auto& [ci, runs] : by_case) {
-        std::vector<std::optional<double>> values;
-        std::vector<std::string> texts, marks;
-        for (const std::string& s : spec.strategies) {
-          const auto it = std::find_if(runs.begin(), runs.end(),
-                                       [&](const RunRecord* r) { return r->strategy == s; });
-          if (it == runs.end()) {
-            values.push_back(std::nullopt);
-            texts.emplace_back();
-            marks.emplace_back();
-          } else {
-            const double v = m.value(**it);
-            values.push_back(v);
-            texts.push_back(m.text(v));
-            marks.push_back((*it)->decision.success ? "" : " ✗");
-          }
-        }
-        std::vector<std::string> cells{cases[ci].label};
-        for (const std::string& c : bold_best(values, texts, marks, false)) cells.push_back(c);
-        out << md_row(cells);
-      }
-      out << "\n";
+      write_basin_table(out, spec, es, h);
+    } else {
+      write_case_tables(out, cases, outcome, summary.has_ground_truth, ei, spec, h);
     }
   }
 }

@@ -139,126 +139,168 @@ AlignRequest run_request(const ExperimentConfig& config, const std::string& stra
   return r;
 }
 
-RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>& cases,
-                        const Points3& source_points, const PreparedTarget& target,
-                        const std::optional<Isometry3>& ground_truth,
-                        const RunnerOptions& options) {
-  // --- validate everything before any run
-  if (options.threads < 0) throw InvalidArgument("runner: threads must be >= 0");
-  for (std::size_t i = 0; i < cases.size(); ++i) {
-    const Case& c = cases[i];
-    if (c.index != i)
-      throw InvalidArgument("runner: cases must come from expand_cases() (index mismatch at " +
-                            std::to_string(i) + ")");
-    if (c.strategies.empty()) throw InvalidArgument("runner: case " + c.id() + " has no strategy");
-    for (const std::string& s : c.strategies) {
-      // Every setting within its bound before any run (the pipeline validates its table).
-      try {
-        run_request(config, s, c.k, options).resolve(find_preset(s));
-      } catch (const InvalidArgument& e) {
-        throw InvalidArgument("runner: case " + c.id() + ", " + s + ": " + e.what());
+namespace {
+
+// One run_cases() (runner.hpp), phase by phase: the checks, the records of an earlier run, waves
+// of runs in parallel (runs with provably identical results shared), the escalation groups'
+// next levels, the outcome.
+class CaseRunner {
+ public:
+  CaseRunner(const ExperimentConfig& config, const std::vector<Case>& cases,
+             const Points3& source_points, const PreparedTarget& target,
+             const std::optional<Isometry3>& ground_truth, const RunnerOptions& options)
+      : config_(config),
+        cases_(cases),
+        source_points_(source_points),
+        target_(target),
+        ground_truth_(ground_truth),
+        options_(options) {}
+
+  RunnerOutcome run() {
+    validate();
+    threads_ = options_.threads > 0 ? options_.threads : std::max(1, omp_get_num_procs());
+    bookkeeping();
+    preload();
+    // The presets, read once (find_preset copies).
+    for (const Case& c : cases_) {
+      for (const std::string& s : c.strategies) {
+        if (preset_of_.count(s) == 0) preset_of_.emplace(s, find_preset(s));
       }
     }
-    if (options.source_covariances_m2 != nullptr &&
-        options.source_covariances_m2->size() != source_points.size()) {
-      throw InvalidArgument("runner: case " + c.id() +
-                            ": one source covariance per source point expected");
+    // Wave 0: everything but escalation levels > 0 (and but the cases already finished).
+    std::vector<Task> wave;
+    for (const Case& c : cases_) {
+      if (preloaded_[c.index]) continue;
+      if (c.escalation_group < 0 || c.escalation_level == 0) add_case(&wave, c.index);
     }
-    if (options.source_view_directions != nullptr &&
-        options.source_view_directions->size() != source_points.size()) {
-      throw InvalidArgument("runner: case " + c.id() +
-                            ": one source viewing direction per source point expected");
+    next_level_.assign(groups_.size(), 1);
+    for (;;) {
+      if (!wave.empty()) {
+        run_wave(wave);
+        if (cancelled()) break;
+        wave.clear();
+      }
+      next_wave(&wave);
+      if (wave.empty()) break;
     }
-    if (!is_finite(c.D))
-      throw InvalidArgument("runner: case " + c.id() + " has a non-finite displacement");
-  }
-  if (options.history_case && *options.history_case >= cases.size()) {
-    throw InvalidArgument("runner: history case " + std::to_string(*options.history_case) +
-                          " out of range (" + std::to_string(cases.size()) + " cases)");
-  }
-  if (ground_truth && !is_finite(*ground_truth))
-    throw InvalidArgument("runner: ground truth is not finite");
-  const int threads = options.threads > 0 ? options.threads : std::max(1, omp_get_num_procs());
-
-  // --- bookkeeping, indexed by case
-  std::vector<std::vector<std::optional<RunRecord>>> records(cases.size());
-  std::vector<std::size_t> remaining(cases.size());
-  std::vector<bool> planned(cases.size(), true);
-  for (std::size_t i = 0; i < cases.size(); ++i) {
-    records[i].resize(cases[i].strategies.size());
-    remaining[i] = cases[i].strategies.size();
-  }
-  // Escalation groups: their cases in level order.
-  std::vector<std::vector<std::size_t>> groups;
-  for (const Case& c : cases) {
-    if (c.escalation_group < 0) continue;
-    if (static_cast<std::size_t>(c.escalation_group) >= groups.size())
-      groups.resize(c.escalation_group + 1);
-    groups[c.escalation_group].push_back(c.index);
+    outcome_.cancelled = cancelled();
+    outcome_.cases_planned = progress_.cases_total;
+    for (std::size_t i = 0; i < cases_.size(); ++i) {
+      if (!planned_[i] || remaining_[i] != 0) continue;
+      ++outcome_.cases_finished;
+      for (auto& r : records_[i]) outcome_.records.push_back(std::move(*r));
+    }
+    return std::move(outcome_);
   }
 
-  RunnerProgress progress;
-  for (const Case& c : cases) progress.runs_total += c.strategies.size();
-  progress.cases_total = cases.size();
+ private:
+  bool cancelled() const { return options_.cancel != nullptr && options_.cancel->load(); }
 
-  // --- cases finished by an earlier run: complete, in strategy order
-  std::vector<bool> preloaded(cases.size(), false);
-  for (const RunRecord& r : options.already_finished) {
-    if (r.case_index >= cases.size())
-      throw InvalidArgument("runner: a finished record names case " + std::to_string(r.case_index) +
-                            " of " + std::to_string(cases.size()));
-    const Case& c = cases[r.case_index];
-    const std::size_t slot = c.strategies.size() - remaining[c.index];
-    if (remaining[c.index] == 0 || c.strategies[slot] != r.strategy || r.k != c.k)
-      throw InvalidArgument("runner: the finished records of case " + c.id() +
-                            " do not match its strategies");
-    records[c.index][slot] = r;
-    preloaded[c.index] = true;
-    --remaining[c.index];
-    ++progress.runs_done;
+  // Everything checked before any run.
+  void validate() const {
+    if (options_.threads < 0) throw InvalidArgument("runner: threads must be >= 0");
+    for (std::size_t i = 0; i < cases_.size(); ++i) {
+      const Case& c = cases_[i];
+      if (c.index != i)
+        throw InvalidArgument("runner: cases must come from expand_cases() (index mismatch at " +
+                              std::to_string(i) + ")");
+      if (c.strategies.empty()) {
+        throw InvalidArgument("runner: case " + c.id() + " has no strategy");
+      }
+      for (const std::string& s : c.strategies) {
+        // Every setting within its bound before any run (the pipeline validates its table).
+        try {
+          run_request(config_, s, c.k, options_).resolve(find_preset(s));
+        } catch (const InvalidArgument& e) {
+          throw InvalidArgument("runner: case " + c.id() + ", " + s + ": " + e.what());
+        }
+      }
+      if (options_.source_covariances_m2 != nullptr &&
+          options_.source_covariances_m2->size() != source_points_.size()) {
+        throw InvalidArgument("runner: case " + c.id() +
+                              ": one source covariance per source point expected");
+      }
+      if (options_.source_view_directions != nullptr &&
+          options_.source_view_directions->size() != source_points_.size()) {
+        throw InvalidArgument("runner: case " + c.id() +
+                              ": one source viewing direction per source point expected");
+      }
+      if (!is_finite(c.D))
+        throw InvalidArgument("runner: case " + c.id() + " has a non-finite displacement");
+    }
+    if (options_.history_case && *options_.history_case >= cases_.size()) {
+      throw InvalidArgument("runner: history case " + std::to_string(*options_.history_case) +
+                            " out of range (" + std::to_string(cases_.size()) + " cases)");
+    }
+    if (ground_truth_ && !is_finite(*ground_truth_))
+      throw InvalidArgument("runner: ground truth is not finite");
   }
-  for (std::size_t i = 0; i < cases.size(); ++i) {
-    if (!preloaded[i]) continue;
-    if (remaining[i] != 0)
-      throw InvalidArgument("runner: the finished records of case " + cases[i].id() +
-                            " miss strategies");
-    ++progress.cases_done;
+
+  // Records, counts and escalation groups (their cases in level order), indexed by case.
+  void bookkeeping() {
+    records_.resize(cases_.size());
+    remaining_.resize(cases_.size());
+    planned_.assign(cases_.size(), true);
+    for (std::size_t i = 0; i < cases_.size(); ++i) {
+      records_[i].resize(cases_[i].strategies.size());
+      remaining_[i] = cases_[i].strategies.size();
+    }
+    for (const Case& c : cases_) {
+      if (c.escalation_group < 0) continue;
+      if (static_cast<std::size_t>(c.escalation_group) >= groups_.size())
+        groups_.resize(c.escalation_group + 1);
+      groups_[c.escalation_group].push_back(c.index);
+    }
+    for (const Case& c : cases_) progress_.runs_total += c.strategies.size();
+    progress_.cases_total = cases_.size();
   }
 
-  RunnerOutcome outcome;
-  std::mutex mutex;
-  // An exception may not leave the parallel loop: the first one stops the remaining runs and is
-  // rethrown after it.
-  FirstException error;
-  auto cancelled = [&] { return options.cancel != nullptr && options.cancel->load(); };
-
-  // The presets, read once (find_preset copies).
-  std::map<std::string, Preset> preset_of;
-  for (const Case& c : cases) {
-    for (const std::string& s : c.strategies) {
-      if (preset_of.count(s) == 0) preset_of.emplace(s, find_preset(s));
+  // Cases finished by an earlier run: complete, in strategy order.
+  void preload() {
+    preloaded_.assign(cases_.size(), false);
+    for (const RunRecord& r : options_.already_finished) {
+      if (r.case_index >= cases_.size())
+        throw InvalidArgument("runner: a finished record names case " +
+                              std::to_string(r.case_index) + " of " +
+                              std::to_string(cases_.size()));
+      const Case& c = cases_[r.case_index];
+      const std::size_t slot = c.strategies.size() - remaining_[c.index];
+      if (remaining_[c.index] == 0 || c.strategies[slot] != r.strategy || r.k != c.k)
+        throw InvalidArgument("runner: the finished records of case " + c.id() +
+                              " do not match its strategies");
+      records_[c.index][slot] = r;
+      preloaded_[c.index] = true;
+      --remaining_[c.index];
+      ++progress_.runs_done;
+    }
+    for (std::size_t i = 0; i < cases_.size(); ++i) {
+      if (!preloaded_[i]) continue;
+      if (remaining_[i] != 0)
+        throw InvalidArgument("runner: the finished records of case " + cases_[i].id() +
+                              " miss strategies");
+      ++progress_.cases_done;
     }
   }
 
-  auto run_one = [&](const Task& t) {
-    const Case& c = cases[t.case_index];
+  RunRecord run_one(const Task& t) const {
+    const Case& c = cases_[t.case_index];
     const std::string& s = c.strategies[t.slot];
-    const bool history = options.history_case && *options.history_case == c.index;
+    const bool history = options_.history_case && *options_.history_case == c.index;
     // As `lmalign align` runs it: the source displaced by D, its covariances and up axis with
     // it (C' = R_D C R_D^T), the config's k, limits, scale and settings.
     SourceLandmarks undisplaced;
-    undisplaced.positions = source_points;
-    if (options.source_covariances_m2 != nullptr) {
-      undisplaced.covariances_m2 = *options.source_covariances_m2;
+    undisplaced.positions = source_points_;
+    if (options_.source_covariances_m2 != nullptr) {
+      undisplaced.covariances_m2 = *options_.source_covariances_m2;
     }
-    undisplaced.up = options.source_up;
-    if (options.source_view_directions != nullptr) {
-      undisplaced.view_directions = *options.source_view_directions;
+    undisplaced.up = options_.source_up;
+    if (options_.source_view_directions != nullptr) {
+      undisplaced.view_directions = *options_.source_view_directions;
     }
     const SourceLandmarks moved = undisplaced.moved(c.D);
-    AlignRequest request = run_request(config, s, c.k, options);
+    AlignRequest request = run_request(config_, s, c.k, options_);
     request.record_history = history;
-    const Summary summary = align(preset_of.at(s), moved.view(), target, request);
+    const Summary summary = align(preset_of_.at(s), moved.view(), target_, request);
     const RegistrationResult& r = summary.registration;
     const PoseCovariance& covariance = summary.covariance;
     RunRecord rec;
@@ -272,52 +314,53 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     rec.time_s = r.wall_time_s;
     rec.T_target_source = r.T_target_source;
     // The recovered map-to-map transform T * D against the truth: independent of D.
-    if (ground_truth) rec.error = transform_error(r.T_target_source * c.D, *ground_truth);
-    rec.decision = decide_success(config.success, rec.error, rec.final_score_m2);
+    if (ground_truth_) rec.error = transform_error(r.T_target_source * c.D, *ground_truth_);
+    rec.decision = decide_success(config_.success, rec.error, rec.final_score_m2);
     // A non-finite estimate is never trustworthy.
     if (is_finite(r.T_target_source)) rec.trustworthy = summary.verdict.trustworthy;
     if (covariance.valid) {
       rec.covariance_translation_sd_m = covariance.translation_sd_m();
       rec.covariance_rotation_sd_deg = covariance.rotation_sd_deg();
       // Cov is that of T (left perturbation); T * D = Exp(xi) T_true has the same xi.
-      if (ground_truth && is_finite(r.T_target_source)) {
-        rec.nees = nees(pose_error_twist(r.T_target_source * c.D, *ground_truth), covariance);
+      if (ground_truth_ && is_finite(r.T_target_source)) {
+        rec.nees = nees(pose_error_twist(r.T_target_source * c.D, *ground_truth_), covariance);
       }
     }
     rec.history = r.history;
     return rec;
-  };
+  }
 
-  // --- runs with provably identical results (RunnerOptions::share_identical_runs): a key that
-  // two runs share only if align() gets the same points and the same correspondence rule.
-  std::map<WeightKind, bool> positive_weights;  // every target weight of the kind > 0
-  auto all_positive = [&](WeightKind kind) {
-    auto it = positive_weights.find(kind);
-    if (it != positive_weights.end()) return it->second;
+  // Whether every target weight of the kind is > 0 (false without such weights: the run itself
+  // reports it).
+  bool all_positive(WeightKind kind) {
+    auto it = positive_weights_.find(kind);
+    if (it != positive_weights_.end()) return it->second;
     bool positive = false;
     try {
-      const std::vector<double>& w = target.weights(kind);
+      const std::vector<double>& w = target_.weights(kind);
       positive = std::all_of(w.begin(), w.end(), [](double x) { return x > 0.0; });
     } catch (const InvalidArgument&) {
-      // No such weights: the run itself reports it.
     }
-    positive_weights.emplace(kind, positive);
+    positive_weights_.emplace(kind, positive);
     return positive;
-  };
-  // Empty: the run always executes.
-  auto identity_key = [&](const Task& t) {
-    const Case& c = cases[t.case_index];
+  }
+
+  // Runs with provably identical results (RunnerOptions::share_identical_runs): a key that two
+  // runs share only if align() gets the same points and the same correspondence rule. Empty: the
+  // run always executes.
+  std::string identity_key(const Task& t) {
+    const Case& c = cases_[t.case_index];
     const std::string& s = c.strategies[t.slot];
     std::string key;
-    if (!options.share_identical_runs ||
-        (options.history_case && *options.history_case == c.index)) {
+    if (!options_.share_identical_runs ||
+        (options_.history_case && *options_.history_case == c.index)) {
       return key;
     }
     // The points: transform_points(D, source), a function of D's bits.
     key.assign(reinterpret_cast<const char*>(c.D.matrix().data()), 16 * sizeof(double));
     // The pipeline, stage by stage and setting by setting; Eq. 6 with k = 1 keeps the nearest
     // unless its weight is 0 (select_match), so it counts as the nearest neighbour then.
-    PipelineSpec spec = resolve_spec(preset_of.at(s), run_request(config, s, c.k, options));
+    PipelineSpec spec = resolve_spec(preset_of_.at(s), run_request(config_, s, c.k, options_));
     const Pipeline p(spec);
     if (spec.matcher == "weighted_knn" && p.settings().integer("match.k") == 1 &&
         all_positive(parse_weight_kind(p.settings().choice("match.confidence")))) {
@@ -332,30 +375,31 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     key += "|" + spec.initialiser + "|" + spec.matcher + "|" + spec.kernel + "|" + spec.estimator +
            "|" + spec.schedule + "|" + spec.scorer + "|" + spec.trust;
     for (const std::string& r : spec.rejectors) key += "|" + r;
-    key += "|" + q.settings().canonical_text() + "|scale=" + to_string(config.scale_of(s));
+    key += "|" + q.settings().canonical_text() + "|scale=" + to_string(config_.scale_of(s));
     return key;
-  };
+  }
 
-  // Stores a finished run's record (under `mutex`).
-  auto store = [&](const Task& t, RunRecord rec) {
-    records[t.case_index][t.slot] = std::move(rec);
-    ++progress.runs_done;
-    if (--remaining[t.case_index] == 0) {
-      ++progress.cases_done;
-      if (options.on_case_finished) {
+  // Stores a finished run's record (under `mutex_`).
+  void store(const Task& t, RunRecord rec) {
+    records_[t.case_index][t.slot] = std::move(rec);
+    ++progress_.runs_done;
+    if (--remaining_[t.case_index] == 0) {
+      ++progress_.cases_done;
+      if (options_.on_case_finished) {
         std::vector<RunRecord> finished;
-        for (const auto& r : records[t.case_index]) finished.push_back(*r);
-        options.on_case_finished(cases[t.case_index], finished);
+        for (const auto& r : records_[t.case_index]) finished.push_back(*r);
+        options_.on_case_finished(cases_[t.case_index], finished);
       }
     }
-    if (options.on_progress) options.on_progress(progress);
-  };
+    if (options_.on_progress) options_.on_progress(progress_);
+  }
 
-  auto run_wave = [&](const std::vector<Task>& tasks) {
-    // The first run of each identity key executes; the others (copies[i] for runs[i]) take its
-    // record.
+  // The tasks in parallel; the first run of each identity key executes, the others take its
+  // record. An exception may not leave the parallel loop: the first one stops the remaining runs
+  // and is rethrown after it.
+  void run_wave(const std::vector<Task>& tasks) {
     std::vector<Task> runs;
-    std::vector<std::vector<Task>> copies;
+    std::vector<std::vector<Task>> copies;  // copies[i]: the tasks that take runs[i]'s record
     std::map<std::string, std::size_t> first_of_key;
     for (const Task& t : tasks) {
       const std::string key = identity_key(t);
@@ -371,95 +415,103 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
     }
     const SingleLevelParallelism single_level;
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(runs.size());
-#pragma omp parallel num_threads(threads) proc_bind(spread)
+#pragma omp parallel num_threads(threads_) proc_bind(spread)
     {
       // Inner (ICP) parallel regions of this worker get one thread, even when the team has
       // one thread and is therefore not an active level.
       omp_set_num_threads(1);
 #pragma omp for schedule(dynamic, 1)
       for (std::ptrdiff_t i = 0; i < n; ++i) {
-        if (error.failed() || cancelled()) continue;
+        if (error_.failed() || cancelled()) continue;
         const Task& t = runs[static_cast<std::size_t>(i)];
-        error.capture([&] {
+        error_.capture([&] {
           RunRecord rec = run_one(t);
-          std::lock_guard<std::mutex> lock(mutex);
-          if (error.failed()) return;
+          std::lock_guard<std::mutex> lock(mutex_);
+          if (error_.failed()) return;
           for (const Task& u : copies[static_cast<std::size_t>(i)]) {
             // Same D, hence the same error and decision; only the labels differ.
             RunRecord copy = rec;
-            copy.case_index = cases[u.case_index].index;
-            copy.strategy = cases[u.case_index].strategies[u.slot];
-            copy.k = cases[u.case_index].k;
+            copy.case_index = cases_[u.case_index].index;
+            copy.strategy = cases_[u.case_index].strategies[u.slot];
+            copy.k = cases_[u.case_index].k;
             store(u, std::move(copy));
-            ++outcome.runs_shared;
+            ++outcome_.runs_shared;
           }
           store(t, std::move(rec));
         });
       }
     }
-    error.rethrow();
-  };
-
-  auto add_case = [&](std::vector<Task>& tasks, std::size_t ci) {
-    for (std::size_t s = 0; s < cases[ci].strategies.size(); ++s) tasks.push_back({ci, s});
-  };
-
-  // Wave 0: everything but escalation levels > 0 (and but the cases already finished).
-  std::vector<Task> wave;
-  for (const Case& c : cases) {
-    if (preloaded[c.index]) continue;
-    if (c.escalation_group < 0 || c.escalation_level == 0) add_case(wave, c.index);
+    error_.rethrow();
   }
-  std::vector<std::size_t> next_level(groups.size(), 1);
-  for (;;) {
-    if (!wave.empty()) {
-      run_wave(wave);
-      if (cancelled()) break;
-      wave.clear();
-    }
-    // A group goes on only if every strategy succeeded at its last level (stop: all: if any did).
-    // A next level finished by an earlier run is taken as it is and the group decided again.
-    std::lock_guard<std::mutex> lock(mutex);
-    for (std::size_t g = 0; g < groups.size(); ++g) {
+
+  void add_case(std::vector<Task>* tasks, std::size_t ci) const {
+    for (std::size_t s = 0; s < cases_[ci].strategies.size(); ++s) tasks->push_back({ci, s});
+  }
+
+  // The escalation groups' next levels: a group goes on only if every strategy succeeded at its
+  // last level (stop: all: if any did). A next level finished by an earlier run is taken as it
+  // is and the group decided again.
+  void next_wave(std::vector<Task>* wave) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    for (std::size_t g = 0; g < groups_.size(); ++g) {
       for (;;) {
-        const std::size_t level = next_level[g];
-        if (level == 0 || level >= groups[g].size()) break;
-        const std::size_t last = groups[g][level - 1];
+        const std::size_t level = next_level_[g];
+        if (level == 0 || level >= groups_[g].size()) break;
+        const std::size_t last = groups_[g][level - 1];
         const bool any_must_succeed =
-            config.experiments[cases[last].experiment_index].escalation.stop_when_all_fail;
+            config_.experiments[cases_[last].experiment_index].escalation.stop_when_all_fail;
         std::size_t ok = 0;
-        for (const auto& r : records[last]) ok += r && r->decision.success ? 1 : 0;
+        for (const auto& r : records_[last]) ok += r && r->decision.success ? 1 : 0;
         const bool go_on =
-            remaining[last] == 0 && (any_must_succeed ? ok > 0 : ok == records[last].size());
+            remaining_[last] == 0 && (any_must_succeed ? ok > 0 : ok == records_[last].size());
         if (go_on) {
-          ++next_level[g];
-          if (preloaded[groups[g][level]]) continue;
-          add_case(wave, groups[g][level]);
+          ++next_level_[g];
+          if (preloaded_[groups_[g][level]]) continue;
+          add_case(wave, groups_[g][level]);
         } else {
-          for (std::size_t l = level; l < groups[g].size(); ++l) {
-            const std::size_t ci = groups[g][l];
-            planned[ci] = false;
-            ++outcome.cases_skipped;
-            progress.runs_total -= cases[ci].strategies.size();
-            --progress.cases_total;
+          for (std::size_t l = level; l < groups_[g].size(); ++l) {
+            const std::size_t ci = groups_[g][l];
+            planned_[ci] = false;
+            ++outcome_.cases_skipped;
+            progress_.runs_total -= cases_[ci].strategies.size();
+            --progress_.cases_total;
           }
-          next_level[g] = 0;  // stopped
-          if (options.on_progress) options.on_progress(progress);
+          next_level_[g] = 0;  // stopped
+          if (options_.on_progress) options_.on_progress(progress_);
         }
         break;
       }
     }
-    if (wave.empty()) break;
   }
 
-  outcome.cancelled = cancelled();
-  outcome.cases_planned = progress.cases_total;
-  for (std::size_t i = 0; i < cases.size(); ++i) {
-    if (!planned[i] || remaining[i] != 0) continue;
-    ++outcome.cases_finished;
-    for (auto& r : records[i]) outcome.records.push_back(std::move(*r));
-  }
-  return outcome;
+  const ExperimentConfig& config_;
+  const std::vector<Case>& cases_;
+  const Points3& source_points_;
+  const PreparedTarget& target_;
+  const std::optional<Isometry3>& ground_truth_;
+  const RunnerOptions& options_;
+  int threads_ = 1;
+  std::vector<std::vector<std::optional<RunRecord>>> records_;
+  std::vector<std::size_t> remaining_;
+  std::vector<bool> planned_;
+  std::vector<bool> preloaded_;
+  std::vector<std::vector<std::size_t>> groups_;
+  std::vector<std::size_t> next_level_;
+  RunnerProgress progress_;
+  RunnerOutcome outcome_;
+  std::mutex mutex_;
+  FirstException error_;
+  std::map<std::string, Preset> preset_of_;
+  std::map<WeightKind, bool> positive_weights_;
+};
+
+}  // namespace
+
+RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>& cases,
+                        const Points3& source_points, const PreparedTarget& target,
+                        const std::optional<Isometry3>& ground_truth,
+                        const RunnerOptions& options) {
+  return CaseRunner(config, cases, source_points, target, ground_truth, options).run();
 }
 
 }  // namespace lmalign

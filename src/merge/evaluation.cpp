@@ -96,41 +96,67 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
   return evaluate_merge(result, edges, S, thresholds);
 }
 
-MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge>& edges,
-                               const std::vector<Similarity3>& truth,
-                               const GroundTruthThresholds& thresholds) {
-  const std::size_t n = result.maps.size();
-  if (truth.size() != n || result.edges.size() != edges.size()) {
-    throw InvalidArgument("evaluate_merge: " + std::to_string(truth.size()) + " true poses for " +
-                          std::to_string(n) + " maps");
+namespace {
+
+// One evaluate_merge() against true similarities (merge/evaluation.hpp), part by part.
+class MergeScoring {
+ public:
+  MergeScoring(const MergeResult& result, const std::vector<Edge>& edges,
+               const std::vector<Similarity3>& truth, const GroundTruthThresholds& thresholds)
+      : result_(result), edges_(edges), truth_(truth), t_(thresholds), n_(result.maps.size()) {}
+
+  MergeEvaluation run() {
+    if (truth_.size() != n_ || result_.edges.size() != edges_.size()) {
+      throw InvalidArgument("evaluate_merge: " + std::to_string(truth_.size()) +
+                            " true poses for " + std::to_string(n_) + " maps");
+    }
+    ev_.maps.resize(n_);
+    // Estimated and true similarities S_world_map (scale 1 for rigid maps).
+    est_.resize(n_);
+    for (std::size_t i = 0; i < n_; ++i) est_[i] = result_.maps[i].similarity();
+    group_parts();
+    // The maps held by priors share one frame: one G for all of them.
+    if (!prior_maps_.empty()) set_errors(robust_fit(prior_maps_), prior_maps_);
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    for (std::size_t c = 0; c < parts_.size(); ++c) {
+      const std::vector<std::size_t>& members = parts_[c];
+      if (members.empty() || by_priors_[c]) continue;
+      if (members.size() == 1) {  // alone without priors: its frame is its own, nothing to measure
+        ev_.maps[members[0]].rotation_deg = nan;
+        ev_.maps[members[0]].translation_m = nan;
+        ev_.maps[members[0]].scale_error = nan;
+        continue;
+      }
+      set_errors(robust_fit(members), members);
+    }
+    count_edge_parts();
+    count_maps();
+    count_pairs();
+    count_edges();
+    return std::move(ev_);
   }
-  MergeEvaluation ev;
-  ev.maps.resize(n);
-  // Per group (the maps held by priors, or a part without priors): G fitted to the maps that agree
-  // with the truth: each map's own G_k = T_true_k T_est_k^-1 is a candidate; the one that puts the
-  // most maps within the thresholds wins (ties: the lowest map), then G is refitted to those maps
-  // (chordal rotation mean of R_true R_est^T, then mean translation) when that keeps as many.
-  // Estimated and true similarities S_world_map (scale 1 for rigid maps).
-  std::vector<Similarity3> est(n);
-  for (std::size_t i = 0; i < n; ++i) est[i] = result.maps[i].similarity();
+
+ private:
   struct Error7 {
     TransformError pose;
     double scale = 0.0;
   };
-  auto error_of = [&](const Similarity3& S_est, const Similarity3& S_true) {
+  static Error7 error_of(const Similarity3& S_est, const Similarity3& S_true) {
     return Error7{transform_error(S_est.rigid, S_true.rigid),
                   std::abs(S_est.scale / S_true.scale - 1.0)};
-  };
-  auto within_thresholds = [&](const Error7& err) {
-    return err.pose.rotation_deg <= thresholds.rotation_deg &&
-           err.pose.translation_m <= thresholds.translation_m && err.scale <= thresholds.scale;
-  };
-  auto fit = [&](const std::vector<std::size_t>& members) {
+  }
+  bool within_thresholds(const Error7& err) const {
+    return err.pose.rotation_deg <= t_.rotation_deg && err.pose.translation_m <= t_.translation_m &&
+           err.scale <= t_.scale;
+  }
+
+  // G fitted to the members: chordal rotation mean of R_true R_est^T, then mean translation.
+  Similarity3 fit(const std::vector<std::size_t>& members) const {
     Mat3 M = Mat3::Zero();
     double log_g = 0.0;
     for (const std::size_t i : members) {
-      M += truth[i].rigid.linear() * est[i].rigid.linear().transpose();
-      log_g += std::log(truth[i].scale / est[i].scale);
+      M += truth_[i].rigid.linear() * est_[i].rigid.linear().transpose();
+      log_g += std::log(truth_[i].scale / est_[i].scale);
     }
     const double g = std::exp(log_g / static_cast<double>(members.size()));
     Eigen::JacobiSVD<Mat3> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
@@ -140,58 +166,30 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
     G.rigid.linear() = svd.matrixU() * D * svd.matrixV().transpose();
     Vec3 t = Vec3::Zero();
     for (const std::size_t i : members) {
-      t += truth[i].rigid.translation() - g * (G.rigid.linear() * est[i].rigid.translation());
+      t += truth_[i].rigid.translation() - g * (G.rigid.linear() * est_[i].rigid.translation());
     }
     G.rigid.translation() = t / static_cast<double>(members.size());
     return G;
-  };
-  auto agreeing = [&](const Similarity3& G, const std::vector<std::size_t>& members) {
+  }
+
+  std::vector<std::size_t> agreeing(const Similarity3& G,
+                                    const std::vector<std::size_t>& members) const {
     std::vector<std::size_t> in;
     for (const std::size_t i : members) {
-      if (within_thresholds(error_of(G * est[i], truth[i]))) in.push_back(i);
+      if (within_thresholds(error_of(G * est_[i], truth_[i]))) in.push_back(i);
     }
     return in;
-  };
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  // The parts, and which are held by priors (no gauge map: their frame is the priors').
-  ev.num_parts = result.num_components;
-  std::vector<std::vector<std::size_t>> parts(result.num_components);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (result.maps[i].component >= parts.size()) parts.resize(result.maps[i].component + 1);
-    parts[result.maps[i].component].push_back(i);
   }
-  std::vector<bool> by_priors(parts.size(), false);
-  std::vector<std::size_t> prior_maps;
-  for (std::size_t c = 0; c < parts.size(); ++c) {
-    by_priors[c] =
-        !parts[c].empty() && std::none_of(parts[c].begin(), parts[c].end(),
-                                          [&](std::size_t i) { return result.maps[i].is_gauge; });
-    if (by_priors[c]) prior_maps.insert(prior_maps.end(), parts[c].begin(), parts[c].end());
-  }
-  // The reference frame: the priors' when any part has them, else the largest part's.
-  std::size_t largest = 0;
-  for (std::size_t c = 0; c < parts.size(); ++c) {
-    ev.largest_part = std::max(ev.largest_part, parts[c].size());
-    if (parts[c].size() > parts[largest].size()) largest = c;
-  }
-  auto placed_part = [&](std::size_t c) {
-    return prior_maps.empty() ? c == largest && parts[c].size() >= 2 : bool(by_priors[c]);
-  };
-  auto set_errors = [&](const Similarity3& G, const std::vector<std::size_t>& members) {
-    for (const std::size_t i : members) {
-      const Error7 err = error_of(G * est[i], truth[i]);
-      ev.maps[i].rotation_deg = err.pose.rotation_deg;
-      ev.maps[i].translation_m = err.pose.translation_m;
-      ev.maps[i].scale_error = err.scale;
-      ev.maps[i].within = within_thresholds(err);  // cleared below unless placed
-    }
-  };
-  // G fitted to the maps of a group that agree with the truth (docs/merge.md, "Ground truth").
-  auto robust_fit = [&](const std::vector<std::size_t>& members) {
+
+  // G fitted to the maps of a group that agree with the truth (docs/merge.md, "Ground truth"):
+  // each map's own G_k = T_true_k T_est_k^-1 is a candidate; the one that puts the most maps
+  // within the thresholds wins (ties: the lowest map), then G is refitted to those maps when that
+  // keeps as many.
+  Similarity3 robust_fit(const std::vector<std::size_t>& members) const {
     Similarity3 G = fit(members);
     std::vector<std::size_t> best = agreeing(G, members);
     for (const std::size_t k : members) {
-      const Similarity3 G_k = truth[k] * est[k].inverse();
+      const Similarity3 G_k = truth_[k] * est_[k].inverse();
       std::vector<std::size_t> in = agreeing(G_k, members);
       if (in.size() > best.size()) {
         best = std::move(in);
@@ -203,85 +201,141 @@ MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge
       if (agreeing(G_fit, members).size() >= best.size()) G = G_fit;
     }
     return G;
-  };
-  // The maps held by priors share one frame: one G for all of them.
-  if (!prior_maps.empty()) set_errors(robust_fit(prior_maps), prior_maps);
-  for (std::size_t c = 0; c < parts.size(); ++c) {
-    const std::vector<std::size_t>& members = parts[c];
-    if (members.empty() || by_priors[c]) continue;
-    if (members.size() == 1) {  // alone without priors: its frame is its own, nothing to measure
-      ev.maps[members[0]].rotation_deg = nan;
-      ev.maps[members[0]].translation_m = nan;
-      ev.maps[members[0]].scale_error = nan;
-      continue;
-    }
-    set_errors(robust_fit(members), members);
   }
+
+  void set_errors(const Similarity3& G, const std::vector<std::size_t>& members) {
+    for (const std::size_t i : members) {
+      const Error7 err = error_of(G * est_[i], truth_[i]);
+      ev_.maps[i].rotation_deg = err.pose.rotation_deg;
+      ev_.maps[i].translation_m = err.pose.translation_m;
+      ev_.maps[i].scale_error = err.scale;
+      ev_.maps[i].within = within_thresholds(err);  // cleared below unless placed
+    }
+  }
+
+  // The parts, which are held by priors (no gauge map: their frame is the priors'), and the
+  // reference frame: the priors' when any part has them, else the largest part's.
+  void group_parts() {
+    ev_.num_parts = result_.num_components;
+    parts_.resize(result_.num_components);
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (result_.maps[i].component >= parts_.size()) parts_.resize(result_.maps[i].component + 1);
+      parts_[result_.maps[i].component].push_back(i);
+    }
+    by_priors_.assign(parts_.size(), false);
+    for (std::size_t c = 0; c < parts_.size(); ++c) {
+      by_priors_[c] = !parts_[c].empty() &&
+                      std::none_of(parts_[c].begin(), parts_[c].end(),
+                                   [&](std::size_t i) { return result_.maps[i].is_gauge; });
+      if (by_priors_[c]) prior_maps_.insert(prior_maps_.end(), parts_[c].begin(), parts_[c].end());
+    }
+    for (std::size_t c = 0; c < parts_.size(); ++c) {
+      ev_.largest_part = std::max(ev_.largest_part, parts_[c].size());
+      if (parts_[c].size() > parts_[largest_].size()) largest_ = c;
+    }
+  }
+
+  bool placed_part(std::size_t c) const {
+    return prior_maps_.empty() ? c == largest_ && parts_[c].size() >= 2 : bool(by_priors_[c]);
+  }
+
   // The kept edges' own components (union-find), and who has a kept edge.
-  std::vector<std::size_t> root(n);
-  for (std::size_t i = 0; i < n; ++i) root[i] = i;
-  auto find = [&](std::size_t i) {
-    while (root[i] != i) i = root[i] = root[root[i]];
-    return i;
-  };
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    if (!result.edges[e].used || result.edges[e].rejected) continue;
-    ev.maps[edges[e].source].connected = ev.maps[edges[e].target].connected = true;
-    root[find(edges[e].source)] = find(edges[e].target);
-  }
-  for (std::size_t i = 0; i < n; ++i) ev.num_edge_parts += find(i) == i ? 1 : 0;
-  std::size_t within = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    MapError& e = ev.maps[i];
-    const std::size_t c = result.maps[i].component;
-    e.placed = placed_part(c);
-    e.within = e.within && e.placed;
-    ev.placed += e.placed ? 1 : 0;
-    within += e.within ? 1 : 0;
-    if (!std::isnan(e.rotation_deg)) {
-      ev.max_rotation_deg = std::max(ev.max_rotation_deg, e.rotation_deg);
-      ev.max_translation_m = std::max(ev.max_translation_m, e.translation_m);
-      ev.max_scale_error = std::max(ev.max_scale_error, e.scale_error);
+  void count_edge_parts() {
+    std::vector<std::size_t> root(n_);
+    for (std::size_t i = 0; i < n_; ++i) root[i] = i;
+    auto find = [&](std::size_t i) {
+      while (root[i] != i) i = root[i] = root[root[i]];
+      return i;
+    };
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      if (!result_.edges[e].used || result_.edges[e].rejected) continue;
+      ev_.maps[edges_[e].source].connected = ev_.maps[edges_[e].target].connected = true;
+      root[find(edges_[e].source)] = find(edges_[e].target);
     }
+    for (std::size_t i = 0; i < n_; ++i) ev_.num_edge_parts += find(i) == i ? 1 : 0;
   }
-  ev.fraction_within = n ? static_cast<double>(within) / static_cast<double>(n) : 1.0;
-  // Pairs: relative poses need no gauge; two maps share a frame in one part, or both by priors.
-  if (n > 2000) {
-    ev.pair_fraction_within = nan;
-  } else {
-    std::size_t pairs = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      for (std::size_t j = i + 1; j < n; ++j) {
-        ++pairs;
-        const std::size_t ci = result.maps[i].component, cj = result.maps[j].component;
-        if (ci != cj && !(by_priors[ci] && by_priors[cj])) continue;
-        const Error7 err = error_of(est[i].inverse() * est[j], truth[i].inverse() * truth[j]);
-        ev.pairs_within += within_thresholds(err) ? 1 : 0;
-        ev.max_pair_scale_error = std::max(ev.max_pair_scale_error, err.scale);
+
+  void count_maps() {
+    std::size_t within = 0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      MapError& e = ev_.maps[i];
+      e.placed = placed_part(result_.maps[i].component);
+      e.within = e.within && e.placed;
+      ev_.placed += e.placed ? 1 : 0;
+      within += e.within ? 1 : 0;
+      if (!std::isnan(e.rotation_deg)) {
+        ev_.max_rotation_deg = std::max(ev_.max_rotation_deg, e.rotation_deg);
+        ev_.max_translation_m = std::max(ev_.max_translation_m, e.translation_m);
+        ev_.max_scale_error = std::max(ev_.max_scale_error, e.scale_error);
       }
     }
-    ev.pair_fraction_within =
-        pairs ? static_cast<double>(ev.pairs_within) / static_cast<double>(pairs) : 1.0;
+    ev_.fraction_within = n_ ? static_cast<double>(within) / static_cast<double>(n_) : 1.0;
   }
-  std::size_t kept_true = 0, all_true = 0;
-  ev.edge_true.resize(edges.size());
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    const Edge& ed = edges[e];
-    const Similarity3 S_true = truth[ed.target].inverse() * truth[ed.source];
-    const bool ok = within_thresholds(error_of(Similarity3{ed.scale, ed.T_target_source}, S_true));
-    ev.edge_true[e] = ok;
-    all_true += ok ? 1 : 0;
-    const bool kept = result.edges[e].used && !result.edges[e].rejected;
-    if (kept) {
-      ++ev.kept_edges;
-      kept_true += ok ? 1 : 0;
-      ev.false_kept_edges += ok ? 0 : 1;
+
+  // Pairs: relative poses need no gauge; two maps share a frame in one part, or both by priors.
+  void count_pairs() {
+    if (n_ > 2000) {
+      ev_.pair_fraction_within = std::numeric_limits<double>::quiet_NaN();
+      return;
     }
+    std::size_t pairs = 0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      for (std::size_t j = i + 1; j < n_; ++j) {
+        ++pairs;
+        const std::size_t ci = result_.maps[i].component, cj = result_.maps[j].component;
+        if (ci != cj && !(by_priors_[ci] && by_priors_[cj])) continue;
+        const Error7 err = error_of(est_[i].inverse() * est_[j], truth_[i].inverse() * truth_[j]);
+        ev_.pairs_within += within_thresholds(err) ? 1 : 0;
+        ev_.max_pair_scale_error = std::max(ev_.max_pair_scale_error, err.scale);
+      }
+    }
+    ev_.pair_fraction_within =
+        pairs ? static_cast<double>(ev_.pairs_within) / static_cast<double>(pairs) : 1.0;
   }
-  ev.edge_precision =
-      ev.kept_edges ? static_cast<double>(kept_true) / static_cast<double>(ev.kept_edges) : 1.0;
-  ev.edge_recall = all_true ? static_cast<double>(kept_true) / static_cast<double>(all_true) : 1.0;
-  return ev;
+
+  // Each edge against the truth; the kept ones' precision and recall.
+  void count_edges() {
+    std::size_t kept_true = 0, all_true = 0;
+    ev_.edge_true.resize(edges_.size());
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      const Edge& ed = edges_[e];
+      const Similarity3 S_true = truth_[ed.target].inverse() * truth_[ed.source];
+      const bool ok =
+          within_thresholds(error_of(Similarity3{ed.scale, ed.T_target_source}, S_true));
+      ev_.edge_true[e] = ok;
+      all_true += ok ? 1 : 0;
+      const bool kept = result_.edges[e].used && !result_.edges[e].rejected;
+      if (kept) {
+        ++ev_.kept_edges;
+        kept_true += ok ? 1 : 0;
+        ev_.false_kept_edges += ok ? 0 : 1;
+      }
+    }
+    ev_.edge_precision =
+        ev_.kept_edges ? static_cast<double>(kept_true) / static_cast<double>(ev_.kept_edges) : 1.0;
+    ev_.edge_recall =
+        all_true ? static_cast<double>(kept_true) / static_cast<double>(all_true) : 1.0;
+  }
+
+  const MergeResult& result_;
+  const std::vector<Edge>& edges_;
+  const std::vector<Similarity3>& truth_;
+  const GroundTruthThresholds& t_;
+  const std::size_t n_;
+  MergeEvaluation ev_;
+  std::vector<Similarity3> est_;
+  std::vector<std::vector<std::size_t>> parts_;
+  std::vector<bool> by_priors_;
+  std::vector<std::size_t> prior_maps_;
+  std::size_t largest_ = 0;
+};
+
+}  // namespace
+
+MergeEvaluation evaluate_merge(const MergeResult& result, const std::vector<Edge>& edges,
+                               const std::vector<Similarity3>& truth,
+                               const GroundTruthThresholds& thresholds) {
+  return MergeScoring(result, edges, truth, thresholds).run();
 }
 
 }  // namespace lmalign

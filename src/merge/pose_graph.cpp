@@ -13,8 +13,8 @@
 
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
-#include "lmalign/core/symmetric_eigen.hpp"
 #include "lmalign/core/supported_range.hpp"
+#include "lmalign/core/symmetric_eigen.hpp"
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
@@ -601,432 +601,529 @@ bool PoseGraphOptions::is_valid(std::string* why) const {
   return true;
 }
 
-MergeResult solve_pose_graph(std::size_t num_maps,
-                             const std::vector<std::optional<MapPrior>>& priors,
-                             const std::vector<Edge>& edges, const PoseGraphOptions& options,
-                             const std::vector<bool>& scale_free) {
-  std::string why;
-  if (!options.is_valid(&why)) throw InvalidArgument("pose graph options: " + why);
-  if (priors.size() != num_maps) {
-    throw InvalidArgument("solve_pose_graph: " + std::to_string(priors.size()) + " priors for " +
-                          std::to_string(num_maps) + " maps");
+namespace {
+
+// The edges' inputs to the graph: floored covariances and measured blocks (Sim(3): the 7x7
+// covariances, the similarities and their log scales), and whether each is usable at all.
+struct EdgeInputs {
+  std::vector<Mat6> cov;
+  std::vector<PoseBlock> meas;
+  std::vector<bool> usable;
+  std::vector<Mat7> cov7;
+  std::vector<Similarity3> sim;
+  std::vector<double> log_scale;
+};
+
+// Every map's parameter blocks in one allocation, in map order: ceres::Covariance orders its
+// columns by block address, so poses and log scales in two allocations gave the Sim(3) graph's
+// covariances an order, and last bits, that depended on the heap (two solves of the same edges
+// differed by 1e-24).
+struct MapBlocks {
+  PoseBlock pose{};
+  double log_scale = 0.0;  // lambda_i (Sim(3) only)
+};
+
+// One solve of solve_pose_graph() (pose_graph.hpp), phase by phase: the checks, the edges' and
+// priors' inputs, the cycle check, then rounds (components and gauges, a spanning-tree start,
+// graduated robust solves, the edge covariance scale, rejections) and the result.
+class PoseGraphSolve {
+ public:
+  PoseGraphSolve(std::size_t num_maps, const std::vector<std::optional<MapPrior>>& priors,
+                 const std::vector<Edge>& edges, const PoseGraphOptions& options,
+                 const std::vector<bool>& scale_free)
+      : n_(num_maps), priors_(priors), edges_(edges), o_(options), scale_free_(scale_free) {}
+
+  MergeResult run() {
+    validate();
+    // Sim(3) when any map has no metric scale; else the rigid graph, exactly as without scales.
+    sim_ = std::find(scale_free_.begin(), scale_free_.end(), true) != scale_free_.end();
+    out_.maps.resize(n_);
+    out_.edges.resize(edges_.size());
+    prepare_edges();
+    prepare_priors();
+    dof_ = sim_ ? 7 : 6;
+    threshold_ = chi2_quantile(o_.reject_quantile, dof_);
+    active_ = in_.usable;
+    if (o_.check_cycles) reject_inconsistent_cycles();
+    blocks_.resize(n_);
+    scale_held_.assign(n_, true);
+    scale_ = o_.edge_covariance_scale > 0.0 ? o_.edge_covariance_scale : 1.0;
+    bool robust = true;
+    for (int round = 0; round < o_.max_rounds; ++round) {
+      out_.rounds = round + 1;
+      start_round();
+      const bool rejected_any = solve_round(robust);
+      const bool last = !robust && !rejected_any;
+      if (last || round + 1 == o_.max_rounds) {
+        if (rejected_any) continue;  // the last round rejected: keep the poses, no re-solve left
+        conclude();
+        break;
+      }
+      robust = false;
+    }
+    return finish();
   }
-  if (!scale_free.empty() && scale_free.size() != num_maps) {
-    throw InvalidArgument("solve_pose_graph: " + std::to_string(scale_free.size()) +
-                          " scale flags for " + std::to_string(num_maps) + " maps");
+
+ private:
+  bool free_scale(std::size_t i) const { return sim_ && scale_free_[i]; }
+
+  void validate() const {
+    std::string why;
+    if (!o_.is_valid(&why)) throw InvalidArgument("pose graph options: " + why);
+    if (priors_.size() != n_) {
+      throw InvalidArgument("solve_pose_graph: " + std::to_string(priors_.size()) + " priors for " +
+                            std::to_string(n_) + " maps");
+    }
+    if (!scale_free_.empty() && scale_free_.size() != n_) {
+      throw InvalidArgument("solve_pose_graph: " + std::to_string(scale_free_.size()) +
+                            " scale flags for " + std::to_string(n_) + " maps");
+    }
+    // The supported range (core/supported_range.hpp): priors and edges beyond it are refused
+    // before Ceres sees them (its dense SVD does not return on a non-finite Jacobian).
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (priors_[i]) {
+        check_prior_in_supported_range(*priors_[i], "prior of map " + std::to_string(i));
+      }
+    }
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      const std::string what = "solve_pose_graph: edge " + std::to_string(e) + " (map " +
+                               std::to_string(edges_[e].source) + " -> map " +
+                               std::to_string(edges_[e].target) + ")";
+      if (!edges_[e].T_target_source.matrix().allFinite()) {
+        throw InvalidArgument(what + ": T_target_source is not finite");
+      }
+      check_supported_translation(what, edges_[e].T_target_source.translation());
+    }
   }
-  // Sim(3) when any map has no metric scale; else the rigid graph, exactly as without scales.
-  const bool sim = std::find(scale_free.begin(), scale_free.end(), true) != scale_free.end();
-  auto free_scale = [&](std::size_t i) { return sim && scale_free[i]; };
-  // The supported range (core/supported_range.hpp): priors and edges beyond it are refused
-  // before Ceres sees them (its dense SVD does not return on a non-finite Jacobian).
-  for (std::size_t i = 0; i < num_maps; ++i) {
-    if (priors[i]) check_prior_in_supported_range(*priors[i], "prior of map " + std::to_string(i));
-  }
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    const std::string what = "solve_pose_graph: edge " + std::to_string(e) + " (map " +
-                             std::to_string(edges[e].source) + " -> map " +
-                             std::to_string(edges[e].target) + ")";
-    if (!edges[e].T_target_source.matrix().allFinite()) {
-      throw InvalidArgument(what + ": T_target_source is not finite");
-    }
-    check_supported_translation(what, edges[e].T_target_source.translation());
-  }
-  MergeResult out;
-  out.maps.resize(num_maps);
-  out.edges.resize(edges.size());
-  const double floor_t2 = options.floor_translation_m * options.floor_translation_m;
-  const double floor_r = options.floor_rotation_deg * kRadPerDeg;
-  // Edge inputs: floored covariances, measured blocks.
-  std::vector<Mat6> edge_cov(edges.size());
-  std::vector<PoseBlock> edge_meas(edges.size());
-  std::vector<bool> usable(edges.size(), false);
-  std::vector<Mat7> edge_cov7(sim ? edges.size() : 0);
-  std::vector<Similarity3> edge_sim(sim ? edges.size() : 0);
-  std::vector<double> edge_log_scale(sim ? edges.size() : 0, 0.0);
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    const Edge& ed = edges[e];
-    if (ed.source >= num_maps || ed.target >= num_maps || ed.source == ed.target) {
-      throw InvalidArgument("solve_pose_graph: edge " + std::to_string(e) + " names maps " +
-                            std::to_string(ed.source) + " -> " + std::to_string(ed.target) +
-                            " (of " + std::to_string(num_maps) + ")");
-    }
-    EdgeReport& rep = out.edges[e];
-    if (!ed.trusted) {
-      rep.skip_reason = "untrusted: " + ed.trust_reason;
-      continue;
-    }
-    if (!is_rigid_transform(ed.T_target_source)) {
-      rep.skip_reason = "not a rigid transform";
-      continue;
-    }
-    const std::optional<Mat6> C =
-        ed.covariance_valid ? floored(ed.covariance, floor_t2, floor_r * floor_r) : std::nullopt;
-    if (!C || !whitening(*C)) {
-      rep.skip_reason = "invalid covariance";
-      continue;
-    }
-    if (sim) {
-      if (ed.scale_free && !(std::isfinite(ed.scale) && ed.scale > 0.0)) {
-        rep.skip_reason = "invalid scale";
+
+  // Edge inputs: floored covariances, measured blocks; the reason an edge is skipped.
+  void prepare_edges() {
+    const std::size_t m = edges_.size();
+    const double floor_t2 = o_.floor_translation_m * o_.floor_translation_m;
+    const double floor_r = o_.floor_rotation_deg * kRadPerDeg;
+    in_.cov.resize(m);
+    in_.meas.resize(m);
+    in_.usable.assign(m, false);
+    in_.cov7.resize(sim_ ? m : 0);
+    in_.sim.resize(sim_ ? m : 0);
+    in_.log_scale.assign(sim_ ? m : 0, 0.0);
+    for (std::size_t e = 0; e < m; ++e) {
+      const Edge& ed = edges_[e];
+      if (ed.source >= n_ || ed.target >= n_ || ed.source == ed.target) {
+        throw InvalidArgument("solve_pose_graph: edge " + std::to_string(e) + " names maps " +
+                              std::to_string(ed.source) + " -> " + std::to_string(ed.target) +
+                              " (of " + std::to_string(n_) + ")");
+      }
+      EdgeReport& rep = out_.edges[e];
+      if (!ed.trusted) {
+        rep.skip_reason = "untrusted: " + ed.trust_reason;
         continue;
       }
-      const std::optional<Mat7> C7 = sim_edge_covariance(ed, *C, options.floor_log_scale);
-      if (!C7 || Eigen::LLT<Mat7>(*C7).info() != Eigen::Success) {
+      if (!is_rigid_transform(ed.T_target_source)) {
+        rep.skip_reason = "not a rigid transform";
+        continue;
+      }
+      const std::optional<Mat6> C =
+          ed.covariance_valid ? floored(ed.covariance, floor_t2, floor_r * floor_r) : std::nullopt;
+      if (!C || !whitening(*C)) {
         rep.skip_reason = "invalid covariance";
         continue;
       }
-      edge_cov7[e] = *C7;
-      const double s_e = ed.scale_free ? ed.scale : 1.0;
-      edge_sim[e] = Similarity3{s_e, ed.T_target_source};
-      edge_log_scale[e] = std::log(s_e);
+      if (sim_) {
+        if (ed.scale_free && !(std::isfinite(ed.scale) && ed.scale > 0.0)) {
+          rep.skip_reason = "invalid scale";
+          continue;
+        }
+        const std::optional<Mat7> C7 = sim_edge_covariance(ed, *C, o_.floor_log_scale);
+        if (!C7 || Eigen::LLT<Mat7>(*C7).info() != Eigen::Success) {
+          rep.skip_reason = "invalid covariance";
+          continue;
+        }
+        in_.cov7[e] = *C7;
+        const double s_e = ed.scale_free ? ed.scale : 1.0;
+        in_.sim[e] = Similarity3{s_e, ed.T_target_source};
+        in_.log_scale[e] = std::log(s_e);
+      }
+      in_.cov[e] = *C;
+      in_.meas[e] = to_block(ed.T_target_source);
+      in_.usable[e] = true;
     }
-    edge_cov[e] = *C;
-    edge_meas[e] = to_block(ed.T_target_source);
-    usable[e] = true;
   }
-  std::vector<std::optional<Mat6>> prior_w(num_maps);
-  for (std::size_t i = 0; i < num_maps; ++i) {
-    if (priors[i]) {
-      prior_w[i] = whitening(0.5 * (priors[i]->covariance + priors[i]->covariance.transpose()));
-      if (!prior_w[i]) {
+
+  // The priors' whitening, and each map's held scale: its prior's (maps without metric scale),
+  // else 1.
+  void prepare_priors() {
+    prior_w_.resize(n_);
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (!priors_[i]) continue;
+      prior_w_[i] = whitening(0.5 * (priors_[i]->covariance + priors_[i]->covariance.transpose()));
+      if (!prior_w_[i]) {
         throw InvalidArgument("solve_pose_graph: prior of map " + std::to_string(i) +
                               ": covariance not positive definite");
       }
     }
+    prior_scale_.assign(n_, 1.0);
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (priors_[i] && free_scale(i)) prior_scale_[i] = priors_[i]->scale;
+    }
   }
-  // A map's held log scale: its prior's (maps without metric scale), else 0.
-  std::vector<double> prior_scale(num_maps, 1.0);
-  for (std::size_t i = 0; i < num_maps; ++i) {
-    if (priors[i] && free_scale(i)) prior_scale[i] = priors[i]->scale;
-  }
-  const int dof = sim ? 7 : 6;
-  const double threshold = chi2_quantile(options.reject_quantile, dof);
-  std::vector<bool> active = usable;
-  if (options.check_cycles) {
-    const auto inconsistent = sim ? cycle_check(edges, usable, edge_cov7, priors, num_maps,
-                                                threshold, SimOps{&edge_sim, &priors, &prior_scale})
-                                  : cycle_check(edges, usable, edge_cov, priors, num_maps,
-                                                threshold, RigidOps{&edges, &priors});
-    for (std::size_t e = 0; e < edges.size(); ++e) {
+
+  void reject_inconsistent_cycles() {
+    const auto inconsistent =
+        sim_ ? cycle_check(edges_, in_.usable, in_.cov7, priors_, n_, threshold_,
+                           SimOps{&in_.sim, &priors_, &prior_scale_})
+             : cycle_check(edges_, in_.usable, in_.cov, priors_, n_, threshold_,
+                           RigidOps{&edges_, &priors_});
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
       if (!inconsistent[e]) continue;
-      active[e] = false;
-      out.edges[e].rejected = true;
-      out.edges[e].reject_reason =
+      active_[e] = false;
+      out_.edges[e].rejected = true;
+      out_.edges[e].reject_reason =
           std::string("rejected by the cycle check: disagrees with ") +
           (inconsistent[e]->second ? "the maps' priors" : "a path of edges with more inliers") +
           " (chi2 " + message_number(inconsistent[e]->first) + ")";
     }
   }
-  // Every map's parameter blocks in one allocation, in map order: ceres::Covariance orders its
-  // columns by block address, so poses and log scales in two allocations gave the Sim(3)
-  // graph's covariances an order, and last bits, that depended on the heap (two solves of the
-  // same edges differed by 1e-24).
-  struct MapBlocks {
-    PoseBlock pose{};
-    double log_scale = 0.0;  // lambda_i (Sim(3) only)
-  };
-  std::vector<MapBlocks> map_blocks(num_maps);
-  std::vector<bool> scale_held(num_maps, true);
-  double scale = options.edge_covariance_scale > 0.0 ? options.edge_covariance_scale : 1.0;
-  bool robust = true;
-  for (int round = 0; round < options.max_rounds; ++round) {
-    out.rounds = round + 1;
-    // Components of the active edges, their gauges, and a spanning-tree start.
+
+  // Components of the active edges, their gauges, and a spanning-tree start (with scales).
+  void start_round() {
     std::vector<std::pair<std::size_t, std::size_t>> links;
-    for (std::size_t e = 0; e < edges.size(); ++e) {
-      if (active[e]) links.emplace_back(edges[e].source, edges[e].target);
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      if (active_[e]) links.emplace_back(edges_[e].source, edges_[e].target);
     }
     // Maps with priors share the world frame: one component, whatever the edges.
     std::optional<std::size_t> first_prior;
-    for (std::size_t i = 0; i < num_maps; ++i) {
-      if (!priors[i]) continue;
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (!priors_[i]) continue;
       if (first_prior)
         links.emplace_back(*first_prior, i);
       else
         first_prior = i;
     }
-    std::size_t ncomp = 0;
-    const std::vector<std::size_t> comp = components(num_maps, links, &ncomp);
-    std::vector<std::optional<std::size_t>> root(ncomp);  // first map with a prior, else first
-    std::vector<bool> comp_has_prior(ncomp, false);
-    for (std::size_t i = 0; i < num_maps; ++i) {
-      if (priors[i] && !comp_has_prior[comp[i]]) {
-        comp_has_prior[comp[i]] = true;
-        root[comp[i]] = i;
+    ncomp_ = 0;
+    comp_ = components(n_, links, &ncomp_);
+    root_.assign(ncomp_, std::nullopt);  // first map with a prior, else first
+    comp_has_prior_.assign(ncomp_, false);
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (priors_[i] && !comp_has_prior_[comp_[i]]) {
+        comp_has_prior_[comp_[i]] = true;
+        root_[comp_[i]] = i;
       }
     }
-    for (std::size_t i = 0; i < num_maps; ++i) {
-      if (!root[comp[i]]) root[comp[i]] = i;
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (!root_[comp_[i]]) root_[comp_[i]] = i;
     }
     // Breadth-first start from each root along the active edges (edge order: deterministic).
     std::vector<std::size_t> roots;
-    std::vector<Isometry3> start(num_maps, Isometry3::Identity());
-    for (std::size_t c = 0; c < ncomp; ++c) {
-      const std::size_t r = *root[c];
-      start[r] = priors[r] ? priors[r]->T_world_map : Isometry3::Identity();
+    std::vector<Isometry3> start(n_, Isometry3::Identity());
+    for (std::size_t c = 0; c < ncomp_; ++c) {
+      const std::size_t r = *root_[c];
+      start[r] = priors_[r] ? priors_[r]->T_world_map : Isometry3::Identity();
       roots.push_back(r);
     }
     spanning_start(
-        edges, active, roots, [&](std::size_t e) { return edges[e].T_target_source; }, &start);
-    if (sim) {
-      // The start with scales: the same breadth-first order, composing similarities.
-      std::vector<bool> comp_has_metric(ncomp, false);
-      for (std::size_t i = 0; i < num_maps; ++i) {
-        if (!free_scale(i)) comp_has_metric[comp[i]] = true;
-      }
-      std::vector<Similarity3> S(num_maps);
-      for (const std::size_t r : roots) S[r] = Similarity3{prior_scale[r], start[r]};
-      spanning_start(
-          edges, active, roots, [&](std::size_t e) { return edge_sim[e]; }, &S);
-      for (std::size_t c = 0; c < ncomp; ++c) {
-        const std::size_t r = *root[c];
-        // Without priors, a component with metric maps takes their scale: the start is moved
-        // about its root by the mean of their log scales.
-        if (!comp_has_prior[c] && comp_has_metric[c]) {
-          double sum = 0.0;
-          std::size_t n = 0;
-          for (std::size_t i = 0; i < num_maps; ++i) {
-            if (comp[i] == c && !free_scale(i)) {
-              sum += std::log(S[i].scale);
-              ++n;
-            }
-          }
-          const Similarity3 G{std::exp(-sum / static_cast<double>(n)), Isometry3::Identity()};
-          const Similarity3 S_r = S[r];
-          for (std::size_t i = 0; i < num_maps; ++i) {
-            if (comp[i] == c) S[i] = S_r * G * S_r.inverse() * S[i];
+        edges_, active_, roots, [&](std::size_t e) { return edges_[e].T_target_source; }, &start);
+    if (sim_) start_scales(roots, &start);
+    for (std::size_t i = 0; i < n_; ++i) blocks_[i].pose = to_block(start[i]);
+  }
+
+  // The start with scales: the same breadth-first order, composing similarities.
+  void start_scales(const std::vector<std::size_t>& roots, std::vector<Isometry3>* start) {
+    std::vector<bool> comp_has_metric(ncomp_, false);
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (!free_scale(i)) comp_has_metric[comp_[i]] = true;
+    }
+    std::vector<Similarity3> S(n_);
+    for (const std::size_t r : roots) S[r] = Similarity3{prior_scale_[r], (*start)[r]};
+    spanning_start(
+        edges_, active_, roots, [&](std::size_t e) { return in_.sim[e]; }, &S);
+    for (std::size_t c = 0; c < ncomp_; ++c) {
+      const std::size_t r = *root_[c];
+      // Without priors, a component with metric maps takes their scale: the start is moved
+      // about its root by the mean of their log scales.
+      if (!comp_has_prior_[c] && comp_has_metric[c]) {
+        double sum = 0.0;
+        std::size_t n = 0;
+        for (std::size_t i = 0; i < n_; ++i) {
+          if (comp_[i] == c && !free_scale(i)) {
+            sum += std::log(S[i].scale);
+            ++n;
           }
         }
-      }
-      for (std::size_t i = 0; i < num_maps; ++i) {
-        const std::size_t c = comp[i];
-        scale_held[i] = !free_scale(i) || priors[i].has_value() ||
-                        (!comp_has_prior[c] && !comp_has_metric[c] && *root[c] == i);
-        start[i] = S[i].rigid;
-        map_blocks[i].log_scale = scale_held[i] ? std::log(prior_scale[i]) : std::log(S[i].scale);
+        const Similarity3 G{std::exp(-sum / static_cast<double>(n)), Isometry3::Identity()};
+        const Similarity3 S_r = S[r];
+        for (std::size_t i = 0; i < n_; ++i) {
+          if (comp_[i] == c) S[i] = S_r * G * S_r.inverse() * S[i];
+        }
       }
     }
-    for (std::size_t i = 0; i < num_maps; ++i) map_blocks[i].pose = to_block(start[i]);
+    for (std::size_t i = 0; i < n_; ++i) {
+      const std::size_t c = comp_[i];
+      scale_held_[i] = !free_scale(i) || priors_[i].has_value() ||
+                       (!comp_has_prior_[c] && !comp_has_metric[c] && *root_[c] == i);
+      (*start)[i] = S[i].rigid;
+      blocks_[i].log_scale = scale_held_[i] ? std::log(prior_scale_[i]) : std::log(S[i].scale);
+    }
+  }
 
-    std::vector<Mat6> W(edges.size(), Mat6::Zero());
-    std::vector<Mat7> W7(sim ? edges.size() : 0, Mat7::Zero());
-    auto whiten_edges = [&] {
-      for (std::size_t e = 0; e < edges.size(); ++e) {
-        if (!active[e]) continue;
-        if (sim)
-          W7[e] = sim_whitening(edge_cov7[e] * scale);
-        else
-          W[e] = *whitening(edge_cov[e] * scale);
+  void whiten_edges() {
+    W_.assign(edges_.size(), Mat6::Zero());
+    W7_.assign(sim_ ? edges_.size() : 0, Mat7::Zero());
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      if (!active_[e]) continue;
+      if (sim_)
+        W7_[e] = sim_whitening(in_.cov7[e] * scale_);
+      else
+        W_[e] = *whitening(in_.cov[e] * scale_);
+    }
+  }
+
+  // Whitened chi^2 of edge e at the current poses, its covariance times `with_scale`.
+  double edge_chi2(std::size_t e, double with_scale) const {
+    const std::size_t i = edges_[e].source, j = edges_[e].target;
+    if (!sim_) {
+      const Mat6 Wc = with_scale == scale_ ? W_[e] : *whitening(in_.cov[e] * with_scale);
+      return chi2_of(Wc, edge_twist(blocks_[i].pose, blocks_[j].pose, in_.meas[e]));
+    }
+    const Mat7 Wc = with_scale == scale_ ? W7_[e] : sim_whitening(in_.cov7[e] * with_scale);
+    return (Wc * sim_edge_twist(blocks_[i].pose, blocks_[i].log_scale, blocks_[j].pose,
+                                blocks_[j].log_scale, in_.meas[e], in_.log_scale[e]))
+        .squaredNorm();
+  }
+
+  // One solve from the current poses, with a Cauchy loss of scale `loss_scale` (0: none).
+  std::unique_ptr<ceres::Problem> solve(double loss_scale, bool use_priors) {
+    ceres::Problem::Options po;
+    po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+    auto problem = std::make_unique<ceres::Problem>(po);
+    for (std::size_t i = 0; i < n_; ++i) {
+      problem->AddParameterBlock(blocks_[i].pose.data(), 7, &manifold_);
+      if (sim_) {
+        problem->AddParameterBlock(&blocks_[i].log_scale, 1);
+        if (scale_held_[i]) problem->SetParameterBlockConstant(&blocks_[i].log_scale);
       }
-    };
+    }
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (!priors_[i] || !use_priors) continue;
+      auto* cost = new ceres::AutoDiffCostFunction<PriorCost, 6, 7>(
+          new PriorCost{to_block(priors_[i]->T_world_map), *prior_w_[i]});
+      problem->AddResidualBlock(cost, nullptr, blocks_[i].pose.data());
+    }
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      if (!active_[e]) continue;
+      ceres::LossFunction* loss = loss_scale > 0.0 ? new ceres::CauchyLoss(loss_scale) : nullptr;
+      const std::size_t i = edges_[e].source, j = edges_[e].target;
+      if (sim_) {
+        auto* cost = new ceres::AutoDiffCostFunction<SimEdgeCost, 7, 7, 1, 7, 1>(
+            new SimEdgeCost{in_.meas[e], in_.log_scale[e], W7_[e]});
+        problem->AddResidualBlock(cost, loss, blocks_[i].pose.data(), &blocks_[i].log_scale,
+                                  blocks_[j].pose.data(), &blocks_[j].log_scale);
+        continue;
+      }
+      auto* cost =
+          new ceres::AutoDiffCostFunction<EdgeCost, 6, 7, 7>(new EdgeCost{in_.meas[e], W_[e]});
+      problem->AddResidualBlock(cost, loss, blocks_[i].pose.data(), blocks_[j].pose.data());
+    }
+    for (std::size_t c = 0; c < ncomp_; ++c) {
+      if (!comp_has_prior_[c] || !use_priors)
+        problem->SetParameterBlockConstant(blocks_[*root_[c]].pose.data());
+    }
+    ceres::Solver::Options so;
+    so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+    so.max_num_iterations = o_.max_iterations;
+    so.num_threads = 1;
+    so.logging_type = ceres::SILENT;
+    so.minimizer_progress_to_stdout = false;
+    ceres::Solver::Summary summary;
+    ceres::Solve(so, problem.get(), &summary);
+    out_.converged = summary.termination_type == ceres::CONVERGENCE;
+    return problem;
+  }
+
+  // One round's solves; the edges whose chi^2 exceeds the threshold are rejected (true if any).
+  bool solve_round(bool robust) {
     whiten_edges();
-    // Whitened chi^2 of edge e at the current poses.
-    auto edge_chi2 = [&](std::size_t e, double with_scale) {
-      const std::size_t i = edges[e].source, j = edges[e].target;
-      if (!sim) {
-        const Mat6 Wc = with_scale == scale ? W[e] : *whitening(edge_cov[e] * with_scale);
-        return chi2_of(Wc, edge_twist(map_blocks[i].pose, map_blocks[j].pose, edge_meas[e]));
-      }
-      const Mat7 Wc = with_scale == scale ? W7[e] : sim_whitening(edge_cov7[e] * with_scale);
-      return (Wc * sim_edge_twist(map_blocks[i].pose, map_blocks[i].log_scale, map_blocks[j].pose,
-                                  map_blocks[j].log_scale, edge_meas[e], edge_log_scale[e]))
-          .squaredNorm();
-    };
-    ceres::AutoDiffManifold<LeftPlus, 7, 6> manifold;
-    // One solve from the current poses, with a Cauchy loss of scale `loss_scale` (0: none).
-    auto solve = [&](double loss_scale, bool use_priors) {
-      ceres::Problem::Options po;
-      po.manifold_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
-      auto problem = std::make_unique<ceres::Problem>(po);
-      for (std::size_t i = 0; i < num_maps; ++i) {
-        problem->AddParameterBlock(map_blocks[i].pose.data(), 7, &manifold);
-        if (sim) {
-          problem->AddParameterBlock(&map_blocks[i].log_scale, 1);
-          if (scale_held[i]) problem->SetParameterBlockConstant(&map_blocks[i].log_scale);
-        }
-      }
-      for (std::size_t i = 0; i < num_maps; ++i) {
-        if (!priors[i] || !use_priors) continue;
-        auto* cost = new ceres::AutoDiffCostFunction<PriorCost, 6, 7>(
-            new PriorCost{to_block(priors[i]->T_world_map), *prior_w[i]});
-        problem->AddResidualBlock(cost, nullptr, map_blocks[i].pose.data());
-      }
-      for (std::size_t e = 0; e < edges.size(); ++e) {
-        if (!active[e]) continue;
-        ceres::LossFunction* loss = loss_scale > 0.0 ? new ceres::CauchyLoss(loss_scale) : nullptr;
-        const std::size_t i = edges[e].source, j = edges[e].target;
-        if (sim) {
-          auto* cost = new ceres::AutoDiffCostFunction<SimEdgeCost, 7, 7, 1, 7, 1>(
-              new SimEdgeCost{edge_meas[e], edge_log_scale[e], W7[e]});
-          problem->AddResidualBlock(cost, loss, map_blocks[i].pose.data(), &map_blocks[i].log_scale,
-                                    map_blocks[j].pose.data(), &map_blocks[j].log_scale);
-          continue;
-        }
-        auto* cost =
-            new ceres::AutoDiffCostFunction<EdgeCost, 6, 7, 7>(new EdgeCost{edge_meas[e], W[e]});
-        problem->AddResidualBlock(cost, loss, map_blocks[i].pose.data(), map_blocks[j].pose.data());
-      }
-      for (std::size_t c = 0; c < ncomp; ++c) {
-        if (!comp_has_prior[c] || !use_priors)
-          problem->SetParameterBlockConstant(map_blocks[*root[c]].pose.data());
-      }
-      ceres::Solver::Options so;
-      so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
-      so.max_num_iterations = options.max_iterations;
-      so.num_threads = 1;
-      so.logging_type = ceres::SILENT;
-      so.minimizer_progress_to_stdout = false;
-      ceres::Solver::Summary summary;
-      ceres::Solve(so, problem.get(), &summary);
-      out.converged = summary.termination_type == ceres::CONVERGENCE;
-      return problem;
-    };
     // The robust round is graduated: least squares from the spanning tree (a false edge on the
-    // tree cannot trap the start), then a wide Cauchy, then the Cauchy of the options.
-    std::unique_ptr<ceres::Problem> last_problem;
-    // The edge covariance scale is estimated from the edges alone (priors left out, gauge at
-    // each component's root): a prior's own error must not inflate it.
-    const bool estimate_scale = robust && options.edge_covariance_scale == 0.0;
+    // tree cannot trap the start), then a wide Cauchy, then the Cauchy of the options. The edge
+    // covariance scale is estimated from the edges alone (priors left out, gauge at each
+    // component's root): a prior's own error must not inflate it.
+    const bool estimate_scale = robust && o_.edge_covariance_scale == 0.0;
     if (robust) {
       solve(0.0, !estimate_scale);
-      solve(4.0 * options.cauchy_scale, !estimate_scale);
-      last_problem = solve(options.cauchy_scale, !estimate_scale);
+      solve(4.0 * o_.cauchy_scale, !estimate_scale);
+      last_problem_ = solve(o_.cauchy_scale, !estimate_scale);
     } else {
-      last_problem = solve(0.0, true);
+      last_problem_ = solve(0.0, true);
     }
-
     // Chi^2 of each active edge at the solution.
-    std::vector<double> chi2(edges.size(), 0.0);
+    chi2_.assign(edges_.size(), 0.0);
     std::vector<double> active_chi2;
-    for (std::size_t e = 0; e < edges.size(); ++e) {
-      if (!active[e]) continue;
-      chi2[e] = edge_chi2(e, scale);
-      active_chi2.push_back(chi2[e]);
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      if (!active_[e]) continue;
+      chi2_[e] = edge_chi2(e, scale_);
+      active_chi2.push_back(chi2_[e]);
     }
-    // The edge covariance scale, from the robust solve's residuals (once).
-    if (robust && options.edge_covariance_scale == 0.0 && !active_chi2.empty()) {
-      const double redundancy =
-          static_cast<double>(active_chi2.size()) - static_cast<double>(num_maps - ncomp);
-      if (redundancy >= 3.0) {
-        std::vector<double> sorted = active_chi2;
-        std::nth_element(sorted.begin(),
-                         sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2),
-                         sorted.end());
-        const double med = sorted[sorted.size() / 2];
-        const double ratio = redundancy / static_cast<double>(active_chi2.size());
-        const double s = med / (chi2_quantile(0.5, dof) * ratio);
-        if (s > 1.0) {
-          for (double& v : chi2) v /= s;
-          scale *= s;
-        }
-      }
-    }
+    if (estimate_scale && !active_chi2.empty()) estimate_edge_scale(active_chi2);
     if (estimate_scale &&
-        std::any_of(priors.begin(), priors.end(), [](const auto& p) { return p.has_value(); })) {
+        std::any_of(priors_.begin(), priors_.end(), [](const auto& p) { return p.has_value(); })) {
       // Back to the priors' gauge with the scaled edges; the chi^2 at that solution decide.
       whiten_edges();
-      last_problem = solve(options.cauchy_scale, true);
-      for (std::size_t e = 0; e < edges.size(); ++e) {
-        if (active[e]) chi2[e] = edge_chi2(e, scale);
+      last_problem_ = solve(o_.cauchy_scale, true);
+      for (std::size_t e = 0; e < edges_.size(); ++e) {
+        if (active_[e]) chi2_[e] = edge_chi2(e, scale_);
       }
     }
-    ceres::Problem& problem = *last_problem;
     bool rejected_any = false;
-    for (std::size_t e = 0; e < edges.size(); ++e) {
-      if (active[e] && chi2[e] > threshold) {
-        active[e] = false;
-        out.edges[e].rejected = true;
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      if (active_[e] && chi2_[e] > threshold_) {
+        active_[e] = false;
+        out_.edges[e].rejected = true;
         rejected_any = true;
       }
     }
-    out.num_components = ncomp;
-    for (std::size_t i = 0; i < num_maps; ++i) {
-      out.maps[i].component = comp[i];
-      out.maps[i].is_gauge = !comp_has_prior[comp[i]] && *root[comp[i]] == i;
+    out_.num_components = ncomp_;
+    for (std::size_t i = 0; i < n_; ++i) {
+      out_.maps[i].component = comp_[i];
+      out_.maps[i].is_gauge = !comp_has_prior_[comp_[i]] && *root_[comp_[i]] == i;
     }
-    const bool last = !robust && !rejected_any;
-    if (last || round + 1 == options.max_rounds) {
-      if (rejected_any) continue;  // the last round rejected: keep the poses, no re-solve left
-      // Final chi^2 and marginals of this plain solve.
-      double total = 0.0;
-      for (std::size_t e = 0; e < edges.size(); ++e) total += active[e] ? chi2[e] : 0.0;
-      for (std::size_t i = 0; i < num_maps; ++i) {
-        if (priors[i])
-          total += chi2_of(*prior_w[i],
-                           prior_twist(map_blocks[i].pose, to_block(priors[i]->T_world_map)));
-      }
-      out.final_chi2 = total;
-      // Ceres' dense SVD must not see a non-finite Jacobian (Eigen's SVD does not return on
-      // one); a solve that left the finite numbers has no covariance to report.
-      bool finite = std::isfinite(total);
-      for (std::size_t i = 0; i < num_maps; ++i) {
-        for (double v : map_blocks[i].pose) finite = finite && std::isfinite(v);
-        finite = finite && std::isfinite(map_blocks[i].log_scale);
-      }
-      if (options.compute_covariances && finite) {
-        ceres::Covariance::Options co;
-        co.algorithm_type = ceres::DENSE_SVD;
-        co.null_space_rank = -1;
-        co.min_reciprocal_condition_number = 1e-14;
-        co.num_threads = 1;
-        if (num_maps > 60) co.algorithm_type = ceres::SPARSE_QR;
-        ceres::Covariance cov(co);
-        std::vector<std::pair<const double*, const double*>> blocks;
-        for (std::size_t i = 0; i < num_maps; ++i) {
-          if (!problem.IsParameterBlockConstant(map_blocks[i].pose.data())) {
-            blocks.emplace_back(map_blocks[i].pose.data(), map_blocks[i].pose.data());
-          }
-          if (sim && !scale_held[i])
-            blocks.emplace_back(&map_blocks[i].log_scale, &map_blocks[i].log_scale);
-        }
-        if (cov.Compute(blocks, &problem)) {
-          for (std::size_t i = 0; i < num_maps; ++i) {
-            double var = 0.0;
-            if (sim && !scale_held[i] &&
-                cov.GetCovarianceBlock(&map_blocks[i].log_scale, &map_blocks[i].log_scale, &var))
-              out.maps[i].scale_sd =
-                  std::exp(map_blocks[i].log_scale) * std::sqrt(std::max(var, 0.0));
-            if (problem.IsParameterBlockConstant(map_blocks[i].pose.data())) {
-              out.maps[i].covariance_valid = true;  // the gauge: zero by definition
-              continue;
-            }
-            Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
-            if (cov.GetCovarianceMatrixInTangentSpace({map_blocks[i].pose.data()}, c.data())) {
-              out.maps[i].covariance = c;
-              out.maps[i].covariance_valid = c.allFinite();
-            }
-          }
-        }
-      }
-      break;
-    }
-    robust = false;
+    return rejected_any;
   }
-  out.edge_covariance_scale = scale;
-  for (std::size_t e = 0; e < edges.size(); ++e) {
-    out.edges[e].used = usable[e];
-    if (!usable[e]) continue;
-    const std::size_t i = edges[e].source, j = edges[e].target;
-    if (sim) {
-      out.edges[e].chi2 =
-          (sim_whitening(edge_cov7[e] * scale) *
-           sim_edge_twist(map_blocks[i].pose, map_blocks[i].log_scale, map_blocks[j].pose,
-                          map_blocks[j].log_scale, edge_meas[e], edge_log_scale[e]))
-              .squaredNorm();
-    } else {
-      const Vec6 xi = edge_twist(map_blocks[i].pose, map_blocks[j].pose, edge_meas[e]);
-      out.edges[e].chi2 = chi2_of(*whitening(edge_cov[e] * scale), xi);
+
+  // The edge covariance scale, from the robust solve's residuals (once).
+  void estimate_edge_scale(const std::vector<double>& active_chi2) {
+    const double redundancy =
+        static_cast<double>(active_chi2.size()) - static_cast<double>(n_ - ncomp_);
+    if (redundancy < 3.0) return;
+    std::vector<double> sorted = active_chi2;
+    std::nth_element(sorted.begin(),
+                     sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+    const double med = sorted[sorted.size() / 2];
+    const double ratio = redundancy / static_cast<double>(active_chi2.size());
+    const double s = med / (chi2_quantile(0.5, dof_) * ratio);
+    if (s > 1.0) {
+      for (double& v : chi2_) v /= s;
+      scale_ *= s;
     }
   }
-  for (std::size_t i = 0; i < num_maps; ++i) {
-    out.maps[i].T_world_map = from_block(map_blocks[i].pose);
-    if (sim) {
-      out.maps[i].scale = std::exp(map_blocks[i].log_scale);
-      out.maps[i].scale_free = !scale_held[i];
+
+  // The final chi^2 and marginals of the last plain solve.
+  void conclude() {
+    double total = 0.0;
+    for (std::size_t e = 0; e < edges_.size(); ++e) total += active_[e] ? chi2_[e] : 0.0;
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (priors_[i])
+        total +=
+            chi2_of(*prior_w_[i], prior_twist(blocks_[i].pose, to_block(priors_[i]->T_world_map)));
+    }
+    out_.final_chi2 = total;
+    // Ceres' dense SVD must not see a non-finite Jacobian (Eigen's SVD does not return on one);
+    // a solve that left the finite numbers has no covariance to report.
+    bool finite = std::isfinite(total);
+    for (std::size_t i = 0; i < n_; ++i) {
+      for (double v : blocks_[i].pose) finite = finite && std::isfinite(v);
+      finite = finite && std::isfinite(blocks_[i].log_scale);
+    }
+    if (o_.compute_covariances && finite) marginals(*last_problem_);
+  }
+
+  void marginals(ceres::Problem& problem) {
+    ceres::Covariance::Options co;
+    co.algorithm_type = ceres::DENSE_SVD;
+    co.null_space_rank = -1;
+    co.min_reciprocal_condition_number = 1e-14;
+    co.num_threads = 1;
+    if (n_ > 60) co.algorithm_type = ceres::SPARSE_QR;
+    ceres::Covariance cov(co);
+    std::vector<std::pair<const double*, const double*>> blocks;
+    for (std::size_t i = 0; i < n_; ++i) {
+      if (!problem.IsParameterBlockConstant(blocks_[i].pose.data())) {
+        blocks.emplace_back(blocks_[i].pose.data(), blocks_[i].pose.data());
+      }
+      if (sim_ && !scale_held_[i])
+        blocks.emplace_back(&blocks_[i].log_scale, &blocks_[i].log_scale);
+    }
+    if (!cov.Compute(blocks, &problem)) return;
+    for (std::size_t i = 0; i < n_; ++i) {
+      double var = 0.0;
+      if (sim_ && !scale_held_[i] &&
+          cov.GetCovarianceBlock(&blocks_[i].log_scale, &blocks_[i].log_scale, &var))
+        out_.maps[i].scale_sd = std::exp(blocks_[i].log_scale) * std::sqrt(std::max(var, 0.0));
+      if (problem.IsParameterBlockConstant(blocks_[i].pose.data())) {
+        out_.maps[i].covariance_valid = true;  // the gauge: zero by definition
+        continue;
+      }
+      Eigen::Matrix<double, 6, 6, Eigen::RowMajor> c;
+      if (cov.GetCovarianceMatrixInTangentSpace({blocks_[i].pose.data()}, c.data())) {
+        out_.maps[i].covariance = c;
+        out_.maps[i].covariance_valid = c.allFinite();
+      }
     }
   }
-  return out;
+
+  // Every usable edge's chi^2 at the result (at the final edge covariance scale), the maps'
+  // poses and scales.
+  MergeResult finish() {
+    out_.edge_covariance_scale = scale_;
+    for (std::size_t e = 0; e < edges_.size(); ++e) {
+      out_.edges[e].used = in_.usable[e];
+      if (!in_.usable[e]) continue;
+      const std::size_t i = edges_[e].source, j = edges_[e].target;
+      if (sim_) {
+        out_.edges[e].chi2 = (sim_whitening(in_.cov7[e] * scale_) *
+                              sim_edge_twist(blocks_[i].pose, blocks_[i].log_scale, blocks_[j].pose,
+                                             blocks_[j].log_scale, in_.meas[e], in_.log_scale[e]))
+                                 .squaredNorm();
+      } else {
+        const Vec6 xi = edge_twist(blocks_[i].pose, blocks_[j].pose, in_.meas[e]);
+        out_.edges[e].chi2 = chi2_of(*whitening(in_.cov[e] * scale_), xi);
+      }
+    }
+    for (std::size_t i = 0; i < n_; ++i) {
+      out_.maps[i].T_world_map = from_block(blocks_[i].pose);
+      if (sim_) {
+        out_.maps[i].scale = std::exp(blocks_[i].log_scale);
+        out_.maps[i].scale_free = !scale_held_[i];
+      }
+    }
+    return std::move(out_);
+  }
+
+  const std::size_t n_;
+  const std::vector<std::optional<MapPrior>>& priors_;
+  const std::vector<Edge>& edges_;
+  const PoseGraphOptions& o_;
+  const std::vector<bool>& scale_free_;
+  bool sim_ = false;
+  int dof_ = 6;
+  double threshold_ = 0.0;
+  MergeResult out_;
+  EdgeInputs in_;
+  std::vector<std::optional<Mat6>> prior_w_;
+  std::vector<double> prior_scale_;
+  std::vector<bool> active_;
+  std::vector<MapBlocks> blocks_;
+  std::vector<bool> scale_held_;
+  double scale_ = 1.0;  // the edge covariance scale
+  // The round's components, their gauges, whitened edges, chi^2 and last problem.
+  std::size_t ncomp_ = 0;
+  std::vector<std::size_t> comp_;
+  std::vector<std::optional<std::size_t>> root_;
+  std::vector<bool> comp_has_prior_;
+  std::vector<Mat6> W_;
+  std::vector<Mat7> W7_;
+  std::vector<double> chi2_;
+  // (Before the problems that use it: they are destroyed first.)
+  ceres::AutoDiffManifold<LeftPlus, 7, 6> manifold_;
+  std::unique_ptr<ceres::Problem> last_problem_;
+};
+
+}  // namespace
+
+MergeResult solve_pose_graph(std::size_t num_maps,
+                             const std::vector<std::optional<MapPrior>>& priors,
+                             const std::vector<Edge>& edges, const PoseGraphOptions& options,
+                             const std::vector<bool>& scale_free) {
+  return PoseGraphSolve(num_maps, priors, edges, options, scale_free).run();
 }
 
 }  // namespace lmalign

@@ -52,6 +52,132 @@ std::string scalar_text(const YAML::Node& n) {
   return std::string();
 }
 
+// A preset key naming a stage: its seam, or nullopt.
+std::optional<Seam> seam_of_key(const std::string& key) {
+  static const std::vector<std::pair<std::string, Seam>> seams{
+      {"initialiser", Seam::kInitialiser}, {"matcher", Seam::kMatcher},
+      {"rejectors", Seam::kRejector},      {"kernel", Seam::kKernel},
+      {"estimator", Seam::kEstimator},     {"schedule", Seam::kSchedule},
+      {"scorer", Seam::kScorer},           {"trust", Seam::kTrustJudge}};
+  for (const auto& [k, seam] : seams) {
+    if (k == key) return seam;
+  }
+  return std::nullopt;
+}
+
+// A stage key's value (the rejectors: a list of stages) into the preset's spec.
+void read_stages(const std::string& key, Seam seam, const YAML::Node& v, const std::string& file,
+                 PipelineSpec* spec) {
+  auto stage = [&](const YAML::Node& n) {
+    if (!n.IsScalar()) throw ParseError(file, line_of(n), key + ": expected a stage name");
+    if (find_stage(seam, n.Scalar()) == nullptr) {
+      throw ParseError(file, line_of(n),
+                       "unknown " + to_string(seam) + " stage '" + n.Scalar() +
+                           "' (known: " + known_stages(seam) + ")");
+    }
+    return n.Scalar();
+  };
+  if (seam == Seam::kRejector) {
+    if (!v.IsSequence()) throw ParseError(file, line_of(v), "rejectors: expected a list");
+    for (const YAML::Node& r : v) spec->rejectors.push_back(stage(r));
+    return;
+  }
+  const std::string s = stage(v);
+  switch (seam) {
+    case Seam::kInitialiser:
+      spec->initialiser = s;
+      break;
+    case Seam::kMatcher:
+      spec->matcher = s;
+      break;
+    case Seam::kKernel:
+      spec->kernel = s;
+      break;
+    case Seam::kEstimator:
+      spec->estimator = s;
+      break;
+    case Seam::kSchedule:
+      spec->schedule = s;
+      break;
+    case Seam::kScorer:
+      spec->scorer = s;
+      break;
+    default:
+      spec->trust = s;
+      break;
+  }
+}
+
+// One of the preset's own keys (doc, group, order, header, recommended, aliases).
+void read_preset_key(const std::string& key, const YAML::Node& v, const std::string& file,
+                     Preset* p) {
+  auto text = [&](const char* what) {
+    if (!v.IsScalar()) throw ParseError(file, line_of(v), key + ": expected " + what);
+    return v.Scalar();
+  };
+  if (key == "doc") {
+    p->doc = text("a line of text");
+  } else if (key == "group") {
+    p->group = text("paper or lmalign");
+    if (p->group != "paper" && p->group != "lmalign") {
+      throw ParseError(file, line_of(v),
+                       "group: expected paper or lmalign, got '" + p->group + "'");
+    }
+  } else if (key == "order") {
+    try {
+      p->order = std::stoi(text("an integer"));
+    } catch (const std::exception&) {
+      throw ParseError(file, line_of(v), "order: expected an integer");
+    }
+  } else if (key == "header") {
+    p->header = text("a short text");
+  } else if (key == "recommended") {
+    const std::string t = text("true or false");
+    if (t != "true" && t != "false") {
+      throw ParseError(file, line_of(v), "recommended: expected true or false");
+    }
+    p->recommended = t == "true";
+  } else if (key == "aliases") {
+    if (!v.IsSequence()) throw ParseError(file, line_of(v), "aliases: expected a list of names");
+    for (const YAML::Node& a : v) {
+      if (!a.IsScalar()) throw ParseError(file, line_of(a), "aliases: expected names");
+      p->aliases.push_back(a.Scalar());
+    }
+  }
+}
+
+// The preset's settings, each checked against its row of the pipeline's table, then the whole.
+void read_preset_settings(const YAML::Node& settings, const std::string& file, Preset* p) {
+  // The stages must fit together, and the settings be theirs.
+  std::optional<Pipeline> pipeline;
+  try {
+    pipeline.emplace(p->spec);
+  } catch (const InvalidArgument& e) {
+    throw ParseError(file, 1, e.what());
+  }
+  if (!settings.IsMap()) return;
+  for (auto it = settings.begin(); it != settings.end(); ++it) {
+    const YAML::Node k = it->first;
+    const YAML::Node v = it->second;
+    const std::string key = k.IsScalar() ? k.Scalar() : std::string();
+    const std::string value = scalar_text(v);
+    try {
+      const SettingRow& row = pipeline->settings().row(key);
+      if (value.empty() && !v.IsScalar()) {
+        throw InvalidArgument(key + ": expected a value or a list of numbers");
+      }
+      p->spec.settings.emplace_back(key, row.parse(value));
+    } catch (const InvalidArgument& e) {
+      throw ParseError(file, line_of(k), std::string("settings: ") + e.what());
+    }
+  }
+  try {
+    Pipeline check(p->spec);
+  } catch (const InvalidArgument& e) {
+    throw ParseError(file, line_of(settings), e.what());
+  }
+}
+
 Preset parse(const std::string& text, const std::string& name, const std::string& file) {
   YAML::Node root;
   try {
@@ -61,11 +187,6 @@ Preset parse(const std::string& text, const std::string& name, const std::string
                      "YAML syntax error: " + e.msg);
   }
   if (!root.IsMap()) throw ParseError(file, line_of(root), "expected a mapping of a preset's keys");
-  static const std::vector<std::pair<std::string, Seam>> seams{
-      {"initialiser", Seam::kInitialiser}, {"matcher", Seam::kMatcher},
-      {"rejectors", Seam::kRejector},      {"kernel", Seam::kKernel},
-      {"estimator", Seam::kEstimator},     {"schedule", Seam::kSchedule},
-      {"scorer", Seam::kScorer},           {"trust", Seam::kTrustJudge}};
   static const std::vector<std::string> keys{"doc",       "group",       "order",       "header",
                                              "aliases",   "recommended", "initialiser", "matcher",
                                              "rejectors", "kernel",      "estimator",   "schedule",
@@ -91,85 +212,15 @@ Preset parse(const std::string& text, const std::string& name, const std::string
       throw ParseError(file, line_of(k), "duplicate key '" + key + "'");
     }
     seen.push_back(key);
-    auto text = [&](const char* what) {
-      if (!v.IsScalar()) throw ParseError(file, line_of(v), key + ": expected " + what);
-      return v.Scalar();
-    };
-    if (key == "doc") {
-      p.doc = text("a line of text");
-    } else if (key == "group") {
-      p.group = text("paper or lmalign");
-      if (p.group != "paper" && p.group != "lmalign") {
-        throw ParseError(file, line_of(v),
-                         "group: expected paper or lmalign, got '" + p.group + "'");
-      }
-    } else if (key == "order") {
-      try {
-        p.order = std::stoi(text("an integer"));
-      } catch (const std::exception&) {
-        throw ParseError(file, line_of(v), "order: expected an integer");
-      }
-    } else if (key == "header") {
-      p.header = text("a short text");
-    } else if (key == "recommended") {
-      const std::string t = text("true or false");
-      if (t != "true" && t != "false") {
-        throw ParseError(file, line_of(v), "recommended: expected true or false");
-      }
-      p.recommended = t == "true";
-    } else if (key == "aliases") {
-      if (!v.IsSequence()) throw ParseError(file, line_of(v), "aliases: expected a list of names");
-      for (const YAML::Node& a : v) {
-        if (!a.IsScalar()) throw ParseError(file, line_of(a), "aliases: expected names");
-        p.aliases.push_back(a.Scalar());
-      }
-    } else if (key == "settings") {
+    if (key == "settings") {
       if (!v.IsMap() && !v.IsNull()) {
         throw ParseError(file, line_of(v), "settings: expected a mapping of KEY: VALUE");
       }
       settings = v;
+    } else if (const std::optional<Seam> seam = seam_of_key(key)) {
+      read_stages(key, *seam, v, file, &p.spec);
     } else {
-      const Seam seam = std::find_if(seams.begin(), seams.end(), [&](const auto& s) {
-                          return s.first == key;
-                        })->second;
-      auto stage = [&](const YAML::Node& n) {
-        if (!n.IsScalar()) throw ParseError(file, line_of(n), key + ": expected a stage name");
-        if (find_stage(seam, n.Scalar()) == nullptr) {
-          throw ParseError(file, line_of(n),
-                           "unknown " + to_string(seam) + " stage '" + n.Scalar() +
-                               "' (known: " + known_stages(seam) + ")");
-        }
-        return n.Scalar();
-      };
-      if (seam == Seam::kRejector) {
-        if (!v.IsSequence()) throw ParseError(file, line_of(v), "rejectors: expected a list");
-        for (const YAML::Node& r : v) p.spec.rejectors.push_back(stage(r));
-      } else {
-        const std::string s = stage(v);
-        switch (seam) {
-          case Seam::kInitialiser:
-            p.spec.initialiser = s;
-            break;
-          case Seam::kMatcher:
-            p.spec.matcher = s;
-            break;
-          case Seam::kKernel:
-            p.spec.kernel = s;
-            break;
-          case Seam::kEstimator:
-            p.spec.estimator = s;
-            break;
-          case Seam::kSchedule:
-            p.spec.schedule = s;
-            break;
-          case Seam::kScorer:
-            p.spec.scorer = s;
-            break;
-          default:
-            p.spec.trust = s;
-            break;
-        }
-      }
+      read_preset_key(key, v, file, &p);
     }
   }
   for (const char* required : {"initialiser", "matcher", "kernel", "estimator", "schedule"}) {
@@ -177,35 +228,7 @@ Preset parse(const std::string& text, const std::string& name, const std::string
       throw ParseError(file, 1, std::string("missing key '") + required + "'");
     }
   }
-  // The stages must fit together, and the settings be theirs.
-  std::optional<Pipeline> pipeline;
-  try {
-    pipeline.emplace(p.spec);
-  } catch (const InvalidArgument& e) {
-    throw ParseError(file, 1, e.what());
-  }
-  if (settings.IsMap()) {
-    for (auto it = settings.begin(); it != settings.end(); ++it) {
-      const YAML::Node k = it->first;
-      const YAML::Node v = it->second;
-      const std::string key = k.IsScalar() ? k.Scalar() : std::string();
-      const std::string value = scalar_text(v);
-      try {
-        const SettingRow& row = pipeline->settings().row(key);
-        if (value.empty() && !v.IsScalar()) {
-          throw InvalidArgument(key + ": expected a value or a list of numbers");
-        }
-        p.spec.settings.emplace_back(key, row.parse(value));
-      } catch (const InvalidArgument& e) {
-        throw ParseError(file, line_of(k), std::string("settings: ") + e.what());
-      }
-    }
-    try {
-      Pipeline check(p.spec);
-    } catch (const InvalidArgument& e) {
-      throw ParseError(file, line_of(settings), e.what());
-    }
-  }
+  read_preset_settings(settings, file, &p);
   return p;
 }
 

@@ -67,25 +67,40 @@ bool FleetSimOptions::is_valid(std::string* why) const {
   return true;
 }
 
-FleetScene simulate_fleet(const FleetSimOptions& o) {
-  std::string why;
-  if (!o.is_valid(&why)) throw InvalidArgument("FleetSimOptions: " + why);
-  std::mt19937_64 rng(o.seed);
-  std::uniform_real_distribution<double> u01(0.0, 1.0);
-  std::normal_distribution<double> gauss(0.0, 1.0);
+namespace {
+
+// The draws of one simulate_fleet(), in their order (same seed, same scene): the uniform and the
+// normal distribution (the latter keeps a second value between draws).
+struct Draws {
+  explicit Draws(std::uint64_t seed) : rng(seed) {}
+  std::mt19937_64 rng;
+  std::uniform_real_distribution<double> u01_dist{0.0, 1.0};
+  std::normal_distribution<double> gauss_dist{0.0, 1.0};
+  double u01() { return u01_dist(rng); }
+  double gauss() { return gauss_dist(rng); }
+};
+
+// Map centres on a jittered grid.
+std::vector<Vec3> map_centres(const FleetSimOptions& o, Draws& d) {
   const double r = o.map_radius_m;
   const std::size_t n = o.num_maps;
-
-  // Map centres on a jittered grid.
   const std::size_t cols = static_cast<std::size_t>(std::ceil(std::sqrt(static_cast<double>(n))));
   const double spacing = o.spacing_factor * r;
   std::vector<Vec3> centres(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double jx = (u01(rng) - 0.5) * 0.4 * spacing;
-    const double jy = (u01(rng) - 0.5) * 0.4 * spacing;
+    const double jx = (d.u01() - 0.5) * 0.4 * spacing;
+    const double jy = (d.u01() - 0.5) * 0.4 * spacing;
     centres[i] = Vec3(static_cast<double>(i % cols) * spacing + jx,
                       static_cast<double>(i / cols) * spacing + jy, 0.0);
   }
+  return centres;
+}
+
+// The world: ground landmarks and boxes over the maps' extent, heights from a smooth random
+// field; ids from 0.
+std::vector<WorldPoint> world_points(const FleetSimOptions& o, const std::vector<Vec3>& centres,
+                                     Draws& d, Id* next_id_out) {
+  const double r = o.map_radius_m;
   double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (const Vec3& c : centres) {
     x0 = std::min(x0, c.x() - 2.0 * r);
@@ -97,15 +112,15 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
 
   // The world: ground landmarks and boxes, heights from a smooth random field.
   std::vector<WorldPoint> world;
-  Id next_id = 0;
+  Id& next_id = *next_id_out;
   const std::size_t num_ground = static_cast<std::size_t>(o.ground_density_per_m2 * area);
   for (std::size_t k = 0; k < num_ground; ++k) {
-    const double x = x0 + u01(rng) * (x1 - x0);
-    const double y = y0 + u01(rng) * (y1 - y0);
+    const double x = x0 + d.u01() * (x1 - x0);
+    const double y = y0 + d.u01() * (y1 - y0);
     world.push_back({Vec3(x, y, terrain(x, y)), next_id++});
   }
-  const double ph1 = 2.0 * kPi * u01(rng), ph2 = 2.0 * kPi * u01(rng);
-  const double ph3 = 2.0 * kPi * u01(rng);
+  const double ph1 = 2.0 * kPi * d.u01(), ph2 = 2.0 * kPi * d.u01();
+  const double ph3 = 2.0 * kPi * d.u01();
   auto height_field = [&](double x, double y) {
     const double s = 0.5 + 0.2 * std::sin(x / (1.7 * r) + ph1) +
                      0.2 * std::cos(y / (1.3 * r) + ph2) +
@@ -114,20 +129,20 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
   };
   const std::size_t num_boxes = static_cast<std::size_t>(o.object_density_per_m2 * area);
   for (std::size_t b = 0; b < num_boxes; ++b) {
-    const double cx = x0 + u01(rng) * (x1 - x0);
-    const double cy = y0 + u01(rng) * (y1 - y0);
-    const double sx = 0.5 + 2.0 * u01(rng), sy = 0.5 + 2.0 * u01(rng);
-    const double h = height_field(cx, cy) * (0.6 + 0.8 * u01(rng));
-    const double yaw = 2.0 * kPi * u01(rng);
+    const double cx = x0 + d.u01() * (x1 - x0);
+    const double cy = y0 + d.u01() * (y1 - y0);
+    const double sx = 0.5 + 2.0 * d.u01(), sy = 0.5 + 2.0 * d.u01();
+    const double h = height_field(cx, cy) * (0.6 + 0.8 * d.u01());
+    const double yaw = 2.0 * kPi * d.u01();
     const double base = terrain(cx, cy);
     const Mat3 R = Eigen::AngleAxisd(yaw, Vec3::UnitZ()).toRotationMatrix();
     // Four walls and the top, landmarks uniform on each face.
     const double faces[5] = {sx * h, sx * h, sy * h, sy * h, sx * sy};
     for (int f = 0; f < 5; ++f) {
       const std::size_t count =
-          static_cast<std::size_t>(faces[f] * o.surface_density_per_m2 + u01(rng));
+          static_cast<std::size_t>(faces[f] * o.surface_density_per_m2 + d.u01());
       for (std::size_t k = 0; k < count; ++k) {
-        const double a = u01(rng) - 0.5, c = u01(rng);
+        const double a = d.u01() - 0.5, c = d.u01();
         Vec3 q;
         switch (f) {
           case 0:
@@ -151,15 +166,24 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
     }
   }
 
-  FleetScene scene;
-  // Twins: the world around b replaced by a turned copy of the world around a.
+  return world;
+}
+
+// Twins: the world around map b replaced by a turned copy of the world around map a.
+void plant_twins(const FleetSimOptions& o, const std::vector<Vec3>& centres, Draws& d,
+                 std::vector<WorldPoint>* world_io, Id* next_id_io, FleetScene* scene_out) {
+  const double r = o.map_radius_m;
+  const std::size_t n = o.num_maps;
+  std::vector<WorldPoint>& world = *world_io;
+  Id& next_id = *next_id_io;
+  FleetScene& scene = *scene_out;
   const double twin_radius = 1.6 * r;
   std::vector<std::size_t> used;
   for (std::size_t t = 0; t < o.num_twins; ++t) {
     bool placed = false;
     for (int attempt = 0; attempt < 200 && !placed; ++attempt) {
-      std::size_t a = static_cast<std::size_t>(u01(rng) * static_cast<double>(n)) % n;
-      std::size_t b = static_cast<std::size_t>(u01(rng) * static_cast<double>(n)) % n;
+      std::size_t a = static_cast<std::size_t>(d.u01() * static_cast<double>(n)) % n;
+      std::size_t b = static_cast<std::size_t>(d.u01() * static_cast<double>(n)) % n;
       if ((centres[a] - centres[b]).norm() <= 2.0 * twin_radius) continue;
       bool clear = true;
       for (std::size_t u : used) {
@@ -170,7 +194,7 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
       }
       if (!clear) continue;
       const Vec3 ca = centres[a], cb = centres[b];
-      const Mat3 R = Eigen::AngleAxisd(2.0 * kPi * u01(rng), Vec3::UnitZ()).toRotationMatrix();
+      const Mat3 R = Eigen::AngleAxisd(2.0 * kPi * d.u01(), Vec3::UnitZ()).toRotationMatrix();
       std::vector<WorldPoint> kept, copies;
       for (const WorldPoint& w : world) {
         const double da = (w.p - ca).head<2>().norm();
@@ -191,20 +215,28 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
     }
   }
   std::sort(scene.twins.begin(), scene.twins.end());
+}
 
-  // Maps: what each sees, in its own frame.
+// Each map: what it sees, in its own frame (`seen`: the world ids it holds).
+void observe_maps(const FleetSimOptions& o, const std::vector<Vec3>& centres,
+                  const std::vector<WorldPoint>& world, Draws& d, FleetScene* scene_out,
+                  std::vector<std::unordered_set<Id>>* seen_out) {
+  const double r = o.map_radius_m;
+  const std::size_t n = o.num_maps;
+  FleetScene& scene = *scene_out;
+  std::vector<std::unordered_set<Id>>& seen = *seen_out;
   scene.maps.resize(n);
   scene.names.resize(n);
   scene.T_world_map.resize(n);
-  std::vector<std::unordered_set<Id>> seen(n);
+  seen.assign(n, {});
   for (std::size_t i = 0; i < n; ++i) {
     char name[32];
     std::snprintf(name, sizeof(name), "map_%03zu", i);
     scene.names[i] = name;
     const Vec3 c = centres[i];
     const Isometry3 T_world_map =
-        yaw_pose(2.0 * kPi * u01(rng) - kPi,
-                 c + Vec3(10.0 * (u01(rng) - 0.5), 10.0 * (u01(rng) - 0.5), u01(rng) - 0.5));
+        yaw_pose(2.0 * kPi * d.u01() - kPi,
+                 c + Vec3(10.0 * (d.u01() - 0.5), 10.0 * (d.u01() - 0.5), d.u01() - 0.5));
     scene.T_world_map[i] = T_world_map;
     const Isometry3 T_map_world = T_world_map.inverse();
     Map& m = scene.maps[i];
@@ -228,10 +260,10 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
     const Mat3 cov = Mat3::Identity() * (o.position_sigma_m * o.position_sigma_m);
     for (const WorldPoint& w : world) {
       if ((w.p - c).head<2>().norm() > r) continue;
-      if (u01(rng) >= o.detection_probability) continue;
+      if (d.u01() >= o.detection_probability) continue;
       Landmark l;
       l.id = w.id;
-      const Vec3 noise(gauss(rng), gauss(rng), gauss(rng));
+      const Vec3 noise(d.gauss(), d.gauss(), d.gauss());
       l.p_world = T_map_world * (w.p + o.position_sigma_m * noise);
       l.cov_world_m2 = T_map_world.linear() * cov * T_map_world.linear().transpose();
       // Two observations: the two keyframes looking most directly at it (pinhole pixels of the
@@ -252,6 +284,12 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
       seen[i].insert(w.id);
     }
   }
+}
+
+// Noisy priors of the maps' poses (when asked).
+void add_priors(const FleetSimOptions& o, Draws& d, FleetScene* scene_out) {
+  const std::size_t n = o.num_maps;
+  FleetScene& scene = *scene_out;
   if (o.prior_sigma_m > 0.0) {
     // Noise about the map's own origin (a GPS-like heading error turns a map about itself):
     // T_prior = T_true * Exp(xi_map), reported in the world-frame left convention,
@@ -260,8 +298,8 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
     Mat6 C_map = Mat6::Zero();
     C_map.diagonal() << Vec3::Constant(o.prior_sigma_m * o.prior_sigma_m), Vec3::Constant(sr * sr);
     for (std::size_t i = 0; i < n; ++i) {
-      const Vec3 rho(gauss(rng), gauss(rng), gauss(rng));
-      const Vec3 phi(gauss(rng), gauss(rng), gauss(rng));
+      const Vec3 rho(d.gauss(), d.gauss(), d.gauss());
+      const Vec3 phi(d.gauss(), d.gauss(), d.gauss());
       Isometry3 E = Isometry3::Identity();
       const Vec3 phi_rad = sr * phi;
       if (phi_rad.norm() > 0.0) {
@@ -275,7 +313,14 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
       scene.prior_covariance.push_back(0.5 * (C + C.transpose()));
     }
   }
-  // True overlaps (shared landmark ids) between maps whose discs intersect.
+}
+
+// True overlaps (shared landmark ids) between maps whose discs intersect.
+void true_overlaps(const FleetSimOptions& o, const std::vector<Vec3>& centres,
+                   const std::vector<std::unordered_set<Id>>& seen, FleetScene* scene_out) {
+  const double r = o.map_radius_m;
+  const std::size_t n = o.num_maps;
+  FleetScene& scene = *scene_out;
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t j = i + 1; j < n; ++j) {
       if ((centres[i] - centres[j]).head<2>().norm() >= 2.0 * r) continue;
@@ -287,6 +332,23 @@ FleetScene simulate_fleet(const FleetSimOptions& o) {
       if (f >= o.min_overlap) scene.overlaps.push_back({i, j, f});
     }
   }
+}
+
+}  // namespace
+
+FleetScene simulate_fleet(const FleetSimOptions& o) {
+  std::string why;
+  if (!o.is_valid(&why)) throw InvalidArgument("FleetSimOptions: " + why);
+  Draws d(o.seed);
+  const std::vector<Vec3> centres = map_centres(o, d);
+  Id next_id = 0;
+  std::vector<WorldPoint> world = world_points(o, centres, d, &next_id);
+  FleetScene scene;
+  plant_twins(o, centres, d, &world, &next_id, &scene);
+  std::vector<std::unordered_set<Id>> seen;
+  observe_maps(o, centres, world, d, &scene, &seen);
+  add_priors(o, d, &scene);
+  true_overlaps(o, centres, seen, &scene);
   return scene;
 }
 

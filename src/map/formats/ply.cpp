@@ -126,66 +126,97 @@ bool at_a_centre(const Vec3& p, const std::vector<Vec3>& centres) {
   return false;
 }
 
-// The reader; `camera_centres` gives rule 1's centres (ply.hpp), or null for rule 2, and is
-// called only when the file has a pure green vertex.
-Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
-             const std::function<const std::vector<Vec3>*()>& camera_centres) {
-  const std::string text = formats_detail::slurp(in, name);
-  // ---- header
-  Lines lines(text, name);
-  auto next_line = [&lines](std::string_view& line) { return lines.next_raw(line); };
+// An obj_info line's value after its keyword: our own metadata (write_ply_map); other tools'
+// obj_info lines are skipped.
+void read_obj_info(TokenReader& t, MapHeader* header) {
+  const std::string_view key = t.next();
+  if (key == "lmalign_scale") {
+    const std::string_view value = t.next();
+    const std::optional<MapScale> scale = map_scale_from_name(std::string(value));
+    if (!scale) {
+      t.fail("obj_info lmalign_scale " + quoted(value) +
+             " is not one of metric, arbitrary, unknown");
+    }
+    header->scale = *scale;
+  } else if (key == "lmalign_covariance") {
+    const std::string_view value = t.next();
+    if (value != "estimated" && value != "assumed") {
+      t.fail("obj_info lmalign_covariance " + quoted(value) + " is not one of estimated, assumed");
+    }
+    header->covariance_assumed = value == "assumed";
+  } else {
+    return;
+  }
+  if (!t.at_end()) t.fail("unexpected field after the obj_info value");
+}
+
+// A 'property' line of `element` (after its keyword).
+Property read_property(TokenReader& t, const Element& element) {
+  Property p;
+  std::string_view type = t.next();
+  if (type == "list") {
+    p.is_list = true;
+    const std::optional<Scalar> count_type = scalar_of(t.next());
+    if (!count_type || *count_type == Scalar::kFloat32 || *count_type == Scalar::kFloat64) {
+      t.fail("expected an integer count type in 'property list COUNT_TYPE TYPE NAME'");
+    }
+    p.count_type = *count_type;
+    type = t.next();
+  }
+  const std::optional<Scalar> scalar = scalar_of(type);
+  if (!scalar) t.fail("unknown property type " + quoted(type));
+  p.type = *scalar;
+  p.name = std::string(t.next());
+  if (p.name.empty()) t.fail("expected a property name");
+  // A repeated name would make the covariance count ambiguous (found by fuzz_ply_reader).
+  for (const Property& other : element.properties) {
+    if (other.name == p.name) {
+      t.fail("duplicate property '" + p.name + "' in element '" + element.name + "'");
+    }
+  }
+  return p;
+}
+
+// A PLY header: the format, the elements and their properties, our obj_info metadata, and
+// whether OpenMVG's comment marks the file.
+struct PlyHeader {
+  bool binary = false;
+  bool openmvg_comment = false;
+  MapHeader map_header;
+  std::vector<Element> elements;
+};
+
+PlyHeader read_header(Lines& lines, const std::string& name) {
   std::string_view line;
-  if (!next_line(line) || line != "ply") {
+  if (!lines.next_raw(line) || line != "ply") {
     throw ParseError(name, 1, "expected 'ply' as the first line (not a PLY file)");
   }
-  bool binary = false;
+  PlyHeader h;
   bool have_format = false;
-  bool openmvg_comment = false;
-  MapHeader header;
-  header.scale = MapScale::kUnknown;  // unless our obj_info says
-  std::vector<Element> elements;
+  h.map_header.scale = MapScale::kUnknown;  // unless our obj_info says
+  std::vector<Element>& elements = h.elements;
   for (;;) {
-    if (!next_line(line))
+    if (!lines.next_raw(line))
       throw ParseError(name, lines.line(), "file ends inside the header (no end_header)");
     TokenReader t(line, name, lines.line());
     const std::string_view keyword = t.next();
     if (keyword == "end_header") break;
     if (keyword == "obj_info") {
-      // Our own metadata (write_ply_map); other tools' obj_info lines are skipped.
-      const std::string_view key = t.next();
-      if (key == "lmalign_scale") {
-        const std::string_view value = t.next();
-        const std::optional<MapScale> scale = map_scale_from_name(std::string(value));
-        if (!scale) {
-          t.fail("obj_info lmalign_scale " + quoted(value) +
-                 " is not one of metric, arbitrary, unknown");
-        }
-        header.scale = *scale;
-      } else if (key == "lmalign_covariance") {
-        const std::string_view value = t.next();
-        if (value != "estimated" && value != "assumed") {
-          t.fail("obj_info lmalign_covariance " + quoted(value) +
-                 " is not one of estimated, assumed");
-        }
-        header.covariance_assumed = value == "assumed";
-      } else {
-        continue;
-      }
-      if (!t.at_end()) t.fail("unexpected field after the obj_info value");
+      read_obj_info(t, &h.map_header);
       continue;
     }
     if (keyword == "comment") {
-      openmvg_comment =
-          openmvg_comment || line.substr(0, kOpenMvgComment.size()) == kOpenMvgComment;
+      h.openmvg_comment =
+          h.openmvg_comment || line.substr(0, kOpenMvgComment.size()) == kOpenMvgComment;
       continue;
     }
     if (keyword.empty()) continue;
     if (keyword == "format") {
       const std::string_view format = t.next();
       if (format == "ascii") {
-        binary = false;
+        h.binary = false;
       } else if (format == "binary_little_endian") {
-        binary = true;
+        h.binary = true;
       } else {
         t.fail("format " + quoted(format) +
                " is not supported (expected ascii or binary_little_endian)");
@@ -202,35 +233,18 @@ Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
       elements.push_back(std::move(e));
     } else if (keyword == "property") {
       if (elements.empty()) t.fail("property before any element");
-      Property p;
-      std::string_view type = t.next();
-      if (type == "list") {
-        p.is_list = true;
-        const std::optional<Scalar> count_type = scalar_of(t.next());
-        if (!count_type || *count_type == Scalar::kFloat32 || *count_type == Scalar::kFloat64) {
-          t.fail("expected an integer count type in 'property list COUNT_TYPE TYPE NAME'");
-        }
-        p.count_type = *count_type;
-        type = t.next();
-      }
-      const std::optional<Scalar> scalar = scalar_of(type);
-      if (!scalar) t.fail("unknown property type " + quoted(type));
-      p.type = *scalar;
-      p.name = std::string(t.next());
-      if (p.name.empty()) t.fail("expected a property name");
-      // A repeated name would make the covariance count ambiguous (found by fuzz_ply_reader).
-      for (const Property& other : elements.back().properties) {
-        if (other.name == p.name) {
-          t.fail("duplicate property '" + p.name + "' in element '" + elements.back().name + "'");
-        }
-      }
-      elements.back().properties.push_back(std::move(p));
+      elements.back().properties.push_back(read_property(t, elements.back()));
     } else {
       t.fail("unknown header keyword " + quoted(keyword));
     }
     if (!t.at_end()) t.fail("unexpected field in the header line");
   }
   if (!have_format) throw ParseError(name, lines.line(), "the header has no 'format' line");
+  return h;
+}
+// The vertex element (its index) and where its coordinates, covariances and colour are.
+std::size_t vertex_layout(const std::vector<Element>& elements, const Lines& lines,
+                          const std::string& name, VertexLayout* out) {
   std::size_t vertex_index = elements.size();
   for (std::size_t i = 0; i < elements.size(); ++i) {
     if (elements[i].name == "vertex") {
@@ -242,7 +256,7 @@ Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
     throw ParseError(name, lines.line(), "the header declares no 'vertex' element");
   }
   const Element& vertex = elements[vertex_index];
-  VertexLayout layout;
+  VertexLayout& layout = *out;
   int num_cov = 0;
   for (std::size_t i = 0; i < vertex.properties.size(); ++i) {
     const Property& p = vertex.properties[i];
@@ -265,9 +279,6 @@ Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
       if (p.name == kRgb[k] && p.type == Scalar::kUint8) layout.rgb[k] = static_cast<int>(i);
     }
   }
-  const bool has_rgb = layout.rgb[0] >= 0 && layout.rgb[1] >= 0 && layout.rgb[2] >= 0;
-  // Pure green vertices (landmark indices): OpenMVG's camera centres if a rule below says so.
-  std::vector<std::size_t> green;
   for (int k = 0; k < 3; ++k) {
     if (layout.xyz[k] < 0) {
       throw ParseError(name, lines.line(),
@@ -282,14 +293,24 @@ Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
   }
   layout.has_covariance = num_cov == 6;
 
-  // ---- body
+  return vertex_index;
+}
+
+// The elements up to the vertex element; the vertices become landmarks. `green`: the pure green
+// vertices (landmark indices), OpenMVG's camera centres if a rule of ply.hpp says so.
+Map read_body(const std::string& text, Lines& lines, const std::string& name, const PlyHeader& h,
+              std::size_t vertex_index, const VertexLayout& layout,
+              std::vector<std::size_t>* green) {
+  const bool binary = h.binary;
+  const std::vector<Element>& elements = h.elements;
+  const bool has_rgb = layout.rgb[0] >= 0 && layout.rgb[1] >= 0 && layout.rgb[2] >= 0;
   const std::size_t pos = lines.offset();
   const std::string_view body = std::string_view(text).substr(pos);
   Bytes bytes(body, name, pos);
   TokenReader tokens(body, name, lines.line() + 1);
   const auto body_offset = pos;
   Map map;
-  map.header = header;
+  map.header = h.map_header;
   std::vector<double> values;
   for (std::size_t e = 0; e <= vertex_index; ++e) {
     const Element& element = elements[e];
@@ -374,13 +395,20 @@ Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
       if (has_rgb && values[static_cast<std::size_t>(layout.rgb[0])] == 0.0 &&
           values[static_cast<std::size_t>(layout.rgb[1])] == 255.0 &&
           values[static_cast<std::size_t>(layout.rgb[2])] == 0.0) {
-        green.push_back(map.landmarks.size());
+        green->push_back(map.landmarks.size());
       }
       map.landmarks.push_back(std::move(landmark));
     }
   }
-  // OpenMVG's camera centres (ply.hpp): at sfm_data.json's centres, else every green vertex of a
-  // file OpenMVG's comment marks.
+  return map;
+}
+
+// OpenMVG's camera centres (ply.hpp) left out: at sfm_data.json's centres, else every green
+// vertex of a file OpenMVG's comment marks.
+PlyReadReport leave_out_camera_centres(
+    Map* map_out, const std::vector<std::size_t>& green, bool openmvg_comment,
+    const std::function<const std::vector<Vec3>*()>& camera_centres) {
+  Map& map = *map_out;
   PlyReadReport r;
   r.vertices = map.landmarks.size();
   std::vector<bool> left_out(map.landmarks.size(), false);
@@ -401,6 +429,21 @@ Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
     }
     map.landmarks.resize(k);
   }
+  return r;
+}
+
+// The reader; `camera_centres` gives rule 1's centres (ply.hpp), or null for rule 2, and is
+// called only when the file has a pure green vertex.
+Map read_ply(std::istream& in, const std::string& name, PlyReadReport* report,
+             const std::function<const std::vector<Vec3>*()>& camera_centres) {
+  const std::string text = formats_detail::slurp(in, name);
+  Lines lines(text, name);
+  const PlyHeader h = read_header(lines, name);
+  VertexLayout layout;
+  const std::size_t vertex_index = vertex_layout(h.elements, lines, name, &layout);
+  std::vector<std::size_t> green;
+  Map map = read_body(text, lines, name, h, vertex_index, layout, &green);
+  const PlyReadReport r = leave_out_camera_centres(&map, green, h.openmvg_comment, camera_centres);
   if (report != nullptr) *report = r;
   return map;
 }

@@ -684,11 +684,11 @@ Mat3 rotation_between(const Vec3& from, const Vec3& to) {
   return Eigen::AngleAxisd(std::atan2(s, c), axis / s).toRotationMatrix();
 }
 
-std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
-                                               const Points3& target_points, const Vec3& up_source,
-                                               const Vec3& up_target, double cell_m,
-                                               const YawVoteOptions& options,
-                                               const PoseWindow* window) {
+namespace {
+
+void check_yaw_vote_input(const Points3& source_points, const Points3& target_points,
+                          const Vec3& up_source, const Vec3& up_target, double cell_m,
+                          const YawVoteOptions& options, const PoseWindow* window) {
   std::string why;
   if (!options.is_valid(&why)) throw InvalidArgument("yaw-vote search: " + why);
   if (source_points.size() < 3 || target_points.size() < 3) {
@@ -719,8 +719,25 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
                             " is not finite");
     }
   }
-  const Points3 src = strided(source_points, options.source_samples);
-  Points3 tgt = strided(target_points, options.target_samples);
+}
+
+// The samples the votes are cast with: the source samples about their centre (they turn about
+// it), the target samples less `target_centre`.
+struct VoteSamples {
+  Points3 src, tgt;
+  Vec3 centre = Vec3::Zero();
+  Vec3 target_centre = Vec3::Zero();
+};
+
+VoteSamples vote_samples(const Points3& source_points, const Points3& target_points, double cell_m,
+                         const YawVoteOptions& options) {
+  VoteSamples v;
+  v.src = strided(source_points, options.source_samples);
+  v.tgt = strided(target_points, options.target_samples);
+  const Points3& src = v.src;
+  Points3& tgt = v.tgt;
+  Vec3& centre = v.centre;
+  Vec3& target_centre = v.target_centre;
   // The source samples turn about their centroid, and vote for t = q - R (p - centre). Every
   // vote must fit the grid's +-kCellLimit cells per axis; a vote beyond it is dropped. For maps
   // near their origins they do. When they do not (maps whose coordinates are far from their
@@ -728,10 +745,8 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
   // centred on the coordinate-wise medians of their samples instead: the votes then span the
   // maps' sizes, whatever their coordinates (up to the supported 1e15 m) and whatever a few far
   // landmarks do (theirs are dropped).
-  Vec3 centre = Vec3::Zero();
   for (const Vec3& p : src) centre += p;
   centre /= static_cast<double>(src.size());
-  Vec3 target_centre = Vec3::Zero();  // subtracted from the target samples
   {
     double reach_m = 0.0;
     for (const Vec3& p : src) reach_m = std::max(reach_m, (p - centre).norm());
@@ -743,7 +758,6 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
       for (Vec3& q : tgt) q -= target_centre;
     }
   }
-  const Vec3 up = up_target.normalized();
   if (options.vote_3d) {
     // The 3-D vote's counts do not depend on the order of the target samples; in the order of
     // their cells (the grid's memory order), one source sample's votes walk the grid nearly in
@@ -758,15 +772,32 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     });
   }
 
-  // The base rotation and the yaw grid.
-  Mat3 base;
+  return v;
+}
+
+// The yaws voted over: about the up axes' alignment, every yaw (no prior), else those within 3
+// sigma of the guess, with the vote window about the guess's image of the source centre.
+struct YawGrid {
+  Mat3 base = Mat3::Identity();
   double yaw_from = -kPi;
   int n_yaw = 0;
-  const double step = options.yaw_step_deg * kPi / 180.0;
+  bool circular = true;
   Vec3 t_centre = Vec3::Zero();
   double radius_h = std::numeric_limits<double>::infinity();
   double radius_v = std::numeric_limits<double>::infinity();
-  bool circular = true;
+};
+
+YawGrid yaw_grid(const Vec3& up_source, const Vec3& up, const Vec3& centre, double cell_m,
+                 const YawVoteOptions& options, const PoseWindow* window) {
+  YawGrid g;
+  Mat3& base = g.base;
+  double& yaw_from = g.yaw_from;
+  int& n_yaw = g.n_yaw;
+  Vec3& t_centre = g.t_centre;
+  double& radius_h = g.radius_h;
+  double& radius_v = g.radius_v;
+  bool& circular = g.circular;
+  const double step = options.yaw_step_deg * kPi / 180.0;
   if (window == nullptr) {
     base = rotation_between(up_source, up);
     n_yaw = static_cast<int>(std::ceil(2.0 * kPi / step - 1e-9));
@@ -797,7 +828,20 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     radius_v = 3.0 * (window->translation_sd_m + window->rotation_sd_rad * across) + 2.0 * cell_m;
   }
 
-  const std::size_t per_yaw = std::max<std::size_t>(1, options.peaks_per_yaw);
+  return g;
+}
+
+// Each yaw's peaks (one thread per yaw, each its own slot).
+std::vector<std::vector<YawHypothesis>> vote_every_yaw(const VoteSamples& v, const YawGrid& g,
+                                                       const Vec3& up, double cell_m,
+                                                       const YawVoteOptions& options,
+                                                       std::size_t per_yaw) {
+  const Points3& src = v.src;
+  const Points3& tgt = v.tgt;
+  const Vec3& centre = v.centre;
+  const Vec3& target_centre = v.target_centre;
+  const int n_yaw = g.n_yaw;
+  const double step = options.yaw_step_deg * kPi / 180.0;
   std::vector<std::vector<YawHypothesis>> all(static_cast<std::size_t>(n_yaw));
   FirstException error;
 #pragma omp parallel
@@ -818,11 +862,11 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     for (int i = 0; i < n_yaw; ++i) {
       if (!ready) continue;
       error.capture([&] {
-        const double yaw = yaw_from + step * i;
+        const double yaw = g.yaw_from + step * i;
         const Mat3 R_yaw = Eigen::AngleAxisd(yaw, up).toRotationMatrix();
-        const Mat3 R = R_yaw * base;
+        const Mat3 R = R_yaw * g.base;
         for (std::size_t j = 0; j < src.size(); ++j) rotated[j] = R * (src[j] - centre);
-        const VoteWindow w{R_yaw * t_centre - target_centre, radius_h, radius_v};
+        const VoteWindow w{R_yaw * g.t_centre - target_centre, g.radius_h, g.radius_v};
         const std::vector<Peak> peaks =
             options.vote_3d ? vote3d(rotated, tgt, cell_m, up, w, per_yaw, grid3)
                             : vote(rotated, tgt, cell_m, up, w, per_yaw, grid, heights, by_e1);
@@ -839,8 +883,14 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
     }
   }
   error.rethrow();
-  // Local maxima over yaw (circular without a window) of each yaw's best peak, best first; with
-  // several peaks per yaw, every peak of every yaw.
+  return all;
+}
+
+// Local maxima over yaw (circular without a window) of each yaw's best peak, best first; with
+// several peaks per yaw, every peak of every yaw.
+std::vector<YawHypothesis> yaw_maxima(const std::vector<std::vector<YawHypothesis>>& all,
+                                      bool circular, std::size_t per_yaw) {
+  const int n_yaw = static_cast<int>(all.size());
   std::vector<YawHypothesis> out;
   auto best_votes = [&](int i) -> std::size_t {
     const auto& v = all[static_cast<std::size_t>(i)];
@@ -862,6 +912,23 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
   std::stable_sort(out.begin(), out.end(), [](const YawHypothesis& a, const YawHypothesis& b) {
     return a.votes > b.votes;
   });
+  return out;
+}
+
+}  // namespace
+
+std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
+                                               const Points3& target_points, const Vec3& up_source,
+                                               const Vec3& up_target, double cell_m,
+                                               const YawVoteOptions& options,
+                                               const PoseWindow* window) {
+  check_yaw_vote_input(source_points, target_points, up_source, up_target, cell_m, options, window);
+  const VoteSamples v = vote_samples(source_points, target_points, cell_m, options);
+  const Vec3 up = up_target.normalized();
+  const YawGrid g = yaw_grid(up_source, up, v.centre, cell_m, options, window);
+  const std::size_t per_yaw = std::max<std::size_t>(1, options.peaks_per_yaw);
+  std::vector<YawHypothesis> out =
+      yaw_maxima(vote_every_yaw(v, g, up, cell_m, options, per_yaw), g.circular, per_yaw);
   if (out.size() > options.hypotheses) out.resize(options.hypotheses);
   return out;
 }
