@@ -430,6 +430,12 @@ int run_align(const AlignArgs& a) {
   }
   const Map& source = o.source;
   const Map& target = o.target;
+  // An aligned source its writer would refuse fails now, not after the alignment.
+  for (const Preset& s : strategies) {
+    if (a.ply_path.empty()) break;
+    check_map_writable(ply_path_for(a.ply_path, s.name, strategies.size() > 1), source,
+                       parse_map_format(a.aligned_format));
+  }
   if (source.landmarks.empty())
     throw InvalidArgument("source map '" + a.source +
                           "' has no landmarks (after the --min-observations filter)");

@@ -32,6 +32,21 @@ TEST_F(CliAlignFormats, AlignsARealBundlerMapOntoItselfFromADisplacement) {
   EXPECT_LT(j["results"][0]["rotation_error_deg"].get<double>(), 0.5);
   EXPECT_LT(j["results"][0]["translation_error_m"].get<double>(), 0.01);
   EXPECT_GT(j["source_landmarks"].get<int>(), 100);
+}
+
+// The Bundler reader without the image size, and the outputs that need it (the default's
+// alignment of the same file is the test above, which runs in Release only: the Makefile's
+// SANITIZE_EXCLUDE).
+TEST_F(CliAlignFormats, ABundlerMapReadsWithoutItsImageSizeAndOutputsThatNeedItSaySo) {
+  const std::string out = test::data_file("bundler_balbianello/Balbianello.out");
+  LMALIGN_REQUIRE_FILE(out);
+  const test::CliRun sized = run("align " + out + " " + out +
+                                 " --image-size 640,427 --strategy base --ground-truth identity "
+                                 "--json " +
+                                 path("b.json"));
+  ASSERT_EQ(sized.exit_code, 0) << sized.out << sized.err;
+  const auto j = nlohmann::json::parse(test::read_text(path("b.json")));
+  EXPECT_GT(j["source_landmarks"].get<int>(), 100);
 
   // Without the image size (the file has none) it reads the same landmarks: triangulation needs
   // only the focal length (base ICP, undisplaced: the reader is what is checked here). An output

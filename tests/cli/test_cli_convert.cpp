@@ -64,11 +64,12 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
   ASSERT_EQ(from_colmap.frames.size(), 5u);
   EXPECT_EQ(from_colmap.frames[0].camera->model, CameraModel::kRadial);
 
-  // align reads the COLMAP folder by content; the same landmarks align at the identity.
+  // align reads the COLMAP folder by content; the same landmarks align at the identity (base ICP
+  // from the identity: this checks the readers and writers, not a search).
   // --aligned-out picks the writer by extension: PLY with covariances, or our format.
   const test::CliRun align = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
-                                 " --ground-truth identity --min-observations 0 --aligned-out " +
-                                 shell_quote(path("aligned.ply")));
+                                 " --strategy base --ground-truth identity --min-observations 0 " +
+                                 "--aligned-out " + shell_quote(path("aligned.ply")));
   ASSERT_EQ(align.exit_code, 0) << align.err;
   const Map aligned_ply = read_ply_map(path("aligned.ply"));
   ASSERT_EQ(aligned_ply.landmarks.size(), map.landmarks.size());
@@ -77,9 +78,9 @@ TEST_F(CliConvert, BundlerToOursAndColmapThenAlignAndSplitReadThemByContent) {
     EXPECT_LT((aligned_ply.landmarks[i].p_world - map.landmarks[i].p_world).norm(),
               1e-6 * (1.0 + map.landmarks[i].p_world.norm()));
   }
-  const test::CliRun align_txt =
-      run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
-          " --ground-truth identity --aligned-out " + shell_quote(path("aligned.txt")));
+  const test::CliRun align_txt = run("align " + shell_quote(colmap) + " " + shell_quote(ours) +
+                                     " --strategy base --ground-truth identity --aligned-out " +
+                                     shell_quote(path("aligned.txt")));
   ASSERT_EQ(align_txt.exit_code, 0) << align_txt.err;
   const Map aligned_map = read_map(path("aligned.txt"), keep_all);
   EXPECT_EQ(aligned_map.frames.size(), 5u);

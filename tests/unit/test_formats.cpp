@@ -459,6 +459,15 @@ TEST(Bundler, KnownSceneConventionsAndProjection) {
   }
   EXPECT_FALSE(std::filesystem::exists(dir.file("ours.txt")));
   EXPECT_THROW(write_colmap_text(dir.file("colmap"), unsized), InvalidArgument);
+  // The same refusals asked of the map before any work (check_map_writable), by the writer the
+  // path chooses; nothing is written.
+  EXPECT_THROW(check_map_writable(dir.file("ours.txt"), unsized), InvalidArgument);
+  EXPECT_THROW(check_map_writable(dir.file("colmap") + "/", unsized), InvalidArgument);
+  EXPECT_THROW(check_map_writable(dir.file("x.ply"), unsized, MapFormat::kColmapText),
+               InvalidArgument);
+  EXPECT_NO_THROW(check_map_writable(dir.file("ok.ply"), unsized));
+  EXPECT_NO_THROW(check_map_writable(dir.file("ours.txt"), any));  // sized: top-left pixels
+  EXPECT_FALSE(std::filesystem::exists(dir.file("ours.txt")));
   write_ply_map(dir.file("ok.ply"), unsized);  // PLY stores no pixels
   EXPECT_EQ(read_ply_map(dir.file("ok.ply")).landmarks.size(), 3u);
   std::istringstream half(file.str());

@@ -478,6 +478,21 @@ MapFormat written_map_format(const std::string& path, MapFormat format) {
   return ext == ".ply" ? MapFormat::kPly : MapFormat::kLmalign;
 }
 
+void check_map_writable(const std::string& path, const Map& map, MapFormat format) {
+  const MapFormat f = written_map_format(path, format);
+  if (f != MapFormat::kLmalign && f != MapFormat::kColmapText) return;
+  for (const Frame& frame : map.frames) {
+    if (frame.camera && frame.camera->centred_pixels) {
+      throw InvalidArgument(
+          "FRAME " + std::to_string(frame.id) +
+          ": its pixels are relative to the image centre (a Bundler map read without an image "
+          "size); " +
+          (f == MapFormat::kColmapText ? "COLMAP" : "the map text format") +
+          " stores pixels from the top-left corner: give the image size (--image-size W,H)");
+    }
+  }
+}
+
 void write_any_map(const std::string& path, const Map& map, MapFormat format) {
   map_format_info(written_map_format(path, format)).write(path, map);
 }

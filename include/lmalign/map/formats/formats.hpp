@@ -174,6 +174,14 @@ MapFormat written_map_format(const std::string& path, MapFormat format = MapForm
 /// "lmalign, ply, colmap-text": the formats lmalign writes (rows with a writer).
 std::string written_map_format_names();
 
+/// Throws InvalidArgument when write_any_map(path, map, format) would refuse `map` for what it
+/// holds: frames whose pixels are relative to the image centre (a Bundler map read without an
+/// image size) in a format that stores pixels from the top-left corner (ours, COLMAP text; a PLY
+/// stores no pixels). A front end asks before the work whose result it writes, so that such an
+/// output fails at once (`lmalign align --aligned-out`).
+void check_map_writable(const std::string& path, const Map& map,
+                        MapFormat format = MapFormat::kAuto);
+
 /// Writes `map` in written_map_format(path, format): a folder (ending in '/' or existing) gets a
 /// COLMAP text model (write_colmap_text, formats/colmap.hpp), a `.ply` path a PLY with the
 /// covariances as properties (write_ply_map, formats/ply.hpp), any other path our text format
