@@ -49,10 +49,5 @@ int run(const Args& args) {
 }  // namespace lmalign::bench
 
 int main(int argc, char** argv) {
-  try {
-    return lmalign::bench::run(lmalign::bench::parse_args(argc, argv));
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_open3d: %s\n", e.what());
-    return 2;
-  }
+  return lmalign::bench::run_main("bench_open3d", argc, argv, lmalign::bench::run);
 }

@@ -33,16 +33,6 @@ class Icp : public PclIcp {
   int iterations() const { return nr_iterations_; }
 };
 
-Cloud::Ptr to_cloud(const Points3& points) {
-  Cloud::Ptr c(new Cloud);
-  c->reserve(points.size());
-  for (const Vec3& p : points) {
-    c->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
-                               static_cast<float>(p.z())));
-  }
-  return c;
-}
-
 // Exactly `iterations` iterations: no convergence test can fire.
 void force_iterations(PclIcp& icp, int iterations) {
   icp.setMaximumIterations(iterations);
@@ -53,8 +43,8 @@ void force_iterations(PclIcp& icp, int iterations) {
 
 int run(const Args& args) {
   const RealPair pair = load_real_pair();
-  const Cloud::Ptr source = to_cloud(pair.source);
-  const Cloud::Ptr target = to_cloud(pair.target);
+  const Cloud::Ptr source = to_pcl_cloud(pair.source);
+  const Cloud::Ptr target = to_pcl_cloud(pair.target);
   const std::string& c = args.config;
   bool dropin = false, scored = false;
   std::string description;
@@ -108,10 +98,5 @@ int run(const Args& args) {
 }  // namespace lmalign::bench
 
 int main(int argc, char** argv) {
-  try {
-    return lmalign::bench::run(lmalign::bench::parse_args(argc, argv));
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "bench_pcl: %s\n", e.what());
-    return 2;
-  }
+  return lmalign::bench::run_main("bench_pcl", argc, argv, lmalign::bench::run);
 }

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <functional>
 #include <map>
@@ -135,6 +136,18 @@ inline Args parse_args(int argc, char** argv) {
   }
   if (a.config.empty()) throw std::invalid_argument("missing --config NAME");
   return a;
+}
+
+/// The body of a configuration executable's main(): run(parse_args(argv)); an exception is one
+/// line "program: what" on stderr and exit code 2.
+template <typename Run>
+int run_main(const char* program, int argc, char** argv, Run&& run) {
+  try {
+    return run(parse_args(argc, argv));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", program, e.what());
+    return 2;
+  }
 }
 
 // ---- one measured configuration

@@ -31,7 +31,6 @@
 #include "lmalign/experiment/report.hpp"
 #include "lmalign/experiment/runner.hpp"
 #include "lmalign/io/output_file.hpp"
-#include "lmalign/registration/stages/data_scales.hpp"
 
 namespace lmalign::cli {
 
@@ -363,13 +362,8 @@ RunnerOutcome run_with_progress(const ExperimentPlan& p, const ExperimentInputs&
     }
   };
   ro.already_finished = already_finished;
-  const std::vector<Mat3> source_covariances = in.source.covariances_m2();
-  ro.source_covariances_m2 = &source_covariances;
-  ro.source_up = estimate_up_axis(in.source);
-  const std::vector<Vec3> source_view_directions = in.source.view_directions();
-  ro.source_view_directions = &source_view_directions;
-  ro.source_header = in.source.header;
-  ro.target_header = in.target.header;
+  SourceDescription source_description;
+  describe_inputs(in, source_description, ro);
 
   stop_flag().store(false);
   RunnerOutcome outcome;

@@ -17,8 +17,10 @@
 // CorrespondenceKind::kWeightedKnn makes the same choice in double precision;
 // tests/pcl/test_pcl_dropin.cpp checks that both agree on the real map pair.
 //
-// Header-only and independent of the lmalign library (it needs only PCL >= 1.12 and
-// lmalign/core/error.hpp). Like PCL's own estimator it runs serially. Built and tested only when
+// Also to_pcl_cloud(points): lmalign's points as a pcl::PointCloud<pcl::PointXYZ>.
+//
+// Header-only and independent of the lmalign library (it needs only PCL >= 1.12,
+// lmalign/core/error.hpp and lmalign/core/types.hpp). Like PCL's own estimator it runs serially. Built and tested only when
 // CMake finds PCL.
 #pragma once
 
@@ -32,11 +34,26 @@
 
 #include <pcl/common/copy_point.h>
 #include <pcl/correspondence.h>
+#include <pcl/point_cloud.h>
+#include <pcl/point_types.h>
 #include <pcl/registration/correspondence_estimation.h>
 
 #include "lmalign/core/error.hpp"
+#include "lmalign/core/types.hpp"
 
 namespace lmalign {
+
+/// The points (n x 3, metres, any frame) as a PCL cloud in the same frame and order.
+/// pcl::PointXYZ stores float: each coordinate is rounded to the nearest float.
+inline ::pcl::PointCloud<::pcl::PointXYZ>::Ptr to_pcl_cloud(const Points3& points) {
+  ::pcl::PointCloud<::pcl::PointXYZ>::Ptr c(new ::pcl::PointCloud<::pcl::PointXYZ>);
+  c->reserve(points.size());
+  for (const Vec3& p : points) {
+    c->push_back(::pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
+                                 static_cast<float>(p.z())));
+  }
+  return c;
+}
 
 template <typename PointSource, typename PointTarget, typename Scalar = float>
 class WeightedKnnCorrespondenceEstimation

@@ -761,15 +761,10 @@ void bind_experiment(py::module_& m) {
         create_output_folder(output_dir.string());
         write_output((out / "config.yaml").string(),
                      [&](std::ostream& o) { o << resolved_config_yaml(config); });
-        const std::vector<Mat3> source_covariances = in.source.covariances_m2();
         RunnerOptions ro;
         ro.threads = threads;
-        ro.source_covariances_m2 = &source_covariances;
-        ro.source_up = estimate_up_axis(in.source);
-        const std::vector<Vec3> source_view_directions = in.source.view_directions();
-        ro.source_view_directions = &source_view_directions;
-        ro.source_header = in.source.header;
-        ro.target_header = in.target.header;
+        SourceDescription source_description;
+        describe_inputs(in, source_description, ro);
         RunnerOutcome outcome;
         {
           py::gil_scoped_release release;

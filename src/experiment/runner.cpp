@@ -20,6 +20,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/split.hpp"
 #include "lmalign/registration/presets.hpp"
+#include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/uncertainty.hpp"
 
 namespace lmalign {
@@ -506,6 +507,16 @@ class CaseRunner {
 };
 
 }  // namespace
+
+void describe_inputs(const ExperimentInputs& in, SourceDescription& kept, RunnerOptions& options) {
+  kept.covariances_m2 = in.source.covariances_m2();
+  kept.view_directions = in.source.view_directions();
+  options.source_covariances_m2 = &kept.covariances_m2;
+  options.source_view_directions = &kept.view_directions;
+  options.source_up = estimate_up_axis(in.source);
+  options.source_header = in.source.header;
+  options.target_header = in.target.header;
+}
 
 RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>& cases,
                         const Points3& source_points, const PreparedTarget& target,

@@ -32,6 +32,7 @@ constexpr double kWindowJitterM = 0.10;   // per window corner, per axis
 
 using detail::gauss;
 using detail::mix;
+using detail::place_with_ray_noise;
 using detail::uniform01;
 
 Isometry3 keyframe_pose(double z) {
@@ -189,17 +190,7 @@ Map simulate_session(const RoadSimOptions& o, double z0, std::uint64_t session_s
     const Vec3 ray = (P - T_last.translation()).normalized();
     const double sigma_along = depth * depth * o.disparity_sigma_px / (K.fx_px * o.baseline_m);
     const double sigma_across = depth * kPixelSigmaPx / K.fx_px;
-    Mat3 R;  // columns: two directions across the ray, then the ray
-    R.col(2) = ray;
-    R.col(0) = ray.unitOrthogonal();
-    R.col(1) = ray.cross(R.col(0));
-    const Vec3 e(sigma_across * gauss(rng), sigma_across * gauss(rng), sigma_along * gauss(rng));
-    lm.p_world = P + R * e;
-    lm.cov_world_m2 =
-        R *
-        Vec3(sigma_across * sigma_across, sigma_across * sigma_across, sigma_along * sigma_along)
-            .asDiagonal() *
-        R.transpose();
+    place_with_ray_noise(lm, P, ray, sigma_across, sigma_along, [&] { return gauss(rng); });
     made.emplace_back(visible[start + nobs - 1], std::move(lm));
   }
   // Creation order, as a SLAM system numbers them: by the frame that made them.

@@ -30,6 +30,7 @@ struct Patch {
 };
 
 using detail::mix;
+using detail::place_with_ray_noise;
 
 Patch patch(const Vec3& o, const Vec3& u, const Vec3& v) { return {o, u, v, u.cross(v).norm()}; }
 
@@ -145,15 +146,7 @@ Map simulate_session(double x_start, std::size_t n, double density, std::uint64_
     const double z = std::max(0.3, (P - T_last.translation()).norm());
     const double sigma_z = 0.0012 + 0.0019 * (z - 0.4) * (z - 0.4);
     const double sigma_l = z * 1.5 / K.fx_px;
-    Mat3 R;  // columns: two directions across the ray, then the ray
-    R.col(2) = ray;
-    R.col(0) = ray.unitOrthogonal();
-    R.col(1) = ray.cross(R.col(0));
-    const Vec3 e(sigma_l * gauss(rng), sigma_l * gauss(rng), sigma_z * gauss(rng));
-    lm.p_world = P + R * e;
-    lm.cov_world_m2 = R *
-                      Vec3(sigma_l * sigma_l, sigma_l * sigma_l, sigma_z * sigma_z).asDiagonal() *
-                      R.transpose();
+    place_with_ray_noise(lm, P, ray, sigma_l, sigma_z, [&] { return gauss(rng); });
     made.emplace_back(first + nobs - 1, std::move(lm));
   }
   // Creation order, as a SLAM system would number them: by the frame that made them.

@@ -12,6 +12,7 @@
 #include <pcl/point_types.h>
 
 #include "lmalign/core/types.hpp"
+#include "lmalign/pcl.hpp"
 #include "support/data_path.hpp"
 
 namespace lmalign::test {
@@ -23,15 +24,7 @@ inline std::string pair_file(const char* name) {
 }
 
 /// The points as a PCL cloud (PointXYZ stores float: each coordinate is rounded).
-inline Cloud::Ptr to_cloud(const Points3& points) {
-  Cloud::Ptr c(new Cloud);
-  c->reserve(points.size());
-  for (const Vec3& p : points) {
-    c->push_back(pcl::PointXYZ(static_cast<float>(p.x()), static_cast<float>(p.y()),
-                               static_cast<float>(p.z())));
-  }
-  return c;
-}
+inline Cloud::Ptr to_cloud(const Points3& points) { return to_pcl_cloud(points); }
 
 /// The cloud's points back in double (exactly the float values).
 inline Points3 from_cloud(const Cloud& cloud) {

@@ -11,6 +11,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/sim/road_sim.hpp"
+#include "support/invalid_options.hpp"
 
 namespace lmalign {
 namespace {
@@ -151,29 +152,14 @@ TEST(RoadSim, TrueTransformRelatesTheMaps) {
 }
 
 TEST(RoadSim, InvalidOptionsNamed) {
-  auto why_of = [](const sim::RoadSimOptions& o) {
-    try {
-      sim::simulate_road_pair(o);
-    } catch (const InvalidArgument& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  sim::RoadSimOptions o = small_options();
-  o.overlap = 0.6;
-  EXPECT_NE(why_of(o).find("overlap"), std::string::npos);
-  o = small_options();
-  o.overlap = std::nan("");
-  EXPECT_NE(why_of(o).find("overlap"), std::string::npos);
-  o = small_options();
-  o.num_landmarks = 3;
-  EXPECT_NE(why_of(o).find("num_landmarks"), std::string::npos);
-  o = small_options();
-  o.min_range_m = 50.0;
-  EXPECT_NE(why_of(o).find("max_range_m"), std::string::npos);
-  o = small_options();
-  o.max_observations = 1;
-  EXPECT_NE(why_of(o).find("max_observations"), std::string::npos);
+  using Change = test::OptionChange<sim::RoadSimOptions>;
+  test::expect_each_change_named(
+      small_options(), [](const sim::RoadSimOptions& o) { sim::simulate_road_pair(o); },
+      {Change{[](auto& o) { o.overlap = 0.6; }, "overlap"},
+       Change{[](auto& o) { o.overlap = std::nan(""); }, "overlap"},
+       Change{[](auto& o) { o.num_landmarks = 3; }, "num_landmarks"},
+       Change{[](auto& o) { o.min_range_m = 50.0; }, "max_range_m"},
+       Change{[](auto& o) { o.max_observations = 1; }, "max_observations"}});
 }
 
 }  // namespace

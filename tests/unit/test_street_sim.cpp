@@ -14,6 +14,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/sim/road_sim.hpp"
 #include "lmalign/sim/street_sim.hpp"
+#include "support/invalid_options.hpp"
 
 namespace lmalign {
 namespace {
@@ -338,35 +339,17 @@ TEST(StreetSim, TrueTransformsRelateTheMaps) {
 }
 
 TEST(StreetSim, InvalidOptionsNamed) {
-  auto why_of = [](const sim::StreetSimOptions& o) {
-    try {
-      sim::simulate_street_pair(o);
-    } catch (const InvalidArgument& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  sim::StreetSimOptions o = small_options();
-  o.overlap = 0.8;
-  EXPECT_NE(why_of(o).find("overlap"), std::string::npos);
-  o = small_options();
-  o.overlap = std::nan("");
-  EXPECT_NE(why_of(o).find("overlap"), std::string::npos);
-  o = small_options();
-  o.num_landmarks = 3;
-  EXPECT_NE(why_of(o).find("num_landmarks"), std::string::npos);
-  o = small_options();
-  o.window_frames = 1;
-  EXPECT_NE(why_of(o).find("window_frames"), std::string::npos);
-  o = small_options();
-  o.min_range_m = 200.0;
-  EXPECT_NE(why_of(o).find("max_range_m"), std::string::npos);
-  o = small_options();
-  o.pixel_sigma_px = 0.0;
-  EXPECT_NE(why_of(o).find("pixel_sigma_px"), std::string::npos);
-  o = small_options();
-  o.num_landmarks = 900000;  // more than a window sees
-  EXPECT_NE(why_of(o).find("fewer than the 900000 landmarks"), std::string::npos);
+  using Change = test::OptionChange<sim::StreetSimOptions>;
+  test::expect_each_change_named(
+      small_options(), [](const sim::StreetSimOptions& o) { sim::simulate_street_pair(o); },
+      {Change{[](auto& o) { o.overlap = 0.8; }, "overlap"},
+       Change{[](auto& o) { o.overlap = std::nan(""); }, "overlap"},
+       Change{[](auto& o) { o.num_landmarks = 3; }, "num_landmarks"},
+       Change{[](auto& o) { o.window_frames = 1; }, "window_frames"},
+       Change{[](auto& o) { o.min_range_m = 200.0; }, "max_range_m"},
+       Change{[](auto& o) { o.pixel_sigma_px = 0.0; }, "pixel_sigma_px"},
+       // more than a window sees
+       Change{[](auto& o) { o.num_landmarks = 900000; }, "fewer than the 900000 landmarks"}});
   EXPECT_THROW(sim::simulate_street_windows(small_options(), 1), InvalidArgument);
   EXPECT_THROW(sim::street_centre_line(1, -1.0), InvalidArgument);
 }

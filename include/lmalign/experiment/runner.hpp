@@ -164,6 +164,19 @@ RunnerOutcome run_cases(const ExperimentConfig& config, const std::vector<Case>&
                         const std::optional<Isometry3>& ground_truth,
                         const RunnerOptions& options = {});
 
+/// What RunnerOptions points at for an experiment's source map: its landmarks' covariances
+/// (m^2, source frame) and unit mean viewing directions (source frame), owned by the caller and
+/// alive while run_cases() runs.
+struct SourceDescription {
+  std::vector<Mat3> covariances_m2;
+  std::vector<Vec3> view_directions;
+};
+
+/// Sets the options' source_covariances_m2 and source_view_directions (pointing into `kept`,
+/// which this fills), source_up (estimate_up_axis() of the source) and both headers from the
+/// loaded inputs: what `lmalign experiment` and the Python package's experiment pass.
+void describe_inputs(const ExperimentInputs& in, SourceDescription& kept, RunnerOptions& options);
+
 /// The request of one run of `strategy` at neighbourhood size k: the config's limits (when it
 /// gives them), its settings and scale mode for that strategy, and what the maps' headers say
 /// (options.source_header, target_header: AlignRequest::describe_maps), as `lmalign align`

@@ -152,100 +152,93 @@ void check_points2d(const Model& m) {
 
 // ---- text -----------------------------------------------------------------------------------
 
+// Calls `record(t, lines, path, fail)` for each record (non-comment line) of text file `i`
+// (0 cameras, 1 images, 2 points3D); `fail` throws with the record's file and line.
+template <typename Record>
+void for_each_record(const ColmapFiles& files, int i, Record&& record) {
+  const std::string& path = files.names[i];
+  Lines lines(files.contents[i], path);
+  std::string_view line;
+  while (lines.next_record(line)) {
+    TokenReader t(line, path, lines.line());
+    t.allow_trailing_comma(true);
+    const Fail fail = [&t](const std::string& d) { t.fail(d); };
+    record(t, lines, path, fail);
+  }
+}
+
 void read_text(const ColmapFiles& files, const ColmapReadOptions& options, Model& m) {
-  {
-    const std::string& path = files.names[0];
-    const std::string& text = files.contents[0];
-    Lines lines(text, path);
-    std::string_view line;
-    while (lines.next_record(line)) {
-      TokenReader t(line, path, lines.line());
-      t.allow_trailing_comma(true);
-      const Fail fail = [&t](const std::string& d) { t.fail(d); };
-      const long long id = t.integer("CAMERA_ID", 0, kMaxId);
-      const std::string_view model_name = t.next();
-      const std::optional<CameraModel> model =
-          camera_model_from_name(std::string(strip_comma(model_name)));
-      if (!model) {
-        t.fail("unknown camera model " + quoted(model_name) + " (known: " + camera_model_list() +
-               ")");
-      }
-      CameraIntrinsics k;
-      k.model = *model;
-      k.width_px = t.integer("WIDTH", 0, options.max_image_size_px);
-      k.height_px = t.integer("HEIGHT", 0, options.max_image_size_px);
-      const std::size_t n = camera_model_num_params(*model);
-      for (std::size_t i = 0; i < n; ++i) {
-        k.params.push_back(t.number(camera_model_name(*model) + " parameter " +
-                                    std::to_string(i + 1) + " of " + std::to_string(n)));
-      }
-      if (!t.at_end())
-        t.fail("more than " + std::to_string(n) + " parameters for " + camera_model_name(*model));
-      add_camera(m, id, std::move(k), options, fail);
+  const auto read_camera = [&](TokenReader& t, Lines&, const std::string&, const Fail& fail) {
+    const long long id = t.integer("CAMERA_ID", 0, kMaxId);
+    const std::string_view model_name = t.next();
+    const std::optional<CameraModel> model =
+        camera_model_from_name(std::string(strip_comma(model_name)));
+    if (!model) {
+      t.fail("unknown camera model " + quoted(model_name) + " (known: " + camera_model_list() +
+             ")");
     }
-  }
-  {
-    const std::string& path = files.names[1];
-    const std::string& text = files.contents[1];
-    Lines lines(text, path);
-    std::string_view line;
-    while (lines.next_record(line)) {
-      TokenReader t(line, path, lines.line());
-      t.allow_trailing_comma(true);
-      const Fail fail = [&t](const std::string& d) { t.fail(d); };
-      const long long id = t.integer("IMAGE_ID", 0, kMaxId);
-      double qt[7];
-      const char* names[7] = {"QW", "QX", "QY", "QZ", "TX", "TY", "TZ"};
-      for (int i = 0; i < 7; ++i) qt[i] = t.number(names[i]);
-      const long long camera_id = t.integer("CAMERA_ID", 0, kMaxId);
-      if (t.next().empty()) t.fail("file ends where NAME was expected");
-      if (!t.at_end()) t.fail("extra field after NAME (image names cannot hold spaces)");
-      const std::string where = path + ":" + std::to_string(lines.line());
-      std::string_view points_line;
-      if (!lines.next_raw(points_line)) {
-        t.fail("image " + std::to_string(id) +
-               ": file ends where its POINTS2D line was expected (truncated?)");
-      }
-      TokenReader p(points_line, path, lines.line());
-      p.allow_trailing_comma(true);
-      std::vector<Point2D> points;
-      while (!p.at_end()) {
-        const std::string what = "POINTS2D[" + std::to_string(points.size()) + "] ";
-        Point2D point;
-        point.x = p.number(what + "X");
-        point.y = p.number(what + "Y");
-        point.point3d_id =
-            p.integer(what + "POINT3D_ID (-1 for none)", -1, std::numeric_limits<long long>::max());
-        points.push_back(point);
-      }
-      add_image(m, id, qt, camera_id, std::move(points), options, where, fail);
+    CameraIntrinsics k;
+    k.model = *model;
+    k.width_px = t.integer("WIDTH", 0, options.max_image_size_px);
+    k.height_px = t.integer("HEIGHT", 0, options.max_image_size_px);
+    const std::size_t n = camera_model_num_params(*model);
+    for (std::size_t i = 0; i < n; ++i) {
+      k.params.push_back(t.number(camera_model_name(*model) + " parameter " +
+                                  std::to_string(i + 1) + " of " + std::to_string(n)));
     }
-  }
-  {
-    const std::string& path = files.names[2];
-    const std::string& text = files.contents[2];
-    Lines lines(text, path);
-    std::string_view line;
-    while (lines.next_record(line)) {
-      TokenReader t(line, path, lines.line());
-      t.allow_trailing_comma(true);
-      const Fail fail = [&t](const std::string& d) { t.fail(d); };
-      Landmark landmark;
-      landmark.id = t.integer("POINT3D_ID", 0, std::numeric_limits<long long>::max());
-      landmark.p_world.x() = t.number("X");
-      landmark.p_world.y() = t.number("Y");
-      landmark.p_world.z() = t.number("Z");
-      for (const char* c : {"R", "G", "B"}) t.integer(c, 0, 255);
-      const double error_px = t.number("ERROR");
-      while (!t.at_end()) {
-        const std::string what = "TRACK[" + std::to_string(landmark.observations.size()) + "] ";
-        const long long image_id = t.integer(what + "IMAGE_ID", 0, kMaxId);
-        const long long idx = t.integer(what + "POINT2D_IDX", 0, kMaxId);
-        add_track_element(m, landmark, image_id, idx, fail);
-      }
-      add_point(m, std::move(landmark), error_px, path + ":" + std::to_string(lines.line()), fail);
+    if (!t.at_end())
+      t.fail("more than " + std::to_string(n) + " parameters for " + camera_model_name(*model));
+    add_camera(m, id, std::move(k), options, fail);
+  };
+  const auto read_image = [&](TokenReader& t, Lines& lines, const std::string& path,
+                              const Fail& fail) {
+    const long long id = t.integer("IMAGE_ID", 0, kMaxId);
+    double qt[7];
+    const char* names[7] = {"QW", "QX", "QY", "QZ", "TX", "TY", "TZ"};
+    for (int i = 0; i < 7; ++i) qt[i] = t.number(names[i]);
+    const long long camera_id = t.integer("CAMERA_ID", 0, kMaxId);
+    if (t.next().empty()) t.fail("file ends where NAME was expected");
+    if (!t.at_end()) t.fail("extra field after NAME (image names cannot hold spaces)");
+    const std::string where = path + ":" + std::to_string(lines.line());
+    std::string_view points_line;
+    if (!lines.next_raw(points_line)) {
+      t.fail("image " + std::to_string(id) +
+             ": file ends where its POINTS2D line was expected (truncated?)");
     }
-  }
+    TokenReader p(points_line, path, lines.line());
+    p.allow_trailing_comma(true);
+    std::vector<Point2D> points;
+    while (!p.at_end()) {
+      const std::string what = "POINTS2D[" + std::to_string(points.size()) + "] ";
+      Point2D point;
+      point.x = p.number(what + "X");
+      point.y = p.number(what + "Y");
+      point.point3d_id =
+          p.integer(what + "POINT3D_ID (-1 for none)", -1, std::numeric_limits<long long>::max());
+      points.push_back(point);
+    }
+    add_image(m, id, qt, camera_id, std::move(points), options, where, fail);
+  };
+  const auto read_point = [&](TokenReader& t, Lines& lines, const std::string& path,
+                              const Fail& fail) {
+    Landmark landmark;
+    landmark.id = t.integer("POINT3D_ID", 0, std::numeric_limits<long long>::max());
+    landmark.p_world.x() = t.number("X");
+    landmark.p_world.y() = t.number("Y");
+    landmark.p_world.z() = t.number("Z");
+    for (const char* c : {"R", "G", "B"}) t.integer(c, 0, 255);
+    const double error_px = t.number("ERROR");
+    while (!t.at_end()) {
+      const std::string what = "TRACK[" + std::to_string(landmark.observations.size()) + "] ";
+      const long long image_id = t.integer(what + "IMAGE_ID", 0, kMaxId);
+      const long long idx = t.integer(what + "POINT2D_IDX", 0, kMaxId);
+      add_track_element(m, landmark, image_id, idx, fail);
+    }
+    add_point(m, std::move(landmark), error_px, path + ":" + std::to_string(lines.line()), fail);
+  };
+  for_each_record(files, 0, read_camera);
+  for_each_record(files, 1, read_image);
+  for_each_record(files, 2, read_point);
 }
 
 // ---- binary ---------------------------------------------------------------------------------
