@@ -345,10 +345,15 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   Summary first = run.conclude(1.0);
   int attempts = 1;
   int searches = 1;
-  if (run.first_pass() && !first.verdict.trustworthy) {
-    // The initialiser's first pass (the correspondence search's poses alone) gave no trusted
-    // answer: its complete search, whose answer is the result (docs/accuracy.md, "The first
-    // pass"). Not counted among the scale axis's searches and attempts.
+  // The initialiser's first pass (the correspondence search's poses alone) gave no trusted
+  // answer, or a trusted one inside a prior's window that none of its own poses confirmed: its
+  // complete search, whose answer is the result (docs/accuracy.md, "The first pass"). Not when
+  // the maps put the answer outside a prior's window and every other test trusts it: no deeper
+  // pass makes that result trusted. Not counted among the scale axis's searches and attempts.
+  const bool deeper = first.verdict.trustworthy
+                          ? run.prior_unconfirmed()
+                          : !first.verdict.trusted_but_for_prior_window;
+  if (run.first_pass() && deeper) {
     run.deepen();
     if (run.begin_search(1.0)) {
       first = run.conclude(1.0);

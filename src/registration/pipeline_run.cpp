@@ -527,6 +527,8 @@ void PipelineRun::check_prior_window(Conclusion* c) const {
   if (w.inside()) return;
   const double rot_rad = w.rotation_rad, moved_m = w.moved_m;
   const double max_rot = w.max_rotation_rad, max_moved = w.max_moved_m;
+  s.verdict.outside_prior_window = true;
+  s.verdict.trusted_but_for_prior_window = s.verdict.trustworthy;
   s.verdict.trustworthy = false;
   const std::string where = message_number(moved_m) + " m / " +
                             message_number(rot_rad * 180.0 / kPi) + " deg from the guess";

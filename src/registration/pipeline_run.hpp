@@ -85,6 +85,8 @@ class PipelineRun {
   /// True when the current search's hypotheses came from the initialiser's first pass
   /// (InitialiserReport::deeper_pass); deepen() makes every later search a deep one.
   bool first_pass() const { return base_.initialisation.deeper_pass; }
+  /// InitialiserReport::prior_unconfirmed of the current search.
+  bool prior_unconfirmed() const { return base_.initialisation.prior_unconfirmed; }
   void deepen() { deep_ = true; }
   Summary too_few_landmarks() const;
   /// The hypotheses of the current search concluded at `rung` times its initial scale.

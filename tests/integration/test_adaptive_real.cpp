@@ -211,6 +211,17 @@ TEST_F(AdaptiveDesk, AWrongPriorIsCheckedAndARightOneTrusted) {
   EXPECT_NE(wrong.verdict.reason.find("the maps prefer a pose outside the prior's window"),
             std::string::npos)
       << wrong.verdict.reason;
+  // The maps put it at the truth, which every other test trusts; the first pass found it, and
+  // the complete search, which cannot make that result trusted, did not run.
+  EXPECT_TRUE(wrong.verdict.outside_prior_window);
+  EXPECT_TRUE(wrong.verdict.trusted_but_for_prior_window);
+  const TransformError wrong_e =
+      transform_error(wrong.registration.T_target_source, Isometry3::Identity());
+  EXPECT_LT(wrong_e.rotation_deg, 5.0);
+  EXPECT_LT(wrong_e.translation_m, 0.1);
+  for (const auto& [name, value] : wrong.initialisation.notes) {
+    EXPECT_NE(name, "complete search after an untrusted first pass");
+  }
   const Summary right = checked_against_prior(
       *source_, *target_, off_guess(Vec3::UnitZ(), 1.0, Vec3(0.02, -0.03, 0.0)), prior, 5.0, 0.1);
   EXPECT_TRUE(right.verdict.trustworthy) << right.verdict.reason;

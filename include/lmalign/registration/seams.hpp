@@ -201,6 +201,13 @@ struct InitialiserReport {
   /// available: Pipeline::run runs it (InitialiserContext::deep) when the first pass's answer is
   /// not trusted, and reports that answer instead.
   bool deeper_pass = false;
+  /// With a prior and deeper_pass: none of the first pass's poses lies inside the prior's
+  /// window, so the hypotheses inside it are the prior's own search's, and the first pass's
+  /// modes are their only rivals. A trusted answer then still needs the deeper pass's rivals;
+  /// an answer outside the window that every other test trusts (Verdict::
+  /// trusted_but_for_prior_window) stands: the maps prefer it, and no deeper pass can make the
+  /// result trusted.
+  bool prior_unconfirmed = false;
   /// Other numbers worth a line in the report (name, value).
   std::vector<std::pair<std::string, double>> notes;
 };
@@ -493,6 +500,10 @@ struct Verdict {
   std::optional<Isometry3> rival_T_target_source;
   double rival_distance_m = 0.0;
   double rival_angle_deg = 0.0;
+  /// With a prior: the answer lies outside the prior's window (not trusted, the reason says
+  /// where), and whether every other test of the judge trusted it.
+  bool outside_prior_window = false;
+  bool trusted_but_for_prior_window = false;
   /// A covariance of the judge's own (judge "inliers": point-to-point on its inliers), reported
   /// instead of the estimator's.
   std::optional<PoseCovariance> covariance;

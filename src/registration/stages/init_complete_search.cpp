@@ -12,8 +12,10 @@
 // (the vote bounded by the prior), and, with init.prior_check "rivals" or "strict", the complete
 // search too: its modes join the prior's hypotheses, so that a pose the maps prefer outside the
 // prior's window wins ("rivals") or is the trust judge's rival ("strict") (issue 41;
-// docs/accuracy.md, "Priors are hints"); the first pass checks a prior only when one of its
-// poses lies inside the prior's window, else the complete search runs at once. The vote cell, the
+// docs/accuracy.md, "Priors are hints"); when none of the first pass's poses lies inside the
+// prior's window, the prior's own search proposes beside them, and the complete search runs
+// unless the maps put the answer outside the window (InitialiserReport::prior_unconfirmed). The
+// vote cell, the
 // search's coarse resolution, is init.vote_cell_factor x max(target spacing, 2 sin(step / 2) x
 // source radius); the modes are refined from a third of it.
 #include <algorithm>
@@ -39,9 +41,10 @@ struct CompleteInitOptions {
   /// hypotheses = 0: none.
   CorrespondenceSearchOptions correspondences;
   /// The first pass: the correspondence search's poses alone, with the descriptor radius at
-  /// first_pass_neighbours, snapped and refined without the vote (with a prior, only when one of
-  /// them lies inside its window); the complete search runs only when that answer is not
-  /// trusted (Pipeline::run).
+  /// first_pass_neighbours, snapped and refined without the vote (with a prior, beside the
+  /// prior's own search when none lies inside its window); the complete search runs only when
+  /// that answer is not trusted, or when it is trusted inside a prior's window that no first-pass
+  /// pose confirmed, and not when the maps put it outside a prior's window (Pipeline::run).
   bool first_pass = true;
   std::size_t first_pass_neighbours = 48;
   std::size_t hypotheses = 6;
@@ -106,16 +109,10 @@ class CompleteSearchInit : public Initialiser {
       }
     };
     split();
-    if (global_report.deeper_pass && inside.empty()) {
-      // The first pass checks a prior only by agreeing with it: a pose the correspondences
-      // found on their own inside the prior's window (then Pipeline::run runs the complete
-      // search if that answer is not trusted). None: the prior's own search is checked against
-      // the complete search, at once.
-      open.deep = true;
-      global_report = InitialiserReport{};
-      modes = global(open, &global_report);
-      split();
-    }
+    // A first pass none of whose poses lies inside the prior's window: the prior's own search
+    // proposes, the first pass's modes are the rivals, and Pipeline::run runs the complete search
+    // unless the maps put the answer outside the window (InitialiserReport::prior_unconfirmed).
+    const bool unconfirmed = global_report.deeper_pass && inside.empty();
     std::vector<Hypothesis> out;
     if (inside.empty()) {
       out = bounded_->propose(c, report);
@@ -133,6 +130,8 @@ class CompleteSearchInit : public Initialiser {
     report->resolution_m = std::max(report->resolution_m, global_report.resolution_m);
     report->resolution_rad = std::max(report->resolution_rad, global_report.resolution_rad);
     report->prior_checked = true;
+    report->deeper_pass = global_report.deeper_pass;
+    report->prior_unconfirmed = unconfirmed;
     return out;
   }
 
@@ -371,9 +370,11 @@ std::vector<SettingRow> init_complete_search_settings() {
                        "cliques) added to the pool; 0 = none"));
   rows.push_back(bool_setting(
       "search.first_pass", "CompleteInitOptions::first_pass", CompleteInitOptions{}.first_pass,
-      "the correspondence poses alone are refined and judged first (with a prior, only when one "
-      "lies inside its window); the complete search (the vote and its pool, with the "
-      "correspondence poses) runs only when that answer is not trusted"));
+      "the correspondence poses alone are refined and judged first (with a prior, beside the "
+      "prior's own search when none lies inside its window); the complete search (the vote and "
+      "its pool, with the correspondence poses) runs when that answer is not trusted, or is "
+      "trusted inside a prior's window no correspondence pose confirmed; not when the maps put "
+      "it outside a prior's window"));
   rows.push_back(count("search.first_pass_neighbours", "CompleteInitOptions::first_pass_neighbours",
                        CompleteInitOptions{}.first_pass_neighbours, 4, 256,
                        "the first pass's descriptor radius is the target's median distance to "
