@@ -77,42 +77,36 @@ for target in map_reader experiment_config bundler_reader colmap_reader ply_read
   fi
 done
 
+# run_group SECONDS TIMEOUT TARGET:MAX_LEN...: the targets in parallel, each for SECONDS with
+# TIMEOUT per input; then a summary line each. A target that fails sets failed=1.
+failed=0
+run_group() {
+  local group_seconds="$1" timeout="$2"
+  shift 2
+  local pids=() targets=() spec
+  for spec in "$@"; do
+    run_target "${spec%%:*}" "${spec##*:}" "$group_seconds" "$timeout" & pids+=($!)
+    targets+=("${spec%%:*}")
+  done
+  local i status
+  for i in "${!pids[@]}"; do
+    status=0; wait "${pids[$i]}" || status=$?
+    summary "${targets[$i]}" "$status"
+    [ "$status" -eq 0 ] || failed=1
+  done
+}
+
 echo "== fuzzing each target for $seconds s (in parallel)"
-run_target map_reader 8192 & pid_map=$!
-run_target experiment_config 8192 & pid_config=$!
-status_map=0; wait "$pid_map" || status_map=$?
-status_config=0; wait "$pid_config" || status_config=$?
-summary map_reader "$status_map"
-summary experiment_config "$status_config"
+run_group "$seconds" 10 map_reader:8192 experiment_config:8192
 
 short=$(( seconds / 4 )); [ "$short" -ge 5 ] || short=5
 echo "== fuzzing the readers of other formats for $short s each (in parallel)"
-run_target bundler_reader 8192 "$short" & pid_bundler=$!
-run_target colmap_reader 8192 "$short" & pid_colmap=$!
-run_target ply_reader 8192 "$short" & pid_ply=$!
-run_target stella_vslam_reader 8192 "$short" & pid_stella=$!
-status_bundler=0; wait "$pid_bundler" || status_bundler=$?
-status_colmap=0; wait "$pid_colmap" || status_colmap=$?
-status_ply=0; wait "$pid_ply" || status_ply=$?
-status_stella=0; wait "$pid_stella" || status_stella=$?
-summary bundler_reader "$status_bundler"
-summary colmap_reader "$status_colmap"
-summary ply_reader "$status_ply"
-summary stella_vslam_reader "$status_stella"
+run_group "$short" 10 bundler_reader:8192 colmap_reader:8192 ply_reader:8192 \
+  stella_vslam_reader:8192
 
 third=$(( seconds / 3 )); [ "$third" -ge 5 ] || third=5
 echo "== fuzzing the alignment paths for $third s each (in parallel)"
 rm -rf "$build/fuzz-seeds"
 python3 fuzz/make_seeds.py "$data" "$build/fuzz-seeds" || echo "fuzz: no seeds from $data" >&2
-run_target default_alignment 24576 "$third" 60 & pid_align=$!
-run_target merge_manifest 8192 "$third" 60 & pid_merge=$!
-run_target cli_options 4096 "$third" 60 & pid_cli=$!
-status_align=0; wait "$pid_align" || status_align=$?
-status_merge=0; wait "$pid_merge" || status_merge=$?
-status_cli=0; wait "$pid_cli" || status_cli=$?
-summary default_alignment "$status_align"
-summary merge_manifest "$status_merge"
-summary cli_options "$status_cli"
-[ "$status_map" -eq 0 ] && [ "$status_config" -eq 0 ] && [ "$status_bundler" -eq 0 ] &&
-  [ "$status_colmap" -eq 0 ] && [ "$status_ply" -eq 0 ] && [ "$status_stella" -eq 0 ] &&
-  [ "$status_align" -eq 0 ] && [ "$status_merge" -eq 0 ] && [ "$status_cli" -eq 0 ]
+run_group "$third" 60 default_alignment:24576 merge_manifest:8192 cli_options:4096
+[ "$failed" -eq 0 ]

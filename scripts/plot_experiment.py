@@ -122,14 +122,18 @@ def wide_range(np, values):
     return v.size >= 2 and v.max() / v.min() > 30
 
 
+def by_experiment(rows):
+    """(experiment name, its rows) in the order the experiments first appear."""
+    names = []
+    for r in rows:
+        if r["experiment"] not in names:
+            names.append(r["experiment"])
+    return [(name, [r for r in rows if r["experiment"] == name]) for name in names]
+
+
 def plot_violins(plt, np, rows, summary, plots_dir):
     written = []
-    experiments = []
-    for r in rows:
-        if r["experiment"] not in experiments:
-            experiments.append(r["experiment"])
-    for name in experiments:
-        mine = [r for r in rows if r["experiment"] == name]
+    for name, mine in by_experiment(rows):
         if is_basin(mine):
             continue  # basin experiment: curves instead
         strategies = ordered_strategies(mine)
@@ -161,12 +165,7 @@ def plot_violins(plt, np, rows, summary, plots_dir):
 def plot_basins(plt, np, rows, plots_dir):
     written = []
     basin_rows = [r for r in rows if r["group"] in BASIN_AXES]
-    experiments = []
-    for r in basin_rows:
-        if r["experiment"] not in experiments:
-            experiments.append(r["experiment"])
-    for name in experiments:
-        mine = [r for r in basin_rows if r["experiment"] == name]
+    for name, mine in by_experiment(basin_rows):
         axes_names = [a for a in ("yaw", "translation") if any(r["group"] == a for r in mine)]
         strategies = ordered_strategies(mine)
         fig, axes = plt.subplots(1, len(axes_names), figsize=(5.2 * len(axes_names), 3.8),

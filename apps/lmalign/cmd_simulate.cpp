@@ -123,6 +123,27 @@ int run_simulate_fleet(const SimulateArgs& a) {
   return 0;
 }
 
+// The road's or the corridor's options from the command line (landmarks, seed, the overlap when
+// given, the true transform); one-line errors naming the option: --overlap when `overlap_ok`
+// refuses it (`overlap_range` says what it takes), else --transform.
+template <typename Options, typename OverlapOk>
+Options pair_options(const SimulateArgs& a, bool overlap_given, const Isometry3& T_target_source,
+                     const OverlapOk& overlap_ok, const char* overlap_range) {
+  Options o;
+  o.num_landmarks = static_cast<std::size_t>(a.landmarks);
+  o.seed = a.seed;
+  if (overlap_given) o.overlap = a.overlap;
+  o.T_target_source = T_target_source;
+  std::string why;
+  if (!o.is_valid(&why)) {
+    if (!overlap_ok(o.overlap)) {
+      throw InvalidArgument("--overlap " + to_text(a.overlap) + ": must be in " + overlap_range);
+    }
+    throw InvalidArgument("--transform " + a.transform + ": " + why);
+  }
+  return o;
+}
+
 // The street simulator's options from the command line; one-line errors naming the option.
 sim::StreetSimOptions street_options(const SimulateArgs& a, bool overlap_given,
                                      const Isometry3& T_target_source) {
@@ -203,31 +224,13 @@ int run_simulate(const SimulateArgs& a, const CLI::App& cmd) {
   }
   sim::SlamMapPair pair;
   if (a.scene == "road") {
-    sim::RoadSimOptions o;
-    o.num_landmarks = static_cast<std::size_t>(a.landmarks);
-    o.seed = a.seed;
-    if (overlap_given) o.overlap = a.overlap;
-    o.T_target_source = T_target_source;
-    std::string why;
-    if (!o.is_valid(&why)) {
-      if (!(o.overlap >= 0.0 && o.overlap <= 0.5))
-        throw InvalidArgument("--overlap " + to_text(a.overlap) + ": must be in [0, 0.5] (road)");
-      throw InvalidArgument("--transform " + a.transform + ": " + why);
-    }
-    pair = sim::simulate_road_pair(o);
+    const auto overlap_ok = [](double f) { return f >= 0.0 && f <= 0.5; };
+    pair = sim::simulate_road_pair(pair_options<sim::RoadSimOptions>(
+        a, overlap_given, T_target_source, overlap_ok, "[0, 0.5] (road)"));
   } else if (a.scene == "corridor") {
-    sim::SlamSimOptions o;
-    o.num_landmarks = static_cast<std::size_t>(a.landmarks);
-    o.seed = a.seed;
-    if (overlap_given) o.overlap = a.overlap;
-    o.T_target_source = T_target_source;
-    std::string why;
-    if (!o.is_valid(&why)) {
-      if (!(o.overlap > 0.0 && o.overlap <= 1.0))
-        throw InvalidArgument("--overlap " + to_text(a.overlap) + ": must be in (0, 1] (corridor)");
-      throw InvalidArgument("--transform " + a.transform + ": " + why);
-    }
-    pair = sim::simulate_map_pair(o);
+    const auto overlap_ok = [](double f) { return f > 0.0 && f <= 1.0; };
+    pair = sim::simulate_map_pair(pair_options<sim::SlamSimOptions>(
+        a, overlap_given, T_target_source, overlap_ok, "(0, 1] (corridor)"));
   } else if (a.scene == "street") {
     pair = sim::simulate_street_pair(street_options(a, overlap_given, T_target_source));
   } else {

@@ -22,6 +22,7 @@
 #include "support/align_preset.hpp"
 #include "support/data_path.hpp"
 #include "support/real_pair.hpp"
+#include "support/windows.hpp"
 
 namespace lmalign {
 namespace {
@@ -33,6 +34,16 @@ SourceLandmarks displaced(const SourceLandmarks& s, const Isometry3& D) { return
 /// true transform is the identity).
 TransformError error_of(const Summary& r, const Isometry3& D) {
   return transform_error(r.registration.T_target_source * D, Isometry3::Identity());
+}
+
+/// The answer for a source displaced by D is within `rotation_deg` / `translation_m` of the
+/// truth (the identity) and trusted.
+void expect_right_and_trusted(const Summary& r, const Isometry3& D, double rotation_deg,
+                              double translation_m) {
+  const TransformError e = error_of(r, D);
+  EXPECT_LT(e.rotation_deg, rotation_deg);
+  EXPECT_LT(e.translation_m, translation_m);
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
 }
 
 /// A pair of maps loaded once per suite: source_ (as SourceLandmarks::from_map) and target_.
@@ -101,10 +112,7 @@ TEST_F(AdaptiveDesk, ReachesTheTruthFromTable1sDisplacement) {
   // Measured: 0.59 deg, 1.4 cm; inlier ratio 0.86, ambiguity 0.77; ~1.2 s.
   const Isometry3 D = pose_from_xyz_rpy_deg(0, 1, 0.4, 10, 0, 22.5);
   const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
-  const TransformError e = error_of(r, D);
-  EXPECT_LT(e.rotation_deg, 1.5);
-  EXPECT_LT(e.translation_m, 0.03);
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  expect_right_and_trusted(r, D, 1.5, 0.03);
 }
 
 TEST_F(AdaptiveDesk, ReachesTheTruthFromAFarStart) {
@@ -112,10 +120,7 @@ TEST_F(AdaptiveDesk, ReachesTheTruthFromAFarStart) {
   // Measured: 0.60 deg, 1.4 cm; inlier ratio 0.86, ambiguity 0.76; ~1.3 s.
   const Isometry3 D = pose_from_xyz_rpy_deg(1.5, -1.3, 0, 0, 0, 150);
   const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
-  const TransformError e = error_of(r, D);
-  EXPECT_LT(e.rotation_deg, 1.5);
-  EXPECT_LT(e.translation_m, 0.03);
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  expect_right_and_trusted(r, D, 1.5, 0.03);
 }
 
 TEST_F(AdaptiveKitti, DisjointPairStaysAtTheTruthUnderATightPrior) {
@@ -149,10 +154,7 @@ TEST_F(AdaptiveKitti, DisjointPairFromAFarStartWithoutAGuess) {
   // ambiguity 0.48; ~1.1 s.
   const Isometry3 D = kitti_far_start();
   const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
-  const TransformError e = error_of(r, D);
-  EXPECT_LT(e.rotation_deg, 1.0);
-  EXPECT_LT(e.translation_m, 0.3);
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  expect_right_and_trusted(r, D, 1.0, 0.3);
 }
 
 TEST_F(AdaptiveKittiOverlap, OverlappingPairFromAFarStart) {
@@ -160,10 +162,7 @@ TEST_F(AdaptiveKittiOverlap, OverlappingPairFromAFarStart) {
   // ambiguity 0.19; ~1.1 s.
   const Isometry3 D = kitti_far_start();
   const Summary r = test::align_with("adaptive", displaced(*source_, D), *target_);
-  const TransformError e = error_of(r, D);
-  EXPECT_LT(e.rotation_deg, 0.2);
-  EXPECT_LT(e.translation_m, 0.05);
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  expect_right_and_trusted(r, D, 0.2, 0.05);
 }
 
 // ----------------------------------------------------------------------------- priors
@@ -287,11 +286,7 @@ TEST_F(AdaptiveKittiOverlap, AWrongDriftPriorIsCheckedAndARightOneTrusted) {
 /// The re-triangulated window [first, last] of the motion-capture-anchored desk map (as
 /// `lmalign split --retriangulate`), in that map's frame: two windows share their true frame.
 Map desk_window(const Map& full, Id first, Id last) {
-  SplitOptions o;
-  o.first_frame_id = first;
-  o.last_frame_id = last;
-  o.retriangulate = true;
-  return split_map(full, o);
+  return test::retriangulated_window(full, first, last);
 }
 
 TEST(AdaptiveDeskWindows, AShortHandHeldWindowsUpAxisIsRescuedByItsLandmarkPlane) {
@@ -317,10 +312,7 @@ TEST(AdaptiveDeskWindows, AShortHandHeldWindowsUpAxisIsRescuedByItsLandmarkPlane
   const Summary r =
       test::align_with("adaptive", displaced(SourceLandmarks::from_map(a), D), target);
   EXPECT_GE(r.initialisation.ups_target.size(), 2u);
-  const TransformError e = error_of(r, D);
-  EXPECT_LT(e.rotation_deg, 0.5);
-  EXPECT_LT(e.translation_m, 0.01);
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  expect_right_and_trusted(r, D, 0.5, 0.01);
 }
 
 // Re-triangulated windows of the desk map whose votes never proposed the truth (the search kept
@@ -343,10 +335,7 @@ TEST(AdaptiveDeskWindows, TheCompleteSearchFindsShortWindowsTheVotesMissed) {
     const Isometry3 D = pose_from_xyz_rpy_deg(0.4, -0.3, 0.05, 0.0, 0.0, -120.0);
     const Summary r =
         test::align_with("adaptive", displaced(SourceLandmarks::from_map(a), D), target);
-    const TransformError e = error_of(r, D);
-    EXPECT_LT(e.rotation_deg, 1.0);
-    EXPECT_LT(e.translation_m, 0.02);
-    EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+    expect_right_and_trusted(r, D, 1.0, 0.02);
   }
 }
 
@@ -361,13 +350,10 @@ TEST(AdaptiveKittiWindows, ViewingDirectionsSeparateARivalTheGeometryCannot) {
   LMALIGN_REQUIRE_FILE(file);
   const Map full = read_map(file);
   auto window = [&](Id first, Id last) {
-    SplitOptions o;
-    o.first_frame_id = first;
-    o.last_frame_id = last;
-    o.retriangulate = true;
-    o.min_parallax_deg = 1.0;
-    o.triangulation.intrinsics = {721.5377, 721.5377, 609.5593, 172.854};  // KITTI 00, left
-    return split_map(full, o);
+    return test::retriangulated_window(full, first, last, [](SplitOptions& o) {
+      o.min_parallax_deg = 1.0;
+      o.triangulation.intrinsics = {721.5377, 721.5377, 609.5593, 172.854};  // KITTI 00, left
+    });
   };
   const Map a = window(1, 13);
   const Map b = window(14, 26);

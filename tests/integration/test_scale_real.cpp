@@ -18,6 +18,7 @@
 #include "lmalign/registration/presets.hpp"
 #include "support/data_path.hpp"
 #include "support/real_pair.hpp"
+#include "support/windows.hpp"
 
 namespace lmalign {
 namespace {
@@ -157,15 +158,8 @@ TEST(ScaleSplitDesk, OverlappingWindowsOneMovedBySimilarity037) {
   MapReadOptions read;
   read.min_observations = 0;
   const Map map = read_map(path, read);
-  SplitOptions a_opt;
-  a_opt.first_frame_id = 0;
-  a_opt.last_frame_id = 159;
-  a_opt.retriangulate = true;
-  SplitOptions b_opt = a_opt;
-  b_opt.first_frame_id = 80;
-  b_opt.last_frame_id = 239;
-  const Map a = split_map(map, a_opt);
-  const Map b = split_map(map, b_opt);
+  const Map a = test::retriangulated_window(map, 0, 159);
+  const Map b = test::retriangulated_window(map, 80, 239);
   ASSERT_GT(a.landmarks.size(), 1000u);
   ASSERT_GT(b.landmarks.size(), 1000u);
   const Similarity3 S = similarity(0.37, 0.4, 0.1, -0.3, 5, -10, 60);
@@ -194,16 +188,9 @@ TEST(ScaleSplitDesk, TheCorrespondencesMeasureTheScaleElseARungConcludesWithoutA
   const std::string path = test::data_file("tum_fr1_desk/ground_truth_pair/map_fr1_desk_gt.txt");
   LMALIGN_REQUIRE_FILE(path);
   const Map map = read_map(path);
-  SplitOptions a_opt;
-  a_opt.first_frame_id = 0;
-  a_opt.last_frame_id = 119;
-  a_opt.retriangulate = true;
-  a_opt.min_parallax_deg = 2.0;
-  SplitOptions b_opt = a_opt;
-  b_opt.first_frame_id = 100;
-  b_opt.last_frame_id = 239;
-  const Map a = split_map(map, a_opt);
-  const Map b = split_map(map, b_opt);
+  const auto parallax = [](SplitOptions& o) { o.min_parallax_deg = 2.0; };
+  const Map a = test::retriangulated_window(map, 0, 119, parallax);
+  const Map b = test::retriangulated_window(map, 100, 239, parallax);
   const Similarity3 S = similarity(0.37, 0.3, -0.2, 0.1, 5, -10, 60);
   const PreparedTarget target(b);
   const SourceLandmarks source = moved(a, S);
@@ -243,15 +230,8 @@ TEST(ScaleColmapReal, ImagePairsOfTheMaupertuisModelOneMovedBySimilarity) {
   const std::string dir = test::data_file("real_formats/colmap_txt_kapture_maupertuis");
   LMALIGN_REQUIRE_FILE(dir);
   const Map model = read_any_map(dir);
-  SplitOptions a_opt;
-  a_opt.first_frame_id = 1;
-  a_opt.last_frame_id = 2;
-  a_opt.retriangulate = true;
-  SplitOptions b_opt = a_opt;
-  b_opt.first_frame_id = 3;
-  b_opt.last_frame_id = 4;
-  const Map a = split_map(model, a_opt);
-  const Map b = split_map(model, b_opt);
+  const Map a = test::retriangulated_window(model, 1, 2);
+  const Map b = test::retriangulated_window(model, 3, 4);
   ASSERT_GT(a.landmarks.size(), 500u);
   ASSERT_GT(b.landmarks.size(), 500u);
   const PreparedTarget target(b);

@@ -160,6 +160,18 @@ Ring make_ring(std::size_t n, std::uint64_t seed, double sd_t = 0.01,
   return r;
 }
 
+/// A prior at each map's true pose with covariance sd2 I (6x6, rad^2 and m^2).
+std::vector<std::optional<MapPrior>> true_priors(const std::vector<Isometry3>& truth, double sd2) {
+  std::vector<std::optional<MapPrior>> priors(truth.size());
+  for (std::size_t i = 0; i < truth.size(); ++i) {
+    MapPrior p;
+    p.T_world_map = truth[i];
+    p.covariance = Mat6::Identity() * sd2;
+    priors[i] = p;
+  }
+  return priors;
+}
+
 TEST(MergePoseGraph, RecoversTruthFromNoisyEdgesWithGaugeAtFirstMap) {
   const Ring ring = make_ring(8, 11);
   const std::vector<std::optional<MapPrior>> none(8);
@@ -292,13 +304,7 @@ TEST(MergeEvaluation, PartsHeldByPriorsShareOneFrame) {
   std::mt19937_64 rng(16);
   ring.truth.push_back(random_pose(rng, 5.0, 180.0));
   ring.truth.push_back(random_pose(rng, 5.0, 180.0));
-  std::vector<std::optional<MapPrior>> priors(7);
-  for (std::size_t i = 0; i < 7; ++i) {
-    MapPrior p;
-    p.T_world_map = ring.truth[i];
-    p.covariance = Mat6::Identity() * 1e-4;
-    priors[i] = p;
-  }
+  std::vector<std::optional<MapPrior>> priors = true_priors(ring.truth, 1e-4);
   priors[6]->T_world_map = pose_from_xyz_rpy_deg(0.5, 0, 0, 0, 0, 30) * ring.truth[6];
   const MergeResult r = solve_pose_graph(7, priors, ring.edges);  // maps 5 and 6: no edge
   ASSERT_EQ(r.num_components, 1u);  // the priors' frame holds them all
@@ -316,13 +322,7 @@ TEST(MergeEvaluation, PartsHeldByPriorsShareOneFrame) {
 
 TEST(MergePoseGraph, PriorsHoldTheGaugeAndInvalidCovarianceIsSkipped) {
   Ring ring = make_ring(5, 13);
-  std::vector<std::optional<MapPrior>> priors(5);
-  for (std::size_t i = 0; i < 5; ++i) {
-    MapPrior p;
-    p.T_world_map = ring.truth[i];
-    p.covariance = Mat6::Identity() * 1e-2;
-    priors[i] = p;
-  }
+  std::vector<std::optional<MapPrior>> priors = true_priors(ring.truth, 1e-2);
   ring.edges[0].covariance.setZero();
   ring.edges[0].covariance_valid = false;
   const MergeResult r = solve_pose_graph(5, priors, ring.edges);

@@ -33,6 +33,23 @@ void expect_proper_rigid(const Isometry3& T) {
   EXPECT_EQ(T.matrix().row(3), Eigen::RowVector4d(0, 0, 0, 1));
 }
 
+/// A proper rigid result that converged within `rotation_deg` and `translation_m` of T_true.
+void expect_converged_to(const RegistrationResult& r, const Isometry3& T_true, double rotation_deg,
+                         double translation_m) {
+  expect_proper_rigid(r.T_target_source);
+  EXPECT_TRUE(r.converged) << to_string(r.termination);
+  const TransformError e = transform_error(r.T_target_source, T_true);
+  EXPECT_LT(e.rotation_deg, rotation_deg);
+  EXPECT_LT(e.translation_m, translation_m);
+}
+
+/// A proper rigid result that stopped as degenerate, not converged.
+void expect_degenerate(const RegistrationResult& r) {
+  expect_proper_rigid(r.T_target_source);
+  EXPECT_EQ(r.termination, TerminationReason::kDegenerate);
+  EXPECT_FALSE(r.converged);
+}
+
 std::vector<WeightKind> strategies() { return all_weight_kinds(); }
 
 /// A target of bare points with every weight kind set to 1 (so all four strategies run).
@@ -124,11 +141,7 @@ TEST(DegenerateMaps, ThreeLandmarksRecoverTheTransformExactly) {
   for (WeightKind s : strategies()) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = paper(source, target, s);
-    expect_proper_rigid(r.T_target_source);
-    EXPECT_TRUE(r.converged) << to_string(r.termination);
-    const TransformError e = transform_error(r.T_target_source, T_true);
-    EXPECT_LT(e.rotation_deg, 1e-9);
-    EXPECT_LT(e.translation_m, 1e-12);
+    expect_converged_to(r, T_true, 1e-9, 1e-12);
   }
 }
 
@@ -144,9 +157,7 @@ TEST(DegenerateMaps, OneOrTwoTargetLandmarksGiveADegenerateFiniteResult) {
   for (WeightKind s : strategies()) {
     SCOPED_TRACE("one target landmark, " + to_string(s));
     const RegistrationResult r = paper(source, one, s);
-    expect_proper_rigid(r.T_target_source);
-    EXPECT_EQ(r.termination, TerminationReason::kDegenerate);
-    EXPECT_FALSE(r.converged);
+    expect_degenerate(r);
     EXPECT_TRUE(r.T_target_source.linear().isApprox(Mat3::Identity(), 1e-15));
     EXPECT_LT((r.T_target_source * centroid - Vec3(10, -4, 2)).norm(), 1e-12);
   }
@@ -154,9 +165,7 @@ TEST(DegenerateMaps, OneOrTwoTargetLandmarksGiveADegenerateFiniteResult) {
   for (WeightKind s : strategies()) {
     SCOPED_TRACE("two target landmarks, " + to_string(s));
     const RegistrationResult r = paper(source, two, s);
-    expect_proper_rigid(r.T_target_source);
-    EXPECT_EQ(r.termination, TerminationReason::kDegenerate);
-    EXPECT_FALSE(r.converged);
+    expect_degenerate(r);
   }
 }
 
@@ -174,9 +183,7 @@ TEST(DegenerateMaps, CollinearMapsGiveADegenerateResultOnTheTargetLine) {
   for (WeightKind s : strategies()) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = paper(source, target, s);
-    expect_proper_rigid(r.T_target_source);
-    EXPECT_EQ(r.termination, TerminationReason::kDegenerate);
-    EXPECT_FALSE(r.converged);
+    expect_degenerate(r);
     // Whatever the spin about the line, every aligned source point lies on the target line.
     for (const Vec3& p : source) {
       const Vec3 q = r.T_target_source * p - Vec3(0.5, -1, 2);
@@ -194,11 +201,7 @@ TEST(DegenerateMaps, CoplanarMapsAreWellDeterminedAndConverge) {
       transform_points(T_true.inverse(), Points3(floor.begin(), floor.begin() + 2000));
   const PreparedTarget target = bare_target(floor);
   const RegistrationResult r = paper(source, target, WeightKind::kUniform);
-  expect_proper_rigid(r.T_target_source);
-  EXPECT_TRUE(r.converged) << to_string(r.termination);
-  const TransformError e = transform_error(r.T_target_source, T_true);
-  EXPECT_LT(e.rotation_deg, 1e-6);
-  EXPECT_LT(e.translation_m, 1e-8);
+  expect_converged_to(r, T_true, 1e-6, 1e-8);
 }
 
 TEST(DegenerateMaps, AllPointsIdenticalGiveThePureTranslation) {
@@ -207,9 +210,7 @@ TEST(DegenerateMaps, AllPointsIdenticalGiveThePureTranslation) {
   for (WeightKind s : strategies()) {
     SCOPED_TRACE(to_string(s));
     const RegistrationResult r = paper(source, target, s);
-    expect_proper_rigid(r.T_target_source);
-    EXPECT_EQ(r.termination, TerminationReason::kDegenerate);
-    EXPECT_FALSE(r.converged);
+    expect_degenerate(r);
     EXPECT_TRUE(r.T_target_source.linear() == Mat3::Identity());
     EXPECT_LT((r.T_target_source.translation() - Vec3(-5, -1.5, 4)).norm(), 1e-12);
     EXPECT_EQ(r.final_score_m2, 0.0);
