@@ -330,11 +330,14 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
 
 Refinement Pipeline::refine_part(const RefineContext& context,
                                  const std::vector<std::uint32_t>& indices, const Hypothesis& start,
-                                 Phase phase) const {
+                                 Phase phase, const StageState* whole_matcher_state) const {
   const detail::OwnedPart part = detail::part_of(context.source, indices);
   RefineContext sub = context;
   sub.source = part.view(context.source);
-  return refine(sub, start, phase);
+  const std::unique_ptr<StageState> seeded =
+      whole_matcher_state != nullptr ? matcher_->part_state(*whole_matcher_state, indices)
+                                     : nullptr;
+  return refine(sub, start, phase, false, 0, seeded.get());
 }
 
 Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,

@@ -262,8 +262,12 @@ class Pipeline {
                     bool keep_pairs = false, int history = 0,
                     StageState* matcher_state = nullptr) const;
   /// refine() on the source landmarks `indices` (increasing) of `context`, copied out.
+  /// `whole_matcher_state` (optional): a matcher state of the whole source (its caches warm, e.g.
+  /// from a match at `start`); the part's state is made from it (Matcher::part_state), and the
+  /// result is the same as without it.
   Refinement refine_part(const RefineContext& context, const std::vector<std::uint32_t>& indices,
-                         const Hypothesis& start, Phase phase) const;
+                         const Hypothesis& start, Phase phase,
+                         const StageState* whole_matcher_state = nullptr) const;
 
  private:
   PipelineSpec spec_;

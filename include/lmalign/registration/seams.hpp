@@ -329,6 +329,15 @@ class Matcher : public Stage {
   /// landmark; the pairs in increasing source index.
   virtual void match(const RefineContext& context, StageState* state, const Isometry3& T,
                      const LoopState& loop, Pairs* pairs) const = 0;
+  /// A state for the part of the source made of the landmarks `indices` (increasing; the part's
+  /// landmark j is the whole's indices[j]), carrying what `whole` holds of them: refine_part()
+  /// then matches as with a fresh state, faster. Null (the default): a fresh state.
+  virtual std::unique_ptr<StageState> part_state(const StageState& whole,
+                                                 const std::vector<std::uint32_t>& indices) const {
+    (void)whole;
+    (void)indices;
+    return nullptr;
+  }
   /// PCL's fitness score at T (score.hpp), served from the state's caches where it can be.
   virtual FitnessScore fitness(const RefineContext& context, StageState* state, const Isometry3& T,
                                double max_range_m) const;

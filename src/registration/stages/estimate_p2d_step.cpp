@@ -154,7 +154,10 @@ class P2DStepEstimator : public Estimator {
     wide.sigma.translation_m = c.init->resolution_m;
     wide.sigma.pivot_m = T * c.scales->source.centre_m;
     Pairs near;
-    pipeline.matcher().match(c, nullptr, T, wide, &near);
+    // The match at the estimate warms a state of the whole source: each half's first iteration,
+    // also at the estimate, then starts from its landmarks' neighbours (the same pairs, faster).
+    const std::unique_ptr<StageState> at_estimate = pipeline.matcher().begin(c);
+    pipeline.matcher().match(c, at_estimate.get(), T, wide, &near);
     std::vector<std::uint32_t> overlap;
     overlap.reserve(near.gated.size());
     for (const GatedPair& g : near.gated) overlap.push_back(g.source_index);
@@ -195,7 +198,8 @@ class P2DStepEstimator : public Estimator {
           if ((normal.dot(p[i] - centre) < 0.0) == below) half.push_back(i);
         }
         if (half.size() < o_.half_sample_min_landmarks) return;
-        const Refinement r = pipeline.refine_part(c, half, from, Phase::kResample);
+        const Refinement r =
+            pipeline.refine_part(c, half, from, Phase::kResample, at_estimate.get());
         if (r.termination != TerminationReason::kTransform &&
             r.termination != TerminationReason::kMaxIterations) {
           return;

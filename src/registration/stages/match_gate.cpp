@@ -3,6 +3,12 @@
 // uncertainty, kept when it passes a chi-square test (stages/mahalanobis_gate.hpp).
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 
+#include <algorithm>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
 #include "stage.hpp"
 
 LMALIGN_STAGE_FUNCTIONS(match_gate)
@@ -24,6 +30,28 @@ class GateMatcher : public Matcher {
 
   std::unique_ptr<StageState> begin(const RefineContext&) const override {
     return std::make_unique<State>();
+  }
+
+  // The whole's seeds of each landmark of the part: the searches they seed are exact, so the
+  // part matches as with a fresh state (GateNeighbourCache).
+  std::unique_ptr<StageState> part_state(
+      const StageState& whole, const std::vector<std::uint32_t>& indices) const override {
+    const GateNeighbourCache& from = static_cast<const State&>(whole).cache;
+    auto part = std::make_unique<State>();
+    if (from.k <= 0) return part;
+    const std::size_t k = static_cast<std::size_t>(from.k);
+    GateNeighbourCache& to = part->cache;
+    to.k = from.k;
+    to.counts.assign(indices.size(), 0);
+    to.indices.assign(indices.size() * k, 0);
+    for (std::size_t j = 0; j < indices.size(); ++j) {
+      const std::size_t i = indices[j];
+      if (i >= from.counts.size()) continue;
+      to.counts[j] = from.counts[i];
+      std::copy_n(from.indices.begin() + static_cast<std::ptrdiff_t>(i * k), k,
+                  to.indices.begin() + static_cast<std::ptrdiff_t>(j * k));
+    }
+    return part;
   }
 
   void match(const RefineContext& c, StageState* state, const Isometry3& T, const LoopState& loop,
