@@ -59,25 +59,31 @@ void check_inputs(const GateSide& source, const PreparedTarget& target, double f
   (void)target;
 }
 
-// The best target landmark of one source landmark; false when none passes the gate.
-// `seeds`, `num_seeds` (may be null / 0): the landmark's neighbours at the previous call; the
-// found neighbours are written back there.
-// `view_t`: the target's viewing directions (null: none); `view_s`: the source landmark's,
-// rotated into the target frame (zero: unknown); `min_cos`: the cosine of the largest angle.
-bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
-              const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
-              double chi2, const std::vector<Vec3>* view_t, const Vec3& view_s, double min_cos,
-              GatedPair* out, PointIndex* seeds, std::uint8_t* num_seeds) {
-  const Vec3 x = T * p_s;
-  PointIndex idx[kMaxK];
-  double d2e[kMaxK];
+// One source landmark's slot of a GateNeighbourCache.
+struct CacheSlot {
+  PointIndex* indices;
+  std::uint8_t* count;
+  double* reach_m2;
+  Vec3* at_m;
+  std::size_t width;
+};
+
+constexpr std::size_t kMaxWidth = 2 * kMaxK;
+
+// The k nearest target landmarks of x (exactly KdTree::knn's, in its total order) into idx,
+// d2e (room for kMaxWidth + 1), served from and written back to `slot` (see
+// GateNeighbourCache); returns how many.
+std::size_t nearest(const Vec3& x, const PreparedTarget& target, std::size_t k, CacheSlot* slot,
+                    PointIndex* idx, double* d2e) {
+  if (slot == nullptr) return target.tree().knn(x, k, idx, d2e);
+  const std::size_t n = *slot->count;
   std::size_t found = 0;
-  if (seeds != nullptr && *num_seeds > 0) {
-    // Re-evaluate the seeds at x and sort them in the tree's total order (distance, index).
-    const std::size_t n = *num_seeds;
+  if (n > 0) {
+    // Re-evaluate the cached neighbours at x and sort them in the tree's total order (distance,
+    // index).
     for (std::size_t c = 0; c < n; ++c) {
-      idx[c] = seeds[c];
-      d2e[c] = squared_distance(x, target.points()[seeds[c]]);
+      idx[c] = slot->indices[c];
+      d2e[c] = squared_distance(x, target.points()[idx[c]]);
     }
     for (std::size_t a = 1; a < n; ++a) {
       const PointIndex ia = idx[a];
@@ -91,14 +97,39 @@ bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const Prepar
       idx[b] = ia;
       d2e[b] = da;
     }
-    found = target.tree().knn_seeded(x, static_cast<std::size_t>(k), idx, d2e, n, idx, d2e);
+    // Every target landmark cached, or none left out can come as near as the k-th: a landmark
+    // left out is at least sqrt(reach) - moved from x (strictly farther, with a margin for the
+    // rounding of the square roots).
+    if (n == target.size()) return std::min(k, n);
+    if (n >= k) {
+      const double moved = (x - *slot->at_m).norm();
+      const double reach = std::sqrt(*slot->reach_m2);
+      if (std::sqrt(d2e[k - 1]) + moved + 1e-9 * (1.0 + reach) < reach) return k;
+    }
+    found = target.tree().knn_seeded(x, slot->width + 1, idx, d2e, n, idx, d2e);
   } else {
-    found = target.tree().knn(x, static_cast<std::size_t>(k), idx, d2e);
+    found = target.tree().knn(x, slot->width + 1, idx, d2e);
   }
-  if (seeds != nullptr) {
-    for (std::size_t c = 0; c < found; ++c) seeds[c] = idx[c];
-    *num_seeds = static_cast<std::uint8_t>(found);
-  }
+  const std::size_t keep = std::min(found, slot->width);
+  std::copy_n(idx, keep, slot->indices);
+  *slot->count = static_cast<std::uint8_t>(keep);
+  *slot->reach_m2 = found > slot->width ? d2e[slot->width] : std::numeric_limits<double>::infinity();
+  *slot->at_m = x;
+  return std::min(k, found);
+}
+
+// The best target landmark of one source landmark; false when none passes the gate.
+// `slot` (may be null): the landmark's GateNeighbourCache slot.
+// `view_t`: the target's viewing directions (null: none); `view_s`: the source landmark's,
+// rotated into the target frame (zero: unknown); `min_cos`: the cosine of the largest angle.
+bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
+              const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
+              double chi2, const std::vector<Vec3>* view_t, const Vec3& view_s, double min_cos,
+              GatedPair* out, CacheSlot* slot) {
+  const Vec3 x = T * p_s;
+  PointIndex idx[kMaxWidth + 1];
+  double d2e[kMaxWidth + 1];
+  const std::size_t found = nearest(x, target, static_cast<std::size_t>(k), slot, idx, d2e);
   if (found == 0) return false;
   const double lever2 = (x - sigma.pivot_m).squaredNorm();
   const double iso = iso_base_m2 + sigma.rotation_rad * sigma.rotation_rad * lever2;
@@ -156,8 +187,12 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
   if (cache != nullptr &&
       (cache->k != options.k || cache->counts.size() != source.points->size())) {
     cache->k = options.k;
-    cache->counts.assign(source.points->size(), 0);
-    cache->indices.assign(source.points->size() * static_cast<std::size_t>(options.k), 0);
+    cache->width = std::max(8, 2 * options.k);
+    const std::size_t n = source.points->size();
+    cache->counts.assign(n, 0);
+    cache->indices.assign(n * static_cast<std::size_t>(cache->width), 0);
+    cache->reach_m2.assign(n, 0.0);
+    cache->at_m.assign(n, Vec3::Zero());
   }
   const Points3& P = *source.points;
   const bool src_cov = source.covariances_m2 != nullptr && !source.covariances_m2->empty();
@@ -181,13 +216,16 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
           subset != nullptr ? (*subset)[static_cast<std::size_t>(j)] : static_cast<std::size_t>(j);
       GatedPair g;
       g.source_index = static_cast<std::uint32_t>(i);
-      PointIndex* seeds =
-          cache != nullptr ? &cache->indices[i * static_cast<std::size_t>(options.k)] : nullptr;
-      std::uint8_t* num_seeds = cache != nullptr ? &cache->counts[i] : nullptr;
+      CacheSlot cached{};
+      if (cache != nullptr) {
+        const std::size_t w = static_cast<std::size_t>(cache->width);
+        cached = CacheSlot{&cache->indices[i * w], &cache->counts[i], &cache->reach_m2[i],
+                           &cache->at_m[i], w};
+      }
       if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
                    tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, view_t,
                    views ? Vec3(R * (*source.view_directions)[i]) : Vec3::Zero(), min_cos, &g,
-                   seeds, num_seeds)) {
+                   cache != nullptr ? &cached : nullptr)) {
         slot[static_cast<std::size_t>(j)] = g;
         kept[static_cast<std::size_t>(j)] = 1;
       }

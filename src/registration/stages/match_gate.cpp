@@ -38,18 +38,23 @@ class GateMatcher : public Matcher {
       const StageState& whole, const std::vector<std::uint32_t>& indices) const override {
     const GateNeighbourCache& from = static_cast<const State&>(whole).cache;
     auto part = std::make_unique<State>();
-    if (from.k <= 0) return part;
-    const std::size_t k = static_cast<std::size_t>(from.k);
+    if (from.width <= 0) return part;
+    const std::size_t w = static_cast<std::size_t>(from.width);
     GateNeighbourCache& to = part->cache;
     to.k = from.k;
+    to.width = from.width;
     to.counts.assign(indices.size(), 0);
-    to.indices.assign(indices.size() * k, 0);
+    to.indices.assign(indices.size() * w, 0);
+    to.reach_m2.assign(indices.size(), 0.0);
+    to.at_m.assign(indices.size(), Vec3::Zero());
     for (std::size_t j = 0; j < indices.size(); ++j) {
       const std::size_t i = indices[j];
       if (i >= from.counts.size()) continue;
       to.counts[j] = from.counts[i];
-      std::copy_n(from.indices.begin() + static_cast<std::ptrdiff_t>(i * k), k,
-                  to.indices.begin() + static_cast<std::ptrdiff_t>(j * k));
+      to.reach_m2[j] = from.reach_m2[i];
+      to.at_m[j] = from.at_m[i];
+      std::copy_n(from.indices.begin() + static_cast<std::ptrdiff_t>(i * w), w,
+                  to.indices.begin() + static_cast<std::ptrdiff_t>(j * w));
     }
     return part;
   }

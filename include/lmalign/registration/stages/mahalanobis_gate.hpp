@@ -73,14 +73,24 @@ struct GateSide {
   const std::vector<Vec3>* view_directions = nullptr;
 };
 
-/// The k nearest target landmarks each source landmark had at the previous call, used as seeds
-/// of the next search (KdTree::knn_seeded: the same neighbours as a fresh search, found faster
-/// when the pose moved little, as between two iterations of a refinement). One per refinement;
-/// not shared between threads that gate concurrently. Empty = no seeds yet.
+/// Each source landmark's nearest target landmarks where it was last searched: the next call
+/// takes its k nearest from them without a search when the landmark moved too little for any
+/// other target landmark to come nearer (the moved distance against the gap to the nearest one
+/// left out), else searches seeded with them (KdTree::knn_seeded). Either way the neighbours are
+/// exactly a fresh search's, found faster when the pose moved little, as between two iterations
+/// of a refinement. One per refinement; not shared between threads that gate concurrently.
+/// Empty = nothing cached yet.
 struct GateNeighbourCache {
-  std::vector<PointIndex> indices;  ///< source landmark i's at [i k, i k + counts[i])
+  /// Source landmark i's cached neighbours at [i width, i width + counts[i]), in the search's
+  /// total order at `at_m[i]` (its position in the target frame then, metres); reach_m2[i]: the
+  /// squared distance from there of the nearest target landmark not cached (m^2; infinity when
+  /// every target landmark is cached).
+  std::vector<PointIndex> indices;
   std::vector<std::uint8_t> counts;
+  std::vector<double> reach_m2;
+  Points3 at_m;
   int k = 0;
+  int width = 0;  ///< 2 k, at least 8
 };
 
 /// Pairs and gates the source landmarks `subset` (indices into source.points; nullptr = all)
