@@ -20,8 +20,8 @@
 // Also to_pcl_cloud(points): lmalign's points as a pcl::PointCloud<pcl::PointXYZ>.
 //
 // Header-only and independent of the lmalign library (it needs only PCL >= 1.12,
-// lmalign/core/error.hpp and lmalign/core/types.hpp). Like PCL's own estimator it runs serially. Built and tested only when
-// CMake finds PCL.
+// lmalign/core/error.hpp and lmalign/core/types.hpp). Like PCL's own estimator it runs serially.
+// Built and tested only when CMake finds PCL.
 #pragma once
 
 #include <cmath>

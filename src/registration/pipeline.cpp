@@ -353,9 +353,8 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // complete search, whose answer is the result (docs/accuracy.md, "The first pass"). Not when
   // the maps put the answer outside a prior's window and every other test trusts it: no deeper
   // pass makes that result trusted. Not counted among the scale axis's searches and attempts.
-  const bool deeper = first.verdict.trustworthy
-                          ? run.prior_unconfirmed()
-                          : !first.verdict.trusted_but_for_prior_window;
+  const bool deeper = first.verdict.trustworthy ? run.prior_unconfirmed()
+                                                : !first.verdict.trusted_but_for_prior_window;
   if (run.first_pass() && deeper) {
     run.deepen();
     if (run.begin_search(1.0)) {

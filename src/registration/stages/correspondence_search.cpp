@@ -506,10 +506,9 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
       for (std::size_t j = 0; j < in.ups_target.size(); ++j) {
         const Vec3 us = in.ups_source[i].normalized(), ut = in.ups_target[j].normalized();
         // 2. matches, 3. the consistency graph
-        const std::vector<Match> matches =
-            nearest_descriptors(skeys, by_source_up[i].d, by_source_up[i].ok, tkeys,
-                                by_target_up[j].d, by_target_up[j].ok, dims,
-                                o.matches_per_keypoint);
+        const std::vector<Match> matches = nearest_descriptors(
+            skeys, by_source_up[i].d, by_source_up[i].ok, tkeys, by_target_up[j].d,
+            by_target_up[j].ok, dims, o.matches_per_keypoint);
         result.matches += matches.size();
         // 4. cliques -> 4-DoF poses, at each factor of the scale ladder (the factor 1 alone
         // when rigid)
@@ -520,8 +519,8 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
         for (int k = -o.scale_steps; k <= o.scale_steps; ++k) {
           factors.push_back(std::pow(o.scale_ratio, k));
         }
-        const std::vector<Graph> graphs = consistency_graphs(
-            matches, src, us, tgt, ut, o.consistency_sigmas, factors, relative);
+        const std::vector<Graph> graphs =
+            consistency_graphs(matches, src, us, tgt, ut, o.consistency_sigmas, factors, relative);
         for (std::size_t k = 0; k < factors.size(); ++k) {
           for (const std::vector<std::size_t>& clique :
                cliques(graphs[k], o.seeds, o.min_inliers)) {

@@ -113,7 +113,8 @@ std::size_t nearest(const Vec3& x, const PreparedTarget& target, std::size_t k, 
   const std::size_t keep = std::min(found, slot->width);
   std::copy_n(idx, keep, slot->indices);
   *slot->count = static_cast<std::uint8_t>(keep);
-  *slot->reach_m2 = found > slot->width ? d2e[slot->width] : std::numeric_limits<double>::infinity();
+  *slot->reach_m2 =
+      found > slot->width ? d2e[slot->width] : std::numeric_limits<double>::infinity();
   *slot->at_m = x;
   return std::min(k, found);
 }

@@ -34,8 +34,8 @@ class GateMatcher : public Matcher {
 
   // The whole's seeds of each landmark of the part: the searches they seed are exact, so the
   // part matches as with a fresh state (GateNeighbourCache).
-  std::unique_ptr<StageState> part_state(
-      const StageState& whole, const std::vector<std::uint32_t>& indices) const override {
+  std::unique_ptr<StageState> part_state(const StageState& whole,
+                                         const std::vector<std::uint32_t>& indices) const override {
     const GateNeighbourCache& from = static_cast<const State&>(whole).cache;
     auto part = std::make_unique<State>();
     if (from.width <= 0) return part;
