@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "lmalign/core/error.hpp"
+#include "stages/settings_binding.hpp"
 
 namespace lmalign {
 
@@ -19,57 +20,49 @@ ScaleMode resolve_scale_mode(ScaleMode mode, bool source_metric, bool target_met
   return source_metric && target_metric ? ScaleMode::kFixed : ScaleMode::kFree;
 }
 
-std::vector<SettingRow> scale_search_settings() {
-  const ScaleSearchOptions d;
-  return {
-      real_setting("scale.initial_min", "ScaleSearchOptions::initial_min", d.initial_min,
-                   SettingBound::above(0.0), "1",
-                   "free scale: the initial scale from the landmark spacings is at least this"),
-      real_setting("scale.initial_max", "ScaleSearchOptions::initial_max", d.initial_max,
-                   SettingBound::above(0.0), "1",
-                   "free scale: the initial scale from the landmark spacings is at most this"),
-      real_setting("scale.rung_ratio", "ScaleSearchOptions::rung_ratio", d.rung_ratio,
-                   SettingBound::above(1.0), "1",
-                   "free scale: the step between the scale axis's rungs and the searches "
-                   "again (a ratio)"),
-      int_setting("scale.rungs", "ScaleSearchOptions::rungs", d.rungs, SettingBound::closed(0, 20),
-                  "count",
-                  "free scale: rungs on each side of the initial scale at which the first "
-                  "search's hypotheses are concluded again while none is trusted"),
-      int_setting("scale.researches", "ScaleSearchOptions::researches", d.researches,
-                  SettingBound::closed(0, 20), "count",
-                  "free scale: searches again on each side, at rung_ratio^k times the initial "
-                  "scale, while none is trusted"),
-      int_setting("scale.measure_steps", "ScaleSearchOptions::measure_steps", d.measure_steps,
-                  SettingBound::closed(0, 20), "count",
-                  "free scale: the correspondences measure the scale at rung_ratio^k times the "
-                  "initial scale, |k| <= this, before the first search; a measured scale "
-                  "replaces the searches again; 0 = not measured"),
-      real_setting("scale.measure_margin", "ScaleSearchOptions::measure_margin", d.measure_margin,
-                   SettingBound::at_least(1.0), "1",
-                   "free scale: a measured scale counts when its largest clique has this many "
-                   "times the matches of the largest at a scale more than a rung away"),
-      real_setting("scale.settle", "ScaleSearchOptions::settle", d.settle, SettingBound::above(0.0),
-                   "1",
-                   "free scale: a refinement goes on while its last step changed the scale by "
-                   "more than this (relative)"),
-  };
+namespace {
+
+const SettingsBinding<ScaleSearchOptions>& binding() {
+  static const SettingsBinding<ScaleSearchOptions> b =
+      SettingsBinding<ScaleSearchOptions>("ScaleSearchOptions")
+          .add("scale.initial_min", LMALIGN_FIELD(initial_min), SettingBound::above(0.0), "1",
+               "free scale: the initial scale from the landmark spacings is at least this")
+          .add("scale.initial_max", LMALIGN_FIELD(initial_max), SettingBound::above(0.0), "1",
+               "free scale: the initial scale from the landmark spacings is at most this")
+          .add("scale.rung_ratio", LMALIGN_FIELD(rung_ratio), SettingBound::above(1.0), "1",
+               "free scale: the step between the scale axis's rungs and the searches again (a "
+               "ratio)")
+          .add("scale.rungs", LMALIGN_FIELD(rungs), SettingBound::closed(0, 20), "count",
+               "free scale: rungs on each side of the initial scale at which the first search's "
+               "hypotheses are concluded again while none is trusted")
+          .add("scale.researches", LMALIGN_FIELD(researches), SettingBound::closed(0, 20), "count",
+               "free scale: searches again on each side, at rung_ratio^k times the initial scale, "
+               "while none is trusted")
+          .add("scale.measure_steps", LMALIGN_FIELD(measure_steps), SettingBound::closed(0, 20),
+               "count",
+               "free scale: the correspondences measure the scale at rung_ratio^k times the "
+               "initial scale, |k| <= this, before the first search; a measured scale replaces the "
+               "searches again; 0 = not measured")
+          .add("scale.measure_margin", LMALIGN_FIELD(measure_margin), SettingBound::at_least(1.0),
+               "1",
+               "free scale: a measured scale counts when its largest clique has this many times "
+               "the matches of the largest at a scale more than a rung away")
+          .add("scale.settle", LMALIGN_FIELD(settle), SettingBound::above(0.0), "1",
+               "free scale: a refinement goes on while its last step changed the scale by more "
+               "than this (relative)");
+  return b;
 }
 
+}  // namespace
+
+std::vector<SettingRow> scale_search_settings() { return binding().rows(); }
+
 ScaleSearchOptions scale_search_options(const Settings& s) {
-  ScaleSearchOptions o;
-  o.initial_min = s.real("scale.initial_min");
-  o.initial_max = s.real("scale.initial_max");
+  const ScaleSearchOptions o = binding().read(s);
   if (!(o.initial_min <= o.initial_max)) {
     throw InvalidArgument("scale.initial_min = " + std::to_string(o.initial_min) +
                           " is above scale.initial_max = " + std::to_string(o.initial_max));
   }
-  o.rung_ratio = s.real("scale.rung_ratio");
-  o.rungs = static_cast<int>(s.integer("scale.rungs"));
-  o.researches = static_cast<int>(s.integer("scale.researches"));
-  o.measure_steps = static_cast<int>(s.integer("scale.measure_steps"));
-  o.measure_margin = s.real("scale.measure_margin");
-  o.settle = s.real("scale.settle");
   return o;
 }
 

@@ -223,35 +223,38 @@ class P2DStepEstimator : public Estimator {
   P2DStepOptions o_;
 };
 
+const SettingsBinding<P2DStepOptions>& binding() {
+  static const SettingsBinding<P2DStepOptions> b =
+      SettingsBinding<P2DStepOptions>("P2DStepOptions")
+          .add("estimate.covariance_block_factor", LMALIGN_FIELD(block_factor),
+               SettingBound::above(0.0), "1",
+               "edge of the spatial blocks of the cluster-robust covariance, as a fraction of the "
+               "source's radius")
+          .add("estimate.half_sample_planes", LMALIGN_FIELD(half_sample_planes),
+               SettingBound::closed(0, 1000), "count",
+               "vertical planes cutting the overlap in halves for the half-sample covariance (0: "
+               "off); costs 2 (n + 1) refinements of half the overlap")
+          .add("estimate.half_sample_min_landmarks", LMALIGN_FIELD(half_sample_min_landmarks),
+               SettingBound::at_least(3), "count",
+               "a half with fewer landmarks is left out of the half-sample covariance");
+  return b;
+}
+
 }  // namespace
 
 std::vector<SettingRow> estimate_p2d_step_settings() {
-  const P2DStepOptions d;
-  return {
-      choice_setting("estimate.dof", "P2DStepOptions::four_dof", d.four_dof ? "4" : "6", {"6", "4"},
-                     "degrees of freedom: 6, or 4 (x, y, z and the yaw about the target's up "
-                     "axis, scales.up_target; roll and pitch kept)"),
-      real_setting("estimate.covariance_block_factor", "P2DStepOptions::block_factor",
-                   d.block_factor, SettingBound::above(0.0), "1",
-                   "edge of the spatial blocks of the cluster-robust covariance, as a fraction of "
-                   "the source's radius"),
-      int_setting("estimate.half_sample_planes", "P2DStepOptions::half_sample_planes",
-                  d.half_sample_planes, SettingBound::closed(0, 1000), "count",
-                  "vertical planes cutting the overlap in halves for the half-sample covariance "
-                  "(0: off); costs 2 (n + 1) refinements of half the overlap"),
-      int_setting("estimate.half_sample_min_landmarks", "P2DStepOptions::half_sample_min_landmarks",
-                  static_cast<long long>(d.half_sample_min_landmarks), SettingBound::at_least(3),
-                  "count", "a half with fewer landmarks is left out of the half-sample covariance"),
-  };
+  // The degrees of freedom are a choice of names ("6", "4") over a flag; the rest are bound.
+  std::vector<SettingRow> rows = {choice_setting(
+      "estimate.dof", "P2DStepOptions::four_dof", P2DStepOptions{}.four_dof ? "4" : "6", {"6", "4"},
+      "degrees of freedom: 6, or 4 (x, y, z and the yaw about the target's up axis, "
+      "scales.up_target; roll and pitch kept)")};
+  rows.insert(rows.end(), binding().rows().begin(), binding().rows().end());
+  return rows;
 }
 
 std::unique_ptr<Stage> make_estimate_p2d_step(const Settings& s) {
-  P2DStepOptions o;
+  P2DStepOptions o = binding().read(s);
   o.four_dof = s.choice("estimate.dof") == "4";
-  o.block_factor = s.real("estimate.covariance_block_factor");
-  o.half_sample_planes = static_cast<int>(s.integer("estimate.half_sample_planes"));
-  o.half_sample_min_landmarks =
-      static_cast<std::size_t>(s.integer("estimate.half_sample_min_landmarks"));
   return std::make_unique<P2DStepEstimator>(o);
 }
 

@@ -137,48 +137,34 @@ class YawVote : public Initialiser {
   YawVoteInitOptions o_;
 };
 
+const SettingsBinding<YawVoteInitOptions>& binding() {
+  static const SettingsBinding<YawVoteInitOptions> b =
+      SettingsBinding<YawVoteInitOptions>("YawVoteInitOptions")
+          .add("init.yaw_step_deg", LMALIGN_FIELD(search.yaw_step_deg),
+               SettingBound::open_closed(0.0, 90.0), "deg", "spacing of the yaw grid")
+          .add("init.source_samples", LMALIGN_FIELD(search.source_samples),
+               SettingBound::closed(3, 1000000), "count",
+               "source landmarks that vote (evenly strided)")
+          .add("init.target_samples", LMALIGN_FIELD(search.target_samples),
+               SettingBound::closed(3, 1000000), "count",
+               "target landmarks that vote (evenly strided)")
+          .add("init.hypotheses", LMALIGN_FIELD(search.hypotheses), SettingBound::closed(1, 100000),
+               "count", "hypotheses kept at most (local maxima of the votes over yaw)")
+          .add("init.vote_cell_factor", LMALIGN_FIELD(vote_cell_factor), SettingBound::above(0.0),
+               "1",
+               "the vote cell is this times max(target spacing, 2 sin(step / 2) x source radius)")
+          .add("init.start_sigma_factor", LMALIGN_FIELD(start_sigma_factor),
+               SettingBound::open_closed(0.0, 10.0), "1",
+               "a hypothesis' gate starts at this fraction of the search's resolution (two cells, "
+               "one yaw step) or of the prior's sigmas")
+          .add("init.second_up_min_angle_deg", LMALIGN_FIELD(second_up_min_angle_deg),
+               SettingBound::closed(0.0, 180.0), "deg",
+               "a map's landmark-plane normal becomes a second up-axis candidate when this far "
+               "from its frames' up axis (180: never)");
+  return b;
+}
+
 }  // namespace
-
-std::vector<SettingRow> init_yaw_vote_settings() {
-  const YawVoteInitOptions init;
-  const YawVoteOptions& d = init.search;
-  return {
-      real_setting("init.yaw_step_deg", "YawVoteOptions::yaw_step_deg", d.yaw_step_deg,
-                   SettingBound::open_closed(0.0, 90.0), "deg", "spacing of the yaw grid"),
-      int_setting("init.source_samples", "YawVoteOptions::source_samples",
-                  static_cast<long long>(d.source_samples), SettingBound::closed(3, 1000000),
-                  "count", "source landmarks that vote (evenly strided)"),
-      int_setting("init.target_samples", "YawVoteOptions::target_samples",
-                  static_cast<long long>(d.target_samples), SettingBound::closed(3, 1000000),
-                  "count", "target landmarks that vote (evenly strided)"),
-      int_setting("init.hypotheses", "YawVoteOptions::hypotheses",
-                  static_cast<long long>(d.hypotheses), SettingBound::closed(1, 100000), "count",
-                  "hypotheses kept at most (local maxima of the votes over yaw)"),
-      real_setting("init.vote_cell_factor", "YawVoteInitOptions::vote_cell_factor",
-                   init.vote_cell_factor, SettingBound::above(0.0), "1",
-                   "the vote cell is this times max(target spacing, 2 sin(step / 2) x source "
-                   "radius)"),
-      real_setting("init.start_sigma_factor", "YawVoteInitOptions::start_sigma_factor",
-                   init.start_sigma_factor, SettingBound::open_closed(0.0, 10.0), "1",
-                   "a hypothesis' gate starts at this fraction of the search's resolution (two "
-                   "cells, one yaw step) or of the prior's sigmas"),
-      real_setting("init.second_up_min_angle_deg", "YawVoteInitOptions::second_up_min_angle_deg",
-                   init.second_up_min_angle_deg, SettingBound::closed(0.0, 180.0), "deg",
-                   "a map's landmark-plane normal becomes a second up-axis candidate when this "
-                   "far from its frames' up axis (180: never)"),
-  };
-}
-
-std::unique_ptr<Stage> make_init_yaw_vote(const Settings& s) {
-  YawVoteInitOptions o;
-  o.search.yaw_step_deg = s.real("init.yaw_step_deg");
-  o.search.source_samples = static_cast<std::size_t>(s.integer("init.source_samples"));
-  o.search.target_samples = static_cast<std::size_t>(s.integer("init.target_samples"));
-  o.search.hypotheses = static_cast<std::size_t>(s.integer("init.hypotheses"));
-  o.vote_cell_factor = s.real("init.vote_cell_factor");
-  o.start_sigma_factor = s.real("init.start_sigma_factor");
-  o.second_up_min_angle_deg = s.real("init.second_up_min_angle_deg");
-  return std::make_unique<YawVote>(o);
-}
-
 }  // namespace lmalign::stages
+
+LMALIGN_BOUND_STAGE(init_yaw_vote, YawVote)

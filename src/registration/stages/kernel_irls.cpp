@@ -86,33 +86,32 @@ SettingRow confidence_row() {
                         "pair's weight (Eqs. 1-4)");
 }
 
+const SettingsBinding<IrlsOptions>& robust_binding() {
+  static const SettingsBinding<IrlsOptions> b =
+      SettingsBinding<IrlsOptions>("IrlsOptions")
+          .add("kernel.scale_m", LMALIGN_FIELD(scale_m), SettingBound::above(0.0), "m",
+               "kernel scale at the finest levels: max(this, scale_ratio x the level's maximum "
+               "distance)")
+          .add("kernel.scale_ratio", LMALIGN_FIELD(scale_ratio), SettingBound::at_least(0.0), "1",
+               "kernel scale as a fraction of the level's maximum distance (an unlimited level is "
+               "unweighted)")
+          .add("kernel.irls_iterations", LMALIGN_FIELD(irls_iterations),
+               SettingBound::closed(1, 1000), "count",
+               "re-weightings per iteration on fixed pairs");
+  return b;
+}
+
 std::vector<SettingRow> robust_rows() {
-  const IrlsOptions d;
-  return {
-      confidence_row(),
-      real_setting("kernel.scale_m", "IrlsOptions::scale_m", d.scale_m, SettingBound::above(0.0),
-                   "m",
-                   "kernel scale at the finest levels: max(this, scale_ratio x the level's maximum "
-                   "distance)"),
-      real_setting("kernel.scale_ratio", "IrlsOptions::scale_ratio", d.scale_ratio,
-                   SettingBound::at_least(0.0), "1",
-                   "kernel scale as a fraction of the level's maximum distance (an unlimited "
-                   "level is unweighted)"),
-      int_setting("kernel.irls_iterations", "IrlsOptions::irls_iterations", d.irls_iterations,
-                  SettingBound::closed(1, 1000), "count",
-                  "re-weightings per iteration on fixed pairs"),
-  };
+  std::vector<SettingRow> rows = {confidence_row()};
+  rows.insert(rows.end(), robust_binding().rows().begin(), robust_binding().rows().end());
+  return rows;
 }
 
 std::unique_ptr<Stage> make(RobustKernel kernel, const Settings& s) {
   IrlsOptions o;
   o.kernel = kernel;
   o.confidence = parse_weight_kind(s.choice("kernel.confidence"));
-  if (kernel != RobustKernel::kNone) {
-    o.scale_m = s.real("kernel.scale_m");
-    o.scale_ratio = s.real("kernel.scale_ratio");
-    o.irls_iterations = static_cast<int>(s.integer("kernel.irls_iterations"));
-  }
+  if (kernel != RobustKernel::kNone) robust_binding().read(s, &o);
   return std::make_unique<IrlsKernel>(o);
 }
 

@@ -21,8 +21,8 @@ class CauchyMahalanobis : public Kernel {
   bool accepts(int kind) const override {
     return kind == static_cast<int>(Pairs::Kind::kDistributions);
   }
-  CauchyMahalanobis(double scale_d2, WeightKind confidence)
-      : scale_d2_(scale_d2), confidence_(confidence) {}
+  explicit CauchyMahalanobis(const CauchyMahalanobisOptions& o)
+      : scale_d2_(o.scale_d2), confidence_(o.confidence) {}
 
   WeightKind confidence() const override { return confidence_; }
 
@@ -43,22 +43,31 @@ class CauchyMahalanobis : public Kernel {
   WeightKind confidence_;
 };
 
+const SettingsBinding<CauchyMahalanobisOptions>& binding() {
+  static const SettingsBinding<CauchyMahalanobisOptions> b =
+      SettingsBinding<CauchyMahalanobisOptions>("CauchyMahalanobisOptions")
+          .add("kernel.scale_d2", LMALIGN_FIELD(scale_d2), SettingBound::above(0.0), "1",
+               "Cauchy scale on the Mahalanobis d^2 (the gate's chi-square by default)");
+  return b;
+}
+
 }  // namespace
 
 std::vector<SettingRow> kernel_cauchy_mahalanobis_settings() {
-  const CauchyMahalanobisOptions d;
-  return {real_setting("kernel.scale_d2", "CauchyMahalanobisOptions::scale_d2", d.scale_d2,
-                       SettingBound::above(0.0), "1",
-                       "Cauchy scale on the Mahalanobis d^2 (the gate's chi-square by default)"),
-          choice_setting("kernel.confidence", "CauchyMahalanobisOptions::confidence",
-                         to_string(d.confidence), confidence_names(),
-                         "landmark confidence of the matched target landmark, multiplied into "
-                         "each pair's weight")};
+  // The confidence is a name of weights.hpp's WeightKind, read by parse_weight_kind.
+  std::vector<SettingRow> rows = binding().rows();
+  rows.push_back(choice_setting("kernel.confidence", "CauchyMahalanobisOptions::confidence",
+                                to_string(CauchyMahalanobisOptions{}.confidence),
+                                confidence_names(),
+                                "landmark confidence of the matched target landmark, multiplied "
+                                "into each pair's weight"));
+  return rows;
 }
 
 std::unique_ptr<Stage> make_kernel_cauchy_mahalanobis(const Settings& s) {
-  return std::make_unique<CauchyMahalanobis>(s.real("kernel.scale_d2"),
-                                             parse_weight_kind(s.choice("kernel.confidence")));
+  CauchyMahalanobisOptions o = binding().read(s);
+  o.confidence = parse_weight_kind(s.choice("kernel.confidence"));
+  return std::make_unique<CauchyMahalanobis>(o);
 }
 
 }  // namespace lmalign::stages

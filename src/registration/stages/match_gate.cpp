@@ -76,28 +76,21 @@ class GateMatcher : public Matcher {
   MahalanobisGateOptions options_;
 };
 
+const SettingsBinding<MahalanobisGateOptions>& binding() {
+  static const SettingsBinding<MahalanobisGateOptions> b =
+      SettingsBinding<MahalanobisGateOptions>("MahalanobisGateOptions")
+          .add("match.k", LMALIGN_FIELD(k), SettingBound::closed(1, 64), "count",
+               "Euclidean nearest target landmarks examined per source landmark")
+          .add("match.chi2_threshold", LMALIGN_FIELD(chi2_threshold), SettingBound::above(0.0), "1",
+               "gate on the Mahalanobis d^2 (chi-square, 3 dof, 0.99)")
+          .add("match.max_view_angle_deg", LMALIGN_FIELD(max_view_angle_deg),
+               SettingBound::open_closed(0.0, 180.0), "deg",
+               "largest angle between two landmarks' mean viewing directions (the source's rotated "
+               "into the target frame) for them to be paired; 180: off; unknown directions pass");
+  return b;
+}
+
 }  // namespace
-
-std::vector<SettingRow> match_gate_settings() {
-  const MahalanobisGateOptions d;
-  return {int_setting("match.k", "MahalanobisGateOptions::k", d.k, SettingBound::closed(1, 64),
-                      "count", "Euclidean nearest target landmarks examined per source landmark"),
-          real_setting("match.chi2_threshold", "MahalanobisGateOptions::chi2_threshold",
-                       d.chi2_threshold, SettingBound::above(0.0), "1",
-                       "gate on the Mahalanobis d^2 (chi-square, 3 dof, 0.99)"),
-          real_setting("match.max_view_angle_deg", "MahalanobisGateOptions::max_view_angle_deg",
-                       d.max_view_angle_deg, SettingBound::open_closed(0.0, 180.0), "deg",
-                       "largest angle between two landmarks' mean viewing directions (the "
-                       "source's rotated into the target frame) for them to be paired; 180: off; "
-                       "unknown directions pass")};
-}
-
-std::unique_ptr<Stage> make_match_gate(const Settings& s) {
-  MahalanobisGateOptions o;
-  o.k = static_cast<int>(s.integer("match.k"));
-  o.chi2_threshold = s.real("match.chi2_threshold");
-  o.max_view_angle_deg = s.real("match.max_view_angle_deg");
-  return std::make_unique<GateMatcher>(o);
-}
-
 }  // namespace lmalign::stages
+
+LMALIGN_BOUND_STAGE(match_gate, GateMatcher)

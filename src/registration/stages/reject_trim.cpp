@@ -46,27 +46,19 @@ class TrimRejector : public Rejector {
   TrimOptions o_;
 };
 
+const SettingsBinding<TrimOptions>& binding() {
+  static const SettingsBinding<TrimOptions> b =
+      SettingsBinding<TrimOptions>("TrimOptions")
+          .add("reject.trim_ratio", LMALIGN_FIELD(trim_ratio), SettingBound::open_closed(0.0, 1.0),
+               "1", "fraction of the pairs kept, those of smallest distance")
+          .flag("reject.estimate_overlap", LMALIGN_FIELD(estimate_overlap),
+                "estimate the fraction each iteration instead (trimmed ICP)")
+          .add("reject.min_overlap_ratio", LMALIGN_FIELD(min_overlap_ratio),
+               SettingBound::open_closed(0.0, 1.0), "1", "lower bound of the estimated fraction");
+  return b;
+}
+
 }  // namespace
-
-std::vector<SettingRow> reject_trim_settings() {
-  const TrimOptions d;
-  return {
-      real_setting("reject.trim_ratio", "TrimOptions::trim_ratio", d.trim_ratio,
-                   SettingBound::open_closed(0.0, 1.0), "1",
-                   "fraction of the pairs kept, those of smallest distance"),
-      bool_setting("reject.estimate_overlap", "TrimOptions::estimate_overlap", d.estimate_overlap,
-                   "estimate the fraction each iteration instead (trimmed ICP)"),
-      real_setting("reject.min_overlap_ratio", "TrimOptions::min_overlap_ratio",
-                   d.min_overlap_ratio, SettingBound::open_closed(0.0, 1.0), "1",
-                   "lower bound of the estimated fraction")};
-}
-
-std::unique_ptr<Stage> make_reject_trim(const Settings& s) {
-  TrimOptions o;
-  o.trim_ratio = s.real("reject.trim_ratio");
-  o.estimate_overlap = s.boolean("reject.estimate_overlap");
-  o.min_overlap_ratio = s.real("reject.min_overlap_ratio");
-  return std::make_unique<TrimRejector>(o);
-}
-
 }  // namespace lmalign::stages
+
+LMALIGN_BOUND_STAGE(reject_trim, TrimRejector)

@@ -120,52 +120,51 @@ SettingBound schedule_bound() {
   return b;
 }
 
-}  // namespace
-
-std::vector<SettingRow> schedule_distance_settings() {
-  const DistanceLevelsOptions d;
-  return {
-      reals_setting("schedule.levels_m", "DistanceLevelsOptions::levels_m", d.levels_m,
-                    schedule_bound(), "m",
-                    "maximum correspondence distance per level (inf = unlimited)"),
-      int_setting("schedule.max_iterations", "DistanceLevelsOptions::max_iterations",
-                  d.max_iterations, SettingBound::closed(1, 2147483647), "count",
-                  "iterations over all levels"),
-      int_setting("schedule.max_iterations_per_level",
-                  "DistanceLevelsOptions::max_iterations_per_level", d.max_iterations_per_level,
-                  SettingBound::closed(1, 2147483647), "count",
-                  "iterations at one level before the next applies anyway"),
-      real_setting("schedule.settle_translation_m", "DistanceLevelsOptions::settle_translation_m",
-                   d.settle_translation_m, SettingBound::at_least(0.0), "m",
-                   "an increment below this translation (and rotation) has settled"),
-      real_setting("schedule.settle_rotation_rad", "DistanceLevelsOptions::settle_rotation_rad",
-                   d.settle_rotation_rad, SettingBound::at_least(0.0), "rad",
-                   "an increment below this rotation (and translation) has settled"),
-      int_setting("schedule.min_correspondences", "DistanceLevelsOptions::min_correspondences",
-                  d.min_correspondences, SettingBound::closed(3, 2147483647), "count",
-                  "fewer pairs end the run (no_correspondences)"),
-      reals_setting("schedule.hypothesis_levels_m", "DistanceLevelsOptions::hypothesis_levels_m",
-                    d.hypothesis_levels_m, schedule_bound(), "m",
-                    "levels of the short runs that refine a search's hypotheses"),
-      int_setting("schedule.hypothesis_iterations", "DistanceLevelsOptions::hypothesis_iterations",
-                  d.hypothesis_iterations, SettingBound::closed(1, 2147483647), "count",
-                  "iterations of each hypothesis' short run, over all its levels"),
-  };
+const SettingsBinding<DistanceLevelsOptions>& binding() {
+  static const SettingsBinding<DistanceLevelsOptions> b =
+      SettingsBinding<DistanceLevelsOptions>("DistanceLevelsOptions")
+          .add("schedule.levels_m", LMALIGN_FIELD(levels_m), schedule_bound(), "m",
+               "maximum correspondence distance per level (inf = unlimited)")
+          .add("schedule.max_iterations", LMALIGN_FIELD(max_iterations),
+               SettingBound::closed(1, 2147483647), "count", "iterations over all levels")
+          .add("schedule.max_iterations_per_level", LMALIGN_FIELD(max_iterations_per_level),
+               SettingBound::closed(1, 2147483647), "count",
+               "iterations at one level before the next applies anyway")
+          .add("schedule.settle_translation_m", LMALIGN_FIELD(settle_translation_m),
+               SettingBound::at_least(0.0), "m",
+               "an increment below this translation (and rotation) has settled")
+          .add("schedule.settle_rotation_rad", LMALIGN_FIELD(settle_rotation_rad),
+               SettingBound::at_least(0.0), "rad",
+               "an increment below this rotation (and translation) has settled")
+          .add("schedule.min_correspondences", LMALIGN_FIELD(min_correspondences),
+               SettingBound::closed(3, 2147483647), "count",
+               "fewer pairs end the run (no_correspondences)")
+          .add("schedule.hypothesis_levels_m", LMALIGN_FIELD(hypothesis_levels_m), schedule_bound(),
+               "m", "levels of the short runs that refine a search's hypotheses")
+          .add("schedule.hypothesis_iterations", LMALIGN_FIELD(hypothesis_iterations),
+               SettingBound::closed(1, 2147483647), "count",
+               "iterations of each hypothesis' short run, over all its levels");
+  return b;
 }
 
+}  // namespace
+
+std::vector<SettingRow> schedule_distance_settings() { return binding().rows(); }
+
 std::unique_ptr<Stage> make_schedule_distance(const Settings& s) {
+  const DistanceLevelsOptions o = binding().read(s);
   Levels final;
-  final.distances_m = s.reals("schedule.levels_m");
-  final.max_iterations = static_cast<int>(s.integer("schedule.max_iterations"));
-  final.max_iterations_per_level = static_cast<int>(s.integer("schedule.max_iterations_per_level"));
+  final.distances_m = o.levels_m;
+  final.max_iterations = o.max_iterations;
+  final.max_iterations_per_level = o.max_iterations_per_level;
   Levels hyp;
-  hyp.distances_m = s.reals("schedule.hypothesis_levels_m");
-  hyp.max_iterations = static_cast<int>(s.integer("schedule.hypothesis_iterations"));
+  hyp.distances_m = o.hypothesis_levels_m;
+  hyp.max_iterations = o.hypothesis_iterations;
   hyp.max_iterations_per_level =
       std::max(1, hyp.max_iterations / static_cast<int>(hyp.distances_m.size()));
-  return std::make_unique<DistanceSchedule>(
-      final, hyp, s.real("schedule.settle_translation_m"), s.real("schedule.settle_rotation_rad"),
-      static_cast<std::size_t>(s.integer("schedule.min_correspondences")));
+  return std::make_unique<DistanceSchedule>(final, hyp, o.settle_translation_m,
+                                            o.settle_rotation_rad,
+                                            static_cast<std::size_t>(o.min_correspondences));
 }
 
 }  // namespace lmalign::stages

@@ -10,10 +10,16 @@ namespace lmalign::stages {
 
 namespace {
 
+/// The schedule's settings: PCL's criteria and its one correspondence distance.
+struct PclScheduleOptions {
+  ConvergenceOptions convergence;
+  double max_distance_m = CorrespondenceOptions{}.max_distance_m;
+};
+
 class PclSchedule : public Schedule {
  public:
-  PclSchedule(ConvergenceOptions o, double max_distance_m)
-      : o_(o), max_distance_m_(max_distance_m) {}
+  explicit PclSchedule(const PclScheduleOptions& o)
+      : o_(o.convergence), max_distance_m_(o.max_distance_m) {}
 
   struct State : StageState {
     explicit State(const ConvergenceOptions& o) : criteria(o) {}
@@ -56,56 +62,41 @@ class PclSchedule : public Schedule {
   double max_distance_m_;
 };
 
+const SettingsBinding<PclScheduleOptions>& binding() {
+  static const SettingsBinding<PclScheduleOptions> b =
+      SettingsBinding<PclScheduleOptions>("PclScheduleOptions")
+          .add("schedule.max_distance_m", LMALIGN_FIELD(max_distance_m),
+               SettingBound::above_or_inf(0.0), "m",
+               "maximum correspondence distance (the paper's: unlimited)")
+          .add("schedule.max_iterations", LMALIGN_FIELD(convergence.max_iterations),
+               SettingBound::closed(1, 2147483647), "count",
+               "iteration budget (PCL setMaximumIterations)")
+          .add("schedule.transformation_epsilon_m2",
+               LMALIGN_FIELD(convergence.transformation_epsilon_m2), SettingBound::at_least(0.0),
+               "m^2",
+               "PCL setTransformationEpsilon: an increment whose squared translation is at most "
+               "this (and rotation passes) ends the run")
+          .add("schedule.transformation_rotation_epsilon_cos",
+               LMALIGN_FIELD(convergence.transformation_rotation_epsilon_cos),
+               SettingBound::closed(-std::numeric_limits<double>::max(), 1.0), "1",
+               "PCL setTransformationRotationEpsilon (cosine; <= 0: 1 - the translation epsilon)")
+          .add("schedule.euclidean_fitness_epsilon",
+               LMALIGN_FIELD(convergence.euclidean_fitness_epsilon), SettingBound{}, "1",
+               "PCL setEuclideanFitnessEpsilon: relative MSE change (the lowest number: off)")
+          .add("schedule.absolute_mse_epsilon_m2",
+               LMALIGN_FIELD(convergence.absolute_mse_epsilon_m2), SettingBound{}, "m^2",
+               "DefaultConvergenceCriteria's absolute MSE change")
+          .add("schedule.max_iterations_similar_transforms",
+               LMALIGN_FIELD(convergence.max_iterations_similar_transforms),
+               SettingBound::closed(0, 2147483647), "count",
+               "PCL setMaximumIterationsSimilarTransforms")
+          .add("schedule.min_correspondences", LMALIGN_FIELD(convergence.min_correspondences),
+               SettingBound::closed(3, 2147483647), "count",
+               "fewer pairs end the run (no_correspondences)");
+  return b;
+}
+
 }  // namespace
-
-std::vector<SettingRow> schedule_pcl_settings() {
-  const ConvergenceOptions d;
-  return {
-      real_setting("schedule.max_distance_m", "CorrespondenceOptions::max_distance_m",
-                   CorrespondenceOptions{}.max_distance_m, SettingBound::above_or_inf(0.0), "m",
-                   "maximum correspondence distance (the paper's: unlimited)"),
-      int_setting("schedule.max_iterations", "ConvergenceOptions::max_iterations", d.max_iterations,
-                  SettingBound::closed(1, 2147483647), "count",
-                  "iteration budget (PCL setMaximumIterations)"),
-      real_setting("schedule.transformation_epsilon_m2",
-                   "ConvergenceOptions::transformation_epsilon_m2", d.transformation_epsilon_m2,
-                   SettingBound::at_least(0.0), "m^2",
-                   "PCL setTransformationEpsilon: an increment whose squared translation is at "
-                   "most this (and rotation passes) ends the run"),
-      real_setting("schedule.transformation_rotation_epsilon_cos",
-                   "ConvergenceOptions::transformation_rotation_epsilon_cos",
-                   d.transformation_rotation_epsilon_cos,
-                   SettingBound::closed(-std::numeric_limits<double>::max(), 1.0), "1",
-                   "PCL setTransformationRotationEpsilon (cosine; <= 0: 1 - the translation "
-                   "epsilon)"),
-      real_setting("schedule.euclidean_fitness_epsilon",
-                   "ConvergenceOptions::euclidean_fitness_epsilon", d.euclidean_fitness_epsilon,
-                   SettingBound{}, "1",
-                   "PCL setEuclideanFitnessEpsilon: relative MSE change (the lowest number: off)"),
-      real_setting("schedule.absolute_mse_epsilon_m2",
-                   "ConvergenceOptions::absolute_mse_epsilon_m2", d.absolute_mse_epsilon_m2,
-                   SettingBound{}, "m^2", "DefaultConvergenceCriteria's absolute MSE change"),
-      int_setting("schedule.max_iterations_similar_transforms",
-                  "ConvergenceOptions::max_iterations_similar_transforms",
-                  d.max_iterations_similar_transforms, SettingBound::closed(0, 2147483647), "count",
-                  "PCL setMaximumIterationsSimilarTransforms"),
-      int_setting("schedule.min_correspondences", "ConvergenceOptions::min_correspondences",
-                  d.min_correspondences, SettingBound::closed(3, 2147483647), "count",
-                  "fewer pairs end the run (no_correspondences)"),
-  };
-}
-
-std::unique_ptr<Stage> make_schedule_pcl(const Settings& s) {
-  ConvergenceOptions o;
-  o.max_iterations = static_cast<int>(s.integer("schedule.max_iterations"));
-  o.transformation_epsilon_m2 = s.real("schedule.transformation_epsilon_m2");
-  o.transformation_rotation_epsilon_cos = s.real("schedule.transformation_rotation_epsilon_cos");
-  o.euclidean_fitness_epsilon = s.real("schedule.euclidean_fitness_epsilon");
-  o.absolute_mse_epsilon_m2 = s.real("schedule.absolute_mse_epsilon_m2");
-  o.max_iterations_similar_transforms =
-      static_cast<int>(s.integer("schedule.max_iterations_similar_transforms"));
-  o.min_correspondences = static_cast<int>(s.integer("schedule.min_correspondences"));
-  return std::make_unique<PclSchedule>(o, s.real("schedule.max_distance_m"));
-}
-
 }  // namespace lmalign::stages
+
+LMALIGN_BOUND_STAGE(schedule_pcl, PclSchedule)

@@ -123,39 +123,29 @@ class SigmaSchedule : public Schedule {
   SigmaOptions o_;
 };
 
+const SettingsBinding<SigmaOptions>& binding() {
+  static const SettingsBinding<SigmaOptions> b =
+      SettingsBinding<SigmaOptions>("SigmaOptions")
+          .add("schedule.max_iterations", LMALIGN_FIELD(max_iterations),
+               SettingBound::closed(1, 2147483647), "count", "iterations per refinement")
+          .add("schedule.max_iterations_per_level", LMALIGN_FIELD(max_iterations_per_level),
+               SettingBound::closed(1, 2147483647), "count",
+               "iterations before the pose uncertainty shrinks anyway")
+          .add("schedule.sigma_decay", LMALIGN_FIELD(sigma_decay), SettingBound::open(0.0, 1.0),
+               "1",
+               "each time the estimate settles the gate's pose uncertainty is multiplied by this")
+          .add("schedule.settle_ratio", LMALIGN_FIELD(settle_ratio),
+               SettingBound::open_closed(0.0, 1.0), "1",
+               "settled: a step below this times the floor (and that over the source's radius in "
+               "rotation)")
+          .add("schedule.level_settle_ratio", LMALIGN_FIELD(level_settle_ratio),
+               SettingBound::closed_open(0.0, 1.0), "1",
+               "at a level whose pose uncertainty is above zero, a step below this fraction of it "
+               "also counts as settled");
+  return b;
+}
+
 }  // namespace
-
-std::vector<SettingRow> schedule_sigma_settings() {
-  const SigmaOptions d;
-  return {
-      int_setting("schedule.max_iterations", "SigmaOptions::max_iterations", d.max_iterations,
-                  SettingBound::closed(1, 2147483647), "count", "iterations per refinement"),
-      int_setting("schedule.max_iterations_per_level", "SigmaOptions::max_iterations_per_level",
-                  d.max_iterations_per_level, SettingBound::closed(1, 2147483647), "count",
-                  "iterations before the pose uncertainty shrinks anyway"),
-      real_setting("schedule.sigma_decay", "SigmaOptions::sigma_decay", d.sigma_decay,
-                   SettingBound::open(0.0, 1.0), "1",
-                   "each time the estimate settles the gate's pose uncertainty is multiplied by "
-                   "this"),
-      real_setting("schedule.settle_ratio", "SigmaOptions::settle_ratio", d.settle_ratio,
-                   SettingBound::open_closed(0.0, 1.0), "1",
-                   "settled: a step below this times the floor (and that over the source's radius "
-                   "in rotation)"),
-      real_setting("schedule.level_settle_ratio", "SigmaOptions::level_settle_ratio",
-                   d.level_settle_ratio, SettingBound::closed_open(0.0, 1.0), "1",
-                   "at a level whose pose uncertainty is above zero, a step below this fraction of "
-                   "it also counts as settled"),
-  };
-}
-
-std::unique_ptr<Stage> make_schedule_sigma(const Settings& s) {
-  SigmaOptions o;
-  o.max_iterations = static_cast<int>(s.integer("schedule.max_iterations"));
-  o.max_iterations_per_level = static_cast<int>(s.integer("schedule.max_iterations_per_level"));
-  o.sigma_decay = s.real("schedule.sigma_decay");
-  o.settle_ratio = s.real("schedule.settle_ratio");
-  o.level_settle_ratio = s.real("schedule.level_settle_ratio");
-  return std::make_unique<SigmaSchedule>(o);
-}
-
 }  // namespace lmalign::stages
+
+LMALIGN_BOUND_STAGE(schedule_sigma, SigmaSchedule)

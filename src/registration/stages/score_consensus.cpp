@@ -15,8 +15,8 @@ struct ConsensusOptions {
 
 class ConsensusScorer : public Scorer {
  public:
-  ConsensusScorer(std::size_t stride, double distance_m)
-      : stride_(stride), distance_m_(distance_m) {}
+  explicit ConsensusScorer(const ConsensusOptions& o)
+      : stride_(static_cast<std::size_t>(o.stride)), distance_m_(o.inlier_distance_m) {}
 
   std::vector<std::uint32_t> samples(std::size_t n) const override {
     std::vector<std::uint32_t> out;
@@ -40,21 +40,17 @@ class ConsensusScorer : public Scorer {
   double distance_m_;
 };
 
+const SettingsBinding<ConsensusOptions>& binding() {
+  static const SettingsBinding<ConsensusOptions> b =
+      SettingsBinding<ConsensusOptions>("ConsensusOptions")
+          .add("score.stride", LMALIGN_FIELD(stride), SettingBound::closed(1, 2147483647), "count",
+               "every n-th source landmark refines and scores the hypotheses")
+          .add("score.inlier_distance_m", LMALIGN_FIELD(inlier_distance_m),
+               SettingBound::above(0.0), "m", "a landmark this close to a target landmark counts");
+  return b;
+}
+
 }  // namespace
-
-std::vector<SettingRow> score_consensus_settings() {
-  const ConsensusOptions d;
-  return {int_setting("score.stride", "ConsensusOptions::stride", d.stride,
-                      SettingBound::closed(1, 2147483647), "count",
-                      "every n-th source landmark refines and scores the hypotheses"),
-          real_setting("score.inlier_distance_m", "ConsensusOptions::inlier_distance_m",
-                       d.inlier_distance_m, SettingBound::above(0.0), "m",
-                       "a landmark this close to a target landmark counts")};
-}
-
-std::unique_ptr<Stage> make_score_consensus(const Settings& s) {
-  return std::make_unique<ConsensusScorer>(static_cast<std::size_t>(s.integer("score.stride")),
-                                           s.real("score.inlier_distance_m"));
-}
-
 }  // namespace lmalign::stages
+
+LMALIGN_BOUND_STAGE(score_consensus, ConsensusScorer)

@@ -1,5 +1,6 @@
-// What every stage file includes: the seams, the settings, and the declaration of its two
-// registry functions (registry.cpp lists the rows).
+// What every stage file includes: the seams, the settings (bound to its options struct by
+// settings_binding.hpp), and the declaration of its two registry functions (registry.cpp lists
+// the rows).
 #pragma once
 
 #include <memory>
@@ -12,6 +13,7 @@
 #include "lmalign/registration/pipeline.hpp"
 #include "lmalign/registration/seams.hpp"
 #include "lmalign/registration/settings.hpp"
+#include "settings_binding.hpp"
 
 namespace lmalign::stages {
 
@@ -35,4 +37,15 @@ Vec3 unit_vector(const Settings& settings, const std::string& key);
   namespace lmalign::stages {                                    \
   std::vector<SettingRow> IDENT##_settings();                    \
   std::unique_ptr<Stage> make_##IDENT(const Settings& settings); \
+  }
+
+/// Defines a stage's registry functions when the stage is built from its options alone, bound to
+/// its rows by the file's `binding()` (settings_binding.hpp): `IDENT_settings()` returns the
+/// rows, `make_IDENT()` reads them into the options and constructs `CLASS` from them.
+#define LMALIGN_BOUND_STAGE(IDENT, CLASS)                                 \
+  namespace lmalign::stages {                                             \
+  std::vector<SettingRow> IDENT##_settings() { return binding().rows(); } \
+  std::unique_ptr<Stage> make_##IDENT(const Settings& settings) {         \
+    return std::make_unique<CLASS>(binding().read(settings));             \
+  }                                                                       \
   }

@@ -223,58 +223,43 @@ class GatedJudge : public TrustJudge {
   GatedTrustOptions o_;
 };
 
+const SettingsBinding<GatedTrustOptions>& binding() {
+  static const SettingsBinding<GatedTrustOptions> b =
+      SettingsBinding<GatedTrustOptions>("GatedTrustOptions")
+          .add("trust.min_inliers", LMALIGN_FIELD(min_inliers), SettingBound::closed(3, 2147483647),
+               "count", "untrusted below this many gated inliers")
+          .add("trust.min_inlier_ratio", LMALIGN_FIELD(min_inlier_ratio),
+               SettingBound::closed(0.0, 1.0), "1",
+               "untrusted when fewer than this fraction of the landmarks near a target landmark "
+               "pass the gate at the estimate")
+          .add("trust.max_covariance_scale", LMALIGN_FIELD(max_covariance_scale),
+               SettingBound::at_least(1.0), "1",
+               "untrusted when the inliers' residuals need their covariances scaled by more than "
+               "this (robust, from the median Mahalanobis d^2)")
+          .add("trust.max_ambiguity", LMALIGN_FIELD(max_ambiguity),
+               SettingBound::open_closed(0.0, 1.0), "1",
+               "untrusted when a distinct pose scores at least this fraction of the best")
+          .add("trust.alias_ambiguity", LMALIGN_FIELD(alias_ambiguity),
+               SettingBound::open_closed(0.0, 1.0), "1",
+               "untrusted when a distinct pose scores this fraction of the best and the mean NIS "
+               "exceeds trust.alias_nis_ratio of its expectation")
+          .add("trust.alias_nis_ratio", LMALIGN_FIELD(alias_nis_ratio), SettingBound::at_least(1.0),
+               "1", "see trust.alias_ambiguity")
+          .add("trust.max_sd_spacings", LMALIGN_FIELD(max_sd_spacings), SettingBound::above(0.0),
+               "1",
+               "untrusted when the translation standard deviation, or the rotation's times the "
+               "source's radius, exceeds this many landmark spacings")
+          .add("trust.max_sd_radius_ratio", LMALIGN_FIELD(max_sd_radius_ratio),
+               SettingBound::above(0.0), "1",
+               "untrusted when the translation standard deviation exceeds this fraction of the "
+               "source's radius")
+          .add("trust.distinct_cells", LMALIGN_FIELD(distinct_cells), SettingBound::above(0.0), "1",
+               "two poses are distinct when they move a landmark at the source's typical distance "
+               "from its centre apart by more than this many search resolutions");
+  return b;
+}
+
 }  // namespace
-
-std::vector<SettingRow> trust_gated_settings() {
-  const GatedTrustOptions d;
-  return {
-      int_setting("trust.min_inliers", "GatedTrustOptions::min_inliers",
-                  static_cast<long long>(d.min_inliers), SettingBound::closed(3, 2147483647),
-                  "count", "untrusted below this many gated inliers"),
-      real_setting("trust.min_inlier_ratio", "GatedTrustOptions::min_inlier_ratio",
-                   d.min_inlier_ratio, SettingBound::closed(0.0, 1.0), "1",
-                   "untrusted when fewer than this fraction of the landmarks near a target "
-                   "landmark pass the gate at the estimate"),
-      real_setting("trust.max_covariance_scale", "GatedTrustOptions::max_covariance_scale",
-                   d.max_covariance_scale, SettingBound::at_least(1.0), "1",
-                   "untrusted when the inliers' residuals need their covariances scaled by more "
-                   "than this (robust, from the median Mahalanobis d^2)"),
-      real_setting("trust.max_ambiguity", "GatedTrustOptions::max_ambiguity", d.max_ambiguity,
-                   SettingBound::open_closed(0.0, 1.0), "1",
-                   "untrusted when a distinct pose scores at least this fraction of the best"),
-      real_setting("trust.alias_ambiguity", "GatedTrustOptions::alias_ambiguity", d.alias_ambiguity,
-                   SettingBound::open_closed(0.0, 1.0), "1",
-                   "untrusted when a distinct pose scores this fraction of the best and the "
-                   "mean NIS exceeds trust.alias_nis_ratio of its expectation"),
-      real_setting("trust.alias_nis_ratio", "GatedTrustOptions::alias_nis_ratio", d.alias_nis_ratio,
-                   SettingBound::at_least(1.0), "1", "see trust.alias_ambiguity"),
-      real_setting("trust.max_sd_spacings", "GatedTrustOptions::max_sd_spacings", d.max_sd_spacings,
-                   SettingBound::above(0.0), "1",
-                   "untrusted when the translation standard deviation, or the rotation's times "
-                   "the source's radius, exceeds this many landmark spacings"),
-      real_setting("trust.max_sd_radius_ratio", "GatedTrustOptions::max_sd_radius_ratio",
-                   d.max_sd_radius_ratio, SettingBound::above(0.0), "1",
-                   "untrusted when the translation standard deviation exceeds this fraction of "
-                   "the source's radius"),
-      real_setting("trust.distinct_cells", "GatedTrustOptions::distinct_cells", d.distinct_cells,
-                   SettingBound::above(0.0), "1",
-                   "two poses are distinct when they move a landmark at the source's typical "
-                   "distance from its centre apart by more than this many search resolutions"),
-  };
-}
-
-std::unique_ptr<Stage> make_trust_gated(const Settings& s) {
-  GatedTrustOptions o;
-  o.min_inliers = static_cast<std::size_t>(s.integer("trust.min_inliers"));
-  o.max_sd_spacings = s.real("trust.max_sd_spacings");
-  o.max_sd_radius_ratio = s.real("trust.max_sd_radius_ratio");
-  o.min_inlier_ratio = s.real("trust.min_inlier_ratio");
-  o.max_covariance_scale = s.real("trust.max_covariance_scale");
-  o.max_ambiguity = s.real("trust.max_ambiguity");
-  o.alias_ambiguity = s.real("trust.alias_ambiguity");
-  o.alias_nis_ratio = s.real("trust.alias_nis_ratio");
-  o.distinct_cells = s.real("trust.distinct_cells");
-  return std::make_unique<GatedJudge>(o);
-}
-
 }  // namespace lmalign::stages
+
+LMALIGN_BOUND_STAGE(trust_gated, GatedJudge)
