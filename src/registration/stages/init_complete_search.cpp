@@ -143,9 +143,9 @@ class CompleteSearchInit : public Initialiser {
       return std::nullopt;
     }
     const Scales& sc = *c.scales;
-    const CorrespondenceSearchInput ci = correspondence_input(
-        c, up_candidates(sc.up_source, *c.source.positions, sc.source.spacing_m),
-        up_candidates(sc.up_target, c.target->points(), sc.target.spacing_m));
+    const CorrespondenceSearchInput ci{
+        search_maps(c, up_candidates(sc.up_source, *c.source.positions, sc.source.spacing_m),
+                    up_candidates(sc.up_target, c.target->points(), sc.target.spacing_m))};
     CorrespondenceSearchOptions co = o_.correspondences;
     co.scale_steps = steps;
     co.scale_ratio = ratio;
@@ -172,19 +172,18 @@ class CompleteSearchInit : public Initialiser {
   }
 
  private:
-  // The correspondence search's input: the context's maps, these up axes, the scales' floor.
-  static CorrespondenceSearchInput correspondence_input(const InitialiserContext& c,
-                                                        std::vector<Vec3> ups_source,
-                                                        std::vector<Vec3> ups_target) {
-    CorrespondenceSearchInput ci;
-    ci.source.points = c.source.positions;
-    ci.source.covariances_m2 = c.source.covariances_m2;
-    ci.source.view_directions = c.source.view_directions;
-    ci.target = c.target;
-    ci.ups_source = std::move(ups_source);
-    ci.ups_target = std::move(ups_target);
-    ci.floor_m = c.scales->floor_m;
-    return ci;
+  // The searches' maps: the context's, these up axes, the scales' floor.
+  static SearchMaps search_maps(const InitialiserContext& c, std::vector<Vec3> ups_source,
+                                std::vector<Vec3> ups_target) {
+    SearchMaps m;
+    m.source.points = c.source.positions;
+    m.source.covariances_m2 = c.source.covariances_m2;
+    m.source.view_directions = c.source.view_directions;
+    m.target = c.target;
+    m.ups_source = std::move(ups_source);
+    m.ups_target = std::move(ups_target);
+    m.floor_m = c.scales->floor_m;
+    return m;
   }
 
   // A map's up-axis candidates: its frames' axis, its landmark plane's normal when that
@@ -220,16 +219,10 @@ class CompleteSearchInit : public Initialiser {
     report->ups_target = up_candidates(sc.up_target, target, sc.target.spacing_m);
 
     CompleteSearchInput in;
-    in.source.points = c.source.positions;
-    in.source.covariances_m2 = c.source.covariances_m2;
-    in.source.view_directions = c.source.view_directions;
-    in.target = c.target;
-    in.ups_source = report->ups_source;
-    in.ups_target = report->ups_target;
+    static_cast<SearchMaps&>(in) = search_maps(c, report->ups_source, report->ups_target);
     in.source_centre_m = sc.source.centre_m;
     in.source_radius_m = sc.source.radius_m;
     in.cell_m = cell;
-    in.floor_m = sc.floor_m;
     in.gate = o_.gate;
     in.coarse_sigma.translation_m = o_.start_sigma_factor * 2.0 * cell;
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
@@ -241,7 +234,7 @@ class CompleteSearchInit : public Initialiser {
       CorrespondenceSearchOptions first = o_.correspondences;
       first.neighbours = o_.first_pass_neighbours;
       const CorrespondenceSearchResult cr =
-          correspondence_search(correspondence_input(c, in.ups_source, in.ups_target), first);
+          correspondence_search(CorrespondenceSearchInput{SearchMaps(in)}, first);
       for (const CorrespondenceHypothesis& h : cr.hypotheses) {
         in.extra_candidates.push_back(h.T_target_source);
       }
@@ -254,8 +247,8 @@ class CompleteSearchInit : public Initialiser {
       if (so.vote) in.extra_candidates.clear();
     }
     if (o_.correspondences.hypotheses > 0 && so.vote) {
-      const CorrespondenceSearchResult cr = correspondence_search(
-          correspondence_input(c, in.ups_source, in.ups_target), o_.correspondences);
+      const CorrespondenceSearchResult cr =
+          correspondence_search(CorrespondenceSearchInput{SearchMaps(in)}, o_.correspondences);
       // (Rigid here: with a free scale the pipeline measured the scale before this search.)
       for (const CorrespondenceHypothesis& h : cr.hypotheses) {
         in.extra_candidates.push_back(h.T_target_source);
@@ -308,131 +301,105 @@ class CompleteSearchInit : public Initialiser {
   std::unique_ptr<Initialiser> bounded_;
 };
 
+const SettingsBinding<CompleteInitOptions>& binding() {
+  static const SettingsBinding<CompleteInitOptions> b =
+      SettingsBinding<CompleteInitOptions>("CompleteInitOptions")
+          .choice("init.prior_check", LMALIGN_FIELD(prior_check), {"rivals", "strict", "off"},
+                  "with a prior: rivals = the global search runs too and its modes compete with "
+                  "the prior's hypotheses; strict = they are the verdict's rivals, never the "
+                  "answer; off = the prior's search alone (an answer outside the prior's window is "
+                  "not trusted either way)")
+          .add("search.vote_source_samples", LMALIGN_FIELD(search.vote_source_samples),
+               SettingBound::closed(3, 1000000), "count",
+               "source landmarks that cast the coarse 3-D vote (evenly strided)")
+          .add("search.vote_target_samples", LMALIGN_FIELD(search.vote_target_samples),
+               SettingBound::closed(3, 1000000), "count",
+               "target landmarks the coarse vote is cast towards (evenly strided)")
+          .add("search.peaks_per_yaw", LMALIGN_FIELD(search.peaks_per_yaw),
+               SettingBound::closed(1, 64), "count",
+               "translation peaks kept per yaw and pair of up axes (3 cells apart)")
+          .add("search.pool", LMALIGN_FIELD(search.pool), SettingBound::closed(1, 1000000), "count",
+               "candidates snapped to a finer vote (from the rankings by votes and by the coarse "
+               "score, in turn)")
+          .add("search.screen_samples", LMALIGN_FIELD(search.screen_samples),
+               SettingBound::closed(16, 1000000), "count",
+               "source landmarks of the coarse score that ranks the candidates")
+          .add("search.snap_samples", LMALIGN_FIELD(search.snap_samples),
+               SettingBound::closed(16, 1000000), "count",
+               "source landmarks of the finer vote about each pooled candidate")
+          .add("search.snap_neighbours", LMALIGN_FIELD(search.snap_neighbours),
+               SettingBound::closed(1, 256), "count",
+               "nearest target landmarks each of them votes towards")
+          .add("search.rank_samples", LMALIGN_FIELD(search.rank_samples),
+               SettingBound::closed(16, 1000000), "count",
+               "source landmarks of the fine score that ranks the snapped candidates")
+          .add("search.rank_keep", LMALIGN_FIELD(search.rank_keep),
+               SettingBound::closed(1, 1000000), "count",
+               "snapped candidates refined in the first round")
+          .add("search.round1_iterations", LMALIGN_FIELD(search.round1_iterations),
+               SettingBound::closed(1, 100000), "count",
+               "iterations of the first round's refinements")
+          .add("search.round1_samples", LMALIGN_FIELD(search.round1_samples),
+               SettingBound::closed(16, 1000000), "count", "source landmarks of the first round")
+          .add("search.round1_keep", LMALIGN_FIELD(search.round1_keep),
+               SettingBound::closed(1, 1000000), "count", "candidates refined in the second round")
+          .add("search.round2_iterations", LMALIGN_FIELD(search.round2_iterations),
+               SettingBound::closed(1, 100000), "count",
+               "iterations of the second round's refinements")
+          .add("search.round2_samples", LMALIGN_FIELD(search.round2_samples),
+               SettingBound::closed(16, 1000000), "count", "source landmarks of the second round")
+          .add("search.correspondence_poses", LMALIGN_FIELD(correspondences.hypotheses),
+               SettingBound::closed(0, 4096), "count",
+               "poses of the correspondence search (descriptors, a consistency graph, cliques) "
+               "added to the pool; 0 = none")
+          .flag("search.first_pass", LMALIGN_FIELD(first_pass),
+                "the correspondence poses alone are refined and judged first (with a prior, beside "
+                "the prior's own search when none lies inside its window); the complete search "
+                "(the vote and its pool, with the correspondence poses) runs when that answer is "
+                "not trusted, or is trusted inside a prior's window no correspondence pose "
+                "confirmed; not when the maps put it outside a prior's window")
+          .add("search.first_pass_neighbours", LMALIGN_FIELD(first_pass_neighbours),
+               SettingBound::closed(4, 256), "count",
+               "the first pass's descriptor radius is the target's median distance to this "
+               "neighbour")
+          .add("search.correspondence_keypoints", LMALIGN_FIELD(correspondences.keypoints),
+               SettingBound::closed(3, 1000000), "count",
+               "source landmarks the correspondence search describes and matches")
+          .add("search.descriptor_neighbours", LMALIGN_FIELD(correspondences.neighbours),
+               SettingBound::closed(4, 256), "count",
+               "the descriptor radius is the target's median distance to this neighbour")
+          .flag("search.oriented_descriptors", LMALIGN_FIELD(correspondences.oriented),
+                "where both maps know their landmarks' viewing directions, describe each "
+                "landmark's neighbourhood about the up axis and its horizontal viewing direction "
+                "(else, or false: about the up axis alone)")
+          .add("search.consistency_sigmas", LMALIGN_FIELD(correspondences.consistency_sigmas),
+               SettingBound::open_closed(0.0, 100.0), "1",
+               "two matches agree when their distances agree within this many standard deviations "
+               "of the four landmarks");
+  return b;
+}
+
 }  // namespace
 
 std::vector<SettingRow> init_complete_search_settings() {
   // The prior-bounded vote's settings (init.*), then the complete search's own (search.*).
   std::vector<SettingRow> rows = init_yaw_vote_settings();
-  rows.push_back(choice_setting(
-      "init.prior_check", "CompleteInitOptions::prior_check", CompleteInitOptions{}.prior_check,
-      {"rivals", "strict", "off"},
-      "with a prior: rivals = the global search runs too and its modes compete with the prior's "
-      "hypotheses; strict = they are the verdict's rivals, never the answer; off = the prior's "
-      "search alone (an answer outside the prior's window is not trusted either way)"));
-  const CompleteSearchOptions d;
-  auto count = [](const char* key, const char* member, std::size_t v, long long lo, long long hi,
-                  const char* doc) {
-    return int_setting(key, member, static_cast<long long>(v), SettingBound::closed(lo, hi),
-                       "count", doc);
-  };
-  rows.push_back(count("search.vote_source_samples", "CompleteSearchOptions::vote_source_samples",
-                       d.vote_source_samples, 3, 1000000,
-                       "source landmarks that cast the coarse 3-D vote (evenly strided)"));
-  rows.push_back(count("search.vote_target_samples", "CompleteSearchOptions::vote_target_samples",
-                       d.vote_target_samples, 3, 1000000,
-                       "target landmarks the coarse vote is cast towards (evenly strided)"));
-  rows.push_back(count("search.peaks_per_yaw", "CompleteSearchOptions::peaks_per_yaw",
-                       d.peaks_per_yaw, 1, 64,
-                       "translation peaks kept per yaw and pair of up axes (3 cells apart)"));
-  rows.push_back(count("search.pool", "CompleteSearchOptions::pool", d.pool, 1, 1000000,
-                       "candidates snapped to a finer vote (from the rankings by votes and by "
-                       "the coarse score, in turn)"));
-  rows.push_back(count("search.screen_samples", "CompleteSearchOptions::screen_samples",
-                       d.screen_samples, 16, 1000000,
-                       "source landmarks of the coarse score that ranks the candidates"));
-  rows.push_back(count("search.snap_samples", "CompleteSearchOptions::snap_samples", d.snap_samples,
-                       16, 1000000,
-                       "source landmarks of the finer vote about each pooled candidate"));
-  rows.push_back(count("search.snap_neighbours", "CompleteSearchOptions::snap_neighbours",
-                       d.snap_neighbours, 1, 256,
-                       "nearest target landmarks each of them votes towards"));
-  rows.push_back(count("search.rank_samples", "CompleteSearchOptions::rank_samples", d.rank_samples,
-                       16, 1000000,
-                       "source landmarks of the fine score that ranks the snapped candidates"));
-  rows.push_back(count("search.rank_keep", "CompleteSearchOptions::rank_keep", d.rank_keep, 1,
-                       1000000, "snapped candidates refined in the first round"));
-  rows.push_back(count("search.round1_iterations", "CompleteSearchOptions::round1_iterations",
-                       static_cast<std::size_t>(d.round1_iterations), 1, 100000,
-                       "iterations of the first round's refinements"));
-  rows.push_back(count("search.round1_samples", "CompleteSearchOptions::round1_samples",
-                       d.round1_samples, 16, 1000000, "source landmarks of the first round"));
-  rows.push_back(count("search.round1_keep", "CompleteSearchOptions::round1_keep", d.round1_keep, 1,
-                       1000000, "candidates refined in the second round"));
-  rows.push_back(count("search.round2_iterations", "CompleteSearchOptions::round2_iterations",
-                       static_cast<std::size_t>(d.round2_iterations), 1, 100000,
-                       "iterations of the second round's refinements"));
-  rows.push_back(count("search.round2_samples", "CompleteSearchOptions::round2_samples",
-                       d.round2_samples, 16, 1000000, "source landmarks of the second round"));
-  const CorrespondenceSearchOptions cs;
-  rows.push_back(count("search.correspondence_poses", "CorrespondenceSearchOptions::hypotheses",
-                       cs.hypotheses, 0, 4096,
-                       "poses of the correspondence search (descriptors, a consistency graph, "
-                       "cliques) added to the pool; 0 = none"));
-  rows.push_back(bool_setting(
-      "search.first_pass", "CompleteInitOptions::first_pass", CompleteInitOptions{}.first_pass,
-      "the correspondence poses alone are refined and judged first (with a prior, beside the "
-      "prior's own search when none lies inside its window); the complete search (the vote and "
-      "its pool, with the correspondence poses) runs when that answer is not trusted, or is "
-      "trusted inside a prior's window no correspondence pose confirmed; not when the maps put "
-      "it outside a prior's window"));
-  rows.push_back(count("search.first_pass_neighbours", "CompleteInitOptions::first_pass_neighbours",
-                       CompleteInitOptions{}.first_pass_neighbours, 4, 256,
-                       "the first pass's descriptor radius is the target's median distance to "
-                       "this neighbour"));
-  rows.push_back(count("search.correspondence_keypoints", "CorrespondenceSearchOptions::keypoints",
-                       cs.keypoints, 3, 1000000,
-                       "source landmarks the correspondence search describes and matches"));
-  rows.push_back(count("search.descriptor_neighbours", "CorrespondenceSearchOptions::neighbours",
-                       cs.neighbours, 4, 256,
-                       "the descriptor radius is the target's median distance to this "
-                       "neighbour"));
-  rows.push_back(bool_setting(
-      "search.oriented_descriptors", "CorrespondenceSearchOptions::oriented", cs.oriented,
-      "where both maps know their landmarks' viewing directions, describe each landmark's "
-      "neighbourhood about the up axis and its horizontal viewing direction (else, or false: "
-      "about the up axis alone)"));
-  rows.push_back(real_setting("search.consistency_sigmas",
-                              "CorrespondenceSearchOptions::consistency_sigmas",
-                              cs.consistency_sigmas, SettingBound::open_closed(0.0, 100.0), "1",
-                              "two matches agree when their distances agree within this many "
-                              "standard deviations of the four landmarks"));
+  rows.insert(rows.end(), binding().rows().begin(), binding().rows().end());
   return rows;
 }
 
 std::unique_ptr<Stage> make_init_complete_search(const Settings& s) {
-  CompleteInitOptions o;
+  CompleteInitOptions o = binding().read(s);
+  // The prior-bounded vote's settings and the gate's, whose rows are their own stages'.
   o.search.yaw_step_deg = s.real("init.yaw_step_deg");
   o.hypotheses = static_cast<std::size_t>(s.integer("init.hypotheses"));
   o.vote_cell_factor = s.real("init.vote_cell_factor");
   o.start_sigma_factor = s.real("init.start_sigma_factor");
   o.second_up_min_angle_deg = s.real("init.second_up_min_angle_deg");
-  o.prior_check = s.choice("init.prior_check");
   o.gate.k = static_cast<int>(s.integer("match.k"));
   o.gate.chi2_threshold = s.real("match.chi2_threshold");
   o.gate.max_view_angle_deg = s.real("match.max_view_angle_deg");
-  auto n = [&](const char* key) { return static_cast<std::size_t>(s.integer(key)); };
-  o.search.vote_source_samples = n("search.vote_source_samples");
-  o.search.vote_target_samples = n("search.vote_target_samples");
-  o.search.peaks_per_yaw = n("search.peaks_per_yaw");
-  o.search.pool = n("search.pool");
-  o.search.screen_samples = n("search.screen_samples");
-  o.search.snap_samples = n("search.snap_samples");
-  o.search.snap_neighbours = n("search.snap_neighbours");
-  o.search.rank_samples = n("search.rank_samples");
-  o.search.rank_keep = n("search.rank_keep");
-  o.search.round1_iterations = static_cast<int>(s.integer("search.round1_iterations"));
-  o.search.round1_samples = n("search.round1_samples");
-  o.search.round1_keep = n("search.round1_keep");
-  o.search.round2_iterations = static_cast<int>(s.integer("search.round2_iterations"));
-  o.search.round2_samples = n("search.round2_samples");
-  o.correspondences.hypotheses = n("search.correspondence_poses");
-  o.first_pass = s.boolean("search.first_pass");
-  o.first_pass_neighbours = n("search.first_pass_neighbours");
   o.correspondences.seeds = std::max<std::size_t>(1, 4 * o.correspondences.hypotheses);
-  o.correspondences.keypoints = n("search.correspondence_keypoints");
-  o.correspondences.neighbours = n("search.descriptor_neighbours");
-  o.correspondences.consistency_sigmas = s.real("search.consistency_sigmas");
-  o.correspondences.oriented = s.boolean("search.oriented_descriptors");
   return std::make_unique<CompleteSearchInit>(o, make_init_yaw_vote(s));
 }
 

@@ -72,21 +72,13 @@ struct CompleteSearchOptions {
   bool is_valid(std::string* why = nullptr) const;
 };
 
-/// What the search works on.
-struct CompleteSearchInput {
-  /// The source landmarks (source frame) and their covariances (may be empty), the target.
-  GateSide source;
-  const PreparedTarget* target = nullptr;
-  /// Up-axis candidates of each map (unit, each in its own frame), best first; every pair is
-  /// searched.
-  std::vector<Vec3> ups_source;
-  std::vector<Vec3> ups_target;
+/// What the search works on: the maps (SearchMaps), and what follows.
+struct CompleteSearchInput : SearchMaps {
   /// The source's centre and typical distance from it (DataScales), metres.
   Vec3 source_centre_m = Vec3::Zero();
   double source_radius_m = 1.0;
-  /// The coarse vote's cell, metres (> 0), and the gate's covariance floor, metres (> 0).
+  /// The coarse vote's cell, metres (> 0).
   double cell_m = 0.0;
-  double floor_m = 0.0;
   MahalanobisGateOptions gate;
   /// The pose uncertainty of the coarse resolution (the gate's start from a coarse candidate);
   /// the fine one is a third of it.

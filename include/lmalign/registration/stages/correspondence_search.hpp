@@ -57,9 +57,9 @@ struct CorrespondenceSearchOptions {
   /// (describe_landmark_oriented: the neighbourhood about the up axis and the horizontal viewing
   /// direction, at the radius and twice it); otherwise, or when false, the yaw-invariant ones.
   bool oriented = true;
-  std::size_t seeds = 128;               ///< cliques grown, >= 1
-  std::size_t min_inliers = 5;           ///< >= 3
-  std::size_t hypotheses = 16;           ///< poses at most, over every pair of up axes, >= 1
+  std::size_t seeds = 128;      ///< cliques grown, >= 1
+  std::size_t min_inliers = 5;  ///< >= 3
+  std::size_t hypotheses = 16;  ///< poses at most, over every pair of up axes, >= 1
   /// Free scale (issue 39, item 4): the graph is also built at scale factors
   /// scale_ratio^k, |k| <= scale_steps (target units per source unit, relative to the source
   /// as given), each with a tolerance of half a step on every distance; each clique then
@@ -69,17 +69,8 @@ struct CorrespondenceSearchOptions {
   bool is_valid(std::string* why = nullptr) const;
 };
 
-struct CorrespondenceSearchInput {
-  /// The source landmarks (source frame; covariances and viewing directions may be null or
-  /// empty) and the prepared target (its covariances and viewing directions are used if set).
-  GateSide source;
-  const PreparedTarget* target = nullptr;
-  /// Up-axis candidates (unit, each in its own frame); every pair is searched.
-  std::vector<Vec3> ups_source;
-  std::vector<Vec3> ups_target;
-  /// The covariance floor, metres (> 0): the smallest position standard deviation assumed.
-  double floor_m = 0.0;
-};
+/// What the search works on: the maps alone.
+struct CorrespondenceSearchInput : SearchMaps {};
 
 struct CorrespondenceHypothesis {
   /// p_target = T_target_source * (scale * p_source).

@@ -73,6 +73,20 @@ struct GateSide {
   const std::vector<Vec3>* view_directions = nullptr;
 };
 
+/// The two maps a global search works on (the complete search's and the correspondence
+/// search's input): the source landmarks (source frame; covariances and viewing directions may
+/// be null or empty), the prepared target (its covariances and viewing directions are used if
+/// set), each map's up-axis candidates (unit, each in its own frame, best first; every pair is
+/// searched), and the covariance floor, metres (> 0): the smallest position standard deviation
+/// assumed.
+struct SearchMaps {
+  GateSide source;
+  const PreparedTarget* target = nullptr;
+  std::vector<Vec3> ups_source;
+  std::vector<Vec3> ups_target;
+  double floor_m = 0.0;
+};
+
 /// Each source landmark's nearest target landmarks where it was last searched: the next call
 /// takes its k nearest from them without a search when the landmark moved too little for any
 /// other target landmark to come nearer (the moved distance against the gap to the nearest one
