@@ -17,6 +17,59 @@ namespace lmalign {
 
 namespace {
 
+// Throws InvalidArgument unless there are n weights (or none), each finite and >= 0.
+void check_weights(const std::vector<double>* weights, std::size_t n) {
+  if (n == 0) throw InvalidArgument("estimate_rigid_transform: no correspondences");
+  if (weights == nullptr) return;
+  if (weights->size() != n) {
+    throw InvalidArgument("estimate_rigid_transform: " + std::to_string(weights->size()) +
+                          " weights for " + std::to_string(n) + " correspondences");
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!std::isfinite((*weights)[i]) || (*weights)[i] < 0.0) {
+      throw InvalidArgument("estimate_rigid_transform: weight " + std::to_string(i) + " is " +
+                            std::to_string((*weights)[i]) + ", expected finite and >= 0");
+    }
+  }
+}
+
+// The rotation of Umeyama's closed form from the cross-covariance H = sum w (s - mu_s)(t -
+// mu_t)^T: R = V diag(1, 1, d) U^T maximises trace(R H) over rotations, d = det(V U^T) (-1 or
+// 1). Rank <= 1 (identical or collinear points on either side): every rotation taking u_0 onto
+// v_0 (rank 1), or any rotation at all (rank 0), is a minimiser, and the SVD's choice among them
+// is arbitrary; the smallest one is taken instead (d = 1), so the result is deterministic and
+// no spurious spin about the line is introduced.
+struct UmeyamaRotation {
+  Mat3 R = Mat3::Identity();
+  Vec3 sigma = Vec3::Zero();  ///< H's singular values, descending, >= 0
+  bool degenerate = false;
+  double d = 1.0;
+};
+
+UmeyamaRotation umeyama_rotation(const Mat3& H) {
+  Eigen::JacobiSVD<Mat3> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Mat3& U = svd.matrixU();
+  const Mat3& V = svd.matrixV();
+  const Vec3 sigma = svd.singularValues();  // descending, >= 0
+  const bool degenerate =
+      !(sigma(0) > 0.0) || sigma(1) <= EstimationReport::kDegenerateRatio * sigma(0);
+  Mat3 R;
+  double d = 1.0;
+  if (!degenerate) {
+    if ((V * U.transpose()).determinant() < 0.0) d = -1.0;
+    Mat3 D = Mat3::Identity();
+    D(2, 2) = d;
+    R = V * D * U.transpose();
+  } else if (sigma(0) > 0.0) {
+    // Normalised: near-opposite vectors leave FromTwoVectors' quaternion off unit norm by up to
+    // 1e-4 (then R would not be a rotation; found by fuzz_map_reader).
+    R = Quat::FromTwoVectors(U.col(0), V.col(0)).normalized().toRotationMatrix();
+  } else {
+    R = Mat3::Identity();
+  }
+  return {R, sigma, degenerate, d};
+}
+
 // The one closed form (Umeyama 1991): rigid when kScale is false (eqs. 40-41 with c = 1), with
 // the scale of eq. 42 when true (*scale receives it).
 template <bool kScale>
@@ -24,19 +77,7 @@ Isometry3 umeyama(const Points3& source_points, const Points3& target_points,
                   const Correspondences& correspondences, const std::vector<double>* weights,
                   EstimationReport* report, double* scale) {
   const std::size_t n = correspondences.size();
-  if (n == 0) throw InvalidArgument("estimate_rigid_transform: no correspondences");
-  if (weights != nullptr && weights->size() != n) {
-    throw InvalidArgument("estimate_rigid_transform: " + std::to_string(weights->size()) +
-                          " weights for " + std::to_string(n) + " correspondences");
-  }
-  if (weights != nullptr) {
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!std::isfinite((*weights)[i]) || (*weights)[i] < 0.0) {
-        throw InvalidArgument("estimate_rigid_transform: weight " + std::to_string(i) + " is " +
-                              std::to_string((*weights)[i]) + ", expected finite and >= 0");
-      }
-    }
-  }
+  check_weights(weights, n);
   auto w = [&](std::size_t i) { return weights == nullptr ? 1.0 : (*weights)[i]; };
 
   // Sums over at most kMaxBlocks blocks of at least kMinBlock correspondences (their sizes depend
@@ -124,32 +165,12 @@ Isometry3 umeyama(const Points3& source_points, const Points3& target_points,
         "estimate_rigid_transform: the cross-covariance overflows (coordinates too large)");
   }
 
-  // R = V diag(1, 1, det(V U^T)) U^T maximises trace(R H) over rotations.
-  Eigen::JacobiSVD<Mat3> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Mat3& U = svd.matrixU();
-  const Mat3& V = svd.matrixV();
-  const Vec3 sigma = svd.singularValues();  // descending, >= 0
-  // Rank <= 1 (identical or collinear points on either side): every rotation taking u_0 onto
-  // v_0 (rank 1), or any rotation at all (rank 0), is a minimiser, and the SVD's choice among
-  // them is arbitrary. Take the smallest one instead, so the result is deterministic and no
-  // spurious spin about the line is introduced.
-  const bool degenerate =
-      !(sigma(0) > 0.0) || sigma(1) <= EstimationReport::kDegenerateRatio * sigma(0);
-  Mat3 R;
-  if (!degenerate) {
-    Mat3 D = Mat3::Identity();
-    if ((V * U.transpose()).determinant() < 0.0) D(2, 2) = -1.0;
-    R = V * D * U.transpose();
-  } else if (sigma(0) > 0.0) {
-    // Normalised: near-opposite vectors leave FromTwoVectors' quaternion off unit norm by up to
-    // 1e-4 (then R would not be a rotation; found by fuzz_map_reader).
-    R = Quat::FromTwoVectors(U.col(0), V.col(0)).normalized().toRotationMatrix();
-  } else {
-    R = Mat3::Identity();
-  }
+  const UmeyamaRotation rot = umeyama_rotation(H);
+  const Mat3& R = rot.R;
+  const Vec3& sigma = rot.sigma;
   if (report != nullptr) {
     report->singular_values = sigma;
-    report->degenerate = degenerate;
+    report->degenerate = rot.degenerate;
   }
 
   Isometry3 T = Isometry3::Identity();
@@ -159,8 +180,7 @@ Isometry3 umeyama(const Points3& source_points, const Points3& target_points,
     // the source points coincide.
     double var_s = 0.0;
     for (std::size_t b = 0; b < blocks; ++b) var_s += partial[b].var_s;
-    const double d = !degenerate && (V * U.transpose()).determinant() < 0.0 ? -1.0 : 1.0;
-    const double c = var_s > 0.0 ? (sigma(0) + sigma(1) + d * sigma(2)) / var_s : 1.0;
+    const double c = var_s > 0.0 ? (sigma(0) + sigma(1) + rot.d * sigma(2)) / var_s : 1.0;
     *scale = c > 0.0 && std::isfinite(c) ? c : 1.0;
     T.translation() = mu_t - *scale * (R * mu_s);
   } else {
