@@ -55,6 +55,16 @@ class BenchError(Exception):
     """A one-line error for the user (bad config, missing file, failed command)."""
 
 
+def run_main(main, errors, prefix, status):
+    """Exits with main()'s status; an exception of type `errors` becomes one line on stderr,
+    "PREFIX: MESSAGE", and the exit status `status`."""
+    try:
+        sys.exit(main())
+    except errors as e:
+        print("%s: %s" % (prefix, e), file=sys.stderr)
+        sys.exit(status)
+
+
 # --------------------------------------------------------------------------- config
 
 def protocol_poses():
@@ -909,8 +919,4 @@ def read_counts(folder):
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except BenchError as e:
-        print("run_accuracy: error: %s" % e, file=sys.stderr)
-        sys.exit(2)
+    run_main(main, BenchError, "run_accuracy: error", 2)

@@ -28,7 +28,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 import accuracy_default  # noqa: E402
 import accuracy_peers  # noqa: E402
-from run_accuracy import write_csv, write_json, write_text  # noqa: E402
+from run_accuracy import run_main, write_csv, write_json, write_text  # noqa: E402
 
 # Keyframes per window by size: enough features for the landmarks asked for.
 FRAMES = {60000: 250}
@@ -193,8 +193,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except SweepError as e:
-        print("size sweep: %s" % e, file=sys.stderr)
-        sys.exit(1)
+    run_main(main, SweepError, "size sweep", 1)

@@ -131,6 +131,15 @@ def by_experiment(rows):
     return [(name, [r for r in rows if r["experiment"] == name]) for name in names]
 
 
+def save(plt, fig, plots_dir, name, dpi=110):
+    """Lays out, writes plots_dir/NAME (PNG) and closes the figure; returns the path."""
+    fig.tight_layout()
+    path = os.path.join(plots_dir, name)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def plot_violins(plt, np, rows, summary, plots_dir):
     written = []
     for name, mine in by_experiment(rows):
@@ -154,11 +163,7 @@ def plot_violins(plt, np, rows, summary, plots_dir):
                          [STRATEGY_COLOR.get(s, "#888888") for s in strategies], title, ylabel,
                          threshold, log=wide_range(np, flat))
         fig.suptitle(f"{name}: {ncases} cases per strategy", fontsize=11)
-        fig.tight_layout()
-        path = os.path.join(plots_dir, f"{name}_violin.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        written.append(path)
+        written.append(save(plt, fig, plots_dir, f"{name}_violin.png"))
     return written
 
 
@@ -193,11 +198,7 @@ def plot_basins(plt, np, rows, plots_dir):
                       {r["value"] for r in mine})
         fig.suptitle(f"{name}: success rate per level (up to {samples} seeded draws per level)",
                      fontsize=11)
-        fig.tight_layout()
-        path = os.path.join(plots_dir, f"{name}_basin.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        written.append(path)
+        written.append(save(plt, fig, plots_dir, f"{name}_basin.png"))
     return written
 
 
@@ -242,11 +243,7 @@ def plot_history(plt, np, path, wanted, plots_dir):
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=8)
     fig.suptitle(f"case {case} ({label}): per-iteration history", fontsize=11)
-    fig.tight_layout()
-    out = os.path.join(plots_dir, f"history_case{case}.png")
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-    return [out]
+    return [save(plt, fig, plots_dir, f"history_case{case}.png")]
 
 
 def plot_alignment(plt, np, path, wanted, plots_dir, results):
@@ -291,11 +288,7 @@ def plot_alignment(plt, np, path, wanted, plots_dir, results):
             if row == 0 and col == 0:
                 ax.legend(fontsize=7, markerscale=6, loc="upper right")
     fig.suptitle(f"case {case} ({label}): target black, source green", fontsize=11)
-    fig.tight_layout()
-    out = os.path.join(plots_dir, f"alignment_case{case}.png")
-    fig.savefig(out, dpi=100)
-    plt.close(fig)
-    return [out]
+    return [save(plt, fig, plots_dir, f"alignment_case{case}.png", dpi=100)]
 
 
 def main():

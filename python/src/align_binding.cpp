@@ -36,15 +36,8 @@ AlignOutcome run_alignment(const Points3& source_points,
   const Preset preset =
       request.strategy.empty() ? recommended_preset() : find_preset(request.strategy);
   if (request.threads < 0) throw InvalidArgument("threads: must be >= 0 (0 = OpenMP's default)");
-  lmalign::AlignRequest r;
-  r.k = request.k;
-  r.max_iterations = request.max_iterations;
-  r.max_distance_m = request.max_distance_m;
-  r.initial_guess = request.initial_guess;
-  r.prior = request.prior;
-  r.scale = request.scale;
+  lmalign::AlignRequest r = request;
   r.describe_maps(request.source_header, request.target_header);
-  r.settings = request.settings;
   r.resolve(preset);  // text values read by their rows; every check before the alignment
   const ThreadCount threads(request.threads);
   const auto now_s = [] {

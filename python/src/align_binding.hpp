@@ -15,23 +15,13 @@
 namespace lmalign::python {
 
 /// The options of one alignment, as `lmalign align` takes them. An unset optional is an option
-/// not given on the command line (then each preset keeps its own).
-struct AlignRequest {
+/// not given on the command line (then each preset keeps its own). The library's request
+/// (registration/presets.hpp: the guess, the prior, k, the limits, settings= as the CLI's --set,
+/// the scale mode), and what Python's align() adds to it.
+struct AlignRequest : lmalign::AlignRequest {
   std::string strategy;  ///< a preset name or a preset file; empty: the recommended one
-  int k = 5;
-  std::optional<int> max_iterations;
-  std::optional<double> max_distance_m;
-  /// settings= (the CLI's --set): values of any type; text is read by the setting's own row.
-  std::vector<std::pair<std::string, SettingValue>> settings;
-  /// The CLI's --initial-guess: p_target = T * p_source (none: the identity, or for a searching
-  /// preset no guess at all).
-  std::optional<Isometry3> initial_guess;
-  /// The CLI's --prior-sigma (degrees, metres); searching presets only.
-  std::optional<PriorSigma> prior;
   /// The source's up axis (source frame), from a Map's frames.
   std::optional<Vec3> source_up;
-  /// The CLI's --scale: auto, free or fixed (AlignRequest::scale).
-  ScaleMode scale = ScaleMode::kAuto;
   /// What each Map's header says (scale, assumed covariances), for AlignRequest::describe_maps;
   /// an array keeps the default header (metric, covariances measured).
   MapHeader source_header;

@@ -23,10 +23,8 @@ namespace lmalign {
 
 namespace {
 
-using formats_detail::Bytes;
-using formats_detail::Lines;
-using formats_detail::quoted;
-using formats_detail::TokenReader;
+// The text readers every format shares (text_tokens.hpp): Bytes, Lines, TokenReader, quoted.
+using namespace formats_detail;  // NOLINT(build/namespaces): a private namespace of formats/
 using Fail = std::function<void(const std::string&)>;
 
 constexpr long long kMaxId = std::numeric_limits<std::uint32_t>::max();

@@ -24,10 +24,8 @@ namespace lmalign {
 
 namespace {
 
-using formats_detail::Bytes;
-using formats_detail::Lines;
-using formats_detail::quoted;
-using formats_detail::TokenReader;
+// The text readers every format shares (text_tokens.hpp): Bytes, Lines, TokenReader, quoted.
+using namespace formats_detail;  // NOLINT(build/namespaces): a private namespace of formats/
 
 enum class Scalar { kInt8, kUint8, kInt16, kUint16, kInt32, kUint32, kFloat32, kFloat64 };
 
