@@ -11,6 +11,7 @@
 #include "lmalign/map/formats/formats.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/transform.hpp"
+#include "support/cli_room_pair.hpp"
 #include "support/data_path.hpp"
 #include "support/run_cli.hpp"
 #include "support/synthetic_scene.hpp"
@@ -18,20 +19,13 @@
 namespace lmalign {
 namespace {
 
-class CliAlign : public test::CliTest {
+class CliAlign : public test::CliRoomPair {
  protected:
   void SetUp() override {
-    CliTest::SetUp();
-    const Points3 pts = test::room_points(1500, 77);
-    target_ = path("target.txt");
-    source_ = path("source.txt");
-    const Map target = test::map_from_points(pts, 78);
-    write_map(target_, target);
-    // The source is the same map expressed in a frame moved by T_true^-1.
+    CliRoomPair::SetUp();
     T_true_ = pose_from_xyz_rpy_deg(0.05, -0.04, 0.02, 1, -1, 4);
-    write_map(source_, transform_map(target, T_true_.inverse()));
+    write_room_pair(1500, 77, T_true_);
   }
-  std::string source_, target_;
   Isometry3 T_true_;
 };
 

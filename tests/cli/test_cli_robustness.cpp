@@ -15,6 +15,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/io/transform_io.hpp"
 #include "lmalign/map/map_io.hpp"
+#include "support/cli_room_pair.hpp"
 #include "support/run_cli.hpp"
 #include "support/synthetic_scene.hpp"
 
@@ -54,18 +55,12 @@ std::string map_text(const Points3& points) {
   return text;
 }
 
-class CliRobustness : public test::CliTest {
+class CliRobustness : public test::CliRoomPair {
  protected:
   void SetUp() override {
-    CliTest::SetUp();
-    const Points3 pts = test::room_points(600, 41);
-    target_ = path("target.txt");
-    source_ = path("source.txt");
-    const Map target = test::map_from_points(pts, 42);
-    write_map(target_, target);
-    write_map(source_, transform_map(target, pose_from_xyz_rpy_deg(0.02, 0, 0, 0, 0, 2)));
+    CliRoomPair::SetUp();
+    write_room_pair(600, 41, pose_from_xyz_rpy_deg(0.02, 0, 0, 0, 0, 2).inverse());
   }
-  std::string source_, target_;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -208,30 +203,31 @@ TEST_F(CliRobustness, NaNOrNegativeOptionValuesAreOneLineErrors) {
     std::string args;
     std::string expect;
   };
-  const std::string st = source_ + " " + target_;
-  for (const Bad& b : std::vector<Bad>{
-           {"align " + st + " --max-distance nan", "--max-distance"},
-           {"align " + st + " --max-distance -1", "--max-distance"},
-           {"align " + st + " --max-distance 0", "--max-distance"},
-           {"align " + st + " --k -3", "--k"},
-           {"align " + st + " --k nan", "--k"},
-           {"align " + st + " --max-iterations 0", "--max-iterations"},
-           {"align " + st + " --max-iterations -5", "--max-iterations"},
-           {"align " + st + " --success-rotation-deg nan", "--success-rotation-deg"},
-           {"align " + st + " --success-translation-m -1", "--success-translation-m"},
-           {"align " + st + " --displace nan,0,0,0,0,0", "--displace"},
-           {"align " + st + " --displace 0,0,0,0,0,inf", "--displace"},
-           {"align " + st + " --min-observations -1", "--min-observations"},
-           {"split " + source_ + " --frames 100-130 -o " + path("o.txt") +
-                " --retriangulate --min-parallax nan",
-            "--min-parallax"},
-           {"split " + source_ + " --frames 100-130 -o " + path("o.txt") +
-                " --retriangulate --pixel-sigma -1",
-            "--pixel-sigma"},
-           {"split " + source_ + " --frames -1-5 -o " + path("o.txt"), "--frames"},
-           {"split " + source_ + " --frames 100-130 -o " + path("o.txt") + " --min-observations -2",
-            "--min-observations"},
-       }) {
+  // `lmalign align SOURCE TARGET` with one bad option, the option its error must name.
+  std::vector<Bad> bad;
+  for (const auto& [option, value] :
+       std::vector<std::pair<std::string, std::string>>{{"--max-distance", "nan"},
+                                                        {"--max-distance", "-1"},
+                                                        {"--max-distance", "0"},
+                                                        {"--k", "-3"},
+                                                        {"--k", "nan"},
+                                                        {"--max-iterations", "0"},
+                                                        {"--max-iterations", "-5"},
+                                                        {"--success-rotation-deg", "nan"},
+                                                        {"--success-translation-m", "-1"},
+                                                        {"--displace", "nan,0,0,0,0,0"},
+                                                        {"--displace", "0,0,0,0,0,inf"},
+                                                        {"--min-observations", "-1"}}) {
+    bad.push_back({"align " + source_ + " " + target_ + " " + option + " " + value, option});
+  }
+  const std::string split = "split " + source_ + " --frames ";
+  const std::string out = " -o " + path("o.txt");
+  bad.insert(bad.end(),
+             {{split + "100-130" + out + " --retriangulate --min-parallax nan", "--min-parallax"},
+              {split + "100-130" + out + " --retriangulate --pixel-sigma -1", "--pixel-sigma"},
+              {split + "-1-5" + out, "--frames"},
+              {split + "100-130" + out + " --min-observations -2", "--min-observations"}});
+  for (const Bad& b : bad) {
     const test::CliRun r = run(b.args);
     EXPECT_EQ(r.exit_code, 2) << b.args << "\n" << r.err;
     EXPECT_NE(r.err.find(b.expect), std::string::npos) << b.args << "\nstderr: " << r.err;

@@ -28,15 +28,20 @@
 namespace lmalign {
 namespace {
 
+// A fleet of num_maps maps (fleet_sim.hpp) with num_twins planted look-alike pairs.
+sim::FleetSimOptions fleet(std::size_t num_maps, std::uint64_t seed, std::size_t num_twins = 0) {
+  sim::FleetSimOptions o;
+  o.num_maps = num_maps;
+  o.seed = seed;
+  o.num_twins = num_twins;
+  return o;
+}
+
 // Map retrieval (candidates.hpp, issue 37): 50 maps without priors, each keeping its 4 most
 // similar. Measured: 66 of the 159 truly overlapping pairs kept (recall 0.42); the earlier
 // histograms of heights and distances kept 38 (0.24) with the same budget.
 TEST(MergeRetrieval, KeepsMoreOverlappingPairsThanTheHistogramsAndRepeats) {
-  sim::FleetSimOptions o;
-  o.num_maps = 50;
-  o.num_twins = 2;
-  o.seed = 1;
-  const sim::FleetScene scene = sim::simulate_fleet(o);
+  const sim::FleetScene scene = sim::simulate_fleet(fleet(50, 1, 2));
   std::vector<MapSummary> summaries;
   for (std::size_t i = 0; i < scene.maps.size(); ++i) {
     summaries.push_back(summarise_map(scene.maps[i], CandidateOptions{}, i + 1));
@@ -75,10 +80,7 @@ TEST(MergeRetrieval, KeepsMoreOverlappingPairsThanTheHistogramsAndRepeats) {
 }
 
 TEST(FleetSim, DeterministicWithKnownFramesOverlapsAndDisjointTwins) {
-  sim::FleetSimOptions o;
-  o.num_maps = 16;
-  o.seed = 3;
-  o.num_twins = 1;
+  const sim::FleetSimOptions o = fleet(16, 3, 1);
   const sim::FleetScene a = sim::simulate_fleet(o);
   const sim::FleetScene b = sim::simulate_fleet(o);
   ASSERT_EQ(a.maps.size(), 16u);
@@ -119,10 +121,7 @@ TEST(FleetSim, DeterministicWithKnownFramesOverlapsAndDisjointTwins) {
 // A fleet with GPS-like priors (3 degrees, 0.5 m), and those priors as run_merge() takes them.
 sim::FleetScene fleet_with_priors(std::size_t num_maps, std::uint64_t seed, std::size_t num_twins,
                                   std::vector<std::optional<MapPrior>>* priors) {
-  sim::FleetSimOptions o;
-  o.num_maps = num_maps;
-  o.seed = seed;
-  o.num_twins = num_twins;
+  sim::FleetSimOptions o = fleet(num_maps, seed, num_twins);
   o.prior_sigma_deg = 3.0;
   o.prior_sigma_m = 0.5;
   sim::FleetScene scene = sim::simulate_fleet(o);
@@ -218,10 +217,7 @@ TEST(MergeFleet, AWrongPriorNeverGivesATrustedWrongEdge) {
 // recovered like the others up to the part's own scale (evaluate_merge fits it). The merged map
 // puts the landmarks two maps share on one point.
 TEST(MergeFleet, FourMapsWithoutMetricScaleOnASim3PoseGraph) {
-  sim::FleetSimOptions o;
-  o.num_maps = 4;
-  o.seed = 11;
-  const sim::FleetScene scene = sim::simulate_fleet(o);
+  const sim::FleetScene scene = sim::simulate_fleet(fleet(4, 11));
   const std::vector<double> scales{0.3, 3.0, 1.0, 1.8};
   std::vector<Map> maps;
   std::vector<Similarity3> truth;

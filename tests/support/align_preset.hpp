@@ -13,32 +13,22 @@
 
 namespace lmalign::test {
 
-/// What one alignment asks beyond the preset, as a test writes it.
-struct Ask {
-  std::vector<std::string> settings;  ///< "KEY=VALUE"
-  std::optional<Isometry3> guess;
-  std::optional<PriorSigma> prior;
-  std::optional<int> k;
-  std::optional<int> max_iterations;
-  std::optional<double> max_distance_m;
-  bool history = false;
+/// What one alignment asks beyond the preset: the front ends' AlignRequest, with its settings
+/// written as a test writes them, "KEY=VALUE" (AlignRequest::add_assignment).
+struct Ask : AlignRequest {
+  Ask() = default;
+  /// Settings ("KEY=VALUE"), and optionally the initial guess and its prior.
+  Ask(const std::vector<std::string>& settings, std::optional<Isometry3> guess = std::nullopt,
+      std::optional<PriorSigma> prior_sigma = std::nullopt) {
+    for (const std::string& s : settings) add_assignment(s);
+    initial_guess = guess;
+    prior = prior_sigma;
+  }
 };
-
-inline AlignRequest request_of(const Ask& ask) {
-  AlignRequest r;
-  for (const std::string& s : ask.settings) r.add_assignment(s);
-  r.initial_guess = ask.guess;
-  r.prior = ask.prior;
-  r.k = ask.k;
-  r.max_iterations = ask.max_iterations;
-  r.max_distance_m = ask.max_distance_m;
-  r.record_history = ask.history;
-  return r;
-}
 
 inline Summary align_with(const std::string& preset, const SourceView& source,
                           const PreparedTarget& target, const Ask& ask = {}) {
-  return align(find_preset(preset), source, target, request_of(ask));
+  return align(find_preset(preset), source, target, ask);
 }
 
 inline Summary align_with(const std::string& preset, const SourceLandmarks& source,

@@ -7,7 +7,6 @@
 
 #include <gtest/gtest.h>
 
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -1128,7 +1127,7 @@ TEST(Adaptive, DeterministicForOneAndTwoThreads) {
   const Room room = make_room(far_truth(), 42);
   const PreparedTarget target = room.target();
   test::Ask o;
-  o.settings = {"init.yaw_step_deg=5"};  // half the default's search time; still finds the truth
+  o.add_assignment("init.yaw_step_deg=5");  // half the default's search time; still finds the truth
   ThreadCount restore;
   omp_set_num_threads(1);
   const Summary one = test::align_with("adaptive", room.source, target, o);
@@ -1264,7 +1263,7 @@ TEST(Adaptive, UnderstatedCovariancesAreMeasuredAndRefused) {
   for (Mat3& c : understated.target_cov) c *= 0.25;
   const PreparedTarget target4 = understated.target();
   test::Ask o;
-  o.settings = {"scales.floor_m=1e-4"};  // keep the floor from hiding the understatement
+  o.add_assignment("scales.floor_m=1e-4");  // keep the floor from hiding the understatement
   const Summary r = test::align_with("adaptive", understated.source, target4, o);
   EXPECT_LT(transform_error(r.registration.T_target_source, room.T_true).rotation_deg, 0.5);
   // The covariance scale measures the four-fold understatement from the inliers alone.
@@ -1276,8 +1275,8 @@ TEST(Adaptive, UnderstatedCovariancesAreMeasuredAndRefused) {
   EXPECT_NE(r.verdict.reason.find("times what their covariances say"), std::string::npos)
       << r.verdict.reason;
   // The threshold is an option: a looser one trusts the same result.
-  o.settings.push_back("trust.max_covariance_scale=" +
-                       std::to_string(r.verdict.covariance_scale + 0.01));
+  o.add_assignment("trust.max_covariance_scale=" +
+                   std::to_string(r.verdict.covariance_scale + 0.01));
   EXPECT_TRUE(test::align_with("adaptive", understated.source, target4, o).verdict.trustworthy);
 }
 

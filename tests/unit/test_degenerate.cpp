@@ -71,7 +71,7 @@ RegistrationResult paper(const Points3& source, const PreparedTarget& target,
 
 test::Ask at(const Isometry3& guess) {
   test::Ask a;
-  a.guess = guess;
+  a.initial_guess = guess;
   return a;
 }
 

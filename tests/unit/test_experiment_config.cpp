@@ -303,18 +303,16 @@ TEST(ExperimentSchema, ScaleIsGivenPerRunOrPerStrategyAndReachesTheRequest) {
     }
   }
 
-  EXPECT_EQ(error_of(kSchemaHead + "scale: metric\n" + kYawExperiment)
-                .rfind("cfg.yaml:4: scale: expected auto, free or fixed, got 'metric'", 0),
-            0u);
-  EXPECT_EQ(error_of(kSchemaHead + "scale: {bse: free}\n" + kYawExperiment)
-                .rfind("cfg.yaml:4: scale: unknown strategy 'bse' (nearest: 'base')", 0),
-            0u);
-  EXPECT_EQ(error_of(kSchemaHead + "scale: {base: free, base: fixed}\n" + kYawExperiment)
-                .rfind("cfg.yaml:4: scale.base: strategy 'base' is given twice", 0),
-            0u);
-  EXPECT_EQ(error_of(kSchemaHead + "scale: [free]\n" + kYawExperiment)
-                .rfind("cfg.yaml:4: scale: expected auto, free or fixed, or a mapping", 0),
-            0u);
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {"scale: metric", "cfg.yaml:4: scale: expected auto, free or fixed, got 'metric'"},
+      {"scale: {bse: free}", "cfg.yaml:4: scale: unknown strategy 'bse' (nearest: 'base')"},
+      {"scale: {base: free, base: fixed}",
+       "cfg.yaml:4: scale.base: strategy 'base' is given twice"},
+      {"scale: [free]", "cfg.yaml:4: scale: expected auto, free or fixed, or a mapping"}};
+  for (const auto& [line, message] : refused) {
+    const std::string e = error_of(kSchemaHead + line + "\n" + kYawExperiment);
+    EXPECT_EQ(e.rfind(message, 0), 0u) << e;
+  }
 }
 
 TEST(ExperimentSchema, AnUnknownKeyNamesTheNearestKnownOne) {

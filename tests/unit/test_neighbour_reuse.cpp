@@ -508,7 +508,7 @@ TEST(SlamSimulator, SeededDeterministicAndValid) {
   const sim::SlamMapPair full = sim::simulate_map_pair(so);
   const PreparedTarget full_target(full.target);
   test::Ask near;
-  near.guess = so.T_target_source * pose_from_xyz_rpy_deg(0.03, 0.02, 0, 0, 0, 1.5);
+  near.initial_guess = so.T_target_source * pose_from_xyz_rpy_deg(0.03, 0.02, 0, 0, 0, 1.5);
   const RegistrationResult r =
       test::align_with("base", full.source.positions(), full_target, near).registration;
   const TransformError e = transform_error(r.T_target_source, so.T_target_source);

@@ -13,6 +13,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/pipeline.hpp"
+#include "lmalign/registration/presets.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "support/synthetic_scene.hpp"
 
@@ -180,16 +181,32 @@ class ComposedPipelines : public ::testing::Test {
   Isometry3 T_true_;
 };
 
-TEST_F(ComposedPipelines, TheAdaptiveSearchThenARobustPointToPointLoop) {
-  // The adaptive default's yaw-vote search (it needs the scales), each hypothesis refined by the
-  // robust presets' loop (nearest, Cauchy, Umeyama, shrinking distances) on every 4th landmark
-  // and scored by consensus.
+// The robust presets' loop after `initialiser`: nearest pairs, Cauchy IRLS, shrinking distance
+// levels; hypotheses scored by consensus, the result judged by inliers.
+PipelineSpec robust_loop(const std::string& initialiser) {
   PipelineSpec spec;
-  spec.initialiser = "yaw_vote";
+  spec.initialiser = initialiser;
   spec.kernel = "cauchy";
   spec.schedule = "distance_levels";
   spec.scorer = "consensus";
   spec.trust = "inliers";
+  return spec;
+}
+
+// The adaptive default's stages (configs/presets/adaptive.yaml: the Mahalanobis gate, its Cauchy
+// weight, the point-to-distribution step, the annealed gate, the gated score and verdict) after
+// `initialiser`.
+PipelineSpec adaptive_after(const std::string& initialiser) {
+  PipelineSpec spec = find_preset("adaptive").spec;
+  spec.initialiser = initialiser;
+  return spec;
+}
+
+TEST_F(ComposedPipelines, TheAdaptiveSearchThenARobustPointToPointLoop) {
+  // The adaptive default's yaw-vote search (it needs the scales), each hypothesis refined by the
+  // robust presets' loop (nearest, Cauchy, Umeyama, shrinking distances) on every 4th landmark
+  // and scored by consensus.
+  const PipelineSpec spec = robust_loop("yaw_vote");
   target_->set_up_axis(Vec3::UnitZ());
   const Pipeline p(spec);
   EXPECT_TRUE(p.needs_scales());
@@ -206,14 +223,8 @@ TEST_F(ComposedPipelines, TheAdaptiveSearchThenARobustPointToPointLoop) {
 }
 
 TEST_F(ComposedPipelines, TheRobustSearchWithTheFourDofEstimatorAndTrimming) {
-  PipelineSpec spec;
-  spec.initialiser = "yaw_centroid";
+  PipelineSpec spec = robust_loop("yaw_centroid");
   spec.rejectors = {"trim"};
-  spec.kernel = "cauchy";
-  spec.estimator = "umeyama";
-  spec.schedule = "distance_levels";
-  spec.scorer = "consensus";
-  spec.trust = "inliers";
   spec.settings = {{"reject.trim_ratio", 0.9},
                    {"init.yaw_hypotheses", 24LL},
                    {"estimate.dof", std::string("4")}};
@@ -231,14 +242,7 @@ TEST_F(ComposedPipelines, TheRobustSearchWithTheFourDofEstimatorAndTrimming) {
 }
 
 TEST_F(ComposedPipelines, ResultsDoNotDependOnTheThreadCount) {
-  PipelineSpec spec;
-  spec.initialiser = "yaw_vote";
-  spec.matcher = "mahalanobis_gate";
-  spec.kernel = "cauchy_mahalanobis";
-  spec.estimator = "p2d_step";
-  spec.schedule = "sigma_anneal";
-  spec.scorer = "gated_inliers";
-  spec.trust = "gated";
+  PipelineSpec spec = adaptive_after("yaw_vote");
   spec.settings = {{"score.samples", 256LL}};
   const Pipeline p(spec);
   const int saved = omp_get_max_threads();
@@ -313,11 +317,9 @@ TEST(SigmaSchedule, ATwoCycleAtZeroUncertaintyEndsTheRunAsSettled) {
 TEST_F(ComposedPipelines, AHypothesisCapsItsOwnRefinement) {
   // A search refines many candidates briefly (complete_search): Hypothesis::max_iterations and
   // max_iterations_per_level cap one refinement below the schedule's own budget.
-  PipelineSpec spec;
-  spec.matcher = "mahalanobis_gate";
-  spec.kernel = "cauchy_mahalanobis";
-  spec.estimator = "p2d_step";
-  spec.schedule = "sigma_anneal";
+  PipelineSpec spec = adaptive_after("guess");
+  spec.scorer = "none";
+  spec.trust = "none";
   const Pipeline p(spec);
   Scales scales;
   scales.source = estimate_data_scales(source_.positions, &source_.covariances_m2);

@@ -106,7 +106,7 @@ TEST(Registration, HistoryMatchesTheScoreAndTheMse) {
   const Scene s = make_scene(pose_from_xyz_rpy_deg(0.1, 0.0, 0.0, 0, 0, 4));
   const PreparedTarget target(s.target);
   test::Ask history;
-  history.history = true;  // and the score at each iteration
+  history.record_history = true;  // and the score at each iteration
   const RegistrationResult r = paper(s.source, target, WeightKind::kUniform, history);
   ASSERT_EQ(static_cast<int>(r.history.size()), r.iterations);
   ASSERT_GE(r.iterations, 2);
@@ -143,8 +143,8 @@ TEST(Registration, NoCorrespondencesKeepsTheInitialGuess) {
   const PreparedTarget target(s.target);
   test::Ask o;
   o.max_distance_m = 1e-9;
-  o.guess = pose_from_xyz_rpy_deg(5, 5, 5, 0, 0, 0);
-  const Isometry3 init = *o.guess;
+  o.initial_guess = pose_from_xyz_rpy_deg(5, 5, 5, 0, 0, 0);
+  const Isometry3 init = *o.initial_guess;
   const RegistrationResult r = paper(s.source, target, WeightKind::kObservations, o);
   EXPECT_EQ(r.termination, TerminationReason::kNoCorrespondences);
   EXPECT_FALSE(r.converged);
@@ -167,8 +167,8 @@ TEST(PaperSettings, ValuesOutsideTheirBoundsAreRefusedNamingTheKey) {
     }
   }
   test::Ask bad;
-  bad.guess = Isometry3::Identity();
-  (*bad.guess)(0, 3) = std::numeric_limits<double>::infinity();
+  bad.initial_guess = Isometry3::Identity();
+  (*bad.initial_guess)(0, 3) = std::numeric_limits<double>::infinity();
   EXPECT_THROW(paper(s.source, target, WeightKind::kUniform, bad), InvalidArgument);
 }
 

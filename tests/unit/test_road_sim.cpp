@@ -12,6 +12,7 @@
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/sim/road_sim.hpp"
 #include "support/invalid_options.hpp"
+#include "support/sim_checks.hpp"
 
 namespace lmalign {
 namespace {
@@ -68,19 +69,8 @@ TEST(RoadSim, ObservationsAndFrames) {
   const sim::SlamMapPair pair = sim::simulate_road_pair(o);
   for (const Map* m : {&pair.source, &pair.target}) {
     EXPECT_EQ(m->landmarks.size(), o.num_landmarks);
-    std::string why;
     EXPECT_NO_THROW(m->validate());
-    std::size_t two = 0, most = 0;
-    for (const Landmark& lm : m->landmarks) {
-      ASSERT_GE(lm.observations.size(), 2u);
-      ASSERT_LE(lm.observations.size(), static_cast<std::size_t>(o.max_observations));
-      two += lm.observations.size() == 2 ? 1 : 0;
-      most += lm.observations.size() == static_cast<std::size_t>(o.max_observations) ? 1 : 0;
-      for (std::size_t i = 1; i < lm.observations.size(); ++i)  // consecutive keyframes
-        EXPECT_EQ(lm.observations[i].frame_id, lm.observations[i - 1].frame_id + 1);
-    }
-    EXPECT_GT(two, 0u);
-    EXPECT_GT(most, 0u);
+    test::expect_stereo_observations(*m, o.max_observations);
   }
 }
 
@@ -134,15 +124,7 @@ TEST(RoadSim, TrueTransformRelatesTheMaps) {
   o.T_target_source = pose_from_xyz_rpy_deg(5, 2, -30, 3, -2, 120);
   const sim::SlamMapPair moved = sim::simulate_road_pair(o);
   ASSERT_TRUE(moved.T_target_source.isApprox(o.T_target_source));
-  EXPECT_EQ(moved.target.positions(), plain.target.positions());
-  const Mat3 R = o.T_target_source.linear();
-  for (std::size_t i = 0; i < plain.source.landmarks.size(); ++i) {
-    const Landmark& p = plain.source.landmarks[i];
-    const Landmark& m = moved.source.landmarks[i];
-    ASSERT_LT((moved.T_target_source * m.p_world - p.p_world).norm(), 1e-9);
-    ASSERT_LT((R * m.cov_world_m2 * R.transpose() - p.cov_world_m2).norm(),
-              1e-9 * (1.0 + p.cov_world_m2.norm()));
-  }
+  test::expect_source_moved(plain, moved);
   for (std::size_t f = 0; f < plain.source.frames.size(); ++f) {
     EXPECT_LT((moved.T_target_source * moved.source.frames[f].p_world_camera -
                plain.source.frames[f].p_world_camera)

@@ -186,7 +186,7 @@ Summary run_preset(const Preset& preset, const Points3& source, const PreparedTa
                    const test::Ask& ask = {}) {
   SourceView view;
   view.positions = &source;
-  return align(preset, view, target, test::request_of(ask));
+  return align(preset, view, target, ask);
 }
 Summary run_preset(const std::string& name, const Points3& source, const PreparedTarget& target,
                    const test::Ask& ask = {}) {
