@@ -162,6 +162,7 @@ bool PipelineRun::begin_search(double factor) {
   }
   // Twice when the first search of a free scale measures the scale (ScaleSearch::
   // set_measured): the source again at the measured initial scale.
+  std::vector<Isometry3> measured_poses;  // the measurement's, at the measured scale
   for (bool measure = first && scale_search_->measure_steps() > 0;; measure = false) {
     Summary& s = base_;
     s = Summary{};
@@ -208,14 +209,16 @@ bool PipelineRun::begin_search(double factor) {
     ic.refine_context = &all;
     ic.deep = deep_;
     if (measure) {
-      const std::optional<double> f = pipeline_.initialiser().measure_scale(
+      std::optional<ScaleMeasurement> m = pipeline_.initialiser().measure_scale(
           ic, scale_search_->measure_steps(), scale_search_->rung_ratio(),
           scale_search_->measure_margin());
-      if (f) {
-        scale_search_->set_measured(*f);
+      if (m) {
+        scale_search_->set_measured(m->factor);
+        if (factor == 1.0) measured_poses = std::move(m->poses);
         continue;
       }
     }
+    ic.measured_poses = measured_poses;
     hypotheses_ = pipeline_.initialiser().propose(ic, &s.initialisation);
     if (hypotheses_.empty()) {
       throw Error("initialiser '" + pipeline_.spec().initialiser + "' proposed nothing");

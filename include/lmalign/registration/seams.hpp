@@ -229,6 +229,18 @@ struct InitialiserContext {
   /// InitialiserReport::deeper_pass). True: its complete search, after a first pass whose
   /// answer was not trusted.
   bool deep = false;
+  /// Free scale: the poses the scale's measurement found at the measured scale
+  /// (ScaleMeasurement::poses: T_target_source of context.source, which is then at that
+  /// scale); a first pass may take them instead of searching again. Empty otherwise.
+  std::vector<Isometry3> measured_poses;
+};
+
+/// What Initialiser::measure_scale found: the factor (target units per source unit, relative
+/// to the context's source) and the poses its evidence gives at that factor (T_target_source
+/// of the source multiplied by it), best first.
+struct ScaleMeasurement {
+  double factor = 1.0;
+  std::vector<Isometry3> poses;
 };
 
 class Initialiser : public Stage {
@@ -244,8 +256,9 @@ class Initialiser : public Stage {
   /// steps). Empty when this initialiser measures nothing (the default), or when its evidence
   /// is not decisive: fewer than `margin` times the evidence for a scale more than a ratio
   /// away. Deterministic.
-  virtual std::optional<double> measure_scale(const InitialiserContext& /*context*/, int /*steps*/,
-                                              double /*ratio*/, double /*margin*/) const {
+  virtual std::optional<ScaleMeasurement> measure_scale(const InitialiserContext& /*context*/,
+                                                        int /*steps*/, double /*ratio*/,
+                                                        double /*margin*/) const {
     return std::nullopt;
   }
 };

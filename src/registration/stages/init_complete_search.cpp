@@ -135,8 +135,8 @@ class CompleteSearchInit : public Initialiser {
     return out;
   }
 
-  std::optional<double> measure_scale(const InitialiserContext& c, int steps, double ratio,
-                                      double margin) const override {
+  std::optional<ScaleMeasurement> measure_scale(const InitialiserContext& c, int steps,
+                                                double ratio, double margin) const override {
     // The correspondence search on a ladder of scales (correspondence_search.hpp, step 5): the
     // scale of its largest clique (the first of the largest: deterministic), if decisive.
     if (steps <= 0 || o_.correspondences.hypotheses == 0 || c.scales == nullptr) {
@@ -168,7 +168,17 @@ class CompleteSearchInit : public Initialiser {
     if (static_cast<double>(best->inliers) < margin * static_cast<double>(other)) {
       return std::nullopt;
     }
-    return best->scale;
+    // The poses at the measured scale (within half a rung of it), best first: the first pass's
+    // at that scale.
+    ScaleMeasurement m;
+    m.factor = best->scale;
+    m.poses.push_back(best->T_target_source);
+    for (const CorrespondenceHypothesis& h : cr.hypotheses) {
+      if (&h != best && std::abs(std::log(h.scale / best->scale)) <= 0.5 * std::log(ratio)) {
+        m.poses.push_back(h.T_target_source);
+      }
+    }
+    return m;
   }
 
  private:
@@ -228,7 +238,16 @@ class CompleteSearchInit : public Initialiser {
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
     CompleteSearchOptions so = o_.search;
     so.modes = o_.hypotheses;
-    if (o_.correspondences.hypotheses > 0 && o_.first_pass && !c.deep) {
+    if (o_.correspondences.hypotheses > 0 && o_.first_pass && !c.deep &&
+        !c.measured_poses.empty()) {
+      // The first pass of a free scale: the poses the scale's measurement found at the measured
+      // scale, without searching again.
+      in.extra_candidates = c.measured_poses;
+      report->notes.emplace_back("first pass poses from the scale's measurement",
+                                 static_cast<double>(in.extra_candidates.size()));
+      so.vote = false;
+      report->deeper_pass = true;
+    } else if (o_.correspondences.hypotheses > 0 && o_.first_pass && !c.deep) {
       // The first pass: the correspondence poses alone, at the first pass's descriptor radius.
       // None found: the complete search at once.
       CorrespondenceSearchOptions first = o_.correspondences;
