@@ -186,6 +186,16 @@ void print_merge_summary(const std::vector<Map>& maps, const std::vector<std::st
           names[run.edges[e].target].c_str(), r.reject_reason.c_str());
     }
   }
+  const std::vector<MapNote> notes = map_notes(maps, run.edges, run.result);
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    if (notes[i].same_landmarks_as) {
+      say("same landmarks: %s and %s (one map listed twice, or one map in two files)\n",
+          names[*notes[i].same_landmarks_as].c_str(), names[i].c_str());
+    }
+  }
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    if (!notes[i].alone.empty()) say("alone: %s: %s\n", names[i].c_str(), notes[i].alone.c_str());
+  }
 }
 
 // The merge against the ground truth (merge --ground-truth), map by map.

@@ -6,6 +6,8 @@ client); without --dask-scheduler it runs in process, as `lmalign merge`. Option
 """
 
 import argparse
+import json
+import os
 import sys
 
 
@@ -76,6 +78,14 @@ def main(argv=None):
         if report.rejected:
             why = report.reject_reason or "chi2 %.1f after optimisation" % report.chi2
             print("rejected edge: %s -> %s (%s)" % (run.names[e.source], run.names[e.target], why))
+    # Which maps hold the same landmarks and why a map stands alone: summary.json's (map_notes).
+    with open(os.path.join(args.output, "summary.json")) as f:
+        summary = json.load(f)
+    for later, earlier in summary.get("same_landmarks", []):
+        print("same landmarks: %s and %s (one map listed twice, or one map in two files)"
+              % (earlier, later))
+    for m in summary.get("maps_alone", []):
+        print("alone: %s: %s" % (m["name"], m["reason"]))
     if run.evaluation is not None:
         ev = run.evaluation
         print("ground truth (within %g deg / %g m): %d part(s), the largest of %d map(s); the "

@@ -149,6 +149,62 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
   return out;
 }
 
+std::vector<MapNote> map_notes(const std::vector<Map>& maps, const std::vector<Edge>& edges,
+                               const MergeResult& result) {
+  if (result.maps.size() != maps.size() || result.edges.size() != edges.size()) {
+    throw InvalidArgument("map_notes: maps, poses and edges differ in number");
+  }
+  std::vector<MapNote> notes(maps.size());
+  std::vector<std::size_t> part_size(result.num_components, 0);
+  for (const MapPose& p : result.maps) {
+    if (p.component < part_size.size()) ++part_size[p.component];
+  }
+  std::map<std::string, std::size_t> first_with;  // fingerprint -> first map
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    const auto [it, fresh] = first_with.emplace(map_fingerprint(maps[i]), i);
+    if (!fresh) notes[i].same_landmarks_as = it->second;
+    const std::size_t c = result.maps[i].component;
+    if (c < part_size.size() && part_size[c] > 1) continue;
+    std::size_t pairs = 0, trusted = 0;
+    std::map<std::string, std::size_t> reasons;  // untrusted edges' reasons, counted
+    std::string graph_reason;
+    for (std::size_t e = 0; e < edges.size(); ++e) {
+      if (edges[e].source != i && edges[e].target != i) continue;
+      ++pairs;
+      const EdgeReport& r = result.edges[e];
+      if (!edges[e].trusted) {
+        ++reasons[edges[e].trust_reason.empty() ? "no reason given" : edges[e].trust_reason];
+        continue;
+      }
+      ++trusted;
+      if (graph_reason.empty()) {
+        graph_reason = !r.skip_reason.empty()     ? r.skip_reason
+                       : !r.reject_reason.empty() ? r.reject_reason
+                       : r.rejected               ? "rejected by the graph after optimisation"
+                                                  : "";
+      }
+    }
+    if (pairs == 0) {
+      notes[i].alone = "no candidate pair";
+    } else if (trusted == 0) {
+      std::vector<std::pair<std::size_t, std::string>> by_count;
+      for (const auto& [reason, count] : reasons) by_count.emplace_back(count, reason);
+      std::stable_sort(by_count.begin(), by_count.end(),
+                       [](const auto& a, const auto& b) { return a.first > b.first; });
+      std::string text;
+      for (const auto& [count, reason] : by_count) {
+        text += (text.empty() ? "" : "; ") + std::to_string(count) + ": " + reason;
+      }
+      notes[i].alone = "none of its " + std::to_string(pairs) + " pair" +
+                       (pairs == 1 ? " was" : "s was") + " trusted (" + text + ")";
+    } else {
+      notes[i].alone = "its trusted pairs did not enter the graph or were rejected by it (" +
+                       (graph_reason.empty() ? std::string("no reason given") : graph_reason) + ")";
+    }
+  }
+  return notes;
+}
+
 void write_merge_outputs(const std::string& out_dir, const std::vector<std::string>& names,
                          const std::vector<std::string>& sessions, const std::vector<Map>& maps,
                          const std::vector<Edge>& edges, const MergeResult& result,
@@ -231,6 +287,14 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
          << ed.initialisation << "," << ed.scale << "," << ed.scale_sd << "," << reason << "\n";
     }
   });
+  const std::vector<MapNote> notes = map_notes(maps, edges, result);
+  json alone = json::array(), same = json::array();
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    if (!notes[i].alone.empty()) alone.push_back({{"name", names[i]}, {"reason", notes[i].alone}});
+    if (notes[i].same_landmarks_as) {
+      same.push_back({names[i], names[*notes[i].same_landmarks_as]});
+    }
+  }
   json rejected = json::array();
   std::size_t used = 0;
   for (std::size_t e = 0; e < edges.size(); ++e) {
@@ -248,7 +312,9 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                         {"edge_covariance_scale", result.edge_covariance_scale},
                         {"rounds", result.rounds},
                         {"converged", result.converged},
-                        {"landmarks_left_out", left_out}};
+                        {"landmarks_left_out", left_out},
+                        {"maps_alone", alone},
+                        {"same_landmarks", same}};
   write_output((dir / "summary.json").string(),
                [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
   for (std::size_t c = 0; c < result.num_components; ++c) {

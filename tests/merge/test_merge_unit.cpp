@@ -523,6 +523,54 @@ TEST(MergeOutput, WritesPosesEdgesAndFusedMergedMap) {
   }
 }
 
+// The report says why a map stands alone, and which maps hold the same landmarks (issue 37:
+// "reports per part why a map stayed alone"; a map listed twice).
+TEST(MergeOutput, SaysWhyAMapIsAloneAndWhichMapsAreTheSame) {
+  test::ScratchDir dir("merge_notes");
+  std::mt19937_64 rng(5);
+  std::vector<Isometry3> truth;
+  for (int i = 0; i < 5; ++i) truth.push_back(random_pose(rng, 3.0, 90.0));
+  Points3 world;
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  for (int k = 0; k < 40; ++k) world.emplace_back(u(rng), u(rng), u(rng));
+  std::vector<Map> maps;
+  for (int i = 0; i < 5; ++i) maps.push_back(scene_map(world, Vec3::Zero(), 10.0, truth[i]));
+  maps[2] = maps[0];  // map 0 listed twice; no pair planned for it
+  std::vector<Edge> edges{
+      make_edge(0, 1, truth, rng, 1e-4, 1e-5), make_edge(3, 0, truth, rng, 1e-4, 1e-5),
+      make_edge(3, 1, truth, rng, 1e-4, 1e-5), make_edge(4, 1, truth, rng, 1e-4, 1e-5)};
+  edges[1].trusted = false;
+  edges[1].trust_reason = "too few covariance-gated inliers (4 < 12)";
+  edges[2].trusted = false;
+  edges[2].trust_reason = "too few covariance-gated inliers (5 < 12)";
+  edges[3].covariance_valid = false;  // trusted, but it cannot enter the graph
+  const MergeResult r = solve_pose_graph(5, std::vector<std::optional<MapPrior>>(5), edges);
+  ASSERT_EQ(r.num_components, 4u);
+  const std::vector<MapNote> notes = map_notes(maps, edges, r);
+  ASSERT_EQ(notes.size(), 5u);
+  EXPECT_TRUE(notes[0].alone.empty());
+  EXPECT_TRUE(notes[1].alone.empty());
+  EXPECT_EQ(notes[2].alone, "no candidate pair");
+  EXPECT_EQ(notes[3].alone,
+            "none of its 2 pairs was trusted (1: too few covariance-gated inliers (4 < 12); 1: too "
+            "few covariance-gated inliers (5 < 12))");
+  EXPECT_EQ(notes[4].alone.rfind("its trusted pairs did not enter the graph", 0), 0u)
+      << notes[4].alone;
+  ASSERT_TRUE(notes[2].same_landmarks_as.has_value());
+  EXPECT_EQ(*notes[2].same_landmarks_as, 0u);
+  for (std::size_t i : {0u, 1u, 3u, 4u}) EXPECT_FALSE(notes[i].same_landmarks_as) << i;
+  // summary.json carries both.
+  write_merge_outputs(dir.path(), {"a", "b", "a_again", "c", "d"}, {"", "", "", "", ""}, maps,
+                      edges, r);
+  std::ifstream in(dir.file("summary.json"));
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  ASSERT_EQ(summary["maps_alone"].size(), 3u);
+  EXPECT_EQ(summary["maps_alone"][0]["name"], "a_again");
+  EXPECT_EQ(summary["maps_alone"][0]["reason"], "no candidate pair");
+  EXPECT_EQ(summary["same_landmarks"], nlohmann::json::array({{"a_again", "a"}}));
+  EXPECT_THROW(map_notes(maps, {}, r), InvalidArgument);
+}
+
 TEST(MergeManifest, ValuesBeyondTheSupportedRangeNameTheLineAndField) {
   // docs/robustness.md, "Supported range": translations within 1e15 m, standard deviations in
   // [1e-9, 1e15] (m; degrees), as for `lmalign align`'s options. Before, a prior 1e308 m away

@@ -7,7 +7,9 @@
 //                            [begin, end) of the landmark ids its component's merged map gives
 //                            the landmarks it added (for the plots, scripts/plot_merge.py)
 //   edges.csv                one row per candidate edge
-//   summary.json             counts, final chi^2, the edge covariance scale, rejected edges
+//   summary.json             counts, final chi^2, the edge covariance scale, rejected edges,
+//                            the maps alone in their part and why, maps of the same landmarks
+//                            (map_notes)
 //   merged_map.txt           (one component) or merged_map_component<k>.txt (one per
 //                            component, each in its own frame): every map's frames and
 //                            landmarks moved into the world frame (covariances rotated), frames
@@ -52,6 +54,24 @@ Map merge_maps(const std::vector<Map>& maps, const std::vector<std::string>& ses
                const MergeOutputOptions& options = {},
                std::vector<std::pair<std::size_t, std::size_t>>* landmark_ranges = nullptr,
                std::size_t* left_out = nullptr);
+
+/// What the report says of one map beside its pose (docs/merge.md, "Why a map stands alone").
+struct MapNote {
+  /// Why the map is alone in its part; empty when its part holds other maps. One of: "no
+  /// candidate pair" (neither retrieval nor the priors paired it); "none of its N pairs was
+  /// trusted (K: REASON; ...)", the edges' trust reasons by how often they occur; "its trusted
+  /// pairs did not enter the graph or were rejected by it (REASON)".
+  std::string alone;
+  /// An earlier map (index) with exactly the same landmarks (map_fingerprint: positions and
+  /// covariances, bit for bit): a map listed twice, or one map in two files. Reported only;
+  /// their edge is aligned like any other.
+  std::optional<std::size_t> same_landmarks_as;
+};
+
+/// One note per map, from the maps, the candidate edges and their fate in the graph (sizes as
+/// write_merge_outputs). Throws InvalidArgument if sizes do not match.
+std::vector<MapNote> map_notes(const std::vector<Map>& maps, const std::vector<Edge>& edges,
+                               const MergeResult& result);
 
 /// Writes poses.yaml, poses.json, edges.csv, summary.json and the merged map(s) into `out_dir`
 /// (created if missing). `names[i]` names map i. Throws IoError / InvalidArgument.
