@@ -2,12 +2,14 @@
 """Wrong and right priors on every real dataset (issue 41): is a trusted answer right?
 
     python3 bench/prior_sweep.py [--build-dir build] [--datasets a,b] [--wrong N] [--right N]
-                                 [--check rivals|strict|off] [--out DIR] [--jobs N]
+                                 [--check rivals|strict|off] [--complete-search rescue|check]
+                                 [--out DIR] [--jobs N]
 
 For each real dataset of bench/accuracy.yaml (the desk pair, re-triangulated desk windows, the
 KITTI pairs and windows cut from the whole drive; maps prepared as `make bench-accuracy` prepares
 them), `lmalign align SOURCE TARGET --initial-guess G --prior-sigma ROT_DEG,TRANS_M` with
-`--set init.prior_check=CHECK` (default rivals: the global search checks the prior) and
+`--set init.prior_check=CHECK` (default rivals: the global search checks the prior),
+`--set init.prior_complete_search=rescue|check` (check: a merge's prior edges) and
 seeded guesses G = D * T_true, D a yaw about the dataset's up axis and a translation:
 - wrong guesses (outside 3 sigma): indoors (sigma 2 deg, 5 cm) offsets up to 1 m and any yaw;
   outdoors (sigma 1 deg, 0.3 m) drift-like offsets up to the target map's extent across the up
@@ -117,13 +119,14 @@ def guesses(kind, up, extent_m, truth, wrong, right, seed):
 
 
 def run_align(lmalign, source, target, truth_path, guess_path, sigma, thresholds, out_json,
-              check):
+              check, complete_search):
     argv = [lmalign, "align", source, target, "--ground-truth", truth_path,
             "--success-rotation-deg", str(thresholds[0]),
             "--success-translation-m", str(thresholds[1]), "--json", out_json]
     if guess_path:
         argv += ["--initial-guess", guess_path, "--prior-sigma", "%g,%g" % sigma, "--set",
-                 "init.prior_check=" + check]
+                 "init.prior_check=" + check, "--set",
+                 "init.prior_complete_search=" + complete_search]
     p = subprocess.run(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
                        env=dict(os.environ, OMP_NUM_THREADS="1"))
     if p.returncode != 0:
@@ -146,6 +149,9 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=20261125)
     parser.add_argument("--check", default="rivals", choices=["rivals", "strict", "off"],
                         help="init.prior_check of the runs with a prior")
+    parser.add_argument("--complete-search", default="rescue", choices=["rescue", "check"],
+                        help="init.prior_complete_search of the runs with a prior (check: a "
+                        "merge's prior edges)")
     parser.add_argument("--out", default=None, help="output folder (default BUILD/bench-priors)")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
     args = parser.parse_args(argv)
@@ -182,7 +188,8 @@ def main(argv=None):
     def one(job):
         name, kind, label, path, yaw, off, source, target, truth_path, thresholds = job
         r = run_align(lmalign, source, target, truth_path, path, SIGMA[kind], thresholds,
-                      os.path.join(out, "runs", name, label + ".json"), args.check)
+                      os.path.join(out, "runs", name, label + ".json"), args.check,
+                      args.complete_search)
         r.update({"dataset": name, "kind": kind, "guess": label, "guess_yaw_deg": yaw,
                   "guess_offset_m": off})
         return r

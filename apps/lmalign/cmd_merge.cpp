@@ -391,9 +391,11 @@ CommandRunner add_merge_command(CLI::App& root) {
       ->capture_default_str();
   cmd->add_option("--set", args->settings,
                   "KEY=VALUE: a setting of every pair's alignment (repeatable; lmalign options "
-                  "adaptive lists them with their bounds). A pair with a prior runs the prior's "
-                  "search alone unless --set init.prior_check=rivals (or strict): then the "
-                  "global search checks it too, at its cost per pair (docs/merge.md)");
+                  "adaptive lists them with their bounds). A pair with a prior is checked by the "
+                  "maps' own search, whose complete search only guards a trusted answer "
+                  "(init.prior_complete_search=check; rescue: it also re-searches an untrusted "
+                  "pair, at its cost; --set init.prior_check=off: the prior's search alone; "
+                  "docs/merge.md)");
   cmd->add_flag("--resume", args->resume, "Reuse the finished edges in OUTDIR/edges/");
   cmd->add_option("--threads", args->threads,
                   "OpenMP threads over the pairs (0 = all); the result does not depend on it")

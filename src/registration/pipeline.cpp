@@ -352,9 +352,11 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // answer, or a trusted one inside a prior's window that none of its own poses confirmed: its
   // complete search, whose answer is the result (docs/accuracy.md, "The first pass"). Not when
   // the maps put the answer outside a prior's window and every other test trusts it: no deeper
-  // pass makes that result trusted. Not counted among the scale axis's searches and attempts.
+  // pass makes that result trusted; nor, with init.prior_complete_search = "check", when the
+  // answer is not trusted. Not counted among the scale axis's searches and attempts.
   const bool deeper = first.verdict.trustworthy ? run.prior_unconfirmed()
-                                                : !first.verdict.trusted_but_for_prior_window;
+                                                : !first.verdict.trusted_but_for_prior_window &&
+                                                      run.deeper_if_untrusted();
   if (run.first_pass() && deeper) {
     run.deepen();
     if (run.begin_search(1.0)) {

@@ -87,6 +87,8 @@ class PipelineRun {
   bool first_pass() const { return base_.initialisation.deeper_pass; }
   /// InitialiserReport::prior_unconfirmed of the current search.
   bool prior_unconfirmed() const { return base_.initialisation.prior_unconfirmed; }
+  /// InitialiserReport::deeper_if_untrusted of the current search.
+  bool deeper_if_untrusted() const { return base_.initialisation.deeper_if_untrusted; }
   void deepen() { deep_ = true; }
   Summary too_few_landmarks() const;
   /// The hypotheses of the current search concluded at `rung` times its initial scale.

@@ -1244,6 +1244,41 @@ TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
   }
 }
 
+// init.prior_complete_search (a merge's prior edges use "check"): on unrelated maps with a
+// prior the answer is refused either way; "rescue" (the default) then runs the complete search's
+// vote, "check" never does, since no trusted answer needs its rivals.
+TEST(Adaptive, APriorsCheckOnlyRunsTheCompleteSearchToGuardATrustedAnswer) {
+  std::mt19937_64 rng(47);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Points3 tgt, src;
+  for (int i = 0; i < 600; ++i) tgt.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
+  for (int i = 0; i < 500; ++i) src.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
+  PreparedTarget target(tgt);
+  SourceLandmarks s;
+  s.positions = src;
+  PriorSigma prior;
+  prior.rotation_deg = 3.0;
+  prior.translation_m = 0.2;
+  auto voted = [](const Summary& r) {
+    double candidates = 0.0;
+    for (const auto& [name, value] : r.initialisation.notes) {
+      if (name == "search candidates") candidates += value;
+    }
+    return candidates > 0.0;
+  };
+  const Summary rescue =
+      test::align_with("adaptive", s, target, {{}, Isometry3::Identity(), prior});
+  const Summary check = test::align_with(
+      "adaptive", s, target, {{"init.prior_complete_search=check"}, Isometry3::Identity(), prior});
+  for (const Summary* r : {&rescue, &check}) {
+    EXPECT_FALSE(r->verdict.trustworthy) << r->verdict.reason;
+    EXPECT_TRUE(r->initialisation.prior_checked);
+  }
+  EXPECT_TRUE(voted(rescue));
+  EXPECT_FALSE(voted(check));
+  EXPECT_FALSE(check.initialisation.deeper_if_untrusted);
+}
+
 TEST(Adaptive, UnderstatedCovariancesAreMeasuredAndRefused) {
   // The room's landmarks are drawn from their covariances: the inliers' mean NIS is at most its
   // expectation (below it, as the floor adds to every pair's covariance). The same maps with

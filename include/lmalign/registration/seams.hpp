@@ -208,6 +208,10 @@ struct InitialiserReport {
   /// trusted_but_for_prior_window) stands: the maps prefer it, and no deeper pass can make the
   /// result trusted.
   bool prior_unconfirmed = false;
+  /// With deeper_pass: the deeper pass also runs when the first pass's answer is not trusted.
+  /// False (a prior with init.prior_complete_search = "check"): it runs only to check a trusted
+  /// answer that prior_unconfirmed leaves without rivals.
+  bool deeper_if_untrusted = true;
   /// Other numbers worth a line in the report (name, value).
   std::vector<std::pair<std::string, double>> notes;
 };

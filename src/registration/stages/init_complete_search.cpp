@@ -55,6 +55,12 @@ struct CompleteInitOptions {
   /// search runs too and its modes compete with the prior's hypotheses; "strict", they are the
   /// verdict's rivals but never the answer; "off", the prior's search alone.
   std::string prior_check = "rivals";
+  /// With a prior checked by the global search: "rescue", its complete search runs whenever it
+  /// can change the verdict (the first pass finds no pose, or its answer is not trusted and lies
+  /// inside the window, or is trusted inside a window no first-pass pose confirmed); "check", only
+  /// in the last case: the complete search guards a trusted answer but never rescues an
+  /// untrusted one (a merge's prior edges: most candidate pairs of a fleet do not overlap).
+  std::string prior_complete_search = "rescue";
   /// The gate the search's votes are scored with: the matcher's (match.*).
   MahalanobisGateOptions gate;
 };
@@ -88,7 +94,8 @@ class CompleteSearchInit : public Initialiser {
     window.translation_sd_m = c.prior_sigma_deg_m->second;
     const Vec3 centre = c.scales != nullptr ? c.scales->source.centre_m : Vec3::Zero();
     InitialiserReport global_report;
-    std::vector<Hypothesis> modes = global(open, &global_report);
+    const bool rescue = o_.prior_complete_search == "rescue";
+    std::vector<Hypothesis> modes = global(open, &global_report, rescue);
     std::vector<Hypothesis> inside, outside;
     auto split = [&] {
       inside.clear();
@@ -132,6 +139,7 @@ class CompleteSearchInit : public Initialiser {
     report->prior_checked = true;
     report->deeper_pass = global_report.deeper_pass;
     report->prior_unconfirmed = unconfirmed;
+    report->deeper_if_untrusted = rescue;
     return out;
   }
 
@@ -213,7 +221,10 @@ class CompleteSearchInit : public Initialiser {
     return ups;
   }
 
-  std::vector<Hypothesis> global(const InitialiserContext& c, InitialiserReport* report) const {
+  // The global search. A first pass that finds no pose runs the complete search at once, unless
+  // !vote_at_once: then no mode, and the complete search stays the deeper pass.
+  std::vector<Hypothesis> global(const InitialiserContext& c, InitialiserReport* report,
+                                 bool vote_at_once = true) const {
     const Scales& sc = *c.scales;
     const Points3& source = *c.source.positions;
     const Points3& target = c.target->points();
@@ -263,6 +274,10 @@ class CompleteSearchInit : public Initialiser {
                                  static_cast<double>(cr.hypotheses.size()));
       so.vote = in.extra_candidates.empty();
       report->deeper_pass = !so.vote;
+      if (so.vote && !vote_at_once) {
+        report->deeper_pass = true;
+        return {};
+      }
       if (so.vote) in.extra_candidates.clear();
     }
     if (o_.correspondences.hypotheses > 0 && so.vote) {
@@ -328,6 +343,13 @@ const SettingsBinding<CompleteInitOptions>& binding() {
                   "the prior's hypotheses; strict = they are the verdict's rivals, never the "
                   "answer; off = the prior's search alone (an answer outside the prior's window is "
                   "not trusted either way)")
+          .choice("init.prior_complete_search", LMALIGN_FIELD(prior_complete_search),
+                  {"rescue", "check"},
+                  "with a prior checked by the global search: rescue = its complete search runs "
+                  "whenever it can change the verdict (the first pass finds no pose, or its answer "
+                  "is not trusted, or is trusted inside the prior's window that no first-pass pose "
+                  "confirmed); check = only in the last case: it guards a trusted answer, never "
+                  "rescues an untrusted one (a merge's prior edges)")
           .add("search.vote_source_samples", LMALIGN_FIELD(search.vote_source_samples),
                SettingBound::closed(3, 1000000), "count",
                "source landmarks that cast the coarse 3-D vote (evenly strided)")
