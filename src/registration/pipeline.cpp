@@ -348,21 +348,27 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   Summary first = run.conclude(1.0);
   int attempts = 1;
   int searches = 1;
-  // The initialiser's first pass (the correspondence search's poses alone) gave no trusted
-  // answer, or a trusted one inside a prior's window that none of its own poses confirmed: its
-  // complete search, whose answer is the result (docs/accuracy.md, "The first pass"). Not when
-  // the maps put the answer outside a prior's window and every other test trusts it: no deeper
-  // pass makes that result trusted; nor, with init.prior_complete_search = "check", when the
-  // answer is not trusted. Not counted among the scale axis's searches and attempts.
-  const bool deeper = first.verdict.trustworthy ? run.prior_unconfirmed()
-                                                : !first.verdict.trusted_but_for_prior_window &&
-                                                      run.deeper_if_untrusted();
-  if (run.first_pass() && deeper) {
+  // The initialiser's deeper passes (docs/accuracy.md, "The first pass"): the first pass (the
+  // correspondence search's poses alone) gave no trusted answer, or a trusted one inside a
+  // prior's window that none of the maps' own poses confirmed: the next pass (the complete
+  // search; with init.prior_complete_search = "check" the prior's search comes first, then the
+  // correspondence poses, then the complete search), whose answer is the result. Not when the
+  // maps put the answer outside a prior's window and every other test trusts it: no deeper pass
+  // makes that result trusted; nor, with "check", when the answer is not trusted. Not counted
+  // among the scale axis's searches and attempts.
+  while (run.first_pass()) {
+    const bool checks = first.verdict.trustworthy;
+    const bool deeper =
+        checks ? run.prior_unconfirmed()
+               : !first.verdict.trusted_but_for_prior_window && run.deeper_if_untrusted();
+    if (!deeper) break;
     run.deepen();
-    if (run.begin_search(1.0)) {
-      first = run.conclude(1.0);
-      first.initialisation.notes.emplace_back("complete search after an untrusted first pass", 1.0);
-    }
+    if (!run.begin_search(1.0)) break;
+    first = run.conclude(1.0);
+    first.initialisation.notes.emplace_back(checks
+                                                ? "deeper pass to check a trusted answer"
+                                                : "complete search after an untrusted first pass",
+                                            1.0);
   }
   const bool judged = trust_ != nullptr && run.scale_free();
   if (!judged || first.verdict.trustworthy) return run.finish(std::move(first), 1, 1);

@@ -3,7 +3,7 @@
 //
 //   validate        the inputs and the request (throws)
 //   begin_search    the source at the search's initial scale (free scale), the data's scales,
-//                   the initialiser's hypotheses (from its first pass, until deepen())
+//                   the initialiser's hypotheses (from its first pass; deepen() for the next)
 //   conclude        at one place of the scale axis: the hypotheses refined and scored on the
 //                   scorer's samples (score_hypotheses), the best refined on every landmark, in
 //                   7 DoF too when the scale is free (refine_best), the covariance and the
@@ -82,14 +82,14 @@ class PipelineRun {
   /// there, the scales, the hypotheses. False when a map has fewer than 3 landmarks for a
   /// pipeline that reads the scales (then too_few_landmarks() is the result).
   bool begin_search(double factor);
-  /// True when the current search's hypotheses came from the initialiser's first pass
-  /// (InitialiserReport::deeper_pass); deepen() makes every later search a deep one.
+  /// True when the current search's hypotheses came from a pass with a deeper one after it
+  /// (InitialiserReport::deeper_pass); deepen() makes every later search the next pass.
   bool first_pass() const { return base_.initialisation.deeper_pass; }
   /// InitialiserReport::prior_unconfirmed of the current search.
   bool prior_unconfirmed() const { return base_.initialisation.prior_unconfirmed; }
   /// InitialiserReport::deeper_if_untrusted of the current search.
   bool deeper_if_untrusted() const { return base_.initialisation.deeper_if_untrusted; }
-  void deepen() { deep_ = true; }
+  void deepen() { ++pass_; }
   Summary too_few_landmarks() const;
   /// The hypotheses of the current search concluded at `rung` times its initial scale.
   Summary conclude(double rung) const;
@@ -120,7 +120,7 @@ class PipelineRun {
   std::chrono::steady_clock::time_point start_;
   Isometry3 guess_;
   std::optional<ScaleSearch> scale_search_;
-  bool deep_ = false;
+  int pass_ = 0;
   /// The current search: its source (copied at its initial scale when the scale is free), the
   /// summary every conclusion starts from (preset, settings, scales, initialiser report), its
   /// hypotheses.

@@ -1244,10 +1244,13 @@ TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
   }
 }
 
-// init.prior_complete_search (a merge's prior edges use "check"): on unrelated maps with a
-// prior the answer is refused either way; "rescue" (the default) then runs the complete search's
-// vote, "check" never does, since no trusted answer needs its rivals.
-TEST(Adaptive, APriorsCheckOnlyRunsTheCompleteSearchToGuardATrustedAnswer) {
+// init.prior_complete_search (a merge's prior edges use "check"). Unrelated maps with a prior:
+// the prior's search alone (init.prior_check=off) trusts its answer, since nothing inside the
+// window rivals it (measured: "ok"); "check" then runs the maps' own search as a deeper pass and
+// refuses it (a pose 171 deg away at 97%), without the complete search's vote; "rescue" (the
+// default) runs the maps' first pass, then the complete search. On a room with a right prior,
+// "check" trusts the prior's answer after that deeper pass.
+TEST(Adaptive, APriorsCheckRunsTheMapsOwnSearchOnlyOnATrustedAnswer) {
   std::mt19937_64 rng(47);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   Points3 tgt, src;
@@ -1274,9 +1277,29 @@ TEST(Adaptive, APriorsCheckOnlyRunsTheCompleteSearchToGuardATrustedAnswer) {
     EXPECT_FALSE(r->verdict.trustworthy) << r->verdict.reason;
     EXPECT_TRUE(r->initialisation.prior_checked);
   }
+  auto note = [](const Summary& r, const std::string& key) {
+    for (const auto& [name, value] : r.initialisation.notes) {
+      if (name == key) return true;
+    }
+    return false;
+  };
+  const Summary off = test::align_with("adaptive", s, target,
+                                       {{"init.prior_check=off"}, Isometry3::Identity(), prior});
+  EXPECT_TRUE(off.verdict.trustworthy) << off.verdict.reason;  // why the maps must check it
   EXPECT_TRUE(voted(rescue));
   EXPECT_FALSE(voted(check));
-  EXPECT_FALSE(check.initialisation.deeper_if_untrusted);
+  EXPECT_TRUE(note(check, "deeper pass to check a trusted answer"));
+  EXPECT_NE(check.verdict.reason.find("ambiguous"), std::string::npos) << check.verdict.reason;
+
+  const Room room = make_room(far_truth(), 43);
+  const PreparedTarget room_target = room.target();
+  const Isometry3 guess = pose_from_xyz_rpy_deg(0.2, -0.15, 0.0, 0, 0, 4.0) * room.T_true;
+  const Summary checked = test::align_with("adaptive", room.source, room_target,
+                                           {{"init.prior_complete_search=check"}, guess, prior});
+  EXPECT_TRUE(checked.verdict.trustworthy) << checked.verdict.reason;
+  EXPECT_TRUE(note(checked, "deeper pass to check a trusted answer"));
+  EXPECT_TRUE(note(checked, "first pass correspondence poses"));
+  EXPECT_LT(transform_error(checked.registration.T_target_source, room.T_true).rotation_deg, 0.5);
 }
 
 TEST(Adaptive, UnderstatedCovariancesAreMeasuredAndRefused) {

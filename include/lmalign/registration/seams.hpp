@@ -197,9 +197,10 @@ struct InitialiserReport {
   /// With a prior: the global search ran too and its modes are among the hypotheses (issue 41);
   /// the verdict then checks that the answer lies in the prior's window.
   bool prior_checked = false;
-  /// The hypotheses come from the initialiser's first, cheaper pass, and a deeper search is
-  /// available: Pipeline::run runs it (InitialiserContext::deep) when the first pass's answer is
-  /// not trusted, and reports that answer instead.
+  /// The hypotheses come from a cheaper pass than the initialiser's last, and a deeper search is
+  /// available: Pipeline::run runs it (InitialiserContext::pass + 1) when this pass's answer is
+  /// not trusted (deeper_if_untrusted) or is trusted but prior_unconfirmed, and reports that
+  /// answer instead.
   bool deeper_pass = false;
   /// With a prior and deeper_pass: none of the first pass's poses lies inside the prior's
   /// window, so the hypotheses inside it are the prior's own search's, and the first pass's
@@ -208,9 +209,9 @@ struct InitialiserReport {
   /// trusted_but_for_prior_window) stands: the maps prefer it, and no deeper pass can make the
   /// result trusted.
   bool prior_unconfirmed = false;
-  /// With deeper_pass: the deeper pass also runs when the first pass's answer is not trusted.
-  /// False (a prior with init.prior_complete_search = "check"): it runs only to check a trusted
-  /// answer that prior_unconfirmed leaves without rivals.
+  /// With deeper_pass: the deeper pass also runs when this pass's answer is not trusted. False
+  /// (a prior with init.prior_complete_search = "check"): it runs only to check a trusted answer
+  /// that prior_unconfirmed leaves without the maps' own rivals.
   bool deeper_if_untrusted = true;
   /// Other numbers worth a line in the report (name, value).
   std::vector<std::pair<std::string, double>> notes;
@@ -229,10 +230,10 @@ struct InitialiserContext {
   /// the pipeline's own refinement (Pipeline::refine_part, Phase::kHypothesis).
   const Pipeline* pipeline = nullptr;
   const RefineContext* refine_context = nullptr;
-  /// False: the initialiser may propose from a first, cheaper pass (and say so in
-  /// InitialiserReport::deeper_pass). True: its complete search, after a first pass whose
-  /// answer was not trusted.
-  bool deep = false;
+  /// 0: the initialiser may propose from a first, cheapest pass (and say so in
+  /// InitialiserReport::deeper_pass); each later pass, 1, 2, ..., runs after the previous pass's
+  /// answer did not settle the alignment (Pipeline::run), until a pass reports no deeper one.
+  int pass = 0;
   /// Free scale: the poses the scale's measurement found at the measured scale
   /// (ScaleMeasurement::poses: T_target_source of context.source, which is then at that
   /// scale); a first pass may take them instead of searching again. Empty otherwise.

@@ -55,11 +55,13 @@ struct CompleteInitOptions {
   /// search runs too and its modes compete with the prior's hypotheses; "strict", they are the
   /// verdict's rivals but never the answer; "off", the prior's search alone.
   std::string prior_check = "rivals";
-  /// With a prior checked by the global search: "rescue", its complete search runs whenever it
-  /// can change the verdict (the first pass finds no pose, or its answer is not trusted and lies
-  /// inside the window, or is trusted inside a window no first-pass pose confirmed); "check", only
-  /// in the last case: the complete search guards a trusted answer but never rescues an
-  /// untrusted one (a merge's prior edges: most candidate pairs of a fleet do not overlap).
+  /// With a prior checked by the global search: "rescue", the maps' own search runs first and
+  /// its complete search whenever it can change the verdict (the first pass finds no pose, or
+  /// its answer is not trusted and lies inside the window, or is trusted inside a window no
+  /// first-pass pose confirmed); "check", the prior's own search first, and the maps' own search
+  /// (its first pass, then its complete search when no first-pass pose lies inside the window)
+  /// only to check an answer the previous pass trusts, never to rescue an untrusted one (a
+  /// merge's prior edges: most candidate pairs of a fleet do not overlap).
   std::string prior_complete_search = "rescue";
   /// The gate the search's votes are scored with: the matcher's (match.*).
   MahalanobisGateOptions gate;
@@ -77,6 +79,17 @@ class CompleteSearchInit : public Initialiser {
     if (c.pipeline == nullptr || c.refine_context == nullptr) return bounded_->propose(c, report);
     if (!c.prior_sigma_deg_m.has_value()) return global(c, report);
     if (o_.prior_check == "off") return bounded_->propose(c, report);
+    // "check": the prior's own search first; the maps' own search (its first pass, then its
+    // complete search) runs in the deeper passes, only to check an answer that pass trusts.
+    const bool rescue = o_.prior_complete_search == "rescue";
+    if (!rescue && c.pass == 0) {
+      std::vector<Hypothesis> out = bounded_->propose(c, report);
+      report->notes.emplace_back("prior hypotheses", static_cast<double>(out.size()));
+      report->deeper_pass = true;
+      report->prior_unconfirmed = true;
+      report->deeper_if_untrusted = false;
+      return out;
+    }
     // The global search first (as without a prior); its modes are the hypotheses, and the trust
     // judge's rival test sees what the maps prefer outside the prior's window. When one of them
     // lies inside the window, it is the prior's hypothesis: the prior's own search would find
@@ -93,8 +106,9 @@ class CompleteSearchInit : public Initialiser {
     window.rotation_sd_rad = c.prior_sigma_deg_m->first * kPi / 180.0;
     window.translation_sd_m = c.prior_sigma_deg_m->second;
     const Vec3 centre = c.scales != nullptr ? c.scales->source.centre_m : Vec3::Zero();
+    // (With "check" the maps' first pass is pass 1, their complete search pass 2.)
+    open.pass = rescue ? c.pass : c.pass - 1;
     InitialiserReport global_report;
-    const bool rescue = o_.prior_complete_search == "rescue";
     std::vector<Hypothesis> modes = global(open, &global_report, rescue);
     std::vector<Hypothesis> inside, outside;
     auto split = [&] {
@@ -249,7 +263,7 @@ class CompleteSearchInit : public Initialiser {
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
     CompleteSearchOptions so = o_.search;
     so.modes = o_.hypotheses;
-    if (o_.correspondences.hypotheses > 0 && o_.first_pass && !c.deep &&
+    if (o_.correspondences.hypotheses > 0 && o_.first_pass && c.pass == 0 &&
         !c.measured_poses.empty()) {
       // The first pass of a free scale: the poses the scale's measurement found at the measured
       // scale, without searching again.
@@ -258,7 +272,7 @@ class CompleteSearchInit : public Initialiser {
                                  static_cast<double>(in.extra_candidates.size()));
       so.vote = false;
       report->deeper_pass = true;
-    } else if (o_.correspondences.hypotheses > 0 && o_.first_pass && !c.deep) {
+    } else if (o_.correspondences.hypotheses > 0 && o_.first_pass && c.pass == 0) {
       // The first pass: the correspondence poses alone, at the first pass's descriptor radius.
       // None found: the complete search at once.
       CorrespondenceSearchOptions first = o_.correspondences;
@@ -345,11 +359,13 @@ const SettingsBinding<CompleteInitOptions>& binding() {
                   "not trusted either way)")
           .choice("init.prior_complete_search", LMALIGN_FIELD(prior_complete_search),
                   {"rescue", "check"},
-                  "with a prior checked by the global search: rescue = its complete search runs "
-                  "whenever it can change the verdict (the first pass finds no pose, or its answer "
-                  "is not trusted, or is trusted inside the prior's window that no first-pass pose "
-                  "confirmed); check = only in the last case: it guards a trusted answer, never "
-                  "rescues an untrusted one (a merge's prior edges)")
+                  "with a prior checked by the global search: rescue = the maps' own search runs "
+                  "first, its complete search whenever it can change the verdict (the first pass "
+                  "finds no pose, or its answer is not trusted, or is trusted inside the prior's "
+                  "window that no first-pass pose confirmed); check = the prior's own search "
+                  "first, the maps' own search (first pass, then complete search) only to check "
+                  "an answer the previous pass trusts, never to rescue an untrusted one (a merge's "
+                  "prior edges)")
           .add("search.vote_source_samples", LMALIGN_FIELD(search.vote_source_samples),
                SettingBound::closed(3, 1000000), "count",
                "source landmarks that cast the coarse 3-D vote (evenly strided)")
