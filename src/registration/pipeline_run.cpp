@@ -492,6 +492,11 @@ void PipelineRun::judge(Conclusion* c) const {
     jc.hypotheses = &s.hypotheses;
     jc.init = &s.initialisation;
     jc.covariance = &s.estimator_covariance;
+    if (request_.prior && request_.initial_guess) {
+      jc.initial_guess = request_.initial_guess;
+      jc.prior_sigma_deg_m =
+          std::make_pair(request_.prior->rotation_deg, request_.prior->translation_m);
+    }
     s.verdict = judge->judge(jc);
     if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
     check_prior_window(c);

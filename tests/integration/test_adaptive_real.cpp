@@ -315,6 +315,39 @@ TEST(AdaptiveDeskWindows, AShortHandHeldWindowsUpAxisIsRescuedByItsLandmarkPlane
   expect_right_and_trusted(r, D, 0.5, 0.01);
 }
 
+// Issue 41: a right prior tells an alias apart. Re-triangulated desk windows with no shared
+// frame (0-119 onto 120-239, bench/accuracy.yaml's desk_retri_120_ovl0): without a prior the
+// answer is right (1.4 deg, 3 cm) and refused, since a pose 12 deg away scores 81% of it while
+// the residuals exceed their covariances (the alias test); with a right prior (1 deg and 2 cm
+// off, sigma 2 deg / 5 cm) that pose lies outside the window and the answer inside it, so the
+// prior tells them apart: trusted. A rival within trust.max_ambiguity would still refuse it.
+// Measured 2026-11-26: the prior sweep's 10 right priors trusted, 0 wrong ones.
+TEST(AdaptiveDeskWindows, ARightPriorTellsAnAliasOutsideItsWindowApart) {
+  const std::string file = test::data_file("tum_fr1_desk/ground_truth_pair/map_fr1_desk_gt.txt");
+  LMALIGN_REQUIRE_FILE(file);
+  const Map full = read_map(file);
+  const Map a = desk_window(full, 0, 119);
+  const Map b = desk_window(full, 120, 239);
+  const PreparedTarget target(b);
+  const SourceLandmarks source = SourceLandmarks::from_map(a);
+  PriorSigma prior;
+  prior.rotation_deg = 2.0;
+  prior.translation_m = 0.05;
+  const Isometry3 guess = pose_from_xyz_rpy_deg(0.02, 0.0, 0.0, 0.0, 0.0, 1.0);
+  const Summary r = test::align_with("adaptive", source, target, {{}, guess, prior});
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  const TransformError e = transform_error(r.registration.T_target_source, Isometry3::Identity());
+  EXPECT_LT(e.rotation_deg, 3.0);
+  EXPECT_LT(e.translation_m, 0.06);
+  // The alias the prior told apart: a distinct pose outside the window, at least
+  // trust.alias_ambiguity of the answer, with the residuals above their covariances.
+  EXPECT_GE(r.verdict.ambiguity, test::preset_setting("adaptive", "trust.alias_ambiguity"));
+  EXPECT_LT(r.verdict.ambiguity, test::preset_setting("adaptive", "trust.max_ambiguity"));
+  ASSERT_TRUE(r.verdict.rival_T_target_source.has_value());
+  EXPECT_GT(transform_error(*r.verdict.rival_T_target_source, guess).rotation_deg,
+            3.0 * prior.rotation_deg);
+}
+
 // Re-triangulated windows of the desk map whose votes never proposed the truth (the search kept
 // the best-voted yaw peaks): the complete search finds the pose its score prefers. Measured on a
 // 2-core AMD EPYC guest, 2026-11-23: 0.06 deg / 2 mm (60 frames) and 0.04 deg / 1 mm (30 frames),

@@ -544,6 +544,11 @@ struct JudgeContext {
   const std::vector<RefinedHypothesis>* hypotheses = nullptr;  ///< by decreasing score
   const InitialiserReport* init = nullptr;
   const PoseCovariance* covariance = nullptr;  ///< the estimator's
+  /// The request's initial guess (T_target_source) and its prior (standard deviations of the
+  /// rotation, degrees, and of the translation, metres, about the target origin), if given:
+  /// InitialiserContext's.
+  std::optional<Isometry3> initial_guess;
+  std::optional<std::pair<double, double>> prior_sigma_deg_m;
 };
 
 class TrustJudge : public Stage {

@@ -7,7 +7,8 @@
 // a margin to the best distinct refined mode: none scoring max_ambiguity of the best, nor
 // alias_ambiguity of it while the residuals exceed their covariances by alias_nis_ratio
 // (repeated structure aliases a pose with residuals the covariances do not explain, and gives it
-// rivals); a non-degenerate covariance. The reported covariance is the estimator's times the
+// rivals), unless a prior tells the two apart (the answer inside its window, the rival outside);
+// a non-degenerate covariance. The reported covariance is the estimator's times the
 // covariance scale when that is above 1.
 #include <algorithm>
 #include <cmath>
@@ -19,6 +20,7 @@
 
 #include "lmalign/core/geometry.hpp"
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
+#include "lmalign/registration/stages/yaw_vote_search.hpp"
 #include "stage.hpp"
 
 LMALIGN_STAGE_FUNCTIONS(trust_gated)
@@ -181,7 +183,7 @@ class GatedJudge : public TrustJudge {
                  "): the maps disagree beyond their uncertainty";
     } else if (v.ambiguity >= o_.max_ambiguity ||
                (v.ambiguity >= o_.alias_ambiguity &&
-                v.mean_nis > o_.alias_nis_ratio * v.expected_nis)) {
+                v.mean_nis > o_.alias_nis_ratio * v.expected_nis && !prior_tells_apart(j, v))) {
       v.reason = "ambiguous: another pose " + short_number(v.rival_distance_m) + " m / " +
                  short_number(v.rival_angle_deg) + " deg away scores " +
                  std::to_string(static_cast<int>(std::lround(100.0 * v.ambiguity))) +
@@ -204,6 +206,22 @@ class GatedJudge : public TrustJudge {
   }
 
  private:
+  // With a prior (issue 41: priors are hints, checked against the maps), an alias is told apart
+  // by it: the answer lies inside the prior's window and the rival outside (each widened by the
+  // search's resolution, as Pipeline's check of the window). A rival within max_ambiguity is
+  // still an ambiguity, prior or not.
+  static bool prior_tells_apart(const JudgeContext& j, const Verdict& v) {
+    if (!j.initial_guess || !j.prior_sigma_deg_m || !v.rival_T_target_source) return false;
+    PoseWindow w;
+    w.T_target_source_guess = *j.initial_guess;
+    w.rotation_sd_rad = j.prior_sigma_deg_m->first * kPi / 180.0;
+    w.translation_sd_m = j.prior_sigma_deg_m->second;
+    const Vec3 centre = j.context.scales->source.centre_m;
+    const double res_m = j.init->resolution_m, res_rad = j.init->resolution_rad;
+    return w.check(j.final->T, centre, res_m, res_rad).inside() &&
+           !w.check(*v.rival_T_target_source, centre, res_m, res_rad).inside();
+  }
+
   std::string too_uncertain(const JudgeContext& j, const Verdict& v, const Scales& sc) const {
     const PoseCovariance& cov = v.covariance ? *v.covariance : *j.covariance;
     if (!cov.valid) return {};
@@ -242,7 +260,8 @@ const SettingsBinding<GatedTrustOptions>& binding() {
           .add("trust.alias_ambiguity", LMALIGN_FIELD(alias_ambiguity),
                SettingBound::open_closed(0.0, 1.0), "1",
                "untrusted when a distinct pose scores this fraction of the best and the mean NIS "
-               "exceeds trust.alias_nis_ratio of its expectation")
+               "exceeds trust.alias_nis_ratio of its expectation, unless a prior tells them apart "
+               "(the answer inside its window, that pose outside)")
           .add("trust.alias_nis_ratio", LMALIGN_FIELD(alias_nis_ratio), SettingBound::at_least(1.0),
                "1", "see trust.alias_ambiguity")
           .add("trust.max_sd_spacings", LMALIGN_FIELD(max_sd_spacings), SettingBound::above(0.0),
