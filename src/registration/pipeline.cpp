@@ -350,7 +350,9 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   int searches = 1;
   // The initialiser's deeper passes (docs/accuracy.md, "The first pass"): the first pass (the
   // correspondence search's poses alone) gave no trusted answer, or a trusted one inside a
-  // prior's window that none of the maps' own poses confirmed: the next pass (the complete
+  // prior's window that none of the maps' own poses confirmed, or one whose residuals exceed
+  // their covariances as an alias's (Verdict::rivals_needed: the alias test needs every rival,
+  // and the first pass's few poses may miss them): the next pass (the complete
   // search; with init.prior_complete_search = "check" the prior's search comes first, then the
   // correspondence poses, then the complete search), whose answer is the result. Not when the
   // maps put the answer outside a prior's window and every other test trusts it: no deeper pass
@@ -359,10 +361,12 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   while (run.first_pass()) {
     const bool checks = first.verdict.trustworthy;
     const bool deeper =
-        checks ? run.prior_unconfirmed()
+        checks ? run.prior_unconfirmed() || first.verdict.rivals_needed
                : !first.verdict.trusted_but_for_prior_window && run.deeper_if_untrusted();
     if (!deeper) break;
-    run.deepen();
+    // A trusted answer is checked: it stays among the next pass's hypotheses.
+    run.deepen(checks ? std::optional<Isometry3>(first.registration.T_target_source)
+                      : std::nullopt);
     if (!run.begin_search(1.0)) break;
     first = run.conclude(1.0);
     first.initialisation.notes.emplace_back(checks

@@ -223,6 +223,14 @@ bool PipelineRun::begin_search(double factor) {
     if (hypotheses_.empty()) {
       throw Error("initialiser '" + pipeline_.spec().initialiser + "' proposed nothing");
     }
+    if (keep_ && factor == 1.0) {
+      Hypothesis kept = hypotheses_.front();
+      kept.T_target_source = *keep_;
+      kept.search_score = 0.0;
+      kept.origin = "previous pass";
+      kept.rival_only = false;
+      hypotheses_.push_back(kept);
+    }
     return true;
   }
 }

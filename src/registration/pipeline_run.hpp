@@ -89,7 +89,12 @@ class PipelineRun {
   bool prior_unconfirmed() const { return base_.initialisation.prior_unconfirmed; }
   /// InitialiserReport::deeper_if_untrusted of the current search.
   bool deeper_if_untrusted() const { return base_.initialisation.deeper_if_untrusted; }
-  void deepen() { ++pass_; }
+  /// The next pass; `keep`: a pose the next pass's hypotheses include ("previous pass": a
+  /// trusted answer that pass checks, so that it finds the answer's rivals without losing it).
+  void deepen(std::optional<Isometry3> keep = std::nullopt) {
+    ++pass_;
+    keep_ = keep;
+  }
   Summary too_few_landmarks() const;
   /// The hypotheses of the current search concluded at `rung` times its initial scale.
   Summary conclude(double rung) const;
@@ -121,6 +126,7 @@ class PipelineRun {
   Isometry3 guess_;
   std::optional<ScaleSearch> scale_search_;
   int pass_ = 0;
+  std::optional<Isometry3> keep_;
   /// The current search: its source (copied at its initial scale when the scale is free), the
   /// summary every conclusion starts from (preset, settings, scales, initialiser report), its
   /// hypotheses.

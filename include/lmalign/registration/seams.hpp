@@ -531,6 +531,11 @@ struct Verdict {
   /// where), and whether every other test of the judge trusted it.
   bool outside_prior_window = false;
   bool trusted_but_for_prior_window = false;
+  /// The residuals exceed their covariances as repeated structure's aliases do (judge "gated":
+  /// mean NIS above trust.alias_nis_ratio of its expectation), so the alias test needs every
+  /// rival: a trusted answer of an initialiser's first pass, whose few poses may miss them, is
+  /// checked by its deeper pass (Pipeline::run).
+  bool rivals_needed = false;
   /// A covariance of the judge's own (judge "inliers": point-to-point on its inliers), reported
   /// instead of the estimator's.
   std::optional<PoseCovariance> covariance;

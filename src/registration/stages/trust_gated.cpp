@@ -165,6 +165,9 @@ class GatedJudge : public TrustJudge {
       scaled.covariance *= v.covariance_scale;
       v.covariance = scaled;
     }
+    // Residuals above their covariances, as an alias's: the alias test needs every rival
+    // (Verdict::rivals_needed).
+    v.rivals_needed = v.mean_nis > o_.alias_nis_ratio * v.expected_nis;
     const TerminationReason end = j.final->termination;
     if (end == TerminationReason::kNoCorrespondences) {
       v.reason = "no covariance-gated correspondences";
@@ -182,8 +185,7 @@ class GatedJudge : public TrustJudge {
                  short_number(std::sqrt(o_.max_covariance_scale)) +
                  "): the maps disagree beyond their uncertainty";
     } else if (v.ambiguity >= o_.max_ambiguity ||
-               (v.ambiguity >= o_.alias_ambiguity &&
-                v.mean_nis > o_.alias_nis_ratio * v.expected_nis && !prior_tells_apart(j, v))) {
+               (v.ambiguity >= o_.alias_ambiguity && v.rivals_needed && !prior_tells_apart(j, v))) {
       v.reason = "ambiguous: another pose " + short_number(v.rival_distance_m) + " m / " +
                  short_number(v.rival_angle_deg) + " deg away scores " +
                  std::to_string(static_cast<int>(std::lround(100.0 * v.ambiguity))) +
