@@ -1217,19 +1217,29 @@ TEST(Adaptive, LandmarksOnALineAreNotTrusted) {
   }
 }
 
+// Two independent uniform clouds in one 6 x 5 x 2 m box (600 target and 500 source landmarks),
+// no covariances.
+struct UnrelatedClouds {
+  Points3 target, source;
+};
+UnrelatedClouds unrelated_clouds(std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  UnrelatedClouds c;
+  for (int i = 0; i < 600; ++i) c.target.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
+  for (int i = 0; i < 500; ++i) c.source.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
+  return c;
+}
+
 TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
-  // Two independent uniform clouds in the same box, no covariances. Measured: "ambiguous"
-  // (ambiguity 0.98 and 1.00). Only the ambiguity rejects them: the floor (half the spacing)
-  // lets ~97% of the landmarks pass the gate near some target landmark (inlier ratio 0.97).
+  // Measured: "ambiguous" (ambiguity 0.98 and 1.00). Only the ambiguity rejects them: the floor
+  // (half the spacing) lets ~97% of the landmarks pass the gate near some target landmark
+  // (inlier ratio 0.97).
   for (std::uint64_t seed : {45u, 46u}) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    Points3 tgt, src;
-    for (int i = 0; i < 600; ++i) tgt.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
-    for (int i = 0; i < 500; ++i) src.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
-    PreparedTarget target(tgt);
+    const UnrelatedClouds c = unrelated_clouds(seed);
+    PreparedTarget target(c.target);
     SourceLandmarks s;
-    s.positions = src;
+    s.positions = c.source;
     const Summary r = test::align_with("adaptive", s, target);
     EXPECT_FALSE(r.verdict.trustworthy) << "seed " << seed << ": " << r.verdict.reason;
     // The verdict names the rival it measured, and the result carries it.
@@ -1251,14 +1261,10 @@ TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
 // default) runs the maps' first pass, then the complete search. On a room with a right prior,
 // "check" trusts the prior's answer after that deeper pass.
 TEST(Adaptive, APriorsCheckRunsTheMapsOwnSearchOnlyOnATrustedAnswer) {
-  std::mt19937_64 rng(47);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  Points3 tgt, src;
-  for (int i = 0; i < 600; ++i) tgt.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
-  for (int i = 0; i < 500; ++i) src.emplace_back(6.0 * u(rng), 5.0 * u(rng), 2.0 * u(rng));
-  PreparedTarget target(tgt);
+  const UnrelatedClouds c = unrelated_clouds(47);
+  PreparedTarget target(c.target);
   SourceLandmarks s;
-  s.positions = src;
+  s.positions = c.source;
   PriorSigma prior;
   prior.rotation_deg = 3.0;
   prior.translation_m = 0.2;
