@@ -534,10 +534,8 @@ void PipelineRun::check_prior_window(Conclusion* c) const {
   const Isometry3& guess = *request_.initial_guess;
   const Isometry3& answer = s.registration.T_target_source;
   const Vec3 centre = s.scales ? s.scales->source.centre_m : Vec3::Zero();
-  PoseWindow window;
-  window.T_target_source_guess = guess;
-  window.rotation_sd_rad = request_.prior->rotation_deg * kPi / 180.0;
-  window.translation_sd_m = request_.prior->translation_m;
+  const PoseWindow window =
+      PoseWindow::of_prior(guess, request_.prior->rotation_deg, request_.prior->translation_m);
   const PoseWindow::Check w =
       window.check(answer, centre, s.initialisation.resolution_m, s.initialisation.resolution_rad);
   if (w.inside()) return;

@@ -101,10 +101,9 @@ class CompleteSearchInit : public Initialiser {
     InitialiserContext open = c;
     open.prior_sigma_deg_m.reset();
     open.initial_guess.reset();
-    PoseWindow window;
-    window.T_target_source_guess = c.initial_guess.value_or(Isometry3::Identity());
-    window.rotation_sd_rad = c.prior_sigma_deg_m->first * kPi / 180.0;
-    window.translation_sd_m = c.prior_sigma_deg_m->second;
+    const PoseWindow window =
+        PoseWindow::of_prior(c.initial_guess.value_or(Isometry3::Identity()),
+                             c.prior_sigma_deg_m->first, c.prior_sigma_deg_m->second);
     const Vec3 centre = c.scales != nullptr ? c.scales->source.centre_m : Vec3::Zero();
     // (With "check" the maps' first pass is pass 1, their complete search pass 2.)
     open.pass = rescue ? c.pass : c.pass - 1;

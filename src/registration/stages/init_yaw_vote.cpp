@@ -50,9 +50,7 @@ class YawVote : public Initialiser {
 
     PoseWindow window;
     if (has_prior) {
-      window.T_target_source_guess = guess;
-      window.rotation_sd_rad = c.prior_sigma_deg_m->first * kPi / 180.0;
-      window.translation_sd_m = c.prior_sigma_deg_m->second;
+      window = PoseWindow::of_prior(guess, c.prior_sigma_deg_m->first, c.prior_sigma_deg_m->second);
     }
     const double centre_sd_m = has_prior ? window.point_sd_m(sc.source.centre_m) : 0.0;
     const bool search_needed =

@@ -214,10 +214,8 @@ class GatedJudge : public TrustJudge {
   // still an ambiguity, prior or not.
   static bool prior_tells_apart(const JudgeContext& j, const Verdict& v) {
     if (!j.initial_guess || !j.prior_sigma_deg_m || !v.rival_T_target_source) return false;
-    PoseWindow w;
-    w.T_target_source_guess = *j.initial_guess;
-    w.rotation_sd_rad = j.prior_sigma_deg_m->first * kPi / 180.0;
-    w.translation_sd_m = j.prior_sigma_deg_m->second;
+    const PoseWindow w = PoseWindow::of_prior(*j.initial_guess, j.prior_sigma_deg_m->first,
+                                              j.prior_sigma_deg_m->second);
     const Vec3 centre = j.context.scales->source.centre_m;
     const double res_m = j.init->resolution_m, res_rad = j.init->resolution_rad;
     return w.check(j.final->T, centre, res_m, res_rad).inside() &&

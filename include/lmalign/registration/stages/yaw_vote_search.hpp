@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "lmalign/core/geometry.hpp"
 #include "lmalign/core/types.hpp"
 #include "lmalign/search/kdtree.hpp"
 
@@ -59,6 +60,17 @@ struct PoseWindow {
   Isometry3 T_target_source_guess = Isometry3::Identity();
   double rotation_sd_rad = 0.0;   ///< > 0
   double translation_sd_m = 0.0;  ///< > 0
+
+  /// The window of a prior given as InitialiserContext and PriorSigma give it: the guess, the
+  /// rotation's standard deviation in degrees and the translation's in metres.
+  static PoseWindow of_prior(const Isometry3& guess, double rotation_sd_deg,
+                             double translation_sd_m) {
+    PoseWindow w;
+    w.T_target_source_guess = guess;
+    w.rotation_sd_rad = rotation_sd_deg * kPi / 180.0;
+    w.translation_sd_m = translation_sd_m;
+    return w;
+  }
 
   /// The standard deviation (metres) of where `point_m` (source frame) lands under the prior:
   /// the translation sigma is about the target origin (uncertainty.hpp), so it grows by the
