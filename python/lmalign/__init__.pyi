@@ -228,6 +228,8 @@ class CandidatePair:
     def target_metric(self) -> bool: ...
     @property
     def prior_sigma(self) -> Optional[Tuple[float, float]]: ...
+    @property
+    def prior_complete_search(self) -> str: ...  # 'rescue' or 'check'
 
 class Edge:
     @property

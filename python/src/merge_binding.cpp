@@ -143,11 +143,11 @@ Edge edge_from_state(const py::tuple& t) {
 py::tuple pair_state(const CandidatePair& c) {
   return py::make_tuple(c.source, c.target, c.rank, optional_transform_out(c.initial_guess),
                         prior_sigma_out(c.prior), c.source_metric, c.target_metric,
-                        c.covariances_assumed);
+                        c.covariances_assumed, c.prior_complete_search);
 }
 
 CandidatePair pair_from_state(const py::tuple& t) {
-  if (t.size() != 8) throw InvalidArgument("CandidatePair: pickled state of a different version");
+  if (t.size() != 9) throw InvalidArgument("CandidatePair: pickled state of a different version");
   CandidatePair c;
   c.source = t[0].cast<std::size_t>();
   c.target = t[1].cast<std::size_t>();
@@ -160,6 +160,7 @@ CandidatePair pair_from_state(const py::tuple& t) {
   c.source_metric = t[5].cast<bool>();
   c.target_metric = t[6].cast<bool>();
   c.covariances_assumed = t[7].cast<bool>();
+  c.prior_complete_search = t[8].cast<std::string>();
   return c;
 }
 
@@ -324,6 +325,10 @@ void bind_candidates(py::module_& m) {
                     "similarity.")
       .def_readonly("target_metric", &CandidatePair::target_metric,
                     "Whether the target map's lengths are metres (its header).")
+      .def_readonly("prior_complete_search", &CandidatePair::prior_complete_search,
+                    "With a prior: the edge's init.prior_complete_search ('rescue' for merges "
+                    "of at most 12 maps: an untrusted prior-bounded alignment also gets the "
+                    "complete search; 'check' beyond: the maps' first pass alone rescues it).")
       .def(py::pickle([](const CandidatePair& c) { return pair_state(c); },
                       [](const py::tuple& t) { return pair_from_state(t); }))
       .def("__repr__", [](const CandidatePair& c) {

@@ -58,8 +58,11 @@ def test_the_pure_steps_compose_to_the_same_merge(desk):
     assert edges == run.edges  # bit for bit, keys included
     # An Edge survives pickling (what a Dask worker sends back) bit for bit.
     assert pickle.loads(pickle.dumps(edges)) == edges
-    assert [(p.source, p.target, p.prior_sigma) for p in pickle.loads(pickle.dumps(pairs))] == \
-        [(p.source, p.target, p.prior_sigma) for p in pairs]
+    assert [(p.source, p.target, p.prior_sigma, p.prior_complete_search)
+            for p in pickle.loads(pickle.dumps(pairs))] == \
+        [(p.source, p.target, p.prior_sigma, p.prior_complete_search) for p in pairs]
+    # Four maps: an untrusted prior edge is rescued by the complete search too (issue 37).
+    assert {p.prior_complete_search for p in pairs} == {"rescue"}
     graph = lmalign.solve_pose_graph(len(maps), manifest.priors, edges)
     assert np.array_equal(np.array([p.T_world_map for p in graph.maps]), run.T_world_map)
     assert graph.final_chi2 == run.final_chi2

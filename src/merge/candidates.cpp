@@ -338,6 +338,7 @@ std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summar
         ps.rotation_deg = std::clamp(sd_r / kRadPerDeg, 1e-3, kMaxAngleDeg);
         ps.translation_m = std::clamp(sd_t, 1e-4, kMaxCoordinateM);
         c.prior = ps;
+        c.prior_complete_search = n <= options.all_pairs_max_maps ? "rescue" : "check";
         with_prior.push_back(c);
       } else {
         without.emplace_back(i, j);

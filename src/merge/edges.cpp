@@ -59,17 +59,18 @@ AlignRequest edge_request(const Preset& preset, const CandidatePair& pair,
   AlignRequest request;
   request.max_iterations = options.max_iterations;
   const Pipeline pipeline(preset.spec);
-  // A merge plans many prior edges, most of which do not overlap on a dense fleet. Each is checked
-  // by the global search like a single alignment (init.prior_check=rivals), whose complete search
-  // then guards a trusted answer that no first-pass pose confirmed but never rescues an untrusted
-  // one (init.prior_complete_search=check): a wrong prior gives no trusted edge, at about the
-  // first pass's cost per pair (docs/merge.md, "Edges with priors"). A manifest's or a caller's
-  // own setting wins.
+  // A merge's prior edge is checked by the global search like a single alignment
+  // (init.prior_check=rivals): a wrong prior gives no trusted edge. How far an untrusted one is
+  // rescued is the pair's (CandidatePair::prior_complete_search): on a fleet, whose candidate
+  // pairs mostly do not overlap, by the maps' first pass alone ("check"); on a small merge by
+  // their complete search too ("rescue"; docs/merge.md, "Edges with priors"). A manifest's or a
+  // caller's own setting wins.
   const bool set_by_caller =
       std::any_of(options.settings.begin(), options.settings.end(),
                   [](const auto& kv) { return kv.first == "init.prior_complete_search"; });
   if (pair.prior && !set_by_caller && pipeline.settings().has("init.prior_complete_search")) {
-    request.settings.emplace_back("init.prior_complete_search", SettingValue(std::string("check")));
+    request.settings.emplace_back("init.prior_complete_search",
+                                  SettingValue(pair.prior_complete_search));
   }
   request.settings.insert(request.settings.end(), options.settings.begin(), options.settings.end());
   request.initial_guess = pair.initial_guess;

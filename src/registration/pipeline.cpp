@@ -356,23 +356,25 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // search; with init.prior_complete_search = "check" the prior's search comes first, then the
   // correspondence poses, then the complete search), whose answer is the result. Not when the
   // maps put the answer outside a prior's window and every other test trusts it: no deeper pass
-  // makes that result trusted; nor, with "check", when the answer is not trusted. Not counted
-  // among the scale axis's searches and attempts.
+  // makes that result trusted; nor, with "check", when the correspondence poses' answer is not
+  // trusted (InitialiserReport::deeper_if_untrusted), or when no landmark supports the prior's
+  // own answer (deeper_needs_evidence, Verdict::no_evidence). Not counted among the scale axis's
+  // searches and attempts.
   while (run.first_pass()) {
     const bool checks = first.verdict.trustworthy;
-    const bool deeper =
-        checks ? run.prior_unconfirmed() || first.verdict.rivals_needed
-               : !first.verdict.trusted_but_for_prior_window && run.deeper_if_untrusted();
+    const bool deeper = checks ? run.prior_unconfirmed() || first.verdict.rivals_needed
+                               : !first.verdict.trusted_but_for_prior_window &&
+                                     run.deeper_if_untrusted() &&
+                                     !(run.deeper_needs_evidence() && first.verdict.no_evidence);
     if (!deeper) break;
     // A trusted answer is checked: it stays among the next pass's hypotheses.
     run.deepen(checks ? std::optional<Isometry3>(first.registration.T_target_source)
                       : std::nullopt);
     if (!run.begin_search(1.0)) break;
     first = run.conclude(1.0);
-    first.initialisation.notes.emplace_back(checks
-                                                ? "deeper pass to check a trusted answer"
-                                                : "complete search after an untrusted first pass",
-                                            1.0);
+    first.initialisation.notes.emplace_back(
+        checks ? "deeper pass to check a trusted answer" : "deeper pass after an untrusted answer",
+        1.0);
   }
   const bool judged = trust_ != nullptr && run.scale_free();
   if (!judged || first.verdict.trustworthy) return run.finish(std::move(first), 1, 1);

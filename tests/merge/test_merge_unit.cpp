@@ -423,6 +423,15 @@ TEST(MergeCandidates, PriorsKeepOverlappingPairsOnlyAndAllPairsWithout) {
   ASSERT_TRUE(with[0].initial_guess && with[0].prior);
   EXPECT_TRUE(
       with[0].initial_guess->isApprox(priors[1]->T_world_map.inverse() * priors[0]->T_world_map));
+  // A merge of at most all_pairs_max_maps maps rescues an untrusted prior edge with the
+  // complete search too (a merge without priors would align every pair fully anyway); a
+  // larger one with the maps' first pass alone (issue 37, item 4).
+  EXPECT_EQ(with[0].prior_complete_search, "rescue");
+  CandidateOptions fleet;
+  fleet.all_pairs_max_maps = 2;
+  const auto planned_as_fleet = plan_candidates(s, priors, fleet);
+  ASSERT_EQ(planned_as_fleet.size(), 1u);
+  EXPECT_EQ(planned_as_fleet[0].prior_complete_search, "check");
   const auto without = plan_candidates(s, std::vector<std::optional<MapPrior>>(3));
   EXPECT_EQ(without.size(), 3u);
   CandidateOptions budget;

@@ -1260,7 +1260,7 @@ TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
 // refuses it (a pose 171 deg away at 97%), without the complete search's vote; "rescue" (the
 // default) runs the maps' first pass, then the complete search. On a room with a right prior,
 // "check" trusts the prior's answer after that deeper pass.
-TEST(Adaptive, APriorsCheckRunsTheMapsOwnSearchOnlyOnATrustedAnswer) {
+TEST(Adaptive, APriorsCheckRunsTheMapsCompleteSearchOnlyOnATrustedAnswer) {
   const UnrelatedClouds c = unrelated_clouds(47);
   PreparedTarget target(c.target);
   SourceLandmarks s;

@@ -303,7 +303,7 @@ TEST(AdaptiveStreet, TheFirstPassAloneAnswersWhenTrustedAndTheCompleteSearchOthe
     const Summary s = default_at_the_truth(2);
     EXPECT_GT(note(s, "first pass correspondence poses"), 0.0);
     EXPECT_EQ(note(s, "search candidates"), 0.0);  // no vote
-    EXPECT_TRUE(std::isnan(note(s, "complete search after an untrusted first pass")));
+    EXPECT_TRUE(std::isnan(note(s, "deeper pass after an untrusted answer")));
   }
   // A street of 1,000 landmarks (seed 1) where the first pass's answer is not trusted: the
   // complete search runs, and its answer is the one without a first pass, bit for bit.
@@ -315,7 +315,7 @@ TEST(AdaptiveStreet, TheFirstPassAloneAnswersWhenTrustedAndTheCompleteSearchOthe
   const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
   const PreparedTarget target(pair.target);
   const Summary s = test::align_with("adaptive", source, target, test::Ask{});
-  EXPECT_EQ(note(s, "complete search after an untrusted first pass"), 1.0);
+  EXPECT_EQ(note(s, "deeper pass after an untrusted answer"), 1.0);
   EXPECT_GT(note(s, "search candidates"), 0.0);  // the vote ran
   const Summary off =
       test::align_with("adaptive", source, target, test::Ask{{"search.first_pass=false"}});

@@ -47,6 +47,16 @@ struct CandidatePair {
   bool source_metric = true;
   bool target_metric = true;
   bool covariances_assumed = false;
+  /// With a prior: the edge's init.prior_complete_search (registration/stages/
+  /// init_complete_search.cpp) unless the caller sets it. plan_candidates says "rescue" (an
+  /// untrusted prior-bounded alignment also gets the maps' complete search) for merges of at
+  /// most CandidateOptions::all_pairs_max_maps maps, where a merge without priors would align
+  /// every pair with the full default anyway: a merge with priors is never worse than the same
+  /// merge without them (issue 37, item 4). Beyond, "check" (the maps' first pass checks a
+  /// trusted answer and rescues an untrusted one; their complete search only checks): most
+  /// candidate pairs of a fleet do not overlap, and the complete search on each would cost
+  /// several times the merge (docs/merge.md, "Edges with priors").
+  std::string prior_complete_search = "check";
 };
 
 struct CandidateOptions {

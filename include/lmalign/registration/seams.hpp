@@ -210,9 +210,16 @@ struct InitialiserReport {
   /// result trusted.
   bool prior_unconfirmed = false;
   /// With deeper_pass: the deeper pass also runs when this pass's answer is not trusted. False
-  /// (a prior with init.prior_complete_search = "check"): it runs only to check a trusted answer
-  /// that prior_unconfirmed leaves without the maps' own rivals.
+  /// (the maps' first pass under a prior with init.prior_complete_search = "check"): the
+  /// complete search runs only to check a trusted answer that prior_unconfirmed leaves without
+  /// the maps' own rivals.
   bool deeper_if_untrusted = true;
+  /// With deeper_if_untrusted: an untrusted answer goes deeper only when the maps support it at
+  /// all (not Verdict::no_evidence). Set by a prior's own search under init.
+  /// prior_complete_search = "check": fewer than trust.min_inliers landmarks agree anywhere in
+  /// the prior's window, and a deeper pass's answer could be trusted only inside that window
+  /// (a fleet's candidate pairs that do not overlap then cost the prior's search alone).
+  bool deeper_needs_evidence = false;
   /// Other numbers worth a line in the report (name, value).
   std::vector<std::pair<std::string, double>> notes;
 };
@@ -536,6 +543,10 @@ struct Verdict {
   /// rival: a trusted answer of an initialiser's first pass, whose few poses may miss them, is
   /// checked by its deeper pass (Pipeline::run).
   bool rivals_needed = false;
+  /// Nothing in the maps supports the answer (judge "gated": no gated correspondence, or fewer
+  /// gated inliers than trust.min_inliers): with InitialiserReport::deeper_needs_evidence, no
+  /// deeper pass is tried.
+  bool no_evidence = false;
   /// A covariance of the judge's own (judge "inliers": point-to-point on its inliers), reported
   /// instead of the estimator's.
   std::optional<PoseCovariance> covariance;

@@ -58,10 +58,12 @@ struct CompleteInitOptions {
   /// With a prior checked by the global search: "rescue", the maps' own search runs first and
   /// its complete search whenever it can change the verdict (the first pass finds no pose, or
   /// its answer is not trusted and lies inside the window, or is trusted inside a window no
-  /// first-pass pose confirmed); "check", the prior's own search first, and the maps' own search
-  /// (its first pass, then its complete search when no first-pass pose lies inside the window)
-  /// only to check an answer the previous pass trusts, never to rescue an untrusted one (a
-  /// merge's prior edges: most candidate pairs of a fleet do not overlap).
+  /// first-pass pose confirmed); "check", the prior's own search first, then the maps' first
+  /// pass (the correspondence poses: it checks a trusted answer and rescues an untrusted one
+  /// that some landmarks support, a prior being a hint, never a wall), and their complete search
+  /// only to check a trusted answer that no first-pass pose confirms, never to rescue an
+  /// untrusted one (a fleet's prior edges, merge/candidates.hpp: most candidate pairs of a fleet
+  /// do not overlap, and the complete search is the dear part).
   std::string prior_complete_search = "rescue";
   /// The gate the search's votes are scored with: the matcher's (match.*).
   MahalanobisGateOptions gate;
@@ -79,15 +81,18 @@ class CompleteSearchInit : public Initialiser {
     if (c.pipeline == nullptr || c.refine_context == nullptr) return bounded_->propose(c, report);
     if (!c.prior_sigma_deg_m.has_value()) return global(c, report);
     if (o_.prior_check == "off") return bounded_->propose(c, report);
-    // "check": the prior's own search first; the maps' own search (its first pass, then its
-    // complete search) runs in the deeper passes, only to check an answer that pass trusts.
+    // "check": the prior's own search first; the maps' first pass runs next (to check a trusted
+    // answer, or to rescue an untrusted one that some landmarks support: the prior's window may
+    // hold the truth that its own search missed); their complete search only to check a trusted
+    // answer.
     const bool rescue = o_.prior_complete_search == "rescue";
     if (!rescue && c.pass == 0) {
       std::vector<Hypothesis> out = bounded_->propose(c, report);
       report->notes.emplace_back("prior hypotheses", static_cast<double>(out.size()));
       report->deeper_pass = true;
       report->prior_unconfirmed = true;
-      report->deeper_if_untrusted = false;
+      report->deeper_if_untrusted = true;
+      report->deeper_needs_evidence = true;
       return out;
     }
     // The global search first (as without a prior); its modes are the hypotheses, and the trust
@@ -362,9 +367,10 @@ const SettingsBinding<CompleteInitOptions>& binding() {
                   "first, its complete search whenever it can change the verdict (the first pass "
                   "finds no pose, or its answer is not trusted, or is trusted inside the prior's "
                   "window that no first-pass pose confirmed); check = the prior's own search "
-                  "first, the maps' own search (first pass, then complete search) only to check "
-                  "an answer the previous pass trusts, never to rescue an untrusted one (a merge's "
-                  "prior edges)")
+                  "first, then the maps' first pass (it checks a trusted answer and rescues an "
+                  "untrusted one that at least trust.min_inliers landmarks support), their "
+                  "complete search only to check a trusted answer that no first-pass pose "
+                  "confirms (the prior edges of a merge of more than 12 maps)")
           .add("search.vote_source_samples", LMALIGN_FIELD(search.vote_source_samples),
                SettingBound::closed(3, 1000000), "count",
                "source landmarks that cast the coarse 3-D vote (evenly strided)")

@@ -169,6 +169,7 @@ class GatedJudge : public TrustJudge {
     // (Verdict::rivals_needed).
     v.rivals_needed = v.mean_nis > o_.alias_nis_ratio * v.expected_nis;
     const TerminationReason end = j.final->termination;
+    v.no_evidence = end == TerminationReason::kNoCorrespondences || v.num_inliers < o_.min_inliers;
     if (end == TerminationReason::kNoCorrespondences) {
       v.reason = "no covariance-gated correspondences";
     } else if (end == TerminationReason::kDegenerate || !j.covariance->valid) {
@@ -209,8 +210,11 @@ class GatedJudge : public TrustJudge {
 
  private:
   // With a prior (issue 41: priors are hints, checked against the maps), an alias is told apart
-  // by it: the answer lies inside the prior's window and the rival outside (each widened by the
-  // search's resolution, as Pipeline's check of the window). A rival within max_ambiguity is
+  // by it: the answer lies inside the prior's own window (3 sigma), and the rival outside it
+  // even widened by the search's resolution (as Pipeline's check of the window). The answer gets
+  // no such widening: the prior vouches only for what it covers (measured: with right priors on
+  // desk windows that share no frame, an answer 6.8 deg from the truth lay beyond 3 sigma but
+  // inside the widened window, and was trusted by the waiver). A rival within max_ambiguity is
   // still an ambiguity, prior or not.
   static bool prior_tells_apart(const JudgeContext& j, const Verdict& v) {
     if (!j.initial_guess || !j.prior_sigma_deg_m || !v.rival_T_target_source) return false;
@@ -218,7 +222,7 @@ class GatedJudge : public TrustJudge {
                                               j.prior_sigma_deg_m->second);
     const Vec3 centre = j.context.scales->source.centre_m;
     const double res_m = j.init->resolution_m, res_rad = j.init->resolution_rad;
-    return w.check(j.final->T, centre, res_m, res_rad).inside() &&
+    return w.check(j.final->T, centre, 0.0, 0.0).inside() &&
            !w.check(*v.rival_T_target_source, centre, res_m, res_rad).inside();
   }
 
