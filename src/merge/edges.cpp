@@ -63,8 +63,8 @@ AlignRequest edge_request(const Preset& preset, const CandidatePair& pair,
   // (init.prior_check=rivals): a wrong prior gives no trusted edge. How far an untrusted one is
   // rescued is the pair's (CandidatePair::prior_complete_search): on a fleet, whose candidate
   // pairs mostly do not overlap, by the maps' first pass alone ("check"); on a small merge by
-  // their complete search too ("rescue"; docs/merge.md, "Edges with priors"). A manifest's or a
-  // caller's own setting wins.
+  // their complete search too ("rescue"; docs/merge.md, "Edges with priors"). The caller's own
+  // setting (EdgeOptions::settings: lmalign merge --set) wins.
   const bool set_by_caller =
       std::any_of(options.settings.begin(), options.settings.end(),
                   [](const auto& kv) { return kv.first == "init.prior_complete_search"; });

@@ -37,9 +37,13 @@ TEST_F(CliMerge, SimulatedFleetMergesEndToEndAndResumeReusesEveryEdge) {
   for (const char* f : {"manifest.yaml", "ground_truth.yaml", "overlaps.csv", "maps/map_004.txt"}) {
     EXPECT_TRUE(fs::exists(scene + "/" + f)) << f;
   }
+  // (A fleet's edge search, "check", as beyond 12 maps: a 5-map merge's own, "rescue", runs the
+  // complete search on each untrusted pair, 5x this test's time under the sanitizers; the
+  // default is SetReachesEveryEdge...'s.)
   const std::string merge = "merge " + shell_quote(scene + "/manifest.yaml") + " -o " +
                             shell_quote(out) + " --ground-truth " +
-                            shell_quote(scene + "/ground_truth.yaml") + " --thresholds 1,0.1";
+                            shell_quote(scene + "/ground_truth.yaml") +
+                            " --thresholds 1,0.1 --set init.prior_complete_search=check";
   const test::CliRun r = run(merge);
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   // 5 maps: every pair, all placed within 1 deg / 10 cm, no false edge kept.
