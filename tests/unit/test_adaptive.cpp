@@ -1308,6 +1308,31 @@ TEST(Adaptive, APriorsCheckRunsTheMapsCompleteSearchOnlyOnATrustedAnswer) {
   EXPECT_LT(transform_error(checked.registration.T_target_source, room.T_true).rotation_deg, 0.5);
 }
 
+// Under "check" an untrusted answer of the prior's own search is rescued by the maps' first pass
+// only when some landmarks support it (issue 37, item 4; Verdict::no_evidence): a prior that
+// puts the source 50 m from the target, with a window of 0.6 m, finds no gated correspondence,
+// and nothing runs after it (a fleet's candidate pairs that do not overlap cost the prior's
+// search alone). An answer the first pass could find elsewhere would be outside the window,
+// and never trusted.
+TEST(Adaptive, APriorsCheckRescuesOnlyAnAnswerSomeLandmarksSupport) {
+  const UnrelatedClouds c = unrelated_clouds(47);
+  PreparedTarget target(c.target);
+  SourceLandmarks s;
+  s.positions = c.source;
+  PriorSigma prior;
+  prior.rotation_deg = 3.0;
+  prior.translation_m = 0.2;
+  const Isometry3 far = pose_from_xyz_rpy_deg(50.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+  const Summary r =
+      test::align_with("adaptive", s, target, {{"init.prior_complete_search=check"}, far, prior});
+  EXPECT_FALSE(r.verdict.trustworthy) << r.verdict.reason;
+  EXPECT_TRUE(r.verdict.no_evidence);
+  for (const auto& [name, value] : r.initialisation.notes) {
+    EXPECT_NE(name, "deeper pass after an untrusted answer");
+    EXPECT_NE(name, "first pass correspondence poses");
+  }
+}
+
 TEST(Adaptive, UnderstatedCovariancesAreMeasuredAndRefused) {
   // The room's landmarks are drawn from their covariances: the inliers' mean NIS is at most its
   // expectation (below it, as the floor adds to every pair's covariance). The same maps with
