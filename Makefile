@@ -125,8 +125,7 @@ build-sanitize: deps
 	cmake --build $(ASAN_BUILD_DIR) -j $(JOBS)
 # Thirteen end-to-end accuracy tests run in Release only: under the sanitizers they took 95, 86,
 # 56, 112, 104 and 42 s of CI's 2 cores (2026-11-25), the next six 68, 65, 56, 46, 41 and 39 s,
-# and MergeFleet.TwelveMaps... 93 s before its prior edges got the complete search (2026-11-26;
-# 5x that since, in Release 6 -> 32 s);
+# and MergeFleet.TwelveMaps... 93 s (2026-11-26; its edges now also get the first pass's rescue);
 # their code runs sanitized in the smaller tests of the same suites (MergeFleet.AWrongPrior...,
 # MergeReal.KittiWindowsWithOdometryPriors, CliMerge.*, VoSynthetic.*, MergeReal.Stella...,
 # ScaleDesk.*; the default's first pass and its viewing-direction test in every test of the
