@@ -1231,6 +1231,13 @@ UnrelatedClouds unrelated_clouds(std::uint64_t seed) {
   return c;
 }
 
+PriorSigma prior_sigma(double rotation_deg, double translation_m) {
+  PriorSigma p;
+  p.rotation_deg = rotation_deg;
+  p.translation_m = translation_m;
+  return p;
+}
+
 TEST(Adaptive, UnrelatedMapsAreNotTrusted) {
   // Measured: "ambiguous" (ambiguity 0.98 and 1.00). Only the ambiguity rejects them: the floor
   // (half the spacing) lets ~97% of the landmarks pass the gate near some target landmark
@@ -1265,9 +1272,7 @@ TEST(Adaptive, APriorsCheckRunsTheMapsCompleteSearchOnlyOnATrustedAnswer) {
   PreparedTarget target(c.target);
   SourceLandmarks s;
   s.positions = c.source;
-  PriorSigma prior;
-  prior.rotation_deg = 3.0;
-  prior.translation_m = 0.2;
+  const PriorSigma prior = prior_sigma(3.0, 0.2);
   auto voted = [](const Summary& r) {
     double candidates = 0.0;
     for (const auto& [name, value] : r.initialisation.notes) {
@@ -1319,9 +1324,7 @@ TEST(Adaptive, APriorsCheckRescuesOnlyAnAnswerSomeLandmarksSupport) {
   PreparedTarget target(c.target);
   SourceLandmarks s;
   s.positions = c.source;
-  PriorSigma prior;
-  prior.rotation_deg = 3.0;
-  prior.translation_m = 0.2;
+  const PriorSigma prior = prior_sigma(3.0, 0.2);
   const Isometry3 far = pose_from_xyz_rpy_deg(50.0, 0.0, 0.0, 0.0, 0.0, 0.0);
   const Summary r =
       test::align_with("adaptive", s, target, {{"init.prior_complete_search=check"}, far, prior});
