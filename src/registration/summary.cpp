@@ -263,6 +263,7 @@ std::string to_json(const Summary& s, int indent) {
                     {"score", h.score},
                     {"iterations", h.iterations},
                     {"termination", to_string(h.termination)},
+                    {"sharp_restart", h.sharp_restart},
                     {"T_start", matrix4(h.start.T_target_source)},
                     {"T_refined", matrix4(h.T_refined)}});
   }

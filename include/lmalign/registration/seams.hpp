@@ -493,6 +493,11 @@ struct RefinedHypothesis {
   double score = 0.0;  ///< the scorer's, on the samples
   int iterations = 0;
   TerminationReason termination = TerminationReason::kNotTerminated;
+  /// The guess' refinement from its own gate (start_sigma_*) scored below the guess, and this
+  /// is the refinement from the guess with a sharp gate instead (zero pose uncertainty), which
+  /// scored higher (PipelineRun::score_hypotheses: the guess is never traded for a pose the
+  /// score rates lower). Always false for a search's hypotheses.
+  bool sharp_restart = false;
 };
 
 class Scorer : public Stage {
