@@ -33,6 +33,7 @@ struct MergeArgs {
   std::string ground_truth;
   long long max_pairs = 0;
   long long candidates_per_map = 4;
+  long long verify_per_map = 30;
   bool resume = false;
   int threads = 0;
   std::string thresholds = "5,0.1";
@@ -121,10 +122,10 @@ int plan_only(const std::vector<Map>& maps, const std::vector<std::string>& name
   create_output_folder(out_dir);
   const std::string path = (fs::path(out_dir) / "candidates.csv").string();
   write_output(path, [&](std::ostream& os) {
-    os << "source,target,rank,prior\n";
+    os << "source,target,rank,prior,verified_matches\n";
     for (const CandidatePair& c : pairs) {
       os << names[c.source] << "," << names[c.target] << "," << c.rank << "," << (c.prior ? 1 : 0)
-         << "\n";
+         << "," << c.verified_matches << "\n";
     }
   });
   say("%zu maps: %zu candidate pairs; wrote %s\n", maps.size(), pairs.size(), path.c_str());
@@ -274,15 +275,18 @@ int run_merge_command(const MergeArgs& a) {
     throw InvalidArgument(
         "--set is not handed over to a Dask cluster yet: run the merge without --dask-scheduler");
   }
-  if (!a.dask_scheduler.empty() && a.candidates_per_map != 4) {
+  if (!a.dask_scheduler.empty() && (a.candidates_per_map != 4 || a.verify_per_map != 30)) {
     throw InvalidArgument(
-        "--candidates-per-map is not handed over to a Dask cluster yet: run the merge without "
-        "--dask-scheduler");
+        "--candidates-per-map and --verify-per-map are not handed over to a Dask cluster yet: run "
+        "the merge without --dask-scheduler");
   }
   if (!a.dask_scheduler.empty()) return exec_python_merge(a);
   const std::vector<std::pair<std::string, SettingValue>> settings = edge_settings(a.settings);
   if (a.max_pairs < 0) throw InvalidArgument("--max-pairs must be >= 0 (0 = no limit)");
   if (a.candidates_per_map < 1) throw InvalidArgument("--candidates-per-map must be >= 1");
+  if (a.verify_per_map < 0 || a.verify_per_map > 100000) {
+    throw InvalidArgument("--verify-per-map must be in [0, 100000] (0 = no verification)");
+  }
   if (a.threads < 0) throw InvalidArgument("--threads must be >= 0 (0 = all)");
   const std::vector<double> thr =
       parse_number_list("--thresholds", a.thresholds, 2, "ROT_DEG,TRANS_M, e.g. 5,0.1");
@@ -312,6 +316,7 @@ int run_merge_command(const MergeArgs& a) {
   MergeOptions options;
   options.candidates.max_pairs = static_cast<std::size_t>(a.max_pairs);
   options.candidates.keep_per_map = static_cast<std::size_t>(a.candidates_per_map);
+  options.candidates.verify_per_map = static_cast<std::size_t>(a.verify_per_map);
   options.threads = a.threads;
   options.edges.scale = scale_mode;
   options.edges.settings = settings;
@@ -380,6 +385,12 @@ CommandRunner add_merge_command(CLI::App& root) {
                   "Without priors, beyond 12 maps: each map's K most similar maps by retrieval "
                   "(a bag of words over its landmarks' neighbourhood descriptors) are its "
                   "candidates (docs/merge.md, \"Candidates\")")
+      ->capture_default_str();
+  cmd->add_option("--verify-per-map", args->verify_per_map,
+                  "Without priors, beyond 12 maps: each map's N most similar maps are verified "
+                  "by the correspondence search (the largest clique of consistent landmark "
+                  "matches, about 20 ms a pair of 500-landmark maps) and the K of "
+                  "--candidates-per-map are the best verified; 0 = retrieval alone")
       ->capture_default_str();
   cmd->add_option("--scale", args->scale,
                   "auto: a map without metric scale (its header: COLMAP, Bundler, monocular "

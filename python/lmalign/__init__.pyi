@@ -230,6 +230,8 @@ class CandidatePair:
     def prior_sigma(self) -> Optional[Tuple[float, float]]: ...
     @property
     def prior_complete_search(self) -> str: ...  # 'rescue' or 'check'
+    @property
+    def verified_matches(self) -> int: ...  # the largest clique of the retrieval's verification
 
 class Edge:
     @property
@@ -344,6 +346,7 @@ def plan_candidates(
     max_pairs: int = 0,
     keep_per_map: int = 4,
     all_pairs_max_maps: int = 12,
+    verify_per_map: int = 30,
 ) -> List[CandidatePair]: ...
 def align_edge(
     source: Map,

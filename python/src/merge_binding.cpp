@@ -143,11 +143,13 @@ Edge edge_from_state(const py::tuple& t) {
 py::tuple pair_state(const CandidatePair& c) {
   return py::make_tuple(c.source, c.target, c.rank, optional_transform_out(c.initial_guess),
                         prior_sigma_out(c.prior), c.source_metric, c.target_metric,
-                        c.covariances_assumed, c.prior_complete_search);
+                        c.covariances_assumed, c.prior_complete_search, c.verified_matches);
 }
 
 CandidatePair pair_from_state(const py::tuple& t) {
-  if (t.size() != 9) throw InvalidArgument("CandidatePair: pickled state of a different version");
+  if (t.size() != 10) {
+    throw InvalidArgument("CandidatePair: pickled state of a different version");
+  }
   CandidatePair c;
   c.source = t[0].cast<std::size_t>();
   c.target = t[1].cast<std::size_t>();
@@ -161,6 +163,7 @@ CandidatePair pair_from_state(const py::tuple& t) {
   c.target_metric = t[6].cast<bool>();
   c.covariances_assumed = t[7].cast<bool>();
   c.prior_complete_search = t[8].cast<std::string>();
+  c.verified_matches = t[9].cast<std::size_t>();
   return c;
 }
 
@@ -329,6 +332,10 @@ void bind_candidates(py::module_& m) {
                     "With a prior: the edge's init.prior_complete_search ('rescue' for merges "
                     "of at most 12 maps: an untrusted prior-bounded alignment also gets the "
                     "complete search; 'check' beyond: the maps' first pass alone rescues it).")
+      .def_readonly("verified_matches", &CandidatePair::verified_matches,
+                    "Retrieved pairs (no priors, more than all_pairs_max_maps maps): the matches "
+                    "in the correspondence search's largest clique between the two maps' "
+                    "sketches (0: none found, or not verified).")
       .def(py::pickle([](const CandidatePair& c) { return pair_state(c); },
                       [](const py::tuple& t) { return pair_from_state(t); }))
       .def("__repr__", [](const CandidatePair& c) {
@@ -340,13 +347,15 @@ void bind_candidates(py::module_& m) {
       "plan_candidates",
       [](const std::vector<Map>& maps,
          const std::optional<std::vector<std::optional<MapPrior>>>& priors_in,
-         std::size_t max_pairs, std::size_t keep_per_map, std::size_t all_pairs_max_maps) {
+         std::size_t max_pairs, std::size_t keep_per_map, std::size_t all_pairs_max_maps,
+         std::size_t verify_per_map) {
         std::vector<std::optional<MapPrior>> priors =
             priors_in.value_or(std::vector<std::optional<MapPrior>>(maps.size()));
         CandidateOptions o;
         o.max_pairs = max_pairs;
         o.keep_per_map = keep_per_map;
         o.all_pairs_max_maps = all_pairs_max_maps;
+        o.verify_per_map = verify_per_map;
         std::string why;
         if (!o.is_valid(&why)) throw InvalidArgument("plan_candidates: " + why);
         py::gil_scoped_release release;
@@ -357,10 +366,13 @@ void bind_candidates(py::module_& m) {
       },
       py::arg("maps"), py::arg("priors") = py::none(), py::kw_only(), py::arg("max_pairs") = 0,
       py::arg("keep_per_map") = 4, py::arg("all_pairs_max_maps") = 12,
+      py::arg("verify_per_map") = 30,
       "The candidate pairs of `maps` (docs/merge.md, 'Candidates'), as `lmalign merge` plans "
       "them: with priors on both maps, pairs whose prior-placed extents overlap; else every "
       "pair up to all_pairs_max_maps maps, more maps keep their keep_per_map most similar "
-      "(map retrieval: a bag of words over the landmarks' yaw-invariant descriptors); at most "
+      "(map retrieval: a bag of words over the landmarks' yaw-invariant descriptors; each map's "
+      "verify_per_map most similar verified by the correspondence search's largest clique, "
+      "the keep_per_map best verified kept; 0 = no verification); at most "
       "max_pairs (0 = no limit), best first. priors: "
       "one MapPrior or None per map (default none). Deterministic. Raises InvalidArgument.");
 }

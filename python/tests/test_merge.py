@@ -69,6 +69,21 @@ def test_the_pure_steps_compose_to_the_same_merge(desk):
     assert graph.final_chi2 == run.final_chi2
 
 
+def test_retrieval_verifies_its_pairs_geometrically(desk):
+    # Beyond all_pairs_max_maps maps without priors the pairs are retrieved, and each map's
+    # shortlist verified by the correspondence search (docs/merge.md, "Candidates"): the desk
+    # windows overlap, so each kept pair shares a clique; without verification none is counted.
+    manifest_path, _ = desk
+    maps = lmalign.load_manifest_maps(lmalign.read_manifest(manifest_path))
+    pairs = lmalign.plan_candidates(maps, all_pairs_max_maps=2, keep_per_map=1, verify_per_map=2)
+    assert pairs and all(p.verified_matches >= 5 for p in pairs)
+    assert [(p.source, p.target, p.verified_matches, p.rank)
+            for p in pickle.loads(pickle.dumps(pairs))] == \
+        [(p.source, p.target, p.verified_matches, p.rank) for p in pairs]
+    words = lmalign.plan_candidates(maps, all_pairs_max_maps=2, keep_per_map=1, verify_per_map=0)
+    assert all(p.verified_matches == 0 for p in words)
+
+
 def test_the_merge_places_every_window_at_its_truth(desk):
     _, run = desk
     ev = run.evaluation

@@ -8,8 +8,13 @@
 //     descriptor radius), with a vocabulary learned by k-means from the maps at hand, tf-idf
 //     weights and cosine similarity; each map is also split in two halves along its main
 //     horizontal axis, and a pair's similarity is the best over {whole, halves} x {whole,
-//     halves} (two maps often share only a corner). Each map keeps its keep_per_map most
-//     similar maps; the union of those is the candidate set. A map with too few descriptors
+//     halves} (two maps often share only a corner). Geometric verification (verify_per_map > 0):
+//     each map's verify_per_map most similar maps are checked by the correspondence search
+//     (registration/stages/correspondence_search.hpp) on the two maps' sketches (their
+//     retrieval_landmarks strided landmarks with covariances and viewing directions): the
+//     largest clique of pairwise-consistent descriptor matches. Each map then keeps the
+//     keep_per_map partners with the largest cliques (ties: the more similar first); the union
+//     of those is the candidate set. A map with too few descriptors
 //     falls back to the earlier histograms (its landmarks' heights along its up axis relative to
 //     its median camera height, and distances between seeded random landmark pairs; L1
 //     distance), ranked after every retrieved pair.
@@ -33,8 +38,9 @@ namespace lmalign {
 struct CandidatePair {
   std::size_t source = 0;
   std::size_t target = 0;
-  /// Rank key, smaller = more promising (descriptor distance, or prior centre distance over
-  /// the spheres' reach); 0 for "every pair".
+  /// Rank key, smaller = more promising (the descriptor distance, divided by 1 + the verified
+  /// clique's matches when verified; or the prior centre distance over the spheres' reach); 0
+  /// for "every pair".
   double rank = 0.0;
   /// With priors on both maps: the relative prior T_target_source = T_world_target^-1 *
   /// T_world_source and its sigmas (the two priors' covariances, assumed independent, moved
@@ -57,6 +63,10 @@ struct CandidatePair {
   /// candidate pairs of a fleet do not overlap, and the complete search on each would cost
   /// several times the merge (docs/merge.md, "Edges with priors").
   std::string prior_complete_search = "check";
+  /// Retrieved pairs with geometric verification (CandidateOptions::verify_per_map): the
+  /// matches in the correspondence search's largest clique between the maps' sketches (0: none
+  /// found, or not verified).
+  std::size_t verified_matches = 0;
 };
 
 struct CandidateOptions {
@@ -81,6 +91,11 @@ struct CandidateOptions {
   std::size_t descriptor_neighbours = 24;
   /// Words of the vocabulary learned from the maps (k-means), [2, 4096].
   std::size_t vocabulary_words = 1024;
+  /// Geometric verification of the retrieval: each map's this many most similar maps are
+  /// verified by the correspondence search before keep_per_map are kept; 0 = none (the words
+  /// alone rank). Measured on the synthetic fleet (docs/merge.md, "Candidates"): overlapping
+  /// maps share cliques of 9-110 matches, 28 of 30 unrelated pairs none.
+  std::size_t verify_per_map = 30;
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -93,6 +108,15 @@ struct MapSummary {
   /// each one's half of the map (0 or 1, along its main horizontal axis).
   std::vector<float> local_descriptors;
   std::vector<std::uint8_t> local_regions;
+  /// The geometric verification's sketch: the described landmarks (up to retrieval_landmarks,
+  /// evenly strided; map frame, metres), their covariances (m^2; zero where unknown: the floor
+  /// applies) and unit mean viewing directions (zero where unknown), the map's up axis (unit)
+  /// and its covariance floor (metres, DataScales::floor_m of the sketch).
+  Points3 sketch_points;
+  std::vector<Mat3> sketch_covariances_m2;
+  std::vector<Vec3> sketch_view_directions;
+  Vec3 up = Vec3::UnitZ();
+  double floor_m = 0.0;
   std::size_t num_landmarks = 0;
   bool metric = true;               ///< MapHeader::scale == MapScale::kMetric
   bool covariance_assumed = false;  ///< MapHeader::covariance_assumed
