@@ -37,6 +37,25 @@ sim::FleetSimOptions fleet(std::size_t num_maps, std::uint64_t seed, std::size_t
   return o;
 }
 
+// The same pairs planned on one thread as `pairs` were on the default count (the planner's
+// parallel loops write one slot each).
+void expect_the_same_on_one_thread(const std::vector<MapSummary>& summaries,
+                                   const std::vector<std::optional<MapPrior>>& priors,
+                                   const CandidateOptions& options,
+                                   const std::vector<CandidatePair>& pairs) {
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const std::vector<CandidatePair> again = plan_candidates(summaries, priors, options);
+  omp_set_num_threads(saved);
+  ASSERT_EQ(again.size(), pairs.size());
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    EXPECT_EQ(again[k].source, pairs[k].source);
+    EXPECT_EQ(again[k].target, pairs[k].target);
+    EXPECT_EQ(again[k].verified_matches, pairs[k].verified_matches);
+    EXPECT_EQ(again[k].rank, pairs[k].rank);
+  }
+}
+
 // Map retrieval (candidates.hpp, issue 37): 50 maps without priors, each keeping its 4 most
 // similar. Measured: 66 of the 159 truly overlapping pairs kept (recall 0.42); the earlier
 // histograms of heights and distances kept 38 (0.24) with the same budget.
@@ -68,17 +87,7 @@ TEST(MergeRetrieval, KeepsMoreOverlappingPairsThanTheHistogramsAndRepeats) {
     m.local_regions.clear();
   }
   EXPECT_GT(retrieved, recall(plan_candidates(histograms, none, words)) + 0.1);
-  // Deterministic for any thread count.
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const std::vector<CandidatePair> again = plan_candidates(summaries, none, words);
-  omp_set_num_threads(saved);
-  ASSERT_EQ(again.size(), pairs.size());
-  for (std::size_t k = 0; k < pairs.size(); ++k) {
-    EXPECT_EQ(again[k].source, pairs[k].source);
-    EXPECT_EQ(again[k].target, pairs[k].target);
-    EXPECT_EQ(again[k].rank, pairs[k].rank);
-  }
+  expect_the_same_on_one_thread(summaries, none, words, pairs);
 }
 
 // The retrieval's geometric verification (candidates.hpp): every pair of 14 maps verified.
@@ -139,17 +148,7 @@ TEST(MergeRetrieval, VerificationSeparatesOverlappingFromUnrelatedMaps) {
   CandidateOptions words = three;
   words.verify_per_map = 0;
   EXPECT_GT(recall(three), recall(words) + 0.1);
-  // Deterministic for any thread count (the verification runs in parallel).
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const std::vector<CandidatePair> again = plan_candidates(summaries, none, o);
-  omp_set_num_threads(saved);
-  ASSERT_EQ(again.size(), pairs.size());
-  for (std::size_t k = 0; k < pairs.size(); ++k) {
-    EXPECT_EQ(again[k].source, pairs[k].source);
-    EXPECT_EQ(again[k].verified_matches, pairs[k].verified_matches);
-    EXPECT_EQ(again[k].rank, pairs[k].rank);
-  }
+  expect_the_same_on_one_thread(summaries, none, o, pairs);  // the verification is parallel
 }
 
 // The verification's path at the sanitizers' cost (the test above is too slow there): 13 maps,
@@ -175,15 +174,7 @@ TEST(MergeRetrieval, AShortlistOfOneIsVerifiedTheSameOnAnyThreadCount) {
     if (c.verified_matches >= 9) EXPECT_EQ(overlapping.count({c.source, c.target}), 1u);
   }
   EXPECT_GE(verified, 1u);
-  const int saved = omp_get_max_threads();
-  omp_set_num_threads(1);
-  const std::vector<CandidatePair> again = plan_candidates(summaries, none, o);
-  omp_set_num_threads(saved);
-  ASSERT_EQ(again.size(), pairs.size());
-  for (std::size_t k = 0; k < pairs.size(); ++k) {
-    EXPECT_EQ(again[k].verified_matches, pairs[k].verified_matches);
-    EXPECT_EQ(again[k].rank, pairs[k].rank);
-  }
+  expect_the_same_on_one_thread(summaries, none, o, pairs);
 }
 
 TEST(FleetSim, DeterministicWithKnownFramesOverlapsAndDisjointTwins) {
