@@ -150,7 +150,9 @@ TEST_F(CliMerge, SetReachesEveryEdgeAndABadSettingIsOneLine) {
            {"--set novalue", "expected KEY=VALUE"},
            {"--set init.prior_check=off --dask-scheduler tcp://127.0.0.1:1", "Dask"},
            {"--candidates-per-map 0", "--candidates-per-map must be >= 1"},
-           {"--candidates-per-map 6 --dask-scheduler tcp://127.0.0.1:1", "Dask"}}) {
+           {"--candidates-per-map 6 --dask-scheduler tcp://127.0.0.1:1", "Dask"},
+           {"--verify-per-map 100001", "--verify-per-map must be in [0, 100000]"},
+           {"--verify-per-map 5 --dask-scheduler tcp://127.0.0.1:1", "Dask"}}) {
     const test::CliRun bad = merge(path("bad"), extra);
     EXPECT_EQ(bad.exit_code, 2) << extra;
     EXPECT_NE(bad.err.find(expected), std::string::npos) << extra << ": " << bad.err;
