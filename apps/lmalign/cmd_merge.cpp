@@ -158,7 +158,7 @@ bool plot_merge(const std::string& out_dir) {
 
 // The merge's summary on the standard output: edges, parts, scales, rejected edges.
 void print_merge_summary(const std::vector<Map>& maps, const std::vector<std::string>& names,
-                         const MergeRun& run) {
+                         const MergeRun& run, double contradiction_ratio) {
   std::size_t used = 0, rejected = 0, trusted = 0;
   for (std::size_t e = 0; e < run.edges.size(); ++e) {
     trusted += run.edges[e].trusted ? 1 : 0;
@@ -169,7 +169,28 @@ void print_merge_summary(const std::vector<Map>& maps, const std::vector<std::st
       "rejected by it; %zu component(s); final chi2 %.3f (edge covariance scale %.3g)\n",
       maps.size(), run.candidates.size(), run.edges_reused, trusted, used, rejected,
       run.result.num_components, run.result.final_chi2, run.result.edge_covariance_scale);
-  say("time: edges %.2f s, graph %.2f s\n", run.seconds_edges, run.seconds_graph);
+  say("time: edges %.2f s, graph %.2f s, overlap check %.2f s\n", run.seconds_edges,
+      run.seconds_graph, run.seconds_check);
+  if (!run.repair.dropped.empty() || run.repair.rounds > 0) {
+    say("overlap repair: %zu contradicted pair(s) before; %zu edge(s) dropped in %d round(s) "
+        "(%d trial solve(s))\n",
+        run.repair.contradicted_before, run.repair.dropped.size(), run.repair.rounds,
+        run.repair.trials);
+  }
+  if (run.overlaps.ran) {
+    const std::size_t bad = run.overlaps.num_contradicted();
+    say("overlap check: %zu pair(s) of maps placed overlapping judged, %zu contradicted "
+        "(agreement below %.2f of the kept edges' median %.2f)\n",
+        run.overlaps.pairs.size(), bad, contradiction_ratio, run.overlaps.reference_agreement);
+    for (std::size_t c = 0; c < run.overlaps.contradicted_per_component.size(); ++c) {
+      const std::size_t k = run.overlaps.contradicted_per_component[c];
+      if (k == 0) continue;
+      say("component %zu is not consistent: %zu pair(s) of its maps overlap where their "
+          "landmarks disagree, so an edge in it puts a map in the wrong place "
+          "(overlap_check.csv)\n",
+          c, k);
+    }
+  }
   for (std::size_t i = 0; i < maps.size(); ++i) {
     const MapPose& p = run.result.maps[i];
     if (!p.scale_free && p.scale == 1.0) continue;
@@ -338,11 +359,12 @@ int run_merge_command(const MergeArgs& a) {
   }
   MergeOutputOptions oo;
   oo.fuse_landmarks = !a.no_fuse;
-  write_merge_outputs(a.out_dir, names, sessions, maps, run.edges, run.result, oo);
-  print_merge_summary(maps, names, run);
+  write_merge_outputs(a.out_dir, names, sessions, maps, run.edges, run.result, oo, &run.overlaps);
+  print_merge_summary(maps, names, run, options.overlaps.contradiction_ratio);
   if (!truth.empty()) print_ground_truth(maps, names, run, truth, thr);
   const bool plotted = !a.no_plots && plot_merge(a.out_dir);
-  say("wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, merged map%s, edges/%s)\n",
+  say("wrote: %s (poses.yaml, poses.json, edges.csv, summary.json, overlap_check.csv, merged "
+      "map%s, edges/%s)\n",
       a.out_dir.c_str(), run.result.num_components > 1 ? "s per component" : "",
       plotted ? ", merge_graph.png, merged_landmarks.png" : "");
   return 0;

@@ -43,7 +43,8 @@ __version__ = "@PROJECT_VERSION@"
 HAVE_MERGE = bool(_lmalign.HAVE_MERGE)
 MERGE_NAMES = (
     "CandidatePair", "Edge", "EdgeReport", "Manifest", "ManifestEntry", "MapPose", "MapPrior",
-    "MergeOutcome", "PoseGraphResult", "align_edge", "edge_file_path", "edge_key",
+    "MergeOutcome", "OverlapCheck", "PoseGraphResult", "align_edge", "check_overlaps",
+    "edge_file_path", "edge_key",
     "evaluate_merge", "load_manifest_maps", "map_fingerprint", "merge", "plan_candidates",
     "read_edge_file", "read_ground_truth", "read_manifest", "read_manifest_map",
     "solve_pose_graph", "write_edge_file", "write_merge_outputs",
@@ -57,8 +58,10 @@ if HAVE_MERGE:
         ManifestEntry,
         MapPose,
         MapPrior,
+        OverlapCheck,
         PoseGraphResult,
         align_edge,
+        check_overlaps,
         edge_file_path,
         edge_key,
         evaluate_merge,

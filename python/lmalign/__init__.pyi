@@ -376,6 +376,24 @@ def solve_pose_graph(
     maps: Optional[Sequence[Map]] = None,  # their headers: which have no metric scale
     scale: str = "auto",  # auto, free, fixed
 ) -> PoseGraphResult: ...
+class OverlapCheck:
+    @property
+    def reference_agreement(self) -> float: ...
+    @property
+    def contradicted_per_map(self) -> List[int]: ...
+    @property
+    def contradicted_per_component(self) -> List[int]: ...
+    @property
+    def pairs(self) -> List[Tuple[int, int, int, int, float, bool, bool]]: ...
+    def num_contradicted(self) -> int: ...
+
+def check_overlaps(
+    maps: Sequence[Map],
+    result: PoseGraphResult,
+    edges: Sequence[Edge],
+    *,
+    threads: int = 0,
+) -> OverlapCheck: ...
 def write_merge_outputs(
     out_dir: PathLike,
     names: Sequence[str],
@@ -384,6 +402,7 @@ def write_merge_outputs(
     edges: Sequence[Edge],
     result: PoseGraphResult,
     fuse_landmarks: bool = True,
+    overlaps: Optional[OverlapCheck] = None,
 ) -> None: ...
 def read_ground_truth(path: PathLike, names: Sequence[str]) -> F64: ...  # (N, 4, 4)
 def evaluate_merge(

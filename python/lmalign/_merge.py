@@ -216,8 +216,9 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
         graph = _c.solve_pose_graph(len(maps), priors, edges, maps=maps, scale=scale)
         s_edges, s_graph = t1 - t0, time.monotonic() - t1
         backend = "dask"
+    overlaps = _c.check_overlaps(maps, graph, edges)
     _c.write_merge_outputs(output_dir, names, [e.session for e in manifest.maps], maps, edges,
-                           graph, fuse_landmarks)
+                           graph, fuse_landmarks, overlaps)
     if plots:
         from . import _plots
         _plots.draw("plot_merge.py", [output_dir], output_dir)

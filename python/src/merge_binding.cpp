@@ -530,14 +530,16 @@ void bind_pose_graph(py::module_& m) {
          const std::vector<Edge>& edges, const std::optional<std::vector<Map>>& maps,
          const std::string& scale) {
         const auto p = priors.value_or(std::vector<std::optional<MapPrior>>(num_maps));
-        std::vector<bool> free;
         const ScaleMode mode = scale_mode_from(scale);
         if (maps) {
           if (maps->size() != num_maps) throw InvalidArgument("maps: one per map expected");
-          free = scale_free_maps(*maps, mode);
+          MergeOptions o;
+          o.edges.scale = mode;
+          py::gil_scoped_release release;
+          return solve_and_check(*maps, p, edges, o).result;
         }
         py::gil_scoped_release release;
-        return solve_pose_graph(num_maps, p, edges, {}, free);
+        return solve_pose_graph(num_maps, p, edges, {}, {});
       },
       py::arg("num_maps"), py::arg("priors"), py::arg("edges"), py::kw_only(),
       py::arg("maps") = py::none(), py::arg("scale") = "auto",
@@ -545,23 +547,61 @@ void bind_pose_graph(py::module_& m) {
       "'Pose graph'), as `lmalign merge` solves it; one machine, the GIL released. priors: one "
       "MapPrior or None per map (None: no priors). maps: the maps (their headers say which have "
       "no metric scale; those get a scale of their own, Sim(3), unless scale='fixed'); None: "
-      "every map metric. Returns a PoseGraphResult. Raises "
+      "every map metric. With maps, the merged map is also checked against itself and a part that "
+      "contradicts itself repaired (docs/merge.md, 'Maps the graph puts on top of each other'), "
+      "as the merge does. Returns a PoseGraphResult. Raises "
       "InvalidArgument (sizes, an edge naming a map out of range).");
+  py::class_<OverlapCheck>(m, "OverlapCheck",
+                           "check_overlaps()'s result (C++ lmalign::OverlapCheck; docs/merge.md, "
+                           "'Maps the graph puts on top of each other').")
+      .def_readonly("reference_agreement", &OverlapCheck::reference_agreement,
+                    "Median agreement (0-1) of the pairs a kept edge joins.")
+      .def_readonly("contradicted_per_map", &OverlapCheck::contradicted_per_map)
+      .def_readonly("contradicted_per_component", &OverlapCheck::contradicted_per_component)
+      .def_property_readonly(
+          "pairs",
+          [](const OverlapCheck& c) {
+            py::list out;
+            for (const OverlapPair& p : c.pairs) {
+              out.append(py::make_tuple(p.a, p.b, p.component, p.in_footprint, p.agreement,
+                                        p.joined_by_edge, p.contradicted));
+            }
+            return out;
+          },
+          "Judged pairs: (a, b, component, in_footprint, agreement, joined_by_edge, "
+          "contradicted), a < b map indices.")
+      .def("num_contradicted", &OverlapCheck::num_contradicted);
+  m.def(
+      "check_overlaps",
+      [](const std::vector<Map>& maps, const MergeResult& result, const std::vector<Edge>& edges,
+         int threads) {
+        OverlapCheckOptions o;
+        o.threads = threads;
+        py::gil_scoped_release release;
+        return check_overlaps(maps, result, edges, o);
+      },
+      py::arg("maps"), py::arg("result"), py::arg("edges"), py::kw_only(), py::arg("threads") = 0,
+      "The merged map checked against itself: every pair of maps of one part that the poses "
+      "make overlap, compared landmark by landmark (docs/merge.md). Deterministic for any thread "
+      "count. Raises InvalidArgument (sizes).");
   m.def(
       "write_merge_outputs",
       [](const std::filesystem::path& out_dir, const std::vector<std::string>& names,
          const std::vector<std::string>& sessions, const std::vector<Map>& maps,
-         const std::vector<Edge>& edges, const MergeResult& result, bool fuse_landmarks) {
+         const std::vector<Edge>& edges, const MergeResult& result, bool fuse_landmarks,
+         const std::optional<OverlapCheck>& overlaps) {
         for (const Map& map : maps) with_frame_index(map);
         MergeOutputOptions o;
         o.fuse_landmarks = fuse_landmarks;
         py::gil_scoped_release release;
-        write_merge_outputs(out_dir.string(), names, sessions, maps, edges, result, o);
+        write_merge_outputs(out_dir.string(), names, sessions, maps, edges, result, o,
+                            overlaps ? &*overlaps : nullptr);
       },
       py::arg("out_dir"), py::arg("names"), py::arg("sessions"), py::arg("maps"), py::arg("edges"),
-      py::arg("result"), py::arg("fuse_landmarks") = true,
+      py::arg("result"), py::arg("fuse_landmarks") = true, py::arg("overlaps") = py::none(),
       "Writes poses.yaml, poses.json, edges.csv, summary.json and the merged map(s) into out_dir "
-      "(created), each atomically, as `lmalign merge`. Raises IoError, InvalidArgument.");
+      "(created), each atomically, as `lmalign merge`; with overlaps (check_overlaps()), also "
+      "overlap_check.csv and the check's fields. Raises IoError, InvalidArgument.");
 }
 
 // The merge API: ground truth.

@@ -14,7 +14,8 @@ from conftest import write_desk_windows
 pytestmark = pytest.mark.skipif(not lmalign.HAVE_MERGE,
                                 reason="lmalign built without lmalign::merge (no Ceres)")
 
-OUTPUTS = ("poses.yaml", "poses.json", "edges.csv", "summary.json", "merged_map.txt")
+OUTPUTS = ("poses.yaml", "poses.json", "edges.csv", "summary.json", "overlap_check.csv",
+           "merged_map.txt")
 
 
 @pytest.fixture(scope="module")
@@ -67,6 +68,12 @@ def test_the_pure_steps_compose_to_the_same_merge(desk):
     graph = lmalign.solve_pose_graph(len(maps), manifest.priors, edges)
     assert np.array_equal(np.array([p.T_world_map for p in graph.maps]), run.T_world_map)
     assert graph.final_chi2 == run.final_chi2
+    # The merged real windows agree with themselves (docs/merge.md, "Maps the graph puts on top
+    # of each other"): every pair judged, none contradicted, as overlap_check.csv says.
+    check = lmalign.check_overlaps(maps, graph, edges)
+    assert check.reference_agreement > 0 and check.num_contradicted() == 0
+    rows = (__import__("pathlib").Path(run.output_dir) / "overlap_check.csv").read_text()
+    assert len(rows.splitlines()) == 1 + len(check.pairs) and len(check.pairs) >= 2
 
 
 def test_retrieval_verifies_its_pairs_geometrically(desk):

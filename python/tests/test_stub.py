@@ -25,7 +25,7 @@ def test_stub_classes_have_the_runtime_attributes():
     classes = ["Map", "AlignmentResult"]
     if lmalign.HAVE_MERGE:
         classes += ["MapPrior", "ManifestEntry", "Manifest", "CandidatePair", "Edge", "MapPose",
-                    "EdgeReport", "PoseGraphResult"]
+                    "EdgeReport", "PoseGraphResult", "OverlapCheck"]
     for name in classes:
         node = next(n for n in tree.body if isinstance(n, ast.ClassDef) and n.name == name)
         stub = {f.name for f in node.body if isinstance(f, ast.FunctionDef)}

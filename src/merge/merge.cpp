@@ -12,6 +12,7 @@
 #include "lmalign/core/error.hpp"
 #include "lmalign/core/first_exception.hpp"
 #include "lmalign/merge/output.hpp"
+#include "lmalign/merge/overlap_repair.hpp"
 
 namespace lmalign {
 
@@ -29,6 +30,14 @@ bool MergeOptions::is_valid(std::string* why) const {
     if (why) *why = "graph: " + w;
     return false;
   }
+  if (!overlaps.is_valid(&w)) {
+    if (why) *why = "overlaps: " + w;
+    return false;
+  }
+  if (!repair.is_valid(&w)) {
+    if (why) *why = "repair: " + w;
+    return false;
+  }
   if (threads < 0) {
     if (why) *why = "threads must be >= 0";
     return false;
@@ -41,6 +50,27 @@ std::vector<bool> scale_free_maps(const std::vector<Map>& maps, ScaleMode mode) 
   for (std::size_t i = 0; i < maps.size(); ++i) {
     out[i] = mode != ScaleMode::kFixed && maps[i].header.scale != MapScale::kMetric;
   }
+  return out;
+}
+
+MergeGraph solve_and_check(const std::vector<Map>& maps,
+                           const std::vector<std::optional<MapPrior>>& priors,
+                           const std::vector<Edge>& edges, const MergeOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("merge options: " + why);
+  MergeGraph out;
+  const std::vector<bool> scale_free = scale_free_maps(maps, options.edges.scale);
+  out.result = solve_pose_graph(maps.size(), priors, edges, options.graph, scale_free);
+  if (!options.overlaps.enabled) return out;
+  const auto t0 = std::chrono::steady_clock::now();
+  OverlapCheckOptions o = options.overlaps;
+  if (o.threads == 0) o.threads = options.threads;
+  out.overlaps = check_overlaps(maps, out.result, edges, o);
+  if (options.repair.enabled && out.overlaps.num_contradicted() > 0) {
+    out.repair = repair_overlaps(maps, priors, edges, options.graph, scale_free, o, options.repair,
+                                 &out.result, &out.overlaps);
+  }
+  out.seconds_check = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }
 
@@ -139,10 +169,13 @@ MergeRun run_merge(const std::vector<Map>& maps, const std::vector<std::string>&
   }
   if (progress) progress("graph", 0, 1);
   // Maps without metric scale get a scale of their own (Sim(3)), unless the scale is fixed.
-  run.result = solve_pose_graph(n, priors, run.edges, options.graph,
-                                scale_free_maps(maps, options.edges.scale));
+  MergeGraph graph = solve_and_check(maps, priors, run.edges, options);
+  run.result = std::move(graph.result);
+  run.overlaps = std::move(graph.overlaps);
+  run.repair = std::move(graph.repair);
+  run.seconds_check = graph.seconds_check;
   if (progress) progress("graph", 1, 1);
-  run.seconds_graph = std::chrono::duration<double>(Clock::now() - t1).count();
+  run.seconds_graph = std::chrono::duration<double>(Clock::now() - t1).count() - run.seconds_check;
   return run;
 }
 

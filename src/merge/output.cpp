@@ -208,10 +208,14 @@ std::vector<MapNote> map_notes(const std::vector<Map>& maps, const std::vector<E
 void write_merge_outputs(const std::string& out_dir, const std::vector<std::string>& names,
                          const std::vector<std::string>& sessions, const std::vector<Map>& maps,
                          const std::vector<Edge>& edges, const MergeResult& result,
-                         const MergeOutputOptions& options) {
+                         const MergeOutputOptions& options, const OverlapCheck* overlaps) {
   if (names.size() != maps.size() || result.maps.size() != maps.size() ||
       result.edges.size() != edges.size()) {
     throw InvalidArgument("write_merge_outputs: names, maps, poses and edges differ in number");
+  }
+  const bool checked = overlaps != nullptr && overlaps->ran;
+  if (checked && overlaps->contradicted_per_map.size() != maps.size()) {
+    throw InvalidArgument("write_merge_outputs: the overlap check is of other maps");
   }
   create_output_folder(out_dir);
   const fs::path dir(out_dir);
@@ -232,18 +236,20 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
   json poses = json::array();
   for (std::size_t i = 0; i < maps.size(); ++i) {
     const MapPose& p = result.maps[i];
-    poses.push_back({{"name", names[i]},
-                     {"component", p.component},
-                     {"gauge", p.is_gauge},
-                     {"T_world_map", matrix_json(p.T_world_map.matrix())},
-                     {"covariance", matrix_json(p.covariance)},
-                     {"covariance_valid", p.covariance_valid},
-                     {"scale", p.scale},
-                     {"scale_sd", p.scale_sd},
-                     {"scale_free", p.scale_free},
-                     {"S_world_map", matrix_json(p.similarity().matrix())},
-                     {"landmark_centre_world", landmark_centre(maps[i], p.similarity())},
-                     {"merged_landmarks", {ranges[i].first, ranges[i].second}}});
+    poses.push_back(
+        {{"name", names[i]},
+         {"component", p.component},
+         {"gauge", p.is_gauge},
+         {"T_world_map", matrix_json(p.T_world_map.matrix())},
+         {"covariance", matrix_json(p.covariance)},
+         {"covariance_valid", p.covariance_valid},
+         {"scale", p.scale},
+         {"scale_sd", p.scale_sd},
+         {"scale_free", p.scale_free},
+         {"S_world_map", matrix_json(p.similarity().matrix())},
+         {"landmark_centre_world", landmark_centre(maps[i], p.similarity())},
+         {"merged_landmarks", {ranges[i].first, ranges[i].second}},
+         {"contradicted_pairs", checked ? json(overlaps->contradicted_per_map[i]) : json()}});
   }
   json doc = {{"convention",
                "T_world_map: p_world = scale * R * p_map + t with (R, t) = T (m), S_world_map = "
@@ -303,6 +309,28 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
       rejected.push_back({names[edges[e].source], names[edges[e].target]});
     }
   }
+  json check;  // null when the check did not run
+  if (checked) {
+    json parts = json::array();
+    for (std::size_t c = 0; c < overlaps->contradicted_per_component.size(); ++c) {
+      if (overlaps->contradicted_per_component[c] > 0) {
+        parts.push_back(
+            {{"component", c}, {"contradicted", overlaps->contradicted_per_component[c]}});
+      }
+    }
+    check = {{"pairs_judged", overlaps->pairs.size()},
+             {"contradicted", overlaps->num_contradicted()},
+             {"reference_agreement", overlaps->reference_agreement},
+             {"contradicted_components", parts}};
+    write_output((dir / "overlap_check.csv").string(), [&](std::ostream& os) {
+      os << "map_a,map_b,component,in_footprint,agreement,joined_by_edge,contradicted\n";
+      os << std::setprecision(6);
+      for (const OverlapPair& p : overlaps->pairs) {
+        os << names[p.a] << "," << names[p.b] << "," << p.component << "," << p.in_footprint << ","
+           << p.agreement << "," << p.joined_by_edge << "," << p.contradicted << "\n";
+      }
+    });
+  }
   const json summary = {{"num_maps", maps.size()},
                         {"num_candidates", edges.size()},
                         {"num_edges_used", used},
@@ -314,7 +342,8 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                         {"converged", result.converged},
                         {"landmarks_left_out", left_out},
                         {"maps_alone", alone},
-                        {"same_landmarks", same}};
+                        {"same_landmarks", same},
+                        {"overlap_check", check}};
   write_output((dir / "summary.json").string(),
                [&](std::ostream& os) { os << summary.dump(2) << "\n"; });
   for (std::size_t c = 0; c < result.num_components; ++c) {

@@ -9,7 +9,8 @@
 //   edges.csv                one row per candidate edge
 //   summary.json             counts, final chi^2, the edge covariance scale, rejected edges,
 //                            the maps alone in their part and why, maps of the same landmarks
-//                            (map_notes)
+//                            (map_notes), the overlap check's counts (overlap_check.hpp)
+//   overlap_check.csv        with the check: one row per judged pair of maps
 //   merged_map.txt           (one component) or merged_map_component<k>.txt (one per
 //                            component, each in its own frame): every map's frames and
 //                            landmarks moved into the world frame (covariances rotated), frames
@@ -28,6 +29,7 @@
 
 #include "lmalign/map/map.hpp"
 #include "lmalign/merge/edges.hpp"
+#include "lmalign/merge/overlap_check.hpp"
 #include "lmalign/merge/pose_graph.hpp"
 
 namespace lmalign {
@@ -74,11 +76,14 @@ std::vector<MapNote> map_notes(const std::vector<Map>& maps, const std::vector<E
                                const MergeResult& result);
 
 /// Writes poses.yaml, poses.json, edges.csv, summary.json and the merged map(s) into `out_dir`
-/// (created if missing). `names[i]` names map i. Throws IoError / InvalidArgument.
+/// (created if missing). `names[i]` names map i. With `overlaps` (the check ran): also
+/// overlap_check.csv, summary.json's "overlap_check" and each map's "contradicted_pairs" in
+/// poses.json (else null). Throws IoError / InvalidArgument.
 void write_merge_outputs(const std::string& out_dir, const std::vector<std::string>& names,
                          const std::vector<std::string>& sessions, const std::vector<Map>& maps,
                          const std::vector<Edge>& edges, const MergeResult& result,
-                         const MergeOutputOptions& options = {});
+                         const MergeOutputOptions& options = {},
+                         const OverlapCheck* overlaps = nullptr);
 
 /// The cache file of an edge: <dir>/<name_source>__<name_target>.json.
 std::string edge_file_path(const std::string& dir, const std::string& source_name,
