@@ -91,8 +91,8 @@ class PipelineRun {
   bool deeper_if_untrusted() const { return base_.initialisation.deeper_if_untrusted; }
   /// InitialiserReport::deeper_needs_evidence of the current search.
   bool deeper_needs_evidence() const { return base_.initialisation.deeper_needs_evidence; }
-  /// The next pass; `keep`: a pose the next pass's hypotheses include ("previous pass": a
-  /// trusted answer that pass checks, so that it finds the answer's rivals without losing it).
+  /// The next pass; `keep`: a pose the next pass's hypotheses include ("previous pass": the
+  /// previous pass's answer, so that the next one finds its rivals without losing it).
   void deepen(std::optional<Isometry3> keep = std::nullopt) {
     ++pass_;
     keep_ = keep;

@@ -388,34 +388,41 @@ TEST(AdaptiveDeskWindows, TheCompleteSearchFindsShortWindowsTheVotesMissed) {
 // test a pose 18 m / 51 deg away scores 96% of it and the answer is refused as ambiguous; with it
 // that pose pairs landmarks seen from opposite directions, scores 82%, and the answer is trusted.
 // Measured on the 2-core Xeon guest, 2026-11-25.
-TEST(AdaptiveKittiWindows, ViewingDirectionsSeparateARivalTheGeometryCannot) {
+// Re-triangulated KITTI windows 1-13 and 14-26 (bench/accuracy.yaml's kitti_full_retri_disjoint:
+// no shared frame). The answer is the truth, and a pose 18.7 m / 46 deg away scores 90% of it
+// (95% without the viewing-direction test): ambiguous, so not trusted. Until 2026-11-26 the
+// search depended on how the source's frame was turned about its up axis (its centre was a
+// coordinate-wise median, its grid of yaws had a fixed phase): turned by 15 angles 30 deg
+// apart, it ended 44-49 deg off at 4 of them, and turned by -30 deg it trusted a pose 122 deg
+// off (its best rival at 77%: the first pass alone let it through). Now every turn gives the same
+// hypotheses, answer and verdict (docs/accuracy.md, "The search turns with the maps").
+TEST(AdaptiveKittiWindows, TheAnswerAndItsVerdictTurnWithTheSource) {
   const std::string file = test::data_file("kitti_stereo_vo/kitti_vo_full.txt");
   LMALIGN_REQUIRE_FILE(file);
   const Map full = read_map(file);
   const Map a = kitti_window(full, 1, 13);
-  const Map b = kitti_window(full, 14, 26);
-  const PreparedTarget target(b);
+  const PreparedTarget target(kitti_window(full, 14, 26));
   const SourceLandmarks source = SourceLandmarks::from_map(a);
   ASSERT_EQ(source.view_directions.size(), source.positions.size());
   std::size_t known = 0;
   for (const Vec3& v : source.view_directions) known += v.isZero() ? 0 : 1;
   EXPECT_GT(known, source.positions.size() / 2);
-  for (const double angle_deg : {90.0, 180.0}) {
-    SCOPED_TRACE("match.max_view_angle_deg " + std::to_string(angle_deg));
-    const Summary r = test::align_with(
-        "adaptive", source, target,
-        {{"match.max_view_angle_deg=" + std::to_string(angle_deg)}, std::nullopt, std::nullopt});
-    const TransformError e = error_of(r, Isometry3::Identity());
-    EXPECT_LT(e.rotation_deg, 0.5);
-    EXPECT_LT(e.translation_m, 0.2);
-    if (angle_deg < 180.0) {
-      EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
-      EXPECT_LT(r.verdict.ambiguity, 0.85);
-    } else {
-      EXPECT_FALSE(r.verdict.trustworthy);
-      EXPECT_NE(r.verdict.reason.find("ambiguous"), std::string::npos) << r.verdict.reason;
-    }
-  }
+  const Summary r = test::align_with("adaptive", source, target, {});
+  const TransformError e = error_of(r, Isometry3::Identity());
+  EXPECT_LT(e.rotation_deg, 0.5);
+  EXPECT_LT(e.translation_m, 0.2);
+  EXPECT_FALSE(r.verdict.trustworthy);
+  EXPECT_NE(r.verdict.reason.find("ambiguous"), std::string::npos) << r.verdict.reason;
+  // Turned by 75 deg about the camera's y axis (near the drive's up; the up axis is estimated
+  // again) and moved: one of the turns that ended 44-49 deg off.
+  const Isometry3 B = pose_from_xyz_rpy_deg(4.0, 0.0, -9.0, 0.0, 75.0, 0.0);
+  const Summary t =
+      test::align_with("adaptive", SourceLandmarks::from_map(transform_map(a, B)), target, {});
+  const Isometry3 back = t.registration.T_target_source * B;
+  EXPECT_LT((back.linear() - r.registration.T_target_source.linear()).norm(), 1e-6);
+  EXPECT_LT((back.translation() - r.registration.T_target_source.translation()).norm(), 1e-5);
+  EXPECT_NEAR(t.verdict.score, r.verdict.score, 1e-6 * r.verdict.score);
+  EXPECT_EQ(t.verdict.reason, r.verdict.reason);
 }
 
 // Issue 37, item 4 (priors are hints, never walls): a merge's prior edge (init.

@@ -543,10 +543,11 @@ struct Verdict {
   /// where), and whether every other test of the judge trusted it.
   bool outside_prior_window = false;
   bool trusted_but_for_prior_window = false;
-  /// The residuals exceed their covariances as repeated structure's aliases do (judge "gated":
-  /// mean NIS above trust.alias_nis_ratio of its expectation), so the alias test needs every
-  /// rival: a trusted answer of an initialiser's first pass, whose few poses may miss them, is
-  /// checked by its deeper pass (Pipeline::run).
+  /// The verdict needs every rival (judge "gated": the residuals exceed their covariances as
+  /// repeated structure's aliases do, the mean NIS above trust.alias_nis_ratio of its
+  /// expectation; or a rival already scores trust.alias_ambiguity of the answer): a trusted
+  /// answer of an initialiser's first pass, whose few poses may miss them, is checked by its
+  /// deeper pass (Pipeline::run).
   bool rivals_needed = false;
   /// Nothing in the maps supports the answer (judge "gated": no gated correspondence, or fewer
   /// gated inliers than trust.min_inliers): with InitialiserReport::deeper_needs_evidence, no

@@ -23,6 +23,17 @@ double median_of(std::vector<double> v) {
   return v[mid];
 }
 
+// The mean of the two middle values (the median for an odd count): middle_of(-v) = -middle_of(v).
+double middle_of(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const std::size_t hi = v.size() / 2;
+  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(hi), v.end());
+  if (v.size() % 2 == 1) return v[hi];
+  const double upper = v[hi];
+  const double lower = *std::max_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(hi));
+  return 0.5 * (lower + upper);
+}
+
 }  // namespace
 
 DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* covariances_m2,
@@ -50,12 +61,24 @@ DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* 
   const std::size_t m = std::max<std::size_t>(2, std::min(n, max_samples));
   DataScales s;
 
-  // Centre and radius: coordinate-wise median, then the median distance to it.
+  // Centre and radius: the coordinate-wise median along the landmarks' principal axes (so that
+  // it turns and moves with the map: along the map's own x, y and z it did not, and a map turned
+  // about its up axis got another centre, radius and search resolution), then the median
+  // distance to it.
+  Vec3 mean = Vec3::Zero();
+  for (const Vec3& p : points) mean += p;
+  mean /= static_cast<double>(n);
+  Mat3 scatter = Mat3::Zero();
+  for (const Vec3& p : points) scatter += (p - mean) * (p - mean).transpose();
+  const Eigen::SelfAdjointEigenSolver<Mat3> axes(scatter);
+  const Mat3 E = axes.info() == Eigen::Success ? axes.eigenvectors() : Mat3::Identity();
   std::vector<double> coord(n);
+  Vec3 c = Vec3::Zero();
   for (int d = 0; d < 3; ++d) {
-    for (std::size_t i = 0; i < n; ++i) coord[i] = points[i][d];
-    s.centre_m[d] = median_of(coord);
+    for (std::size_t i = 0; i < n; ++i) coord[i] = E.col(d).dot(points[i] - mean);
+    c[d] = middle_of(coord);  // the same for either sign of the axis
   }
+  s.centre_m = mean + E * c;
   std::vector<double> dist(n);
   for (std::size_t i = 0; i < n; ++i) dist[i] = (points[i] - s.centre_m).norm();
   s.radius_m = std::max(median_of(dist), 1e-6);

@@ -124,6 +124,17 @@ void accumulate_7(const std::vector<GatedPair>& pairs, const Points3& target_poi
   }
 }
 
+// A system the step may solve: factorised, and of full rank to well within round-off (its
+// smallest pivot above 1e-12 of its largest). A pivot of a rank-deficient system is round-off,
+// and its sign is chance: a collinear map at an exact pose gave a positive one, a step, and a
+// "converged" answer where the same map elsewhere was "degenerate".
+template <typename Ldlt>
+bool full_rank(const Ldlt& ldlt) {
+  if (ldlt.info() != Eigen::Success) return false;
+  const auto d = ldlt.vectorD();
+  return d.minCoeff() > 1e-12 * d.cwiseAbs().maxCoeff();
+}
+
 }  // namespace
 
 P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& target_points,
@@ -140,7 +151,7 @@ P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& targe
     step.hessian = H;
     if (pairs.size() < 3) return step;
     const Eigen::LDLT<Mat7> ldlt(H);
-    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return step;
+    if (!full_rank(ldlt)) return step;
     step.xi = -ldlt.solve(g);
     step.ok = step.xi.allFinite();
     if (!step.ok) step.xi.setZero();
@@ -163,7 +174,7 @@ P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& targe
   if (basis.kind == P2DBasis::Kind::k6) {
     if (pairs.size() < 3) return step;
     const Eigen::LDLT<Mat6> ldlt(H);
-    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return step;
+    if (!full_rank(ldlt)) return step;
     xi = -ldlt.solve(g);
   } else {
     if (pairs.size() < 2) return step;
@@ -174,7 +185,7 @@ P2DStep solve_p2d_step(const std::vector<GatedPair>& pairs, const Points3& targe
     const Eigen::Matrix4d H4 = B.transpose() * H * B;
     const Eigen::Vector4d g4 = B.transpose() * g;
     const Eigen::LDLT<Eigen::Matrix4d> ldlt(H4);
-    if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().minCoeff() > 0.0)) return step;
+    if (!full_rank(ldlt)) return step;
     xi = B * (-ldlt.solve(g4));
     step.hessian.topLeftCorner<6, 6>() = B * H4 * B.transpose();
   }

@@ -787,8 +787,34 @@ struct YawGrid {
   double radius_v = std::numeric_limits<double>::infinity();
 };
 
+// The azimuth about `up` of the principal horizontal axis of `points` turned by R, in
+// (-pi/2, pi/2], from the unit e1 towards up x e1: the angle of the 2x2 scatter's major axis.
+// Turning the points about `up` by b adds b to it (modulo pi).
+double principal_azimuth(const Points3& points, const Mat3& R, const Vec3& up, const Vec3& e1) {
+  const Vec3 e2 = up.cross(e1);
+  double ma = 0.0, mb = 0.0;
+  for (const Vec3& p : points) {
+    const Vec3 q = R * p;
+    ma += q.dot(e1);
+    mb += q.dot(e2);
+  }
+  const double n = static_cast<double>(std::max<std::size_t>(points.size(), 1));
+  ma /= n;
+  mb /= n;
+  double saa = 0.0, sbb = 0.0, sab = 0.0;
+  for (const Vec3& p : points) {
+    const Vec3 q = R * p;
+    const double a = q.dot(e1) - ma, b = q.dot(e2) - mb;
+    saa += a * a;
+    sbb += b * b;
+    sab += a * b;
+  }
+  return 0.5 * std::atan2(2.0 * sab, saa - sbb);
+}
+
 YawGrid yaw_grid(const Vec3& up_source, const Vec3& up, const Vec3& centre, double cell_m,
-                 const YawVoteOptions& options, const PoseWindow* window) {
+                 const YawVoteOptions& options, const PoseWindow* window,
+                 const VoteSamples& samples) {
   YawGrid g;
   Mat3& base = g.base;
   double& yaw_from = g.yaw_from;
@@ -801,6 +827,16 @@ YawGrid yaw_grid(const Vec3& up_source, const Vec3& up, const Vec3& centre, doub
   if (window == nullptr) {
     base = rotation_between(up_source, up);
     n_yaw = static_cast<int>(std::ceil(2.0 * kPi / step - 1e-9));
+    // The grid's phase: the yaw that turns the source samples' principal horizontal axis onto
+    // the target samples', modulo the step. A map turned about its up axis then gets the same
+    // candidates, turned with it (when the step divides 180 deg, as the default's 3 deg does:
+    // an axis has two directions); with a fixed phase the grid met the truth at another offset
+    // and, on a real KITTI pair, the answer changed with the turn (docs/accuracy.md).
+    const Vec3 e1 = rotation_between(Vec3::UnitZ(), up) * Vec3::UnitX();
+    const double turn = principal_azimuth(samples.tgt, Mat3::Identity(), up, e1) -
+                        principal_azimuth(samples.src, base, up, e1);
+    const double phase = turn - step * std::floor(turn / step);  // [0, step)
+    yaw_from = -kPi + (std::isfinite(phase) ? phase : 0.0);
   } else {
     base = window->T_target_source_guess.linear();
     const double half = 3.0 * window->rotation_sd_rad;
@@ -925,7 +961,7 @@ std::vector<YawHypothesis> yaw_vote_hypotheses(const Points3& source_points,
   check_yaw_vote_input(source_points, target_points, up_source, up_target, cell_m, options, window);
   const VoteSamples v = vote_samples(source_points, target_points, cell_m, options);
   const Vec3 up = up_target.normalized();
-  const YawGrid g = yaw_grid(up_source, up, v.centre, cell_m, options, window);
+  const YawGrid g = yaw_grid(up_source, up, v.centre, cell_m, options, window, v);
   const std::size_t per_yaw = std::max<std::size_t>(1, options.peaks_per_yaw);
   std::vector<YawHypothesis> out =
       yaw_maxima(vote_every_yaw(v, g, up, cell_m, options, per_yaw), g.circular, per_yaw);

@@ -26,7 +26,9 @@ struct DataScales {
   double floor_m = 0.0;
   /// Median distance of the landmarks from `centre_m`, metres (the map's size; > 0).
   double radius_m = 0.0;
-  /// Coordinate-wise median of the landmark positions, metres, in the map's frame.
+  /// The median of the landmark positions along their principal axes (the scatter's
+  /// eigenvectors about the mean; for an even count the mean of the two middle values), metres,
+  /// in the map's frame: it turns and moves with the map, as the coordinate-wise median did not.
   Vec3 centre_m = Vec3::Zero();
   /// True when at least half of the landmarks have a non-zero covariance.
   bool has_covariances = false;
