@@ -41,8 +41,9 @@ struct MergeArgs {
   std::string dask_scheduler;
   bool no_plots = false;
   bool plan_only = false;
-  std::string scale = "auto";         // --scale auto|free|fixed
-  std::vector<std::string> settings;  // --set KEY=VALUE, every edge
+  std::string scale = "auto";            // --scale auto|free|fixed
+  std::string overlap_check = "repair";  // --overlap-check repair|check|off
+  std::vector<std::string> settings;     // --set KEY=VALUE, every edge
 };
 
 /// --set KEY=VALUE, checked against the default's settings table now (one line naming the key,
@@ -87,6 +88,8 @@ int exec_python_merge(const MergeArgs& a) {
                                 std::to_string(a.threads),
                                 "--scale",
                                 a.scale,
+                                "--overlap-check",
+                                a.overlap_check,
                                 "--dask-scheduler",
                                 a.dask_scheduler};
   if (!a.ground_truth.empty()) {
@@ -342,6 +345,8 @@ int run_merge_command(const MergeArgs& a) {
   options.edges.scale = scale_mode;
   options.edges.settings = settings;
   options.edge_cache_dir = (fs::path(a.out_dir) / "edges").string();
+  options.overlaps.enabled = a.overlap_check != "off";
+  options.repair.enabled = a.overlap_check == "repair";
   if (a.plan_only) return plan_only(maps, names, priors, options, a.out_dir);
   const StopSignals signals;
   stop_flag().store(false);
@@ -421,6 +426,13 @@ CommandRunner add_merge_command(CLI::App& root) {
                   "scale and manifest priors hold the scale. free: every pair's scale is "
                   "estimated too. fixed: rigid (SE(3)) edges and poses for every map")
       ->check(CLI::IsMember({"auto", "free", "fixed"}))
+      ->capture_default_str();
+  cmd->add_option("--overlap-check", args->overlap_check,
+                  "After the pose graph, pairs of maps it places overlapping are compared "
+                  "landmark by landmark (overlap_check.csv): repair: a part they contradict is "
+                  "repaired by dropping the edges that fold it; check: reported only; off: "
+                  "neither (docs/merge.md, \"Maps the graph puts on top of each other\")")
+      ->check(CLI::IsMember({"repair", "check", "off"}))
       ->capture_default_str();
   cmd->add_option("--set", args->settings,
                   "KEY=VALUE: a setting of every pair's alignment (repeatable; lmalign options "

@@ -375,6 +375,7 @@ def solve_pose_graph(
     *,
     maps: Optional[Sequence[Map]] = None,  # their headers: which have no metric scale
     scale: str = "auto",  # auto, free, fixed
+    overlap_check: str = "repair",  # repair, check, off (with maps)
 ) -> PoseGraphResult: ...
 class OverlapCheck:
     @property
@@ -425,4 +426,5 @@ def merge(
     fuse_landmarks: bool = True,
     scale: str = "auto",  # auto, free, fixed
     plots: bool = False,  # merge_graph.png, merged_landmarks.png (matplotlib)
+    overlap_check: str = "repair",  # repair, check, off
 ) -> MergeOutcome: ...

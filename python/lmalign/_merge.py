@@ -145,7 +145,7 @@ def _dask_edges(client, manifest, maps, candidates, edges_dir, max_iterations, s
 
 def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threads=None,
           dask_client=None, resume=False, thresholds=(5.0, 0.10), fuse_landmarks=True,
-          scale="auto", plots=False):
+          scale="auto", plots=False, overlap_check="repair"):
     """Merge the mini-maps of a manifest into one frame, as `lmalign merge` (docs/merge.md).
 
     manifest_path: YAML manifest (maps with name, path, format, session, optional prior
@@ -176,6 +176,11 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
     plots: also draw merge_graph.png and merged_landmarks.png into output_dir, as `lmalign
         merge` does, with the script shipped in the package (needs matplotlib; without it a
         RuntimeWarning and no plots).
+    overlap_check: as `lmalign merge --overlap-check` (docs/merge.md, "Maps the graph puts on
+        top of each other"): after the pose graph, the pairs of maps it places overlapping are
+        compared landmark by landmark (overlap_check.csv); 'repair': a part they contradict is
+        repaired by dropping the edges that fold it; 'check': reported only; 'off': neither (no
+        overlap_check.csv). The same in process and with Dask.
     Returns a MergeOutcome. Raises ParseError (manifest, ground truth), IoError, InvalidArgument
     (bad option, an unreadable or empty map, output_dir holding an earlier run's edges), and
     with Dask what a task raised.
@@ -189,6 +194,9 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
         raise _c.InvalidArgument("threads must be >= 0 (None or 0 = every core)")
     if scale not in ("auto", "free", "fixed"):
         raise _c.InvalidArgument("scale: expected 'auto', 'free' or 'fixed', got %r" % (scale,))
+    if overlap_check not in ("repair", "check", "off"):
+        raise _c.InvalidArgument("overlap_check: expected 'repair', 'check' or 'off', got %r"
+                                 % (overlap_check,))
     thresholds = tuple(float(v) for v in thresholds)
     if len(thresholds) != 2:
         raise _c.InvalidArgument("thresholds: expected (rot_deg, trans_m)")
@@ -205,7 +213,8 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
     edges_dir = _check_output_dir(output_dir, resume)
     if dask_client is None:
         candidates, edges, graph, reused, s_edges, s_graph = _c._run_merge(
-            maps, names, priors, int(max_pairs or 0), int(threads or 0), edges_dir, scale)
+            maps, names, priors, int(max_pairs or 0), int(threads or 0), edges_dir, scale,
+            overlap_check)
         backend = "in-process"
     else:
         t0 = time.monotonic()
@@ -213,10 +222,11 @@ def merge(manifest_path, output_dir, *, ground_truth=None, max_pairs=None, threa
         edges, reused = _dask_edges(dask_client, manifest, maps, candidates, edges_dir, None,
                                     scale)
         t1 = time.monotonic()
-        graph = _c.solve_pose_graph(len(maps), priors, edges, maps=maps, scale=scale)
+        graph = _c.solve_pose_graph(len(maps), priors, edges, maps=maps, scale=scale,
+                                    overlap_check=overlap_check)
         s_edges, s_graph = t1 - t0, time.monotonic() - t1
         backend = "dask"
-    overlaps = _c.check_overlaps(maps, graph, edges)
+    overlaps = _c.check_overlaps(maps, graph, edges) if overlap_check != "off" else None
     _c.write_merge_outputs(output_dir, names, [e.session for e in manifest.maps], maps, edges,
                            graph, fuse_landmarks, overlaps)
     if plots:

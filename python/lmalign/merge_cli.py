@@ -24,6 +24,9 @@ def _parser():
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--scale", choices=("auto", "free", "fixed"), default="auto",
                    help="as `lmalign merge --scale` (docs/scale.md)")
+    p.add_argument("--overlap-check", choices=("repair", "check", "off"), default="repair",
+                   help="compare the pairs of maps the graph places overlapping: repair a part "
+                        "they contradict, only report it, or neither")
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
                    help="e.g. tcp://10.0.0.5:8786 (a running `dask scheduler`)")
     return p
@@ -58,7 +61,7 @@ def main(argv=None):
                             max_pairs=args.max_pairs, threads=args.threads, dask_client=client,
                             resume=args.resume, thresholds=thresholds,
                             fuse_landmarks=not args.no_fuse, scale=args.scale,
-                            plots=not args.no_plots)
+                            plots=not args.no_plots, overlap_check=args.overlap_check)
     except lmalign.Error as e:
         sys.exit("lmalign merge: %s" % e)
     finally:

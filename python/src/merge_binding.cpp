@@ -100,6 +100,16 @@ ScaleMode scale_mode_from(const std::string& scale) {
   return parse_scale_mode(scale);
 }
 
+// merge(overlap_check=...): 'repair' (the check, and the repair of a part it contradicts),
+// 'check' (the check alone) or 'off', as `lmalign merge --overlap-check`.
+void set_overlap_check(const std::string& mode, MergeOptions* o) {
+  if (mode != "repair" && mode != "check" && mode != "off") {
+    throw InvalidArgument("overlap_check: expected 'repair', 'check' or 'off', got '" + mode + "'");
+  }
+  o->overlaps.enabled = mode != "off";
+  o->repair.enabled = mode == "repair";
+}
+
 // The edges' options from Python's arguments: scale is 'auto', 'free' or 'fixed' (EdgeOptions::
 // scale; InvalidArgument naming the option otherwise).
 EdgeOptions edge_options(std::optional<int> max_iterations, const std::string& scale = "auto") {
@@ -528,12 +538,13 @@ void bind_pose_graph(py::module_& m) {
       "solve_pose_graph",
       [](std::size_t num_maps, const std::optional<std::vector<std::optional<MapPrior>>>& priors,
          const std::vector<Edge>& edges, const std::optional<std::vector<Map>>& maps,
-         const std::string& scale) {
+         const std::string& scale, const std::string& overlap_check) {
         const auto p = priors.value_or(std::vector<std::optional<MapPrior>>(num_maps));
         const ScaleMode mode = scale_mode_from(scale);
+        MergeOptions o;
+        set_overlap_check(overlap_check, &o);
         if (maps) {
           if (maps->size() != num_maps) throw InvalidArgument("maps: one per map expected");
-          MergeOptions o;
           o.edges.scale = mode;
           py::gil_scoped_release release;
           return solve_and_check(*maps, p, edges, o).result;
@@ -542,14 +553,15 @@ void bind_pose_graph(py::module_& m) {
         return solve_pose_graph(num_maps, p, edges, {}, {});
       },
       py::arg("num_maps"), py::arg("priors"), py::arg("edges"), py::kw_only(),
-      py::arg("maps") = py::none(), py::arg("scale") = "auto",
+      py::arg("maps") = py::none(), py::arg("scale") = "auto", py::arg("overlap_check") = "repair",
       "The robust SE(3) pose graph of the trusted edges and the priors (Ceres; docs/merge.md, "
       "'Pose graph'), as `lmalign merge` solves it; one machine, the GIL released. priors: one "
       "MapPrior or None per map (None: no priors). maps: the maps (their headers say which have "
       "no metric scale; those get a scale of their own, Sim(3), unless scale='fixed'); None: "
       "every map metric. With maps, the merged map is also checked against itself and a part that "
       "contradicts itself repaired (docs/merge.md, 'Maps the graph puts on top of each other'), "
-      "as the merge does. Returns a PoseGraphResult. Raises "
+      "as the merge does; overlap_check: 'repair' (that), 'check' (no repair) or 'off' (neither), "
+      "as `lmalign merge --overlap-check`. Returns a PoseGraphResult. Raises "
       "InvalidArgument (sizes, an edge naming a map out of range).");
   py::class_<OverlapCheck>(m, "OverlapCheck",
                            "check_overlaps()'s result (C++ lmalign::OverlapCheck; docs/merge.md, "
@@ -689,10 +701,12 @@ void bind_in_process(py::module_& m) {
       "_run_merge",
       [](const std::vector<Map>& maps, const std::vector<std::string>& names,
          const std::vector<std::optional<MapPrior>>& priors, std::size_t max_pairs, int threads,
-         const std::string& edge_cache_dir, const std::string& scale) {
+         const std::string& edge_cache_dir, const std::string& scale,
+         const std::string& overlap_check) {
         for (const Map& map : maps) with_frame_index(map);
         MergeOptions o;
         o.edges.scale = scale_mode_from(scale);
+        set_overlap_check(overlap_check, &o);
         o.candidates.max_pairs = max_pairs;
         o.threads = threads;
         o.edge_cache_dir = edge_cache_dir;
@@ -705,7 +719,8 @@ void bind_in_process(py::module_& m) {
                               run.seconds_edges, run.seconds_graph);
       },
       py::arg("maps"), py::arg("names"), py::arg("priors"), py::arg("max_pairs"),
-      py::arg("threads"), py::arg("edge_cache_dir"), py::arg("scale") = "auto");
+      py::arg("threads"), py::arg("edge_cache_dir"), py::arg("scale") = "auto",
+      py::arg("overlap_check") = "repair");
 }
 
 }  // namespace

@@ -111,6 +111,28 @@ def test_resume_reuses_every_edge_and_a_rerun_without_it_is_refused(desk, tmp_pa
     assert np.array_equal(again.T_world_map, run.T_world_map)
 
 
+def test_overlap_check_off_and_check_alone(desk, tmp_path):
+    # overlap_check (as `lmalign merge --overlap-check`): 'off' runs no check and writes no
+    # overlap_check.csv; 'check' checks without repairing; the desk windows agree, so the poses
+    # are the default's either way. The edges are reused from the fixture's run.
+    import pathlib
+    import shutil
+    manifest, run = desk
+    for mode in ("off", "check"):
+        out = tmp_path / mode
+        shutil.copytree(pathlib.Path(run.output_dir) / "edges", out / "edges")
+        again = lmalign.merge(manifest, out, resume=True, overlap_check=mode)
+        assert again.edges_reused == len(run.edges)
+        assert np.array_equal(again.T_world_map, run.T_world_map)
+        summary = json.loads((out / "summary.json").read_text())
+        assert (out / "overlap_check.csv").exists() == (mode == "check")
+        assert (summary["overlap_check"] is None) == (mode == "off")
+    with pytest.raises(lmalign.InvalidArgument, match="overlap_check"):
+        lmalign.merge(manifest, tmp_path / "bad", overlap_check="sometimes")
+    with pytest.raises(lmalign.InvalidArgument, match="overlap_check"):
+        lmalign.solve_pose_graph(1, None, [], overlap_check="sometimes")
+
+
 def test_bad_merge_arguments_raise_the_documented_errors(tmp_path):
     empty = tmp_path / "empty.yaml"
     empty.write_text("maps: []\n")

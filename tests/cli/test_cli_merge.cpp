@@ -79,6 +79,27 @@ TEST_F(CliMerge, SimulatedFleetMergesEndToEndAndResumeReusesEveryEdge) {
   EXPECT_NE(resumed.out.find("10 candidate pairs (10 reused)"), std::string::npos) << resumed.out;
   EXPECT_NE(resumed.out.find("within: 100.0%"), std::string::npos) << resumed.out;
   for (const auto& [file, text] : edge_files) EXPECT_EQ(read_text(file), text) << file;
+  EXPECT_TRUE(fs::exists(out + "/overlap_check.csv"));
+  // --overlap-check off (the edges reused in another folder): no check, no overlap_check.csv,
+  // the same poses (this fleet's parts agree with themselves); a value outside the three is one
+  // line.
+  const std::string off = path("off");
+  fs::create_directories(off);
+  fs::copy(out + "/edges", off + "/edges");
+  const std::string merge_off = "merge " + shell_quote(scene + "/manifest.yaml") + " -o " +
+                                shell_quote(off) + " --no-plots --resume --overlap-check off" +
+                                " --set init.prior_complete_search=check";
+  const test::CliRun r_off = run(merge_off);
+  ASSERT_EQ(r_off.exit_code, 0) << r_off.err;
+  EXPECT_NE(r_off.out.find("10 candidate pairs (10 reused)"), std::string::npos) << r_off.out;
+  EXPECT_FALSE(fs::exists(off + "/overlap_check.csv"));
+  EXPECT_EQ(r_off.out.find("overlap check:"), std::string::npos) << r_off.out;
+  EXPECT_NE(r.out.find("overlap check:"), std::string::npos) << r.out;
+  EXPECT_EQ(read_text(off + "/poses.yaml"), read_text(out + "/poses.yaml"));
+  const test::CliRun bad = run(merge_off + " --overlap-check sometimes");
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--overlap-check"), std::string::npos) << bad.err;
+  EXPECT_EQ(count_lines(bad.err), 1u) << bad.err;
 }
 
 // Maps that no kept edge joins (here: two fleet maps whose only edge cannot be trusted, their
