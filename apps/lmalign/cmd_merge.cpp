@@ -345,8 +345,7 @@ int run_merge_command(const MergeArgs& a) {
   options.edges.scale = scale_mode;
   options.edges.settings = settings;
   options.edge_cache_dir = (fs::path(a.out_dir) / "edges").string();
-  options.overlaps.enabled = a.overlap_check != "off";
-  options.repair.enabled = a.overlap_check == "repair";
+  set_overlap_check_mode(a.overlap_check, &options);
   if (a.plan_only) return plan_only(maps, names, priors, options, a.out_dir);
   const StopSignals signals;
   stop_flag().store(false);

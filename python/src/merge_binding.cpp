@@ -100,16 +100,6 @@ ScaleMode scale_mode_from(const std::string& scale) {
   return parse_scale_mode(scale);
 }
 
-// merge(overlap_check=...): 'repair' (the check, and the repair of a part it contradicts),
-// 'check' (the check alone) or 'off', as `lmalign merge --overlap-check`.
-void set_overlap_check(const std::string& mode, MergeOptions* o) {
-  if (mode != "repair" && mode != "check" && mode != "off") {
-    throw InvalidArgument("overlap_check: expected 'repair', 'check' or 'off', got '" + mode + "'");
-  }
-  o->overlaps.enabled = mode != "off";
-  o->repair.enabled = mode == "repair";
-}
-
 // The edges' options from Python's arguments: scale is 'auto', 'free' or 'fixed' (EdgeOptions::
 // scale; InvalidArgument naming the option otherwise).
 EdgeOptions edge_options(std::optional<int> max_iterations, const std::string& scale = "auto") {
@@ -542,7 +532,7 @@ void bind_pose_graph(py::module_& m) {
         const auto p = priors.value_or(std::vector<std::optional<MapPrior>>(num_maps));
         const ScaleMode mode = scale_mode_from(scale);
         MergeOptions o;
-        set_overlap_check(overlap_check, &o);
+        set_overlap_check_mode(overlap_check, &o);
         if (maps) {
           if (maps->size() != num_maps) throw InvalidArgument("maps: one per map expected");
           o.edges.scale = mode;
@@ -706,7 +696,7 @@ void bind_in_process(py::module_& m) {
         for (const Map& map : maps) with_frame_index(map);
         MergeOptions o;
         o.edges.scale = scale_mode_from(scale);
-        set_overlap_check(overlap_check, &o);
+        set_overlap_check_mode(overlap_check, &o);
         o.candidates.max_pairs = max_pairs;
         o.threads = threads;
         o.edge_cache_dir = edge_cache_dir;

@@ -45,6 +45,14 @@ bool MergeOptions::is_valid(std::string* why) const {
   return true;
 }
 
+void set_overlap_check_mode(const std::string& mode, MergeOptions* options) {
+  if (mode != "repair" && mode != "check" && mode != "off") {
+    throw InvalidArgument("overlap_check: expected 'repair', 'check' or 'off', got '" + mode + "'");
+  }
+  options->overlaps.enabled = mode != "off";
+  options->repair.enabled = mode == "repair";
+}
+
 std::vector<bool> scale_free_maps(const std::vector<Map>& maps, ScaleMode mode) {
   std::vector<bool> out(maps.size(), false);
   for (std::size_t i = 0; i < maps.size(); ++i) {

@@ -217,5 +217,30 @@ TEST(MergeOverlapCheck, InvalidOptionsAndSizesThrow) {
   EXPECT_THROW(check_overlaps(fewer, merge, edges), InvalidArgument);
 }
 
+TEST(MergeOverlapCheck, TheModeNamesSetTheCheckAndTheRepair) {
+  MergeOptions o;
+  set_overlap_check_mode("off", &o);
+  EXPECT_FALSE(o.overlaps.enabled);
+  EXPECT_FALSE(o.repair.enabled);
+  set_overlap_check_mode("check", &o);
+  EXPECT_TRUE(o.overlaps.enabled);
+  EXPECT_FALSE(o.repair.enabled);
+  set_overlap_check_mode("repair", &o);
+  EXPECT_TRUE(o.overlaps.enabled);
+  EXPECT_TRUE(o.repair.enabled);
+  for (const char* bad : {"", "Repair", "on"}) {
+    MergeOptions before;
+    before.repair.enabled = false;
+    try {
+      set_overlap_check_mode(bad, &before);
+      ADD_FAILURE() << "no error for '" << bad << "'";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("expected 'repair', 'check' or 'off'"),
+                std::string::npos);
+    }
+    EXPECT_FALSE(before.repair.enabled);  // untouched
+  }
+}
+
 }  // namespace
 }  // namespace lmalign

@@ -39,6 +39,13 @@ struct MergeOptions {
   bool is_valid(std::string* why = nullptr) const;
 };
 
+/// Sets options->overlaps.enabled and options->repair.enabled from the name of an overlap-check
+/// mode, as `lmalign merge --overlap-check` and Python's merge(overlap_check=) take it:
+/// "repair" (the check, and the repair of a part it contradicts), "check" (the check alone) or
+/// "off" (neither). Throws InvalidArgument "overlap_check: expected 'repair', 'check' or 'off',
+/// got 'NAME'".
+void set_overlap_check_mode(const std::string& mode, MergeOptions* options);
+
 /// Which maps get a scale of their own in the pose graph (solve_pose_graph's scale_free): those
 /// without metric scale (MapHeader::scale not kMetric), none when `mode` is kFixed.
 std::vector<bool> scale_free_maps(const std::vector<Map>& maps, ScaleMode mode);
