@@ -99,6 +99,49 @@ TEST(CorrespondenceSearch, OneOfItsPosesIsNearTheTruthOnAStreetAndTheRunRepeats)
   }
 }
 
+// Landmarks described once (the merge's verification) give the search's own hypotheses when
+// described at the target's radius. (At each map's own radius the merge's verification still
+// separates overlapping from unrelated maps: MergeRetrieval.VerificationSeparates...)
+TEST(CorrespondenceSearch, LandmarksDescribedOnceGiveTheSearchsOwnHypotheses) {
+  const sim::SlamMapPair pair = street(5);
+  const Search s(pair);
+  CorrespondenceSearchOptions o;
+  o.oriented = false;
+  const CorrespondenceSearchResult direct = correspondence_search(s.input, o);
+  ASSERT_FALSE(direct.hypotheses.empty());
+  const double radius = search_descriptor_radius(s.target.points(), o);
+  EXPECT_EQ(radius, direct.radius_m);
+  const DescribedLandmarks src = describe_search_landmarks(
+      s.source.positions, &s.source.view_directions, s.input.ups_source[0], radius, true, o);
+  const DescribedLandmarks tgt = describe_search_landmarks(
+      s.target.points(), &s.target.view_directions(), s.input.ups_target[0], radius, false, o);
+  EXPECT_EQ(src.keys.size(), std::min<std::size_t>(o.keypoints, s.source.positions.size()));
+  const CorrespondenceSearchResult described =
+      correspondence_search_described(s.input, src, tgt, o);
+  EXPECT_EQ(described.matches, direct.matches);
+  ASSERT_EQ(described.hypotheses.size(), direct.hypotheses.size());
+  for (std::size_t i = 0; i < direct.hypotheses.size(); ++i) {
+    EXPECT_TRUE(described.hypotheses[i].T_target_source.matrix() ==
+                direct.hypotheses[i].T_target_source.matrix());
+    EXPECT_EQ(described.hypotheses[i].inliers, direct.hypotheses[i].inliers);
+  }
+  // Bad input: a radius, an up axis, view directions of another size, a key out of range.
+  EXPECT_THROW(describe_search_landmarks(s.source.positions, nullptr, Vec3::UnitZ(), 0.0, true, o),
+               InvalidArgument);
+  EXPECT_THROW(describe_search_landmarks(s.source.positions, nullptr, Vec3::Zero(), 1.0, true, o),
+               InvalidArgument);
+  const std::vector<Vec3> two_views(2, Vec3::UnitX());
+  EXPECT_THROW(
+      describe_search_landmarks(s.source.positions, &two_views, Vec3::UnitZ(), 1.0, true, o),
+      InvalidArgument);
+  DescribedLandmarks bad = tgt;
+  bad.keys.back() = static_cast<std::uint32_t>(s.target.points().size());
+  EXPECT_THROW(correspondence_search_described(s.input, src, bad, o), InvalidArgument);
+  bad = tgt;
+  bad.described.pop_back();
+  EXPECT_THROW(correspondence_search_described(s.input, src, bad, o), InvalidArgument);
+}
+
 // The oriented descriptors on seed 2 of the street (measured 2026-11-25): the
 // yaw-invariant kind's pose nearest the truth rests on a clique of 27 matches, 2.3 deg /
 // 0.49 m off; the oriented kind's on a clique of 80, 0.35 deg / 0.09 m off. The landmark's

@@ -179,6 +179,13 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
 // deviations of the four landmarks, plus `relative` times the target's distance (the scale's
 // tolerance; 0 when rigid); matches sharing a landmark never agree. One graph per factor, each
 // pair's geometry computed once.
+//
+// Rigid (one factor, no relative tolerance), the height test is a window: f hs - ht is
+// u_b - u_a with u = f (p_s . up_s) - (p_t . up_t) per match, and its tolerance is at most
+// sqrt(e_a + max e) with e = sigmas^2 (f^2 sd_s^2 + sd_t^2). The matches sorted by u, each is
+// tested only against those within that window of it (widened by 1e-9 of the coordinates'
+// magnitude for the round-off between the two forms), with the same test as every pair, so the
+// graph is the same; the merge's verification spent two thirds of its time here (docs/merge.md).
 std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const Side& src,
                                       const Vec3& us, const Side& tgt, const Vec3& ut,
                                       double sigmas, const std::vector<double>& factors,
@@ -194,32 +201,62 @@ std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const S
   }
   const double c2 = sigmas * sigmas;
   auto var = [](double s) { return s * s; };
+  // The test of matches a < b at every factor.
+  auto test = [&](std::size_t a, std::size_t b) {
+    const Match& x = matches[a];
+    const Match& y = matches[b];
+    if (x.s == y.s || x.t == y.t) return;
+    const Vec3 ds = P[y.s] - P[x.s], dt = Q[y.t] - Q[x.t];
+    const double hs = ds.dot(us), ht = dt.dot(ut);
+    const double vs = var(src.sigma_m[x.s]) + var(src.sigma_m[y.s]);
+    const double vtx = var(tgt.sigma_m[x.t]), vty = var(tgt.sigma_m[y.t]);
+    const double dt2 = dt.squaredNorm();
+    const double rs = std::sqrt(std::max(ds.squaredNorm() - hs * hs, 0.0));
+    const double rt = std::sqrt(std::max(dt2 - ht * ht, 0.0));
+    for (std::size_t k = 0; k < factors.size(); ++k) {
+      const double f = factors[k];
+      const double noise2 = c2 * (f * f * vs + vtx + vty);
+      const double tol2 = relative > 0.0 ? noise2 + var(relative) * dt2 : noise2;
+      if ((f * hs - ht) * (f * hs - ht) > tol2) continue;
+      if ((f * rs - rt) * (f * rs - rt) > tol2) continue;
+      Graph& g = graphs[k];
+      g.adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
+      g.adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
+      g.nbr[a].push_back(static_cast<std::uint32_t>(b));
+      g.nbr[b].push_back(static_cast<std::uint32_t>(a));
+    }
+  };
+  if (factors.size() != 1 || relative > 0.0) {
+    for (std::size_t a = 0; a < n; ++a) {
+      for (std::size_t b = a + 1; b < n; ++b) test(a, b);
+    }
+    return graphs;
+  }
+  const double f = factors[0];
+  std::vector<double> u(n), e(n);
+  double e_max = 0.0, magnitude = 0.0;
   for (std::size_t a = 0; a < n; ++a) {
-    for (std::size_t b = a + 1; b < n; ++b) {
-      const Match& x = matches[a];
-      const Match& y = matches[b];
-      if (x.s == y.s || x.t == y.t) continue;
-      const Vec3 ds = P[y.s] - P[x.s], dt = Q[y.t] - Q[x.t];
-      const double hs = ds.dot(us), ht = dt.dot(ut);
-      const double vs = var(src.sigma_m[x.s]) + var(src.sigma_m[y.s]);
-      const double vtx = var(tgt.sigma_m[x.t]), vty = var(tgt.sigma_m[y.t]);
-      const double dt2 = dt.squaredNorm();
-      const double rs = std::sqrt(std::max(ds.squaredNorm() - hs * hs, 0.0));
-      const double rt = std::sqrt(std::max(dt2 - ht * ht, 0.0));
-      for (std::size_t k = 0; k < factors.size(); ++k) {
-        const double f = factors[k];
-        const double noise2 = c2 * (f * f * vs + vtx + vty);
-        const double tol2 = relative > 0.0 ? noise2 + var(relative) * dt2 : noise2;
-        if ((f * hs - ht) * (f * hs - ht) > tol2) continue;
-        if ((f * rs - rt) * (f * rs - rt) > tol2) continue;
-        Graph& g = graphs[k];
-        g.adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
-        g.adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
-        g.nbr[a].push_back(static_cast<std::uint32_t>(b));
-        g.nbr[b].push_back(static_cast<std::uint32_t>(a));
-      }
+    const double hs = P[matches[a].s].dot(us), ht = Q[matches[a].t].dot(ut);
+    u[a] = f * hs - ht;
+    e[a] = c2 * (f * f * var(src.sigma_m[matches[a].s]) + var(tgt.sigma_m[matches[a].t]));
+    e_max = std::max(e_max, e[a]);
+    magnitude = std::max(magnitude, std::abs(f * hs) + std::abs(ht));
+  }
+  const double margin = 1e-9 * (1.0 + magnitude);
+  std::vector<std::size_t> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return u[a] < u[b]; });
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t a = order[i];
+    const double reach = u[a] + std::sqrt(e[a] + e_max) + margin;
+    for (std::size_t j = i + 1; j < n && u[order[j]] <= reach; ++j) {
+      const std::size_t b = order[j];
+      test(std::min(a, b), std::max(a, b));
     }
   }
+  // The neighbour lists in increasing order, as the loop over every pair leaves them.
+  for (std::vector<std::uint32_t>& list : graphs[0].nbr) std::sort(list.begin(), list.end());
   return graphs;
 }
 
@@ -426,21 +463,91 @@ CorrespondenceHypothesis clique_pose(const std::vector<std::size_t>& clique,
   return {T, clique.size(), scale};
 }
 
-}  // namespace
+// One side's descriptors of one kind about one up axis: keys x dims floats, and whether each is
+// valid (described, and the landmark not vague).
+struct Described {
+  std::vector<float> d;
+  std::vector<char> ok;
+};
 
-CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput& in,
-                                                 const CorrespondenceSearchOptions& o) {
+// Steps 2-4 for one descriptor kind and one pair of up axes: matches, the consistency graph,
+// cliques, their distinct poses. Adds the matches to *matches_total.
+std::vector<CorrespondenceHypothesis> poses_of_pair(
+    const std::vector<std::uint32_t>& skeys, const Described& sd,
+    const std::vector<std::uint32_t>& tkeys, const Described& td, int dims, const Side& src,
+    const Vec3& us, const Side& tgt, const Vec3& ut, const CorrespondenceSearchOptions& o,
+    double radius, bool oriented, std::size_t* matches_total) {
+  // 2. matches, 3. the consistency graph
+  const std::vector<Match> matches =
+      nearest_descriptors(skeys, sd.d, sd.ok, tkeys, td.d, td.ok, dims, o.matches_per_keypoint);
+  *matches_total += matches.size();
+  // 4. cliques -> 4-DoF poses, at each factor of the scale ladder (the factor 1 alone when
+  // rigid)
+  std::vector<CorrespondenceHypothesis> found;
+  const Mat3 R_up = rotation_between(us, ut);
+  const double relative = o.scale_steps > 0 ? std::sqrt(o.scale_ratio) - 1.0 : 0.0;
+  std::vector<double> factors;
+  for (int k = -o.scale_steps; k <= o.scale_steps; ++k) {
+    factors.push_back(std::pow(o.scale_ratio, k));
+  }
+  const std::vector<Graph> graphs =
+      consistency_graphs(matches, src, us, tgt, ut, o.consistency_sigmas, factors, relative);
+  for (std::size_t k = 0; k < factors.size(); ++k) {
+    for (const std::vector<std::size_t>& clique : cliques(graphs[k], o.seeds, o.min_inliers)) {
+      found.push_back(clique_pose(clique, matches, *src.points, *tgt.points, R_up, ut, factors[k],
+                                  o.scale_steps > 0));
+      found.back().oriented = oriented;
+    }
+  }
+  return distinct_poses(found, *src.points, radius, std::sqrt(o.scale_ratio), o.hypotheses);
+}
+
+// The lists taken in turn (the best of each first), `keep` in all.
+void take_in_turn(const std::vector<std::vector<CorrespondenceHypothesis>>& lists, std::size_t keep,
+                  std::vector<CorrespondenceHypothesis>* out) {
+  for (std::size_t rank = 0; out->size() < keep; ++rank) {
+    bool any = false;
+    for (const std::vector<CorrespondenceHypothesis>& list : lists) {
+      if (rank < list.size() && out->size() < keep) {
+        out->push_back(list[rank]);
+        any = true;
+      }
+    }
+    if (!any) break;
+  }
+}
+
+// The checks both searches make of their options and input.
+void check_search_input(const CorrespondenceSearchInput& in, const CorrespondenceSearchOptions& o,
+                        bool need_ups) {
   std::string why;
   if (!o.is_valid(&why)) throw InvalidArgument("correspondence search: " + why);
   if (in.source.points == nullptr || in.target == nullptr) {
     throw InvalidArgument("correspondence search: no source or target");
   }
-  if (in.ups_source.empty() || in.ups_target.empty()) {
+  if (need_ups && (in.ups_source.empty() || in.ups_target.empty())) {
     throw InvalidArgument("correspondence search: no up-axis candidates");
   }
   if (!(in.floor_m > 0.0) || !std::isfinite(in.floor_m)) {
     throw InvalidArgument("correspondence search: the covariance floor must be > 0 and finite");
   }
+}
+
+// The sample of the target keypoints whose median neighbour distance is the descriptor radius.
+double radius_of(const Points3& Q, const KdTree& tree, const CorrespondenceSearchOptions& o) {
+  const std::vector<std::uint32_t> tkeys = strided_indices(Q.size(), o.target_keypoints);
+  std::vector<std::uint32_t> sample;
+  for (std::size_t j = 0; j < tkeys.size(); j += std::max<std::size_t>(1, tkeys.size() / 512)) {
+    sample.push_back(tkeys[j]);
+  }
+  return descriptor_radius(Q, tree, o.neighbours, sample);
+}
+
+}  // namespace
+
+CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput& in,
+                                                 const CorrespondenceSearchOptions& o) {
+  check_search_input(in, o, true);
   CorrespondenceSearchResult result;
   const Points3& P = *in.source.points;
   const Points3& Q = in.target->points();
@@ -458,13 +565,7 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
   // The descriptor radius: the target's median distance to its neighbours-th nearest landmark.
   const std::vector<std::uint32_t> tkeys = strided_indices(Q.size(), o.target_keypoints);
   const std::vector<std::uint32_t> skeys = strided_indices(P.size(), o.keypoints);
-  {
-    std::vector<std::uint32_t> sample;
-    for (std::size_t j = 0; j < tkeys.size(); j += std::max<std::size_t>(1, tkeys.size() / 512)) {
-      sample.push_back(tkeys[j]);
-    }
-    result.radius_m = descriptor_radius(Q, *tgt.tree, o.neighbours, sample);
-  }
+  result.radius_m = radius_of(Q, *tgt.tree, o);
   const double radius = result.radius_m;
   if (!(radius > 0.0) || !std::isfinite(radius)) return result;
   const double vague_m = 0.25 * radius;
@@ -480,13 +581,10 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
         (oriented ? kOrientedDescriptorDims : kLandmarkDescriptorDims) + (elevation ? 1 : 0);
     // 1. descriptors: once per up axis of each side (a descriptor depends on its own map's up
     // only), valid where the landmark is not vague and has enough neighbours.
-    struct Described {
-      std::vector<float> d;
-      std::vector<char> ok;
-    };
     auto describe_all = [&](const Side& side, const std::vector<std::uint32_t>& keys,
                             const Vec3& up) {
-      Described out{std::vector<float>(keys.size() * dims), std::vector<char>(keys.size(), 0)};
+      Described out{std::vector<float>(keys.size() * static_cast<std::size_t>(dims)),
+                    std::vector<char>(keys.size(), 0)};
       std::vector<PointIndex> scratch;
       for (std::size_t a = 0; a < keys.size(); ++a) {
         out.ok[a] = side.sigma_m[keys[a]] <= vague_m &&
@@ -505,46 +603,113 @@ CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput
     for (std::size_t i = 0; i < in.ups_source.size(); ++i) {
       for (std::size_t j = 0; j < in.ups_target.size(); ++j) {
         const Vec3 us = in.ups_source[i].normalized(), ut = in.ups_target[j].normalized();
-        // 2. matches, 3. the consistency graph
-        const std::vector<Match> matches = nearest_descriptors(
-            skeys, by_source_up[i].d, by_source_up[i].ok, tkeys, by_target_up[j].d,
-            by_target_up[j].ok, dims, o.matches_per_keypoint);
-        result.matches += matches.size();
-        // 4. cliques -> 4-DoF poses, at each factor of the scale ladder (the factor 1 alone
-        // when rigid)
-        std::vector<CorrespondenceHypothesis> found;
-        const Mat3 R_up = rotation_between(us, ut);
-        const double relative = o.scale_steps > 0 ? std::sqrt(o.scale_ratio) - 1.0 : 0.0;
-        std::vector<double> factors;
-        for (int k = -o.scale_steps; k <= o.scale_steps; ++k) {
-          factors.push_back(std::pow(o.scale_ratio, k));
-        }
-        const std::vector<Graph> graphs =
-            consistency_graphs(matches, src, us, tgt, ut, o.consistency_sigmas, factors, relative);
-        for (std::size_t k = 0; k < factors.size(); ++k) {
-          for (const std::vector<std::size_t>& clique :
-               cliques(graphs[k], o.seeds, o.min_inliers)) {
-            found.push_back(
-                clique_pose(clique, matches, P, Q, R_up, ut, factors[k], o.scale_steps > 0));
-            found.back().oriented = oriented;
-          }
-        }
-        per_pair.push_back(
-            distinct_poses(found, P, radius, std::sqrt(o.scale_ratio), o.hypotheses));
+        per_pair.push_back(poses_of_pair(skeys, by_source_up[i], tkeys, by_target_up[j], dims, src,
+                                         us, tgt, ut, o, radius, oriented, &result.matches));
       }
     }
   }
-  // The pairs' lists taken in turn (best of each pair first), `hypotheses` in all.
-  for (std::size_t rank = 0; result.hypotheses.size() < o.hypotheses; ++rank) {
-    bool any = false;
-    for (const std::vector<CorrespondenceHypothesis>& list : per_pair) {
-      if (rank < list.size() && result.hypotheses.size() < o.hypotheses) {
-        result.hypotheses.push_back(list[rank]);
-        any = true;
+  take_in_turn(per_pair, o.hypotheses, &result.hypotheses);
+  return result;
+}
+
+double search_descriptor_radius(const Points3& points, const CorrespondenceSearchOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("correspondence search: " + why);
+  if (points.size() < 3) return 0.0;
+  const KdTree tree(points);
+  return radius_of(points, tree, options);
+}
+
+DescribedLandmarks describe_search_landmarks(const Points3& points,
+                                             const std::vector<Vec3>* view_directions,
+                                             const Vec3& up, double radius_m, bool as_source,
+                                             const CorrespondenceSearchOptions& options) {
+  std::string why;
+  if (!options.is_valid(&why)) throw InvalidArgument("describe_search_landmarks: " + why);
+  if (!(radius_m > 0.0) || !std::isfinite(radius_m)) {
+    throw InvalidArgument("describe_search_landmarks: the radius must be > 0 and finite, got " +
+                          message_number(radius_m));
+  }
+  if (!up.allFinite() || !(up.norm() > 0.0)) {
+    throw InvalidArgument("describe_search_landmarks: the up axis must be finite and non-zero");
+  }
+  const bool views = view_directions != nullptr && !view_directions->empty();
+  if (views && view_directions->size() != points.size()) {
+    throw InvalidArgument("describe_search_landmarks: " + std::to_string(view_directions->size()) +
+                          " viewing directions for " + std::to_string(points.size()) +
+                          " landmarks");
+  }
+  DescribedLandmarks d;
+  d.up = up.normalized();
+  d.radius_m = radius_m;
+  d.has_views = views;
+  if (points.size() < 3) return d;
+  d.keys = strided_indices(points.size(), as_source ? options.keypoints : options.target_keypoints);
+  constexpr std::size_t W = kLandmarkDescriptorDims + 1;
+  d.descriptors.assign(d.keys.size() * W, 0.0f);
+  d.described.assign(d.keys.size(), 0);
+  const KdTree tree(points);
+  const std::size_t neighbourhood = std::min<std::size_t>(4 * options.neighbours, 512);
+  for (std::size_t a = 0; a < d.keys.size(); ++a) {
+    const std::uint32_t i = d.keys[a];
+    d.described[a] =
+        describe_landmark(points, tree, i, d.up, radius_m, neighbourhood, &d.descriptors[a * W],
+                          views ? &(*view_directions)[i] : nullptr, kElevationWeight);
+  }
+  return d;
+}
+
+CorrespondenceSearchResult correspondence_search_described(const CorrespondenceSearchInput& in,
+                                                           const DescribedLandmarks& source,
+                                                           const DescribedLandmarks& target,
+                                                           const CorrespondenceSearchOptions& o) {
+  check_search_input(in, o, false);
+  const Points3& P = *in.source.points;
+  const Points3& Q = in.target->points();
+  constexpr std::size_t W = kLandmarkDescriptorDims + 1;
+  for (const auto* side : {&source, &target}) {
+    const std::size_t n = side == &source ? P.size() : Q.size();
+    if (side->descriptors.size() != side->keys.size() * W ||
+        side->described.size() != side->keys.size()) {
+      throw InvalidArgument("correspondence search: described landmarks of inconsistent sizes");
+    }
+    for (std::uint32_t k : side->keys) {
+      if (k >= n) {
+        throw InvalidArgument("correspondence search: a described landmark index " +
+                              std::to_string(k) + " is out of range (" + std::to_string(n) +
+                              " landmarks)");
       }
     }
-    if (!any) break;
   }
+  CorrespondenceSearchResult result;
+  if (P.size() < 3 || Q.size() < 3) return result;
+  result.radius_m = target.radius_m;
+  if (!(target.radius_m > 0.0) || !std::isfinite(target.radius_m)) return result;
+  const Side src{&P, nullptr, sigmas(P, in.source.covariances_m2, in.floor_m),
+                 in.source.view_directions};
+  const Side tgt{
+      &Q, &in.target->tree(),
+      sigmas(Q, in.target->has_covariances() ? &in.target->covariances_m2() : nullptr, in.floor_m),
+      &in.target->view_directions()};
+  const double vague_m = 0.25 * target.radius_m;
+  const bool elevation = source.has_views && target.has_views;
+  const int dims = kLandmarkDescriptorDims + (elevation ? 1 : 0);
+  auto pack = [&](const DescribedLandmarks& d, const Side& side) {
+    Described out{std::vector<float>(d.keys.size() * static_cast<std::size_t>(dims)),
+                  std::vector<char>(d.keys.size(), 0)};
+    for (std::size_t a = 0; a < d.keys.size(); ++a) {
+      out.ok[a] = d.described[a] && side.sigma_m[d.keys[a]] <= vague_m;
+      if (out.ok[a]) {
+        std::copy_n(&d.descriptors[a * W], dims, &out.d[a * static_cast<std::size_t>(dims)]);
+      }
+    }
+    return out;
+  };
+  std::vector<std::vector<CorrespondenceHypothesis>> per_pair;
+  per_pair.push_back(poses_of_pair(source.keys, pack(source, src), target.keys, pack(target, tgt),
+                                   dims, src, source.up, tgt, target.up, o, target.radius_m, false,
+                                   &result.matches));
+  take_in_turn(per_pair, o.hypotheses, &result.hypotheses);
   return result;
 }
 

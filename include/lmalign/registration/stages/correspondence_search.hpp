@@ -98,4 +98,47 @@ struct CorrespondenceSearchResult {
 CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput& input,
                                                  const CorrespondenceSearchOptions& options);
 
+/// One map's landmarks described once for many searches: the merge's geometric verification
+/// matches each map against dozens of others (merge/candidates.hpp). The yaw-invariant
+/// descriptors (step 1) of the evenly strided `keypoints` landmarks about one up axis, at one
+/// radius, each with its viewing elevation where the map knows its viewing directions.
+struct DescribedLandmarks {
+  std::vector<std::uint32_t> keys;  ///< landmark indices, increasing
+  /// keys.size() x (kLandmarkDescriptorDims + 1): the descriptor, then the viewing elevation
+  /// term (0 where unknown or when has_views is false).
+  std::vector<float> descriptors;
+  std::vector<char> described;  ///< per key: enough neighbours within the radius
+  bool has_views = false;       ///< the map's viewing directions were given
+  double radius_m = 0.0;        ///< metres
+  Vec3 up = Vec3::UnitZ();      ///< unit, the map's frame
+};
+
+/// The descriptor radius correspondence_search() uses when `points` is the target: the median
+/// distance of (at most 512 of) the `target_keypoints` strided landmarks to their
+/// `neighbours`-th nearest landmark, metres; 0 for fewer than 3 landmarks.
+double search_descriptor_radius(const Points3& points, const CorrespondenceSearchOptions& options);
+
+/// Describes `points` (map frame; view_directions: unit or zero, null or empty = none) for
+/// correspondence_search_described(): options.keypoints strided landmarks when `as_source`,
+/// options.target_keypoints otherwise, about `up` (normalised here) at `radius_m` (> 0 and
+/// finite; search_descriptor_radius() of the map that will be the target reproduces
+/// correspondence_search() exactly). Throws InvalidArgument on invalid options, a radius or up
+/// that is not finite, or view directions whose count differs from the points'.
+DescribedLandmarks describe_search_landmarks(const Points3& points,
+                                             const std::vector<Vec3>* view_directions,
+                                             const Vec3& up, double radius_m, bool as_source,
+                                             const CorrespondenceSearchOptions& options);
+
+/// correspondence_search() (yaw-invariant descriptors only, one pair of up axes: the described
+/// ones') on landmarks described beforehand: steps 2-4 alone. `input` supplies the points,
+/// covariances and the floor (its ups are ignored); `source` and `target` describe
+/// input.source.points and input.target's points. Landmarks vaguer than a quarter of the
+/// target's radius match nothing, and the viewing elevation counts when both sides have views,
+/// as in correspondence_search(). With both described at the target's search_descriptor_radius()
+/// (and options.oriented false) the hypotheses are correspondence_search()'s. Throws
+/// InvalidArgument as correspondence_search(), and when a described key is out of range.
+CorrespondenceSearchResult correspondence_search_described(
+    const CorrespondenceSearchInput& input, const DescribedLandmarks& source,
+    const DescribedLandmarks& target, const CorrespondenceSearchOptions& options);
+
 }  // namespace lmalign
