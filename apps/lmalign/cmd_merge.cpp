@@ -32,8 +32,8 @@ struct MergeArgs {
   std::string out_dir;
   std::string ground_truth;
   long long max_pairs = 0;
-  long long candidates_per_map = 4;
-  long long verify_per_map = 30;
+  long long candidates_per_map = static_cast<long long>(CandidateOptions{}.keep_per_map);
+  long long verify_per_map = static_cast<long long>(CandidateOptions{}.verify_per_map);
   bool resume = false;
   int threads = 0;
   std::string thresholds = "5,0.1";
@@ -299,7 +299,9 @@ int run_merge_command(const MergeArgs& a) {
     throw InvalidArgument(
         "--set is not handed over to a Dask cluster yet: run the merge without --dask-scheduler");
   }
-  if (!a.dask_scheduler.empty() && (a.candidates_per_map != 4 || a.verify_per_map != 30)) {
+  const MergeArgs defaults;
+  if (!a.dask_scheduler.empty() && (a.candidates_per_map != defaults.candidates_per_map ||
+                                    a.verify_per_map != defaults.verify_per_map)) {
     throw InvalidArgument(
         "--candidates-per-map and --verify-per-map are not handed over to a Dask cluster yet: run "
         "the merge without --dask-scheduler");
@@ -415,8 +417,9 @@ CommandRunner add_merge_command(CLI::App& root) {
   cmd->add_option("--verify-per-map", args->verify_per_map,
                   "Without priors, beyond 12 maps: each map's N most similar maps are verified "
                   "by the correspondence search (the largest clique of consistent landmark "
-                  "matches, about 20 ms a pair of 500-landmark maps) and the K of "
-                  "--candidates-per-map are the best verified; 0 = retrieval alone")
+                  "matches, about 4 ms a pair of 500-landmark maps; the default verifies every "
+                  "pair of up to 201 maps) and the K of --candidates-per-map are the best "
+                  "verified; 0 = retrieval alone")
       ->capture_default_str();
   cmd->add_option("--scale", args->scale,
                   "auto: a map without metric scale (its header: COLMAP, Bundler, monocular "

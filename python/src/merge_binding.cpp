@@ -365,8 +365,9 @@ void bind_candidates(py::module_& m) {
         return plan_candidates(summaries, priors, o);
       },
       py::arg("maps"), py::arg("priors") = py::none(), py::kw_only(), py::arg("max_pairs") = 0,
-      py::arg("keep_per_map") = 4, py::arg("all_pairs_max_maps") = 12,
-      py::arg("verify_per_map") = 30,
+      py::arg("keep_per_map") = CandidateOptions{}.keep_per_map,
+      py::arg("all_pairs_max_maps") = CandidateOptions{}.all_pairs_max_maps,
+      py::arg("verify_per_map") = CandidateOptions{}.verify_per_map,
       "The candidate pairs of `maps` (docs/merge.md, 'Candidates'), as `lmalign merge` plans "
       "them: with priors on both maps, pairs whose prior-placed extents overlap; else every "
       "pair up to all_pairs_max_maps maps, more maps keep their keep_per_map most similar "

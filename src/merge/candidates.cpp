@@ -17,6 +17,7 @@
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/registration/registration.hpp"
+#include "lmalign/registration/stages/complete_search.hpp"
 #include "lmalign/registration/stages/correspondence_search.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/landmark_descriptors.hpp"
@@ -210,6 +211,16 @@ class Retrieval {
   std::vector<char> has_;
 };
 
+// The geometric verification's correspondence search: yaw-invariant descriptors (see
+// verified_matches), only the largest clique counts.
+CorrespondenceSearchOptions verification_options() {
+  CorrespondenceSearchOptions o;
+  o.oriented = false;
+  o.seeds = 16;
+  o.hypotheses = 4;
+  return o;
+}
+
 // The geometric verification's sketch of one map (MapSummary::sketch_*): the landmarks
 // describe_for_retrieval describes (the same stride), with their covariances and viewing
 // directions, and the sketch's covariance floor (its spacing's half where no covariance is known).
@@ -228,15 +239,40 @@ void sketch_for_verification(const Map& map, const std::vector<std::size_t>& kep
   s->up = up;
   const DataScales d = estimate_data_scales(s->sketch_points, &s->sketch_covariances_m2);
   s->floor_m = d.floor_m > 0.0 ? d.floor_m : 0.5 * d.spacing_m;
+  s->sketch_radius_m = search_descriptor_radius(s->sketch_points, verification_options());
+}
+
+// A sketch described for the verification (plan_candidates): as the target of a search, and as
+// its source when the source's keypoints differ from those (else empty: the target's serve).
+struct DescribedSketch {
+  DescribedLandmarks as_target;
+  DescribedLandmarks as_source;
+  const DescribedLandmarks& source() const {
+    return as_source.keys.empty() ? as_target : as_source;
+  }
+};
+
+DescribedSketch describe_sketch(const MapSummary& m, double radius_m) {
+  DescribedSketch d;
+  if (m.sketch_points.size() < 8 || !(radius_m > 0.0) || !std::isfinite(radius_m)) return d;
+  const CorrespondenceSearchOptions o = verification_options();
+  d.as_target = describe_search_landmarks(m.sketch_points, &m.sketch_view_directions, m.up,
+                                          radius_m, false, o);
+  if (strided_indices(m.sketch_points.size(), o.keypoints) != d.as_target.keys) {
+    d.as_source = describe_search_landmarks(m.sketch_points, &m.sketch_view_directions, m.up,
+                                            radius_m, true, o);
+  }
+  return d;
 }
 
 // The matches in the correspondence search's largest clique between the sketches of maps a
-// (source) and b (target); 0 when either has no sketch. Yaw-invariant descriptors only: on the
-// synthetic fleet the oriented ones separated overlapping from unrelated pairs no better, at
-// twice the time (15 against 33 ms a pair, docs/merge.md).
-std::size_t verified_matches(const MapSummary& a, const MapSummary& b) {
+// (source) and b (target), described beforehand (describe_sketch); 0 when either has no sketch.
+// Yaw-invariant descriptors only: on the synthetic fleet the oriented ones separated overlapping
+// from unrelated pairs no better, at twice the time (15 against 33 ms a pair, docs/merge.md).
+std::size_t verified_matches(const MapSummary& a, const DescribedSketch& da, const MapSummary& b,
+                             const DescribedSketch& db) {
   if (a.sketch_points.size() < 8 || b.sketch_points.size() < 8 || !(a.floor_m > 0.0) ||
-      !(b.floor_m > 0.0)) {
+      !(b.floor_m > 0.0) || da.as_target.keys.empty() || db.as_target.keys.empty()) {
     return 0;
   }
   PreparedTarget target(b.sketch_points);
@@ -248,15 +284,11 @@ std::size_t verified_matches(const MapSummary& a, const MapSummary& b) {
   in.source.covariances_m2 = &a.sketch_covariances_m2;
   in.source.view_directions = &a.sketch_view_directions;
   in.target = &target;
-  in.ups_source = {a.up};
-  in.ups_target = {b.up};
   in.floor_m = std::max(a.floor_m, b.floor_m);
-  CorrespondenceSearchOptions o;
-  o.oriented = false;
-  o.seeds = 16;  // only the largest clique counts
-  o.hypotheses = 4;
   std::size_t best = 0;
-  for (const CorrespondenceHypothesis& h : correspondence_search(in, o).hypotheses) {
+  for (const CorrespondenceHypothesis& h :
+       correspondence_search_described(in, da.source(), db.as_target, verification_options())
+           .hypotheses) {
     best = std::max(best, h.inliers);
   }
   return best;
@@ -447,12 +479,36 @@ std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summar
       std::vector<std::pair<std::size_t, std::size_t>> todo;
       for (const auto& [ij, count] : verified) todo.push_back(ij);
       std::vector<std::size_t> counts(todo.size(), 0);
+      // Every sketch described once, at one radius for all: the median of the maps' own (a
+      // search describes both maps at the target's radius; the median stands in for it).
+      std::vector<double> radii;
+      for (const MapSummary& m : summaries) {
+        if (m.sketch_radius_m > 0.0 && std::isfinite(m.sketch_radius_m)) {
+          radii.push_back(m.sketch_radius_m);
+        }
+      }
+      std::vector<DescribedSketch> described(n);
       FirstException error;  // an exception may not leave the parallel loop
+      if (!radii.empty()) {
+        std::nth_element(radii.begin(),
+                         radii.begin() + static_cast<std::ptrdiff_t>(radii.size() / 2),
+                         radii.end());
+        const double radius = radii[radii.size() / 2];
+#pragma omp parallel for schedule(dynamic, 1)
+        for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(n); ++i) {
+          error.capture([&] {
+            described[static_cast<std::size_t>(i)] =
+                describe_sketch(summaries[static_cast<std::size_t>(i)], radius);
+          });
+        }
+        error.rethrow();
+      }
 #pragma omp parallel for schedule(dynamic, 1)
       for (std::ptrdiff_t k = 0; k < static_cast<std::ptrdiff_t>(todo.size()); ++k) {
         error.capture([&] {
           const auto [i, j] = todo[static_cast<std::size_t>(k)];
-          counts[static_cast<std::size_t>(k)] = verified_matches(summaries[i], summaries[j]);
+          counts[static_cast<std::size_t>(k)] =
+              verified_matches(summaries[i], described[i], summaries[j], described[j]);
         });
       }
       error.rethrow();

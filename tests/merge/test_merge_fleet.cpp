@@ -107,6 +107,7 @@ TEST(MergeRetrieval, VerificationSeparatesOverlappingFromUnrelatedMaps) {
     summaries.push_back(summarise_map(scene.maps[i], o, i + 1));
     EXPECT_GE(summaries.back().sketch_points.size(), 8u);
     EXPECT_GT(summaries.back().floor_m, 0.0);
+    EXPECT_GT(summaries.back().sketch_radius_m, 0.0);
   }
   const std::vector<std::optional<MapPrior>> none(scene.maps.size());
   const std::vector<CandidatePair> pairs = plan_candidates(summaries, none, o);

@@ -12,7 +12,10 @@
 //     each map's verify_per_map most similar maps are checked by the correspondence search
 //     (registration/stages/correspondence_search.hpp) on the two maps' sketches (their
 //     retrieval_landmarks strided landmarks with covariances and viewing directions): the
-//     largest clique of pairwise-consistent descriptor matches. Each map then keeps the
+//     largest clique of pairwise-consistent descriptor matches. Every sketch is described
+//     once (describe_search_landmarks), at one radius for all: the median over the maps of
+//     each sketch's search_descriptor_radius (a search describes both maps at the target's
+//     radius; the median stands in for it). Each map then keeps the
 //     keep_per_map partners with the largest cliques (ties: the more similar first); the union
 //     of those is the candidate set. A map with too few descriptors
 //     falls back to the earlier histograms (its landmarks' heights along its up axis relative to
@@ -93,9 +96,11 @@ struct CandidateOptions {
   std::size_t vocabulary_words = 1024;
   /// Geometric verification of the retrieval: each map's this many most similar maps are
   /// verified by the correspondence search before keep_per_map are kept; 0 = none (the words
-  /// alone rank). Measured on the synthetic fleet (docs/merge.md, "Candidates"): overlapping
-  /// maps share cliques of 9-110 matches, 28 of 30 unrelated pairs none.
-  std::size_t verify_per_map = 30;
+  /// alone rank). The default verifies every pair of up to 201 maps and grows linearly beyond.
+  /// Measured on the synthetic fleet (docs/merge.md, "Candidates"): overlapping maps share
+  /// cliques of 9-110 matches, 28 of 30 unrelated pairs none; 200 maps verify every pair in
+  /// 42 s on 2 cores.
+  std::size_t verify_per_map = 200;
   bool is_valid(std::string* why = nullptr) const;
 };
 
@@ -117,6 +122,10 @@ struct MapSummary {
   std::vector<Vec3> sketch_view_directions;
   Vec3 up = Vec3::UnitZ();
   double floor_m = 0.0;
+  /// The sketch's descriptor radius as the target of a correspondence search (metres;
+  /// search_descriptor_radius; 0: none). plan_candidates describes every sketch once, at the
+  /// median of these over the maps, for the verification of every pair it is in.
+  double sketch_radius_m = 0.0;
   std::size_t num_landmarks = 0;
   bool metric = true;               ///< MapHeader::scale == MapScale::kMetric
   bool covariance_assumed = false;  ///< MapHeader::covariance_assumed
