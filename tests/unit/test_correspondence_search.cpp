@@ -140,6 +140,9 @@ TEST(CorrespondenceSearch, LandmarksDescribedOnceGiveTheSearchsOwnHypotheses) {
   bad = tgt;
   bad.described.pop_back();
   EXPECT_THROW(correspondence_search_described(s.input, src, bad, o), InvalidArgument);
+  bad = tgt;
+  bad.up = Vec3::Zero();
+  EXPECT_THROW(correspondence_search_described(s.input, src, bad, o), InvalidArgument);
 }
 
 // The oriented descriptors on seed 2 of the street (measured 2026-11-25): the

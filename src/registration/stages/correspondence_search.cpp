@@ -673,6 +673,9 @@ CorrespondenceSearchResult correspondence_search_described(const CorrespondenceS
         side->described.size() != side->keys.size()) {
       throw InvalidArgument("correspondence search: described landmarks of inconsistent sizes");
     }
+    if (!side->up.allFinite() || !(std::abs(side->up.norm() - 1.0) < 1e-6)) {
+      throw InvalidArgument("correspondence search: a described side's up axis must be unit");
+    }
     for (std::uint32_t k : side->keys) {
       if (k >= n) {
         throw InvalidArgument("correspondence search: a described landmark index " +

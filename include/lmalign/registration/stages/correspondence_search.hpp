@@ -136,7 +136,8 @@ DescribedLandmarks describe_search_landmarks(const Points3& points,
 /// target's radius match nothing, and the viewing elevation counts when both sides have views,
 /// as in correspondence_search(). With both described at the target's search_descriptor_radius()
 /// (and options.oriented false) the hypotheses are correspondence_search()'s. Throws
-/// InvalidArgument as correspondence_search(), and when a described key is out of range.
+/// InvalidArgument as correspondence_search(), and when a described key is out of range or a
+/// described up axis is not unit.
 CorrespondenceSearchResult correspondence_search_described(
     const CorrespondenceSearchInput& input, const DescribedLandmarks& source,
     const DescribedLandmarks& target, const CorrespondenceSearchOptions& options);
