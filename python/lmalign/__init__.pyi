@@ -346,7 +346,7 @@ def plan_candidates(
     max_pairs: int = 0,
     keep_per_map: int = 4,
     all_pairs_max_maps: int = 12,
-    verify_per_map: int = 30,
+    verify_per_map: int = 200,
 ) -> List[CandidatePair]: ...
 def align_edge(
     source: Map,
