@@ -441,8 +441,10 @@ CommandRunner add_merge_command(CLI::App& root) {
                   "adaptive lists them with their bounds). A pair with a prior is checked by the "
                   "maps' own search, whose complete search only guards a trusted answer "
                   "(init.prior_complete_search=check; rescue: it also re-searches an untrusted "
-                  "pair, at its cost; --set init.prior_check=off: the prior's search alone; "
-                  "docs/merge.md)");
+                  "pair, at its cost; --set init.prior_check=off: the prior's search alone). In a "
+                  "merge of more than 12 maps a pair without a prior gets the first pass, the "
+                  "complete search only checking a trusted answer (search.complete_search=check; "
+                  "rescue: every pair's complete search; docs/merge.md)");
   cmd->add_flag("--resume", args->resume, "Reuse the finished edges in OUTDIR/edges/");
   cmd->add_option("--threads", args->threads,
                   "OpenMP threads over the pairs (0 = all); the result does not depend on it")

@@ -231,6 +231,8 @@ class CandidatePair:
     @property
     def prior_complete_search(self) -> str: ...  # 'rescue' or 'check'
     @property
+    def complete_search(self) -> str: ...  # without a prior: 'rescue' or 'check'
+    @property
     def verified_matches(self) -> int: ...  # the largest clique of the retrieval's verification
 
 class Edge:

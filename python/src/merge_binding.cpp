@@ -143,11 +143,12 @@ Edge edge_from_state(const py::tuple& t) {
 py::tuple pair_state(const CandidatePair& c) {
   return py::make_tuple(c.source, c.target, c.rank, optional_transform_out(c.initial_guess),
                         prior_sigma_out(c.prior), c.source_metric, c.target_metric,
-                        c.covariances_assumed, c.prior_complete_search, c.verified_matches);
+                        c.covariances_assumed, c.prior_complete_search, c.verified_matches,
+                        c.complete_search);
 }
 
 CandidatePair pair_from_state(const py::tuple& t) {
-  if (t.size() != 10) {
+  if (t.size() != 11) {
     throw InvalidArgument("CandidatePair: pickled state of a different version");
   }
   CandidatePair c;
@@ -164,6 +165,7 @@ CandidatePair pair_from_state(const py::tuple& t) {
   c.covariances_assumed = t[7].cast<bool>();
   c.prior_complete_search = t[8].cast<std::string>();
   c.verified_matches = t[9].cast<std::size_t>();
+  c.complete_search = t[10].cast<std::string>();
   return c;
 }
 
@@ -332,6 +334,11 @@ void bind_candidates(py::module_& m) {
                     "With a prior: the edge's init.prior_complete_search ('rescue' for merges "
                     "of at most 12 maps: an untrusted prior-bounded alignment also gets the "
                     "complete search; 'check' beyond: the maps' first pass alone rescues it).")
+      .def_readonly("complete_search", &CandidatePair::complete_search,
+                    "Without a prior: the edge's search.complete_search ('rescue' for merges of "
+                    "at most 12 maps; 'check' beyond: the complete search only checks a trusted "
+                    "first-pass answer; a pair whose first pass finds no correspondence pose "
+                    "gets no answer).")
       .def_readonly("verified_matches", &CandidatePair::verified_matches,
                     "Retrieved pairs (no priors, more than all_pairs_max_maps maps): the matches "
                     "in the correspondence search's largest clique between the two maps' "

@@ -84,9 +84,13 @@ def test_retrieval_verifies_its_pairs_geometrically(desk):
     maps = lmalign.load_manifest_maps(lmalign.read_manifest(manifest_path))
     pairs = lmalign.plan_candidates(maps, all_pairs_max_maps=2, keep_per_map=1, verify_per_map=2)
     assert pairs and all(p.verified_matches >= 5 for p in pairs)
-    assert [(p.source, p.target, p.verified_matches, p.rank)
+    assert [(p.source, p.target, p.verified_matches, p.rank, p.complete_search)
             for p in pickle.loads(pickle.dumps(pairs))] == \
-        [(p.source, p.target, p.verified_matches, p.rank) for p in pairs]
+        [(p.source, p.target, p.verified_matches, p.rank, p.complete_search) for p in pairs]
+    # A fleet's pairs without priors: the complete search only checks (docs/merge.md, "Pairs
+    # without priors"); every pair of a small merge gets it in full.
+    assert {p.complete_search for p in pairs} == {"check"}
+    assert {p.complete_search for p in lmalign.plan_candidates(maps)} == {"rescue"}
     words = lmalign.plan_candidates(maps, all_pairs_max_maps=2, keep_per_map=1, verify_per_map=0)
     assert all(p.verified_matches == 0 for p in words)
 

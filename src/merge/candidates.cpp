@@ -553,6 +553,7 @@ std::vector<CandidatePair> plan_candidates(const std::vector<MapSummary>& summar
     }
   }
   for (CandidatePair& c : out) {
+    if (!c.prior) c.complete_search = n <= options.all_pairs_max_maps ? "rescue" : "check";
     c.source_metric = summaries[c.source].metric;
     c.target_metric = summaries[c.target].metric;
     c.covariances_assumed =

@@ -72,6 +72,14 @@ AlignRequest edge_request(const Preset& preset, const CandidatePair& pair,
     request.settings.emplace_back("init.prior_complete_search",
                                   SettingValue(pair.prior_complete_search));
   }
+  // Without a prior, likewise: a fleet's pair is searched completely only to check a trusted
+  // first-pass answer (CandidatePair::complete_search, "check").
+  const bool search_set_by_caller =
+      std::any_of(options.settings.begin(), options.settings.end(),
+                  [](const auto& kv) { return kv.first == "search.complete_search"; });
+  if (!pair.prior && !search_set_by_caller && pipeline.settings().has("search.complete_search")) {
+    request.settings.emplace_back("search.complete_search", SettingValue(pair.complete_search));
+  }
   request.settings.insert(request.settings.end(), options.settings.begin(), options.settings.end());
   request.initial_guess = pair.initial_guess;
   request.scale = options.scale;

@@ -344,7 +344,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
                       const PipelineRequest& request) const {
   detail::PipelineRun run(*this, source, target, request);
   run.validate();
-  if (!run.begin_search(1.0)) return run.too_few_landmarks();
+  if (!run.begin_search(1.0)) return run.unanswered();
   Summary first = run.conclude(1.0);
   int attempts = 1;
   int searches = 1;

@@ -221,6 +221,7 @@ bool PipelineRun::begin_search(double factor) {
     ic.measured_poses = measured_poses;
     hypotheses_ = pipeline_.initialiser().propose(ic, &s.initialisation);
     if (hypotheses_.empty()) {
+      if (!s.initialisation.declined.empty()) return false;  // unanswered(): not trusted
       throw Error("initialiser '" + pipeline_.spec().initialiser + "' proposed nothing");
     }
     if (keep_ && factor == 1.0) {
@@ -235,10 +236,11 @@ bool PipelineRun::begin_search(double factor) {
   }
 }
 
-Summary PipelineRun::too_few_landmarks() const {
+Summary PipelineRun::unanswered() const {
   Summary s = base_;
   s.registration.termination = TerminationReason::kNoCorrespondences;
-  s.verdict.reason = "fewer than 3 landmarks in a map";
+  s.verdict.reason = s.initialisation.declined.empty() ? "fewer than 3 landmarks in a map"
+                                                       : s.initialisation.declined;
   add_caveats(&s);
   s.registration.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();

@@ -80,7 +80,8 @@ class PipelineRun {
   const ScaleSearch& scale_search() const { return *scale_search_; }
   /// A search at `factor` times the data's initial scale (1 without a free scale): the source
   /// there, the scales, the hypotheses. False when a map has fewer than 3 landmarks for a
-  /// pipeline that reads the scales (then too_few_landmarks() is the result).
+  /// pipeline that reads the scales, or when the initialiser declines to propose
+  /// (InitialiserReport::declined); then unanswered() is the result.
   bool begin_search(double factor);
   /// True when the current search's hypotheses came from a pass with a deeper one after it
   /// (InitialiserReport::deeper_pass); deepen() makes every later search the next pass.
@@ -97,7 +98,9 @@ class PipelineRun {
     ++pass_;
     keep_ = keep;
   }
-  Summary too_few_landmarks() const;
+  /// The result without an answer (begin_search() false): not trusted, the pose the initial
+  /// guess, the reason the initialiser's (InitialiserReport::declined) or too few landmarks.
+  Summary unanswered() const;
   /// The hypotheses of the current search concluded at `rung` times its initial scale.
   Summary conclude(double rung) const;
   /// The summary with the run's times and the scale search's counts.

@@ -112,6 +112,14 @@ TEST(MergeRetrieval, VerificationSeparatesOverlappingFromUnrelatedMaps) {
   const std::vector<std::optional<MapPrior>> none(scene.maps.size());
   const std::vector<CandidatePair> pairs = plan_candidates(summaries, none, o);
   ASSERT_EQ(pairs.size(), scene.maps.size() * (scene.maps.size() - 1) / 2);
+  // A fleet's pairs without priors take search.complete_search = check; a merge of at most
+  // all_pairs_max_maps maps, rescue (as a single alignment; candidates.hpp).
+  for (const CandidatePair& c : pairs) EXPECT_EQ(c.complete_search, "check");
+  CandidateOptions all_pairs = o;
+  all_pairs.all_pairs_max_maps = scene.maps.size();
+  for (const CandidatePair& c : plan_candidates(summaries, none, all_pairs)) {
+    EXPECT_EQ(c.complete_search, "rescue");
+  }
   std::map<std::pair<std::size_t, std::size_t>, double> shared;
   for (const sim::FleetOverlap& v : scene.overlaps) shared[{v.i, v.j}] = v.shared_fraction;
   const std::set<std::pair<std::size_t, std::size_t>> twins(scene.twins.begin(), scene.twins.end());

@@ -369,6 +369,66 @@ TEST(AdaptiveStreet, TheFirstPassAloneAnswersWhenTrustedAndTheCompleteSearchOthe
   EXPECT_TRUE(s.registration.T_target_source.matrix() == off.registration.T_target_source.matrix());
   EXPECT_EQ(s.verdict.trustworthy, off.verdict.trustworthy);
   EXPECT_EQ(s.verdict.reason, off.verdict.reason);
+  // search.complete_search = check (a fleet's pairs without priors): the first pass's untrusted
+  // answer is the result; the complete search does not run.
+  const Summary check =
+      test::align_with("adaptive", source, target, test::Ask{{"search.complete_search=check"}});
+  EXPECT_GT(note(check, "first pass correspondence poses"), 0.0);
+  EXPECT_TRUE(std::isnan(note(check, "deeper pass after an untrusted answer")));
+  EXPECT_EQ(note(check, "search candidates"), 0.0);  // no vote
+  EXPECT_FALSE(check.verdict.trustworthy) << check.verdict.reason;
+}
+
+// search.complete_search = check: a pair whose first pass finds no correspondence pose gets no
+// answer (not trusted, the reason says why, the pose the initial guess) without the complete
+// search; with rescue (the default) the complete search runs on the same pair. Two maps of a
+// simulated fleet far apart from each other (a fleet's typical candidate pair that does not
+// overlap; docs/merge.md, "Pairs without priors").
+TEST(CompleteSearchSetting, CheckLeavesAPairWithoutACorrespondencePoseUnanswered) {
+  sim::FleetSimOptions o;
+  o.num_maps = 16;
+  o.seed = 3;
+  o.num_twins = 0;
+  const sim::FleetScene scene = sim::simulate_fleet(o);
+  // The pair of maps farthest apart (no landmark in common).
+  std::size_t a = 0, b = 1;
+  double farthest = 0.0;
+  for (std::size_t i = 0; i < scene.maps.size(); ++i) {
+    for (std::size_t j = i + 1; j < scene.maps.size(); ++j) {
+      const double d =
+          (scene.T_world_map[i].translation() - scene.T_world_map[j].translation()).norm();
+      if (d > farthest) {
+        farthest = d;
+        a = i;
+        b = j;
+      }
+    }
+  }
+  ASSERT_GT(farthest, 40.0);  // beyond twice the maps' radius
+  const SourceLandmarks source = SourceLandmarks::from_map(scene.maps[a]);
+  const PreparedTarget target(scene.maps[b]);
+  const Summary check =
+      test::align_with("adaptive", source, target, test::Ask{{"search.complete_search=check"}});
+  EXPECT_EQ(note(check, "first pass correspondence poses"), 0.0);
+  EXPECT_FALSE(check.verdict.trustworthy);
+  EXPECT_NE(check.verdict.reason.find("no correspondence pose"), std::string::npos)
+      << check.verdict.reason;
+  EXPECT_TRUE(std::isnan(note(check, "search candidates")));  // no vote
+  EXPECT_TRUE(check.hypotheses.empty());
+  EXPECT_TRUE(check.registration.T_target_source.matrix() == Isometry3::Identity().matrix());
+  EXPECT_EQ(check.registration.termination, TerminationReason::kNoCorrespondences);
+  const Summary rescue = test::align_with("adaptive", source, target, test::Ask{});
+  EXPECT_EQ(note(rescue, "first pass correspondence poses"), 0.0);
+  EXPECT_GT(note(rescue, "search candidates"), 0.0);  // the vote ran
+  EXPECT_FALSE(rescue.hypotheses.empty());
+  EXPECT_FALSE(rescue.verdict.trustworthy) << rescue.verdict.reason;
+  // A bad value is refused, naming the choices.
+  try {
+    test::align_with("adaptive", source, target, test::Ask{{"search.complete_search=never"}});
+    ADD_FAILURE() << "expected InvalidArgument";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("rescue"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -220,6 +220,10 @@ struct InitialiserReport {
   /// the prior's window, and a deeper pass's answer could be trusted only inside that window
   /// (a fleet's candidate pairs that do not overlap then cost the prior's search alone).
   bool deeper_needs_evidence = false;
+  /// Non-empty: the initialiser proposes nothing, and this says why (the complete search's
+  /// search.complete_search = check when the first pass finds no pose). The result is then not
+  /// trusted, with this reason, its pose the initial guess (Pipeline::run).
+  std::string declined;
   /// Other numbers worth a line in the report (name, value).
   std::vector<std::pair<std::string, double>> notes;
 };
