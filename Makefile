@@ -212,8 +212,9 @@ bench-priors: build
 
 # `make bench-merge`: the synthetic multi-robot merge (docs/merge.md, "Synthetic fleet"): a
 # seeded fleet of MERGE_MAPS mini-maps with GPS-like priors, merged with ground truth (time and
-# per-map errors on stdout), then the candidate pre-filter's recall on the same world without
-# priors (plan only, no alignment). Writes $(BUILD_DIR)/bench-merge/.
+# per-map errors on stdout), then the same world without priors: the candidate pre-filter's
+# recall (plan only, no alignment) and the whole merge (time, edge precision and recall, map
+# errors; docs/merge.md, "Pairs without priors"). Writes $(BUILD_DIR)/bench-merge/.
 MERGE_MAPS ?= 200
 .PHONY: bench-merge
 bench-merge: build
@@ -228,6 +229,9 @@ bench-merge: build
 	  -o $(BUILD_DIR)/bench-merge/plan_no_priors --plan-only
 	$(PYTHON) bench/merge_prefilter_recall.py $(BUILD_DIR)/bench-merge/fleet_no_priors \
 	  $(BUILD_DIR)/bench-merge/plan_no_priors
+	$(LMALIGN) merge $(BUILD_DIR)/bench-merge/fleet_no_priors/manifest.yaml \
+	  -o $(BUILD_DIR)/bench-merge/out_no_priors --threads 2 --thresholds 1,0.1 \
+	  --ground-truth $(BUILD_DIR)/bench-merge/fleet_no_priors/ground_truth.yaml
 
 # `make bench-merge-real`: configs/merge_desk.yaml, merge_kitti.yaml, merge_kitti_retri.yaml and
 # merge_streets.yaml through bench/merge_real.py (real maps cut with `lmalign split`, or windows
