@@ -65,21 +65,18 @@ AlignRequest edge_request(const Preset& preset, const CandidatePair& pair,
   // pairs mostly do not overlap, by the maps' first pass alone ("check"); on a small merge by
   // their complete search too ("rescue"; docs/merge.md, "Edges with priors"). The caller's own
   // setting (EdgeOptions::settings: lmalign merge --set) wins.
-  const bool set_by_caller =
-      std::any_of(options.settings.begin(), options.settings.end(),
-                  [](const auto& kv) { return kv.first == "init.prior_complete_search"; });
-  if (pair.prior && !set_by_caller && pipeline.settings().has("init.prior_complete_search")) {
-    request.settings.emplace_back("init.prior_complete_search",
-                                  SettingValue(pair.prior_complete_search));
-  }
+  // The pair's own value of `key`, unless the caller sets it or the preset has no such setting.
+  auto pair_setting = [&](const std::string& key, const std::string& value) {
+    const bool set_by_caller = std::any_of(options.settings.begin(), options.settings.end(),
+                                           [&](const auto& kv) { return kv.first == key; });
+    if (!set_by_caller && pipeline.settings().has(key)) {
+      request.settings.emplace_back(key, SettingValue(value));
+    }
+  };
+  if (pair.prior) pair_setting("init.prior_complete_search", pair.prior_complete_search);
   // Without a prior, likewise: a fleet's pair is searched completely only to check a trusted
   // first-pass answer (CandidatePair::complete_search, "check").
-  const bool search_set_by_caller =
-      std::any_of(options.settings.begin(), options.settings.end(),
-                  [](const auto& kv) { return kv.first == "search.complete_search"; });
-  if (!pair.prior && !search_set_by_caller && pipeline.settings().has("search.complete_search")) {
-    request.settings.emplace_back("search.complete_search", SettingValue(pair.complete_search));
-  }
+  if (!pair.prior) pair_setting("search.complete_search", pair.complete_search);
   request.settings.insert(request.settings.end(), options.settings.begin(), options.settings.end());
   request.initial_guess = pair.initial_guess;
   request.scale = options.scale;
