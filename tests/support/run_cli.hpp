@@ -13,6 +13,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/cli_path.hpp"
+
 namespace lmalign::test {
 
 struct CliRun {

@@ -1,5 +1,5 @@
 // `lmalign build-map` through the real binary (eval-trajectory alone: tests/cli).
-#ifdef LMALIGN_CLI_PATH
+#ifdef LMALIGN_HAVE_CLI
 
 #include <algorithm>
 #include <filesystem>
@@ -86,4 +86,4 @@ TEST_F(VoCli, BuildMapWithoutItsHelperSaysWhatIsMissing) {
 }  // namespace
 }  // namespace lmalign
 
-#endif  // LMALIGN_CLI_PATH
+#endif  // LMALIGN_HAVE_CLI
