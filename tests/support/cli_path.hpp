@@ -7,4 +7,8 @@
 /// Absolute path of the `lmalign` executable built beside these tests (never null).
 const char* lmalign_test_cli_path();
 
+/// The `lmalign` executable under test was built with the sanitizers (LMALIGN_SANITIZE): the
+/// test programs themselves are not instrumented there, so __SANITIZE_ADDRESS__ cannot tell.
+bool lmalign_test_cli_sanitized();
+
 #define LMALIGN_CLI_PATH (lmalign_test_cli_path())
