@@ -8,6 +8,8 @@
 // alias_ambiguity of it while the residuals exceed their covariances by alias_nis_ratio
 // (repeated structure aliases a pose with residuals the covariances do not explain, and gives it
 // rivals), unless a prior tells the two apart (the answer inside its window, the rival outside);
+// a rival turned from the answer by more than its inliers' viewing directions spread is compared
+// counting only the pairs seen from directions within that spread (view_angles_rad below);
 // a non-degenerate covariance. Either condition of the alias test alone marks the verdict as
 // needing every rival (Verdict::rivals_needed: a first pass's trusted answer is then checked). The
 // reported covariance is the estimator's times the covariance scale when that is above 1.
@@ -42,6 +44,9 @@ struct GatedTrustOptions {
   /// radius) this many landmark spacings, and translation this fraction of the radius.
   double max_sd_spacings = 5.0;
   double max_sd_radius_ratio = 0.1;
+  /// The viewing-direction rival test: the answer's limit is the 95th percentile of its inliers'
+  /// viewing angles plus this; 180 turns the test off.
+  double view_rival_margin_deg = 15.0;
 };
 
 // A measured quantity in a verdict: three significant digits.
@@ -103,6 +108,37 @@ std::string sd_reason(double translation_sd_m, double rotation_sd_rad, const Sca
   return {};
 }
 
+// The viewing-direction rival test (issue 39, item 3; docs/accuracy.md, "The rival test with
+// the answer's viewing geometry"). At a right pose the two maps saw each shared landmark from
+// similar directions; a pose turned by more than those directions spread pairs landmarks seen
+// from elsewhere. `view_angles_rad` gives, per gated pair at R, the angle between the two maps'
+// viewing directions (negative where either is unknown).
+std::vector<double> view_angles_rad(const RefineContext& c, const Mat3& R,
+                                    const std::vector<GatedPair>& pairs) {
+  std::vector<double> a(pairs.size(), -1.0);
+  if (!c.source.has_view_directions() || c.target->view_directions().empty()) return a;
+  const std::vector<Vec3>& vs = *c.source.view_directions;
+  const std::vector<Vec3>& vt = c.target->view_directions();
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    const Vec3& s = vs[pairs[i].source_index];
+    const Vec3& t = vt[pairs[i].target_index];
+    if (s.isZero() || t.isZero()) continue;
+    a[i] = std::acos(std::clamp((R * s).dot(t), -1.0, 1.0));
+  }
+  return a;
+}
+
+// The gated score of the pairs whose viewing directions agree within `limit_rad` (pairs with an
+// unknown direction count: nothing tells them apart).
+double score_within_view(const std::vector<GatedPair>& pairs, const std::vector<double>& angles,
+                         double limit_rad, double chi2) {
+  double score = 0.0;
+  for (std::size_t i = 0; i < pairs.size(); ++i) {
+    if (angles[i] <= limit_rad) score += 1.0 - pairs[i].d2 / chi2;
+  }
+  return score;
+}
+
 class GatedJudge : public TrustJudge {
  public:
   explicit GatedJudge(GatedTrustOptions o) : o_(o) {}
@@ -116,8 +152,8 @@ class GatedJudge : public TrustJudge {
     const Isometry3& T = j.final->T;
     const Scales& sc = *c.scales;
     Verdict v;
+    Pairs inliers;
     {
-      Pairs inliers;
       j.pipeline->matcher().match(c, nullptr, T, LoopState::for_scoring(), &inliers);
       double sum_d2 = 0.0;
       std::vector<double> d2;
@@ -146,20 +182,67 @@ class GatedJudge : public TrustJudge {
                                           : static_cast<double>(v.num_inliers) /
                                                 static_cast<double>(near.gated.size());
     }
+    // The answer's viewing-direction limit: the 95th percentile of its inliers' angles plus a
+    // margin, when enough inliers have both directions and the limit is below 90 deg.
+    const std::vector<double> answer_angles = view_angles_rad(c, T.linear(), inliers.gated);
+    double view_limit_rad = 0.0, answer_view_score = 0.0;
+    {
+      std::vector<double> known;
+      for (double a : answer_angles) {
+        if (a >= 0.0) known.push_back(a);
+      }
+      if (known.size() >= o_.min_inliers) {
+        const std::size_t q = (known.size() * 95) / 100;
+        std::nth_element(known.begin(), known.begin() + static_cast<std::ptrdiff_t>(q),
+                         known.end());
+        const double limit = known[q] + o_.view_rival_margin_deg * kPi / 180.0;
+        if (limit < 0.5 * kPi) {
+          view_limit_rad = limit;
+          answer_view_score =
+              score_within_view(inliers.gated, answer_angles, limit, inliers.chi2_threshold);
+        }
+      }
+    }
+    // The best distinct rival's share of the answer's score (the hypotheses come by decreasing
+    // score). A rival turned from the answer by more than the viewing limit, and scoring at
+    // least trust.alias_ambiguity, is scored again with the answer counting only the pairs whose
+    // viewing directions agree within that limit: the directions tell rotations apart, never
+    // slides (a pose moved without turning sees every landmark from the same directions; on a
+    // simulated road without overlap a wrong slide's rivals are slides, and stay its rivals).
     const std::vector<RefinedHypothesis>& h = *j.hypotheses;
+    double plain_ambiguity = -1.0;
+    bool rival_by_view = false;
     for (std::size_t i = 1; i < h.size(); ++i) {
-      if (distinct(h[i].T_refined, h.front().T_refined, sc.source.centre_m, sc.source.radius_m,
-                   o_.distinct_cells * j.init->resolution_m)) {
-        v.ambiguity = h.front().score > 0.0 ? h[i].score / h.front().score : 1.0;
+      if (!distinct(h[i].T_refined, h.front().T_refined, sc.source.centre_m, sc.source.radius_m,
+                    o_.distinct_cells * j.init->resolution_m)) {
+        continue;
+      }
+      const double plain = h.front().score > 0.0 ? h[i].score / h.front().score : 1.0;
+      if (plain_ambiguity < 0.0) plain_ambiguity = plain;
+      const double turn_rad =
+          Eigen::AngleAxisd(h[i].T_refined.linear() * T.linear().transpose()).angle();
+      double share = plain;
+      bool by_view = false;
+      if (view_limit_rad > 0.0 && turn_rad > view_limit_rad && plain >= o_.alias_ambiguity &&
+          answer_view_score > 0.0) {
+        Pairs at_rival;
+        j.pipeline->matcher().match(c, nullptr, h[i].T_refined, LoopState::for_scoring(),
+                                    &at_rival);
+        const std::vector<double> a = view_angles_rad(c, h[i].T_refined.linear(), at_rival.gated);
+        share = score_within_view(at_rival.gated, a, view_limit_rad, at_rival.chi2_threshold) /
+                answer_view_score;
+        by_view = true;
+      }
+      if (share > v.ambiguity || !v.rival_T_target_source) {
+        v.ambiguity = share;
+        rival_by_view = by_view;
         // The rival as seen from the estimate: the source centre's displacement between them
         // and the rotation between them.
         v.rival_T_target_source = h[i].T_refined;
         v.rival_distance_m = (h[i].T_refined * sc.source.centre_m - T * sc.source.centre_m).norm();
-        v.rival_angle_deg =
-            Eigen::AngleAxisd(h[i].T_refined.linear() * T.linear().transpose()).angle() * 180.0 /
-            kPi;
-        break;
+        v.rival_angle_deg = turn_rad * 180.0 / kPi;
       }
+      if (plain < o_.alias_ambiguity) break;  // every later rival's share is its plain one
     }
     if (j.covariance->valid && v.covariance_scale > 1.0) {
       PoseCovariance scaled = *j.covariance;
@@ -172,7 +255,7 @@ class GatedJudge : public TrustJudge {
     // the first pass trusted a pose 122 deg off, its best rival at 77%, the mean NIS 1.17 times
     // its expectation; the truth, which the complete search finds, scores 1.7 times as much.
     const bool aliased_residuals = v.mean_nis > o_.alias_nis_ratio * v.expected_nis;
-    v.rivals_needed = aliased_residuals || v.ambiguity >= o_.alias_ambiguity;
+    v.rivals_needed = aliased_residuals || plain_ambiguity >= o_.alias_ambiguity;
     const TerminationReason end = j.final->termination;
     v.no_evidence = end == TerminationReason::kNoCorrespondences || v.num_inliers < o_.min_inliers;
     if (end == TerminationReason::kNoCorrespondences) {
@@ -196,6 +279,10 @@ class GatedJudge : public TrustJudge {
                  short_number(v.rival_angle_deg) + " deg away scores " +
                  std::to_string(static_cast<int>(std::lround(100.0 * v.ambiguity))) +
                  "% of the best";
+      if (rival_by_view) {
+        v.reason += " counting the pairs seen from directions within " +
+                    short_number(view_limit_rad * 180.0 / kPi) + " deg";
+      }
       if (v.ambiguity < o_.max_ambiguity) {
         v.reason += ", and the inliers' residuals exceed their covariances (mean NIS " +
                     short_number(v.mean_nis / v.expected_nis) +
@@ -282,6 +369,12 @@ const SettingsBinding<GatedTrustOptions>& binding() {
                SettingBound::above(0.0), "1",
                "untrusted when the translation standard deviation exceeds this fraction of the "
                "source's radius")
+          .add("trust.view_rival_margin_deg", LMALIGN_FIELD(view_rival_margin_deg),
+               SettingBound::closed(0.0, 180.0), "deg",
+               "a rival turned from the answer by more than the 95th percentile of the answer's "
+               "inliers' viewing angles plus this (when below 90 deg), and scoring at least "
+               "trust.alias_ambiguity, is compared counting only the pairs seen from directions "
+               "within that limit; 180 turns the test off")
           .add("trust.distinct_cells", LMALIGN_FIELD(distinct_cells), SettingBound::above(0.0), "1",
                "two poses are distinct when they move a landmark at the source's typical distance "
                "from its centre apart by more than this many search resolutions");
