@@ -12,8 +12,8 @@ starts) and runs it with `lmalign experiment` (parallel; an interrupted run is r
 reference: the paper's base ICP started at the truth with a tight correspondence gate. From the
 runs' results.csv it reports, per dataset and strategy: right-basin success (protocol, random, all),
 the median rotation and translation errors of the successes, the trust verdict's precision and
-recall (trustworthy against right basin), the mean and median NEES of the right-basin results
-(their reported 6x6 covariance against the truth; 6 when calibrated), and the time per alignment
+recall (trustworthy against right basin), the mean and median NEES of the trusted right-basin
+results (their reported 6x6 covariance against the truth; 6 when calibrated), and the time per alignment
 (median, max) with the landmark counts. For the default strategy (`lmalign align` without
 --strategy; bench/accuracy_default.py) it adds, per dataset, the search regret of every start
 (the score refined from the truth minus the score of the answer), the basin of its refinement
@@ -338,9 +338,12 @@ def strategy_metrics(rows):
     trusted = [r for r in rows if r.get("trustworthy") == "true"]
     true_pos = [r for r in trusted if r["success"] == "true"]
     times = [float(r["time_s"]) for r in rows]
-    # NEES of the right-basin results (6 when the reported covariance is calibrated); rows
-    # without a covariance (or written before the column existed) have none.
-    nees = [float(r["nees"]) for r in ok if r.get("nees")]
+    # NEES of the trusted right-basin results (6 when the reported covariance is calibrated):
+    # the covariance a user acts on. An untrusted answer of the default carries the estimator's
+    # covariance alone, without the half samples (since 2026-11-27, docs/accuracy.md, "The half
+    # samples only where the verdict weighs them"). Rows without a covariance (or written
+    # before the column existed) have none.
+    nees = [float(r["nees"]) for r in true_pos if r.get("nees")]
     by_exp = {}
     for r in rows:
         e = by_exp.setdefault(r["experiment"], [0, 0])

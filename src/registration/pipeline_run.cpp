@@ -83,6 +83,10 @@ struct PipelineRun::Conclusion {
   int iterations = 0;  ///< of the refinements before the final one
   /// With the scale free: the 7x7 covariance the scale's standard deviation comes from.
   std::optional<PoseCovariance> scale_covariance;
+  /// The estimator's covariance came from end_pass (resample_covariance may raise it), and
+  /// whether it has been.
+  bool resamplable = false;
+  bool resampled = false;
 };
 
 PipelineRun::PipelineRun(const Pipeline& pipeline, const SourceView& source,
@@ -491,23 +495,24 @@ void PipelineRun::end_pass(Conclusion* c) const {
       }
       d.inlier_rms_m = wsum > 0.0 ? std::sqrt(wr2 / wsum) : 0.0;
       if (wsum > 0.0) {
-        s.estimator_covariance = estimator.covariance(all, pipeline_, loop, pairs, estimate,
-                                                      nullptr, &s.num_half_samples);
+        s.estimator_covariance =
+            estimator.covariance(all, pipeline_, loop, pairs, estimate, nullptr);
+        c->resamplable = true;
       }
     }
   } else if (end == Schedule::EndPass::kLastStep && fin.has_step && fin.last_step.ok) {
     LoopState loop = fin.loop;
     loop.free_scale = all.free_scale;
-    s.estimator_covariance = estimator.covariance(all, pipeline_, loop, fin.last_pairs, estimate,
-                                                  &fin.last_step, &s.num_half_samples);
+    s.estimator_covariance =
+        estimator.covariance(all, pipeline_, loop, fin.last_pairs, estimate, &fin.last_step);
+    c->resamplable = true;
   } else if (all.free_scale) {
     // A pipeline that reports no covariance still reports its scale's standard deviation: the
     // estimator's covariance of the pairs at the estimate, for the scale alone.
     LoopState loop;
     const Pairs pairs = pairs_at_estimate(all, fin, &loop);
     if (pairs.size() > 0) {
-      c->scale_covariance =
-          estimator.covariance(all, pipeline_, loop, pairs, estimate, nullptr, nullptr);
+      c->scale_covariance = estimator.covariance(all, pipeline_, loop, pairs, estimate, nullptr);
     }
   }
   s.covariance = s.estimator_covariance;
@@ -515,6 +520,20 @@ void PipelineRun::end_pass(Conclusion* c) const {
   // The alignment's time; the verdict's is in total_time_s.
   s.registration.wall_time_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+}
+
+void PipelineRun::resample_covariance(Conclusion* c) const {
+  if (!c->resamplable || c->resampled) return;
+  c->resampled = true;
+  Summary& s = c->s;
+  RefineContext all = c->all;
+  all.free_scale = c->source != nullptr;
+  Pose estimate;
+  estimate.T_target_source = c->fin.T;
+  s.estimator_covariance = pipeline_.estimator().resampled_covariance(
+      all, pipeline_, estimate, s.estimator_covariance, &s.num_half_samples);
+  s.covariance = s.estimator_covariance;
+  if (s.estimator_covariance.has_scale) c->scale_covariance = s.estimator_covariance;
 }
 
 void PipelineRun::judge(Conclusion* c) const {
@@ -527,14 +546,22 @@ void PipelineRun::judge(Conclusion* c) const {
     jc.hypotheses = &s.hypotheses;
     jc.init = &s.initialisation;
     jc.covariance = &s.estimator_covariance;
+    jc.resampled_covariance = [this, c]() -> const PoseCovariance& {
+      resample_covariance(c);
+      return c->s.estimator_covariance;
+    };
     if (request_.prior && request_.initial_guess) {
       jc.initial_guess = request_.initial_guess;
       jc.prior_sigma_deg_m =
           std::make_pair(request_.prior->rotation_deg, request_.prior->translation_m);
     }
     s.verdict = judge->judge(jc);
+    // A trusted answer carries the resampled covariance, whichever judge trusted it.
+    if (s.verdict.trustworthy) resample_covariance(c);
     if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
     check_prior_window(c);
+  } else {
+    resample_covariance(c);
   }
   if (c->source) {
     ScaleEstimate& e = s.scale;

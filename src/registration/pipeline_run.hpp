@@ -7,7 +7,9 @@
 //   conclude        at one place of the scale axis: the hypotheses refined and scored on the
 //                   scorer's samples (score_hypotheses), the best refined on every landmark, in
 //                   7 DoF too when the scale is free (refine_best), the covariance and the
-//                   diagnostics (end_pass), the verdict with its caveats (judge)
+//                   diagnostics (end_pass), the verdict with its caveats (judge; the
+//                   covariance's costly resampling only where the verdict asks for it or
+//                   trusts the answer: resample_covariance)
 //   finish          the times
 //
 // Frames: T_target_source, p_target = T_target_source * (scale * p_source).
@@ -116,6 +118,9 @@ class PipelineRun {
   /// The last level's pairs re-made at the estimate and weighted (*loop: their loop state).
   Pairs pairs_at_estimate(const RefineContext& all, const Refinement& fin, LoopState* loop) const;
   void end_pass(Conclusion* c) const;
+  /// The estimator's covariance raised by its resampling (Estimator::resampled_covariance;
+  /// several refinements): once, and only where a verdict asks for it or trusts the answer.
+  void resample_covariance(Conclusion* c) const;
   void judge(Conclusion* c) const;
   /// With a prior and a guess: an answer outside the prior's window is not trusted (issue 41).
   void check_prior_window(Conclusion* c) const;

@@ -190,14 +190,15 @@ class Metrics(unittest.TestCase):
         self.assertAlmostEqual(m["median_time_s"], 0.3)
         self.assertAlmostEqual(m["max_time_s"], 0.9)
 
-    def test_nees_mean_and_median_over_the_right_basin_results_only(self):
+    def test_nees_mean_and_median_over_the_trusted_right_basin_results_only(self):
         rows = [row("s", True, True), row("s", True, True), row("s", True, True),
-                row("s", False, False), row("s", True, True)]
-        for r, v in zip(rows, ["2", "4", "30", "9000", ""]):  # "": no covariance
+                row("s", False, False), row("s", True, True), row("s", True, False)]
+        for r, v in zip(rows, ["2", "4", "30", "9000", "", "700"]):  # "": no covariance
             r["nees"] = v
         m = run_accuracy.strategy_metrics(rows)
         self.assertEqual(m["nees_runs"], 3)
-        self.assertAlmostEqual(m["mean_nees"], 12.0)  # the failure's 9000 is left out
+        # the failure's 9000 and the untrusted success's 700 are left out
+        self.assertAlmostEqual(m["mean_nees"], 12.0)
         self.assertAlmostEqual(m["median_nees"], 4.0)
         # results.csv of a version before the column: no NEES, not an error.
         m = run_accuracy.strategy_metrics([row("s", True, True)])

@@ -6,12 +6,14 @@
 #include <omp.h>
 
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "lmalign/core/error.hpp"
@@ -1492,6 +1494,69 @@ TEST(Adaptive, HalfSampleCovarianceCoversAMapBentAsAWhole) {
   const Mat6 diff = b.covariance.covariance - a.covariance.covariance;
   EXPECT_GT(symmetric_eigen(diff, false).values.minCoeff(), -1e-9 * a.covariance.covariance.norm());
   EXPECT_TRUE(b.covariance.valid);
+}
+
+// The larger of the gated judge's two standard deviations of a result, in landmark spacings
+// (trust_gated.cpp, too_uncertain): the translation's at the source centre's image, and the
+// rotation's times the source's radius, from the reported covariance.
+double sd_in_spacings(const Summary& s) {
+  const Scales& sc = *s.scales;
+  const Vec3 p = s.registration.T_target_source * sc.source.centre_m;
+  Eigen::Matrix<double, 3, 6> J;
+  J.leftCols<3>() = Mat3::Identity();
+  J.rightCols<3>() << 0.0, p.z(), -p.y(), -p.z(), 0.0, p.x(), p.y(), -p.x(), 0.0;
+  const Mat3 cov_p = J * s.covariance.covariance * J.transpose();
+  const double sd_centre_m =
+      std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Mat3>(cov_p).eigenvalues().maxCoeff()));
+  const double lever_m = s.covariance.rotation_sd_deg() * kPi / 180.0 * sc.source.radius_m;
+  return std::max(sd_centre_m, lever_m) / std::max(sc.source.spacing_m, sc.target.spacing_m);
+}
+
+// The half samples (several refinements of the overlap) run only where they can change the
+// verdict or are reported with a trusted answer: the resampled covariance only ever raises the
+// estimator's, so a verdict refused by an earlier test is the same without it, and its
+// covariance is the estimator's. The gated judge's standard-deviation test asks for them.
+TEST(Adaptive, HalfSamplesRunOnlyWhereTheVerdictWeighsThem) {
+  Room room = make_room(pose_from_xyz_rpy_deg(0.3, -0.2, 0.0, 0.0, 0.0, 20.0), 43);
+  for (Vec3& p : room.source.positions) {  // bent as a whole, as in the test above
+    Vec3 w = room.T_true * p;
+    w.z() += 0.03 * std::clamp(w.x() / 4.0, 0.0, 1.0) * std::clamp(w.x() / 4.0, 0.0, 1.0);
+    p = room.T_true.inverse() * w;
+  }
+  const PreparedTarget target = room.target();
+  const std::string no_halves = "estimate.half_sample_planes=0";
+  const Summary sandwich = test::align_with("adaptive", room.source, target, {{no_halves}});
+  const Summary halves = test::align_with("adaptive", room.source, target);
+  ASSERT_TRUE(sandwich.verdict.trustworthy) << sandwich.verdict.reason;
+  ASSERT_TRUE(halves.verdict.trustworthy) << halves.verdict.reason;
+  const double sd_sandwich = sd_in_spacings(sandwich), sd_halves = sd_in_spacings(halves);
+  ASSERT_GT(sd_halves, 1.5 * sd_sandwich);
+
+  // A limit between the two: only the half samples' standard deviations exceed it, so the
+  // verdict asked for them.
+  const std::string limit =
+      "trust.max_sd_spacings=" + std::to_string(std::sqrt(sd_sandwich * sd_halves));
+  const std::string no_ratio = "trust.max_sd_radius_ratio=1000";
+  const Summary refused = test::align_with("adaptive", room.source, target, {{limit, no_ratio}});
+  EXPECT_FALSE(refused.verdict.trustworthy);
+  EXPECT_EQ(refused.verdict.reason.rfind("too uncertain", 0), 0u) << refused.verdict.reason;
+  EXPECT_EQ(refused.num_half_samples, halves.num_half_samples);
+  EXPECT_TRUE(refused.covariance.covariance.isApprox(halves.covariance.covariance, 1e-12));
+  EXPECT_TRUE(test::align_with("adaptive", room.source, target, {{limit, no_ratio, no_halves}})
+                  .verdict.trustworthy);
+
+  // Refused before the standard deviations are weighed: no half sample, the estimator's
+  // covariance, and the same answer and verdict as without half samples at all.
+  const std::string too_few = "trust.min_inliers=1000000";
+  const Summary early = test::align_with("adaptive", room.source, target, {{too_few}});
+  const Summary early_sandwich =
+      test::align_with("adaptive", room.source, target, {{too_few, no_halves}});
+  EXPECT_FALSE(early.verdict.trustworthy);
+  EXPECT_EQ(early.num_half_samples, 0u);
+  EXPECT_EQ(early.verdict.reason, early_sandwich.verdict.reason);
+  EXPECT_TRUE(early.registration.T_target_source.isApprox(
+      early_sandwich.registration.T_target_source, 1e-12));
+  EXPECT_TRUE(early.covariance.covariance.isApprox(early_sandwich.covariance.covariance, 1e-12));
 }
 
 // With a prior, the search also votes from the guess tilted so that the maps' up axes agree

@@ -24,6 +24,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -429,11 +430,26 @@ class Estimator : public Stage {
   /// The 6x6 covariance of the estimate (uncertainty.hpp's convention; with loop.free_scale also
   /// the 7x7 with the scale, PoseCovariance::covariance_7x7), from `pairs` (weighted):
   /// the pairs at the estimate, or those the last step was solved on (then `last_step` is that
-  /// step). An estimator may re-run refinements of the pipeline on parts of the landmarks (a
-  /// half-sample covariance) and count them in *num_resamples.
+  /// step). Cheap: no refinement is run.
   virtual PoseCovariance covariance(const RefineContext& context, const Pipeline& pipeline,
                                     const LoopState& loop, const Pairs& pairs, const Pose& estimate,
-                                    const Step* last_step, std::size_t* num_resamples) const = 0;
+                                    const Step* last_step) const = 0;
+  /// `estimator_covariance` (covariance()'s at `estimate`) raised where re-running the pipeline's
+  /// refinement on parts of the landmarks (a resampling: half samples) says the estimate is less
+  /// certain; the parts used counted in *num_resamples (may be null). `context.free_scale` as
+  /// for covariance(). Costly (several refinements of the overlap): the pipeline asks for it
+  /// only where it matters, for a trusted answer and for a verdict that weighs the standard
+  /// deviations (JudgeContext::resampled_covariance). Default: `estimator_covariance` itself.
+  virtual PoseCovariance resampled_covariance(const RefineContext& context,
+                                              const Pipeline& pipeline, const Pose& estimate,
+                                              const PoseCovariance& estimator_covariance,
+                                              std::size_t* num_resamples) const {
+    (void)context;
+    (void)pipeline;
+    (void)estimate;
+    (void)num_resamples;
+    return estimator_covariance;
+  }
 };
 
 class Schedule : public Stage {
@@ -569,7 +585,12 @@ struct JudgeContext {
   const Refinement* final = nullptr;
   const std::vector<RefinedHypothesis>* hypotheses = nullptr;  ///< by decreasing score
   const InitialiserReport* init = nullptr;
-  const PoseCovariance* covariance = nullptr;  ///< the estimator's
+  const PoseCovariance* covariance = nullptr;  ///< the estimator's (Estimator::covariance)
+  /// The estimator's covariance raised by its resampling (Estimator::resampled_covariance),
+  /// computed on the first call (several refinements): a judge whose verdict weighs the
+  /// standard deviations asks for it; validity is *covariance's. Null: *covariance is all there
+  /// is.
+  std::function<const PoseCovariance&()> resampled_covariance;
   /// The request's initial guess (T_target_source) and its prior (standard deviations of the
   /// rotation, degrees, and of the translation, metres, about the target origin), if given:
   /// InitialiserContext's.

@@ -2,9 +2,10 @@
 // pairs per iteration, about the source centre's image (stages/p2d_step.hpp; 6 DoF, 4 about the
 // target's up axis, or 7 with the scale when the loop frees it). Its covariance: the last step's
 // normal equations (p2d_covariance), for 6 and 7 DoF the cluster-robust sandwich over spatial
-// blocks (p2d_cluster_covariance), raised to the half-sample covariance (balanced repeated
-// replication over spatial halves of the overlap, each re-aligned alone, its scale free when the
-// run's is; docs/accuracy.md, "Uncertainty of the adaptive default").
+// blocks (p2d_cluster_covariance); resampled_covariance raises it to the half-sample covariance
+// (balanced repeated replication over spatial halves of the overlap, each re-aligned alone, its
+// scale free when the run's is; docs/accuracy.md, "Uncertainty of the adaptive default"), which
+// the pipeline asks for only where it matters (PipelineRun::resample_covariance).
 #include <optional>
 
 #include <Eigen/Eigenvalues>
@@ -61,9 +62,9 @@ class P2DStepEstimator : public Estimator {
     return step;
   }
 
-  PoseCovariance covariance(const RefineContext& c, const Pipeline& pipeline, const LoopState& loop,
-                            const Pairs& pairs, const Pose& estimate, const Step* last_step,
-                            std::size_t* num_resamples) const override {
+  PoseCovariance covariance(const RefineContext& c, const Pipeline&, const LoopState& loop,
+                            const Pairs& pairs, const Pose& estimate,
+                            const Step* last_step) const override {
     if (last_step == nullptr) return {};
     // The normal equations of the last step (or, with the scale free, those of a 7-DoF step on
     // the same pairs: the step may have been a rigid one); validity, and with it the trust
@@ -86,22 +87,28 @@ class P2DStepEstimator : public Estimator {
         p2d_cluster_covariance(pairs.gated, c.target->points(), last_step->pivot_m, w,
                                o_.block_factor * c.scales->source.radius_m, basis);
     if (robust.valid) cov = robust;
-    if (o_.half_sample_planes > 0) {
-      const std::vector<Vec7> deviations = half_sample_deviations(c, pipeline, estimate);
-      const std::size_t halves = 2 * static_cast<std::size_t>(o_.half_sample_planes + 1);
-      if (2 * deviations.size() >= halves) {
-        Mat7 B = Mat7::Zero();
-        for (const Vec7& d : deviations) B.noalias() += d * d.transpose();
-        B /= static_cast<double>(deviations.size());
-        if (cov.has_scale) {
-          cov.covariance_7x7 = covariance_max(cov.covariance_7x7, B);
-          cov.covariance = cov.covariance_7x7.topLeftCorner<6, 6>();
-        } else {
-          cov.covariance = covariance_max(cov.covariance, Mat6(B.topLeftCorner<6, 6>()));
-        }
-        if (num_resamples != nullptr) *num_resamples = deviations.size();
-      }
+    return cov;
+  }
+
+  // Raised to the half-sample covariance (see half_sample_deviations) when enough halves count.
+  PoseCovariance resampled_covariance(const RefineContext& c, const Pipeline& pipeline,
+                                      const Pose& estimate, const PoseCovariance& estimator_cov,
+                                      std::size_t* num_resamples) const override {
+    PoseCovariance cov = estimator_cov;
+    if (!cov.valid || o_.four_dof || o_.half_sample_planes <= 0) return cov;
+    const std::vector<Vec7> deviations = half_sample_deviations(c, pipeline, estimate);
+    const std::size_t halves = 2 * static_cast<std::size_t>(o_.half_sample_planes + 1);
+    if (2 * deviations.size() < halves) return cov;
+    Mat7 B = Mat7::Zero();
+    for (const Vec7& d : deviations) B.noalias() += d * d.transpose();
+    B /= static_cast<double>(deviations.size());
+    if (cov.has_scale) {
+      cov.covariance_7x7 = covariance_max(cov.covariance_7x7, B);
+      cov.covariance = cov.covariance_7x7.topLeftCorner<6, 6>();
+    } else {
+      cov.covariance = covariance_max(cov.covariance, Mat6(B.topLeftCorner<6, 6>()));
     }
+    if (num_resamples != nullptr) *num_resamples = deviations.size();
     return cov;
   }
 
@@ -233,7 +240,9 @@ const SettingsBinding<P2DStepOptions>& binding() {
           .add("estimate.half_sample_planes", LMALIGN_FIELD(half_sample_planes),
                SettingBound::closed(0, 1000), "count",
                "vertical planes cutting the overlap in halves for the half-sample covariance (0: "
-               "off); costs 2 (n + 1) refinements of half the overlap")
+               "off); costs 2 (n + 1) refinements of half the overlap, run for a trusted answer "
+               "and where the verdict weighs the standard deviations (an untrusted answer "
+               "reports the estimator's covariance alone)")
           .add("estimate.half_sample_min_landmarks", LMALIGN_FIELD(half_sample_min_landmarks),
                SettingBound::at_least(3), "count",
                "a half with fewer landmarks is left out of the half-sample covariance");

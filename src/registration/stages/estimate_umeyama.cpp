@@ -58,8 +58,7 @@ class Umeyama : public Estimator {
   }
 
   PoseCovariance covariance(const RefineContext& c, const Pipeline&, const LoopState& loop,
-                            const Pairs& pairs, const Pose&, const Step*,
-                            std::size_t*) const override {
+                            const Pairs& pairs, const Pose&, const Step*) const override {
     return point_to_point_covariance(pairs.moved, c.target->points(), pairs.points,
                                      pairs.weights.empty() ? nullptr : &pairs.weights,
                                      loop.free_scale && o_.dof == 6);

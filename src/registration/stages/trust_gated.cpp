@@ -10,12 +10,16 @@
 // rivals), unless a prior tells the two apart (the answer inside its window, the rival outside);
 // a rival turned from the answer by more than its inliers' viewing directions spread is compared
 // counting only the pairs seen from directions within that spread (view_angles_rad below);
-// a non-degenerate covariance. Either condition of the alias test alone marks the verdict as
-// needing every rival (Verdict::rivals_needed: a first pass's trusted answer is then checked). The
-// reported covariance is the estimator's times the covariance scale when that is above 1.
+// a non-degenerate covariance; standard deviations small against the maps (from the resampled
+// covariance, JudgeContext::resampled_covariance, asked for only by this last test). Either
+// condition of the alias test alone marks the verdict as needing every rival
+// (Verdict::rivals_needed: a first pass's trusted answer is then checked). The reported
+// covariance is the estimator's (resampled where the last test ran) times the covariance scale
+// when that is above 1.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -244,11 +248,9 @@ class GatedJudge : public TrustJudge {
       }
       if (plain < o_.alias_ambiguity) break;  // every later rival's share is its plain one
     }
-    if (j.covariance->valid && v.covariance_scale > 1.0) {
-      PoseCovariance scaled = *j.covariance;
-      scaled.covariance *= v.covariance_scale;
-      v.covariance = scaled;
-    }
+    // The reported covariance: the estimator's, scaled; raised by the resampling where the
+    // standard deviations are weighed (too_uncertain).
+    v.covariance = scaled_covariance(*j.covariance, v.covariance_scale);
     // Residuals above their covariances, as an alias's, or a rival already within the alias
     // margin: the verdict needs every rival (Verdict::rivals_needed). Measured on a real KITTI
     // pair without shared frames (kitti_full_retri_disjoint turned by 30 deg about its up axis):
@@ -291,7 +293,7 @@ class GatedJudge : public TrustJudge {
     } else if (end == TerminationReason::kMaxIterations && !j.final->loop.free_scale) {
       // (A free-scale refinement may spend its budget settling the scale: not asked there.)
       v.reason = "not converged: the refinement reached its iteration limit";
-    } else if (const std::string why = too_uncertain(j, v, sc); !why.empty()) {
+    } else if (const std::string why = too_uncertain(j, &v, sc); !why.empty()) {
       v.reason = why;
     } else {
       v.trustworthy = true;
@@ -318,8 +320,21 @@ class GatedJudge : public TrustJudge {
            !w.check(*v.rival_T_target_source, centre, res_m, res_rad).inside();
   }
 
-  std::string too_uncertain(const JudgeContext& j, const Verdict& v, const Scales& sc) const {
-    const PoseCovariance& cov = v.covariance ? *v.covariance : *j.covariance;
+  // The estimator's covariance times the covariance scale when that is above 1, else none.
+  static std::optional<PoseCovariance> scaled_covariance(const PoseCovariance& c, double scale) {
+    if (!c.valid || !(scale > 1.0)) return std::nullopt;
+    PoseCovariance scaled = c;
+    scaled.covariance *= scale;
+    return scaled;
+  }
+
+  // The standard deviations against the maps, from the resampled covariance (computed here,
+  // the only test that weighs it: it only ever raises the estimator's, so a verdict refused
+  // before this test is the same with it or without it), scaled as the reported one.
+  std::string too_uncertain(const JudgeContext& j, Verdict* v, const Scales& sc) const {
+    const PoseCovariance& full = j.resampled_covariance ? j.resampled_covariance() : *j.covariance;
+    v->covariance = scaled_covariance(full, v->covariance_scale);
+    const PoseCovariance& cov = v->covariance ? *v->covariance : full;
     if (!cov.valid) return {};
     // The translation's uncertainty where the source is (its centre's image), not at the
     // target origin: delta p = rho + phi x p for the left perturbation (rho, phi).
