@@ -100,6 +100,13 @@ static std::vector<SettingRow> scale_settings() {
                    "covariance floor added to every pair's combined covariance; 0 = the data's "
                    "(the larger of the two maps' median smallest-axis standard deviation, or half "
                    "the landmark spacing without covariances)"),
+      real_setting("scales.evidence_spacings", "Scales::evidence_spacings", d.evidence_spacings,
+                   SettingBound::at_least(0.0), "1",
+                   "a gated pair whose combined standard deviation sigma (the geometric mean over "
+                   "its axes) exceeds this many landmark spacings counts (that / sigma)^3 of its "
+                   "1 - d^2 / chi2 in the gated score: its gate holds that many landmarks by "
+                   "chance; 0 (the default; 1 measured, docs/accuracy.md): every pair counts "
+                   "fully"),
       reals_setting("scales.default_up", "Scales::up_source, up_target",
                     {d.up_source.x(), d.up_source.y(), d.up_source.z()}, stages::vector3_bound(),
                     "1", "up axis of a map whose frames do not give one (normalised)"),

@@ -190,6 +190,7 @@ bool PipelineRun::begin_search(double factor) {
       const double floor_setting = settings_.real("scales.floor_m");
       scales.floor_m = floor_setting > 0.0 ? floor_setting
                                            : std::max(scales.source.floor_m, scales.target.floor_m);
+      scales.evidence_spacings = settings_.real("scales.evidence_spacings");
       const Vec3 default_up = stages::unit_vector(settings_, "scales.default_up");
       scales.up_source = src.up.value_or(default_up).normalized();
       scales.up_target = target_.up_axis().value_or(default_up).normalized();

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <optional>
 #include <random>
@@ -606,6 +607,60 @@ TEST(MahalanobisGate, ExpectedGatedD2IsTheTruncatedChiSquareMean) {
   EXPECT_NEAR(expected_gated_d2(200.0), 3.0, 1e-9);  // no truncation left
   EXPECT_THROW(expected_gated_d2(0.0), InvalidArgument);
   EXPECT_THROW(expected_gated_d2(kNaN), InvalidArgument);
+}
+
+// A pair's evidence (pair_evidence): 1 - d^2 / chi2, times (evidence / sigma)^3 when its
+// combined standard deviation sigma = det(S)^(1/6) exceeds the evidence scale; a vague pair's
+// gate holds that many landmarks by chance. The score sums it.
+TEST(MahalanobisGate, AVaguePairCountsLessByTheCubeOfItsSigmaOverTheEvidenceScale) {
+  const double chi2 = kChi2Dof3P99;
+  GatedPair precise;
+  precise.d2 = 0.25 * chi2;
+  precise.covariance_det_m6 = std::pow(0.1, 6);  // sigma 0.1 m
+  GatedPair vague = precise;
+  vague.covariance_det_m6 = std::pow(2.0, 6);  // sigma 2 m
+  GatedPair stretched = precise;               // sigmas 0.5, 2 and 8 m: their geometric mean is 2 m
+  stretched.covariance_det_m6 = std::pow(0.5 * 2.0 * 8.0, 2);
+  const double e = 0.5;                                     // the evidence scale, metres
+  EXPECT_DOUBLE_EQ(pair_evidence(precise, chi2, e), 0.75);  // sigma below e: all of it
+  EXPECT_NEAR(evidence_weight(vague, e), std::pow(0.5 / 2.0, 3), 1e-15);
+  EXPECT_NEAR(pair_evidence(vague, chi2, e), 0.75 / 64.0, 1e-15);
+  EXPECT_NEAR(pair_evidence(stretched, chi2, e), 0.75 / 64.0, 1e-12);
+  // No scale (0 or negative): 1 - d^2 / chi2 alone, as before issue 39's weighting.
+  EXPECT_DOUBLE_EQ(pair_evidence(vague, chi2, 0.0), 0.75);
+  EXPECT_DOUBLE_EQ(pair_evidence(vague, chi2, -1.0), 0.75);
+  EXPECT_DOUBLE_EQ(evidence_weight(vague, 0.0), 1.0);
+  // An unknown determinant (a pair not made by the gate) is not weighed.
+  EXPECT_DOUBLE_EQ(pair_evidence(GatedPair{precise.source_index, 0, precise.d2}, chi2, e), 0.75);
+  // The score of pairs sums their evidence.
+  const std::vector<GatedPair> pairs = {precise, vague, stretched};
+  EXPECT_NEAR(gated_inlier_score(pairs, MahalanobisGateOptions{}, e), 0.75 + 2.0 * 0.75 / 64.0,
+              1e-12);
+  EXPECT_NEAR(gated_inlier_score(pairs, MahalanobisGateOptions{}, 0.0), 3.0 * 0.75, 1e-12);
+}
+
+// The gate records each pair's own covariance determinant, without the pose term that widens
+// it while the pose is uncertain: the evidence of a pair does not depend on the gate's width.
+TEST(MahalanobisGate, RecordsThePairsOwnCovarianceWithoutThePoseTerm) {
+  const Points3 target_points = {Vec3(0.0, 0.0, 0.0)};
+  const std::vector<Mat3> target_cov = {Vec3(0.01, 0.04, 0.09).asDiagonal()};
+  const PreparedTarget target = make_target(target_points, target_cov);
+  const Points3 source_points = {Vec3(0.05, 0.0, 0.0)};
+  const std::vector<Mat3> source_cov = {Vec3(0.01, 0.01, 0.01).asDiagonal()};
+  GateSide side;
+  side.points = &source_points;
+  side.covariances_m2 = &source_cov;
+  const double floor = 0.1;
+  const double det = Vec3(0.01 + 0.01 + 0.01, 0.04 + 0.01 + 0.01, 0.09 + 0.01 + 0.01).prod();
+  for (double sigma_t : {0.0, 0.5}) {
+    PoseSigma wide;
+    wide.translation_m = sigma_t;
+    std::vector<GatedPair> pairs;
+    gate_correspondences(side, target, Isometry3::Identity(), floor, wide, MahalanobisGateOptions{},
+                         nullptr, &pairs);
+    ASSERT_EQ(pairs.size(), 1u);
+    EXPECT_NEAR(pairs[0].covariance_det_m6, det, 1e-15);
+  }
 }
 
 TEST(MahalanobisGate, RefusesBadOptionsSigmasFloorsAndCovarianceCounts) {
@@ -1300,15 +1355,21 @@ PriorSigma prior_sigma(double rotation_deg, double translation_m) {
   return p;
 }
 
+// Issue 39's simulated street pair of one seed: 3,000 landmarks a map, 25% overlap, the true
+// transform (20, 5, 0 m, yaw 120 deg).
+sim::SlamMapPair issue_street(std::uint64_t seed) {
+  sim::StreetSimOptions o;
+  o.seed = seed;
+  o.T_target_source = pose_from_xyz_rpy_deg(20.0, 5.0, 0.0, 0.0, 0.0, 120.0);
+  return sim::simulate_street_pair(o);
+}
+
 TEST(Adaptive, AGuessIsNeverTradedForAPoseTheScoreRatesLower) {
   // A street whose facades repeat every storey, the guess at the exact truth, a prior of
   // 2 deg / 1 m and the prior's own search alone. Measured before PipelineRun::score_hypotheses
   // restarted the guess with a sharp gate: the gate widened by the prior drifted one storey up
   // (3.5 m), gated score 153 against 282 at the truth, refused. Now: 0.04 deg / 3 cm, trusted.
-  sim::StreetSimOptions o;
-  o.seed = 1;
-  o.T_target_source = pose_from_xyz_rpy_deg(20.0, 5.0, 0.0, 0.0, 0.0, 120.0);
-  const sim::SlamMapPair pair = sim::simulate_street_pair(o);
+  const sim::SlamMapPair pair = issue_street(1);
   const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
   const PreparedTarget target(pair.target);
   const Summary r = test::align_with("adaptive", source, target,
@@ -1325,6 +1386,31 @@ TEST(Adaptive, AGuessIsNeverTradedForAPoseTheScoreRatesLower) {
     restarted = restarted || h.sharp_restart;
   }
   EXPECT_TRUE(restarted);  // the widened gate did drift
+}
+
+// Issue 39's street seed 7 (3,000 landmarks, 25% overlap, the issue's transform): the answer is
+// right either way, but counting every gated pair alike (the default) a pose 41 m along the
+// street scores 89% of it, on landmarks so vague (median standard deviation 3 m against a 0.5 m
+// spacing) that their gates pair them anywhere: refused as ambiguous. Weighed by what each pair
+// can tell (pair_evidence, scales.evidence_spacings=1), that rival falls below the margin and
+// the answer is trusted.
+TEST(Adaptive, APoseThatScoresOnVagueLandmarksIsNoRival) {
+  const sim::SlamMapPair pair = issue_street(7);
+  const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
+  const PreparedTarget target(pair.target);
+  const Summary weighed =
+      test::align_with("adaptive", source, target, {{"scales.evidence_spacings=1"}});
+  const Summary alike = test::align_with("adaptive", source, target);
+  for (const Summary* r : {&weighed, &alike}) {
+    const TransformError e = transform_error(r->registration.T_target_source, pair.T_target_source);
+    EXPECT_LT(e.rotation_deg, 0.5);
+    EXPECT_LT(e.translation_m, 0.2);
+  }
+  EXPECT_FALSE(alike.verdict.trustworthy);
+  EXPECT_EQ(alike.verdict.reason.rfind("ambiguous", 0), 0u) << alike.verdict.reason;
+  EXPECT_GT(alike.verdict.rival_distance_m, 10.0);
+  EXPECT_TRUE(weighed.verdict.trustworthy) << weighed.verdict.reason;
+  EXPECT_LT(weighed.verdict.ambiguity, alike.verdict.ambiguity);
 }
 
 TEST(Adaptive, UnrelatedMapsAreNotTrusted) {

@@ -12,6 +12,7 @@
 
 #include "lmalign/core/first_exception.hpp"
 #include "lmalign/core/geometry.hpp"
+#include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "lmalign/registration/stages/p2d_step.hpp"
 #include "stage.hpp"
 
@@ -43,8 +44,9 @@ class P2DStepEstimator : public Estimator {
     const Vec3& pivot = loop.sigma.pivot_m;
     std::vector<Mat3> rotated;
     const P2DBasis basis = this->basis(c, loop, pairs, current.T_target_source, &rotated);
-    const P2DStep s =
-        solve_p2d_step(pairs.gated, c.target->points(), pivot, weights(loop, pairs), basis);
+    std::vector<double> buffer;
+    const P2DStep s = solve_p2d_step(pairs.gated, c.target->points(), pivot,
+                                     weights(c, loop, pairs, &buffer), basis);
     Step step;
     step.ok = s.ok;
     step.has_xi = true;
@@ -77,7 +79,8 @@ class P2DStepEstimator : public Estimator {
     s.chi2 = last_step->chi2;
     std::vector<Mat3> rotated;
     const P2DBasis basis = this->basis(c, loop, pairs, estimate.T_target_source, &rotated);
-    const std::vector<double>& w = weights(loop, pairs);
+    std::vector<double> buffer;
+    const std::vector<double>& w = weights(c, loop, pairs, &buffer);
     if (basis.kind == P2DBasis::Kind::k7 && s.dof != 7) {
       s = solve_p2d_step(pairs.gated, c.target->points(), last_step->pivot_m, w, basis);
     }
@@ -122,13 +125,20 @@ class P2DStepEstimator : public Estimator {
   // estimate. Halves with fewer than half_sample_min_landmarks landmarks, and refinements that
   // do not end settled or at their budget, are left out. One slot per half: deterministic.
   // The pairs' weights in the step: the kernel's, except with the scale free. Then the step
-  // minimises what the gated score measures (gated_inlier_score: the sum of 1 - d^2 / chi2 over
-  // the gated pairs, each counting alike), so that a similarity never scores below the rigid
-  // answer it refines from; with the kernel's weights its scale settled up to 1% away from the
-  // score's best on real pairs (docs/scale.md).
-  const std::vector<double>& weights(const LoopState& loop, const Pairs& pairs) const {
-    static const std::vector<double> kAlike;
-    return loop.free_scale ? kAlike : pairs.weights;
+  // minimises what the gated score measures (gated_inlier_score: the sum over the gated pairs
+  // of 1 - d^2 / chi2 times each pair's evidence weight, pair_evidence), so that a similarity
+  // never scores below the rigid answer it refines from; with the kernel's weights its scale
+  // settled up to 1% away from the score's best on real pairs (docs/scale.md). *buffer holds
+  // the evidence weights (empty: every pair alike).
+  const std::vector<double>& weights(const RefineContext& c, const LoopState& loop,
+                                     const Pairs& pairs, std::vector<double>* buffer) const {
+    if (!loop.free_scale) return pairs.weights;
+    buffer->clear();
+    const double e = c.scales != nullptr ? c.scales->evidence_m() : 0.0;
+    if (!(e > 0.0)) return *buffer;
+    buffer->reserve(pairs.gated.size());
+    for (const GatedPair& g : pairs.gated) buffer->push_back(evidence_weight(g, e));
+    return *buffer;
   }
 
   // The basis of a step at T: 4 DoF, 7 with the loop's free scale (each pair's source covariance

@@ -124,9 +124,9 @@ std::size_t nearest(const Vec3& x, const PreparedTarget& target, std::size_t k, 
 // `view_t`: the target's viewing directions (null: none); `view_s`: the source landmark's,
 // rotated into the target frame (zero: unknown); `min_cos`: the cosine of the largest angle.
 bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
-              const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
-              double chi2, const std::vector<Vec3>* view_t, const Vec3& view_s, double min_cos,
-              GatedPair* out, CacheSlot* slot) {
+              const std::vector<Mat3>* C_t, double floor_m2, double iso_base_m2,
+              const PoseSigma& sigma, int k, double chi2, const std::vector<Vec3>* view_t,
+              const Vec3& view_s, double min_cos, GatedPair* out, CacheSlot* slot) {
   const Vec3 x = T * p_s;
   PointIndex idx[kMaxWidth + 1];
   double d2e[kMaxWidth + 1];
@@ -159,7 +159,13 @@ bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const Prepar
       out->information = info;
     }
   }
-  return best < chi2;
+  if (!(best < chi2)) return false;
+  // The pair's own combined covariance, without the pose term (pair_evidence).
+  Mat3 S = S_src;
+  if (C_t != nullptr) S += (*C_t)[out->target_index];
+  S.diagonal().array() += floor_m2;
+  out->covariance_det_m6 = S.determinant();
+  return true;
 }
 
 }  // namespace
@@ -224,7 +230,8 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
                            &cache->at_m[i], w};
       }
       if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
-                   tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, view_t,
+                   tgt_cov, floor_m * floor_m, iso_base, pose_sigma, options.k,
+                   options.chi2_threshold, view_t,
                    views ? Vec3(R * (*source.view_directions)[i]) : Vec3::Zero(), min_cos, &g,
                    cache != nullptr ? &cached : nullptr)) {
         slot[static_cast<std::size_t>(j)] = g;
@@ -247,13 +254,25 @@ double gated_inlier_score(const GateSide& source, const PreparedTarget& target,
   gate_correspondences(source, target, T_target_source, floor_m, PoseSigma{}, options, subset,
                        &pairs);
   if (num_inliers != nullptr) *num_inliers = pairs.size();
-  return gated_inlier_score(pairs, options);
+  return gated_inlier_score(pairs, options, 0.0);
+}
+
+double evidence_weight(const GatedPair& pair, double evidence_m) {
+  if (!(evidence_m > 0.0)) return 1.0;
+  // (evidence_m / sigma)^3 = evidence_m^3 / sqrt(det), sigma = det^(1/6).
+  const double det = pair.covariance_det_m6;
+  if (!(det > 0.0) || !std::isfinite(det)) return 1.0;
+  return std::min(1.0, evidence_m * evidence_m * evidence_m / std::sqrt(det));
+}
+
+double pair_evidence(const GatedPair& pair, double chi2_threshold, double evidence_m) {
+  return (1.0 - pair.d2 / chi2_threshold) * evidence_weight(pair, evidence_m);
 }
 
 double gated_inlier_score(const std::vector<GatedPair>& pairs,
-                          const MahalanobisGateOptions& options) {
+                          const MahalanobisGateOptions& options, double evidence_m) {
   double score = 0.0;
-  for (const GatedPair& g : pairs) score += 1.0 - g.d2 / options.chi2_threshold;
+  for (const GatedPair& g : pairs) score += pair_evidence(g, options.chi2_threshold, evidence_m);
   return score;
 }
 
