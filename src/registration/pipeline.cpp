@@ -102,11 +102,19 @@ static std::vector<SettingRow> scale_settings() {
                    "the landmark spacing without covariances)"),
       real_setting("scales.evidence_spacings", "Scales::evidence_spacings", d.evidence_spacings,
                    SettingBound::at_least(0.0), "1",
-                   "a gated pair whose combined standard deviation sigma (the geometric mean over "
-                   "its axes) exceeds this many landmark spacings counts (that / sigma)^3 of its "
-                   "1 - d^2 / chi2 in the gated score: its gate holds that many landmarks by "
-                   "chance; 0 (the default; 1 measured, docs/accuracy.md): every pair counts "
-                   "fully"),
+                   "each map's evidence scale e is this many of its landmark spacings, or "
+                   "scales.evidence_typical_sigmas typical pairs' standard deviations where "
+                   "larger; a gated pair whose combined standard deviation, each map's part in "
+                   "units of its e, exceeds 1 (rho, the geometric mean over its axes) counts "
+                   "rho^-3 of its 1 - d^2 / chi2 in the gated score: its gate holds that many "
+                   "landmarks by chance; 0: every pair counts fully (docs/accuracy.md, \"A pair "
+                   "counts what it can tell\")"),
+      real_setting("scales.evidence_typical_sigmas", "Scales::evidence_typical_sigmas",
+                   d.evidence_typical_sigmas, SettingBound::at_least(0.0), "1",
+                   "each map's evidence scale is at least this many times the standard deviation "
+                   "of a pair of two of its typical landmarks (sqrt(2) x its median landmark "
+                   "standard deviation with its floor): where every landmark is vaguer than the "
+                   "spacing, only the vague tail is weighed down"),
       reals_setting("scales.default_up", "Scales::up_source, up_target",
                     {d.up_source.x(), d.up_source.y(), d.up_source.z()}, stages::vector3_bound(),
                     "1", "up axis of a map whose frames do not give one (normalised)"),

@@ -58,6 +58,7 @@ void ScaledSource::set_scale(double scale) {
     DataScales& d = scales_->source;
     d.spacing_m *= scale;
     d.floor_m *= scale;
+    d.sigma_m *= scale;
     d.radius_m *= scale;
     d.centre_m *= scale;
     if (!floor_fixed_) scales_->floor_m = std::max(d.floor_m, scales_->target.floor_m);
@@ -191,6 +192,7 @@ bool PipelineRun::begin_search(double factor) {
       scales.floor_m = floor_setting > 0.0 ? floor_setting
                                            : std::max(scales.source.floor_m, scales.target.floor_m);
       scales.evidence_spacings = settings_.real("scales.evidence_spacings");
+      scales.evidence_typical_sigmas = settings_.real("scales.evidence_typical_sigmas");
       const Vec3 default_up = stages::unit_vector(settings_, "scales.default_up");
       scales.up_source = src.up.value_or(default_up).normalized();
       scales.up_target = target_.up_axis().value_or(default_up).normalized();

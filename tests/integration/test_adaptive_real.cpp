@@ -389,7 +389,9 @@ TEST(AdaptiveDeskWindows, TheCompleteSearchFindsShortWindowsTheVotesMissed) {
 // the two maps saw their shared landmarks from directions within a few degrees; the rivals are
 // turned by more than they spread, and counting only the pairs seen from directions within the
 // answer's limit the strongest (18.5 m / 28 deg) scores 71%: trusted. Measured on the 2-core AMD
-// EPYC guest, 2026-11-27.
+// EPYC guest, 2026-11-27, with every gated pair counting alike (scales.evidence_spacings=0): since
+// the gated score weighs each pair by what it can tell (the default from 2026-11-27), that rival
+// falls below the margin by the geometry alone as well (the last check).
 TEST(AdaptiveKittiWindows, ViewingDirectionsSeparateARivalTheGeometryCannot) {
   const std::string file = test::data_file("kitti_stereo_vo/kitti_vo_full.txt");
   LMALIGN_REQUIRE_FILE(file);
@@ -405,10 +407,17 @@ TEST(AdaptiveKittiWindows, ViewingDirectionsSeparateARivalTheGeometryCannot) {
   EXPECT_GT(with.verdict.rival_angle_deg, 10.0);  // a turned rival, not a slide
   EXPECT_LT(with.verdict.ambiguity, test::preset_setting("adaptive", "trust.max_ambiguity"));
   const Summary without =
-      test::align_with("adaptive", source, target, {{"trust.view_rival_margin_deg=180"}});
+      test::align_with("adaptive", source, target,
+                       {{"trust.view_rival_margin_deg=180", "scales.evidence_spacings=0"}});
   EXPECT_FALSE(without.verdict.trustworthy);
   EXPECT_NE(without.verdict.reason.find("ambiguous"), std::string::npos) << without.verdict.reason;
   EXPECT_LT(error_of(without, Isometry3::Identity()).translation_m, 0.2);  // the same answer
+  // The viewing test off, the evidence weight on: trusted by the geometry alone.
+  const Summary weighed =
+      test::align_with("adaptive", source, target, {{"trust.view_rival_margin_deg=180"}});
+  EXPECT_TRUE(weighed.verdict.trustworthy) << weighed.verdict.reason;
+  EXPECT_LT(weighed.verdict.ambiguity, without.verdict.ambiguity);
+  EXPECT_LT(error_of(weighed, Isometry3::Identity()).translation_m, 0.2);
 }
 
 // Re-triangulated KITTI windows 1-13 and 14-26 (bench/accuracy.yaml's kitti_full_retri_disjoint:

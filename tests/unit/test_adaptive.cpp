@@ -79,6 +79,7 @@ TEST(DataScales, SpacingOfARegularGridIsItsStep) {
     // No covariances: the floor is half the spacing.
     EXPECT_NEAR(s.floor_m, 0.5 * step, 1e-9 * step);
     EXPECT_FALSE(s.has_covariances);
+    EXPECT_EQ(s.sigma_m, 0.0);  // no typical standard deviation without covariances
     EXPECT_NEAR((s.centre_m - Vec3(10.0, -4.0, 2.5)).norm(), 0.0, 1e-9);
   }
   // An empty covariance list is "none" as well.
@@ -103,6 +104,8 @@ TEST(DataScales, FloorIsTheMedianSmallestAxisSdOfTheCovariances) {
   const DataScales s = estimate_data_scales(pts, &cov);
   EXPECT_TRUE(s.has_covariances);
   EXPECT_NEAR(s.floor_m, 0.365, 1e-9);
+  // The typical standard deviation: the median geometric mean of the axes, sd x 400^(1/3).
+  EXPECT_NEAR(s.sigma_m, 0.365 * std::cbrt(400.0), 1e-9);
   EXPECT_NEAR(s.spacing_m, 0.1, 1e-12);  // the covariances do not change the spacing
 }
 
@@ -609,58 +612,88 @@ TEST(MahalanobisGate, ExpectedGatedD2IsTheTruncatedChiSquareMean) {
   EXPECT_THROW(expected_gated_d2(kNaN), InvalidArgument);
 }
 
-// A pair's evidence (pair_evidence): 1 - d^2 / chi2, times (evidence / sigma)^3 when its
-// combined standard deviation sigma = det(S)^(1/6) exceeds the evidence scale; a vague pair's
-// gate holds that many landmarks by chance. The score sums it.
-TEST(MahalanobisGate, AVaguePairCountsLessByTheCubeOfItsSigmaOverTheEvidenceScale) {
+// A pair's evidence (pair_evidence): 1 - d^2 / chi2, times rho^-3 when its vagueness rho =
+// evidence_det^(1/6) (its combined standard deviation in units of the evidence scales) exceeds
+// 1; a vague pair's gate holds that many landmarks by chance. The score sums it.
+TEST(MahalanobisGate, AVaguePairCountsLessByTheCubeOfItsVagueness) {
   const double chi2 = kChi2Dof3P99;
   GatedPair precise;
   precise.d2 = 0.25 * chi2;
-  precise.covariance_det_m6 = std::pow(0.1, 6);  // sigma 0.1 m
+  precise.evidence_det = std::pow(0.2, 6);  // a fifth of its evidence scale
   GatedPair vague = precise;
-  vague.covariance_det_m6 = std::pow(2.0, 6);  // sigma 2 m
-  GatedPair stretched = precise;               // sigmas 0.5, 2 and 8 m: their geometric mean is 2 m
-  stretched.covariance_det_m6 = std::pow(0.5 * 2.0 * 8.0, 2);
-  const double e = 0.5;                                     // the evidence scale, metres
-  EXPECT_DOUBLE_EQ(pair_evidence(precise, chi2, e), 0.75);  // sigma below e: all of it
-  EXPECT_NEAR(evidence_weight(vague, e), std::pow(0.5 / 2.0, 3), 1e-15);
-  EXPECT_NEAR(pair_evidence(vague, chi2, e), 0.75 / 64.0, 1e-15);
-  EXPECT_NEAR(pair_evidence(stretched, chi2, e), 0.75 / 64.0, 1e-12);
-  // No scale (0 or negative): 1 - d^2 / chi2 alone, as before issue 39's weighting.
-  EXPECT_DOUBLE_EQ(pair_evidence(vague, chi2, 0.0), 0.75);
-  EXPECT_DOUBLE_EQ(pair_evidence(vague, chi2, -1.0), 0.75);
-  EXPECT_DOUBLE_EQ(evidence_weight(vague, 0.0), 1.0);
-  // An unknown determinant (a pair not made by the gate) is not weighed.
-  EXPECT_DOUBLE_EQ(pair_evidence(GatedPair{precise.source_index, 0, precise.d2}, chi2, e), 0.75);
+  vague.evidence_det = std::pow(4.0, 6);  // four times it
+  GatedPair stretched = precise;          // axes 1, 4 and 16: their geometric mean is 4
+  stretched.evidence_det = std::pow(1.0 * 4.0 * 16.0, 2);
+  EXPECT_DOUBLE_EQ(pair_evidence(precise, chi2), 0.75);  // within its scale: all of it
+  EXPECT_NEAR(evidence_weight(vague), std::pow(0.25, 3), 1e-15);
+  EXPECT_NEAR(pair_evidence(vague, chi2), 0.75 / 64.0, 1e-15);
+  EXPECT_NEAR(pair_evidence(stretched, chi2), 0.75 / 64.0, 1e-12);
+  // Not recorded (0: no evidence scales, or a pair not made by the gate): not weighed.
+  EXPECT_DOUBLE_EQ(pair_evidence(GatedPair{precise.source_index, 0, precise.d2}, chi2), 0.75);
   // The score of pairs sums their evidence.
   const std::vector<GatedPair> pairs = {precise, vague, stretched};
-  EXPECT_NEAR(gated_inlier_score(pairs, MahalanobisGateOptions{}, e), 0.75 + 2.0 * 0.75 / 64.0,
-              1e-12);
-  EXPECT_NEAR(gated_inlier_score(pairs, MahalanobisGateOptions{}, 0.0), 3.0 * 0.75, 1e-12);
+  EXPECT_NEAR(gated_inlier_score(pairs, MahalanobisGateOptions{}), 0.75 + 2.0 * 0.75 / 64.0, 1e-12);
 }
 
-// The gate records each pair's own covariance determinant, without the pose term that widens
-// it while the pose is uncertain: the evidence of a pair does not depend on the gate's width.
-TEST(MahalanobisGate, RecordsThePairsOwnCovarianceWithoutThePoseTerm) {
+// The gate records each pair's own combined covariance, each map's part in units of its
+// evidence scale, without the pose term that widens the gate while the pose is uncertain: the
+// evidence of a pair depends neither on the gate's width nor on the source's scale (a free
+// scale rescales the source's covariances, floor and evidence scale together).
+TEST(MahalanobisGate, RecordsThePairsOwnVaguenessWithoutThePoseTermAtAnyScale) {
   const Points3 target_points = {Vec3(0.0, 0.0, 0.0)};
   const std::vector<Mat3> target_cov = {Vec3(0.01, 0.04, 0.09).asDiagonal()};
   const PreparedTarget target = make_target(target_points, target_cov);
-  const Points3 source_points = {Vec3(0.05, 0.0, 0.0)};
-  const std::vector<Mat3> source_cov = {Vec3(0.01, 0.01, 0.01).asDiagonal()};
-  GateSide side;
-  side.points = &source_points;
-  side.covariances_m2 = &source_cov;
-  const double floor = 0.1;
-  const double det = Vec3(0.01 + 0.01 + 0.01, 0.04 + 0.01 + 0.01, 0.09 + 0.01 + 0.01).prod();
-  for (double sigma_t : {0.0, 0.5}) {
-    PoseSigma wide;
-    wide.translation_m = sigma_t;
-    std::vector<GatedPair> pairs;
-    gate_correspondences(side, target, Isometry3::Identity(), floor, wide, MahalanobisGateOptions{},
-                         nullptr, &pairs);
-    ASSERT_EQ(pairs.size(), 1u);
-    EXPECT_NEAR(pairs[0].covariance_det_m6, det, 1e-15);
+  const double e_t = 0.2, f_t = 0.05, e_s = 0.1, f_s = 0.02;
+  const double det = Vec3((0.01 + f_t * f_t) / (e_t * e_t) + (0.01 + f_s * f_s) / (e_s * e_s),
+                          (0.04 + f_t * f_t) / (e_t * e_t) + (0.01 + f_s * f_s) / (e_s * e_s),
+                          (0.09 + f_t * f_t) / (e_t * e_t) + (0.01 + f_s * f_s) / (e_s * e_s))
+                         .prod();
+  for (double scale : {1.0, 0.37, 3.0}) {
+    const Points3 source_points = {Vec3(0.05, 0.0, 0.0)};
+    const std::vector<Mat3> source_cov = {scale * scale * Vec3(0.01, 0.01, 0.01).asDiagonal()};
+    GateSide side;
+    side.points = &source_points;
+    side.covariances_m2 = &source_cov;
+    EvidenceScales evidence{scale * e_s, e_t, scale * f_s, f_t};
+    for (double sigma_t : {0.0, 0.5}) {
+      PoseSigma wide;
+      wide.translation_m = sigma_t;
+      std::vector<GatedPair> pairs;
+      gate_correspondences(side, target, Isometry3::Identity(), 0.1, wide, MahalanobisGateOptions{},
+                           nullptr, &pairs, nullptr, &evidence);
+      ASSERT_EQ(pairs.size(), 1u);
+      EXPECT_NEAR(pairs[0].evidence_det, det, 1e-9 * det) << scale << " " << sigma_t;
+      // Without evidence scales (or with them off) nothing is recorded.
+      const EvidenceScales off;
+      for (const EvidenceScales* none : {static_cast<const EvidenceScales*>(nullptr), &off}) {
+        gate_correspondences(side, target, Isometry3::Identity(), 0.1, wide,
+                             MahalanobisGateOptions{}, nullptr, &pairs, nullptr, none);
+        ASSERT_EQ(pairs.size(), 1u);
+        EXPECT_EQ(pairs[0].evidence_det, 0.0);
+      }
+    }
   }
+}
+
+// Each map's evidence scale (Scales::evidence): its landmark spacing, or twice the standard
+// deviation of a pair of two of its typical landmarks where that is larger (a dense map whose
+// every landmark is vaguer than the spacing); off when scales.evidence_spacings is 0.
+TEST(MahalanobisGate, EachMapsEvidenceScaleIsItsSpacingOrTwiceATypicalPair) {
+  Scales sc;
+  sc.source.spacing_m = 1.0;
+  sc.source.sigma_m = 0.3;
+  sc.source.floor_m = 0.4;  // typical 0.5: a pair of two, 0.71; twice that 1.41 > 1
+  sc.target.spacing_m = 2.0;
+  sc.target.sigma_m = 0.0;  // no covariances: the floor alone
+  sc.target.floor_m = 0.1;
+  const EvidenceScales e = sc.evidence();
+  ASSERT_TRUE(e.on());
+  EXPECT_NEAR(e.source_m, 2.0 * std::sqrt(2.0) * 0.5, 1e-12);
+  EXPECT_DOUBLE_EQ(e.target_m, 2.0);
+  EXPECT_DOUBLE_EQ(e.floor_source_m, 0.4);
+  EXPECT_DOUBLE_EQ(e.floor_target_m, 0.1);
+  sc.evidence_spacings = 0.0;
+  EXPECT_FALSE(sc.evidence().on());
 }
 
 TEST(MahalanobisGate, RefusesBadOptionsSigmasFloorsAndCovarianceCounts) {
@@ -1389,18 +1422,18 @@ TEST(Adaptive, AGuessIsNeverTradedForAPoseTheScoreRatesLower) {
 }
 
 // Issue 39's street seed 7 (3,000 landmarks, 25% overlap, the issue's transform): the answer is
-// right either way, but counting every gated pair alike (the default) a pose 41 m along the
-// street scores 89% of it, on landmarks so vague (median standard deviation 3 m against a 0.5 m
-// spacing) that their gates pair them anywhere: refused as ambiguous. Weighed by what each pair
-// can tell (pair_evidence, scales.evidence_spacings=1), that rival falls below the margin and
-// the answer is trusted.
+// right either way, but counting every gated pair alike (scales.evidence_spacings=0, the default
+// until 2026-11-27) a pose 41 m along the street scores 89% of it, on landmarks so vague (median
+// standard deviation 3 m against a 0.5 m spacing) that their gates pair them anywhere: refused
+// as ambiguous. Weighed by what each pair can tell (pair_evidence; the default), that rival falls
+// below the margin and the answer is trusted.
 TEST(Adaptive, APoseThatScoresOnVagueLandmarksIsNoRival) {
   const sim::SlamMapPair pair = issue_street(7);
   const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
   const PreparedTarget target(pair.target);
-  const Summary weighed =
-      test::align_with("adaptive", source, target, {{"scales.evidence_spacings=1"}});
-  const Summary alike = test::align_with("adaptive", source, target);
+  const Summary weighed = test::align_with("adaptive", source, target);
+  const Summary alike =
+      test::align_with("adaptive", source, target, {{"scales.evidence_spacings=0"}});
   for (const Summary* r : {&weighed, &alike}) {
     const TransformError e = transform_error(r->registration.T_target_source, pair.T_target_source);
     EXPECT_LT(e.rotation_deg, 0.5);

@@ -23,6 +23,7 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
@@ -96,15 +97,32 @@ struct Scales {
   Vec3 up_source = Vec3::UnitZ();
   Vec3 up_target = Vec3::UnitZ();
   /// The gated score's evidence scale in landmark spacings (setting scales.evidence_spacings;
-  /// 0, the default: off): see evidence_m() and pair_evidence (stages/mahalanobis_gate.hpp).
-  /// Not the default yet: on the real desk windows without priors it kept a false edge
-  /// (docs/accuracy.md, "A pair counts what it can tell").
-  double evidence_spacings = 0.0;
-  /// The evidence scale, metres: evidence_spacings times the larger of the two maps' landmark
-  /// spacings. A gated pair whose combined standard deviation exceeds it counts less in the
-  /// gated score (pair_evidence); 0: every pair counts fully.
-  double evidence_m() const {
-    return evidence_spacings * std::max(source.spacing_m, target.spacing_m);
+  /// 1, the default; 0: off): see evidence() and pair_evidence (stages/mahalanobis_gate.hpp).
+  double evidence_spacings = 1.0;
+  /// The evidence scale is at least this many standard deviations of a pair of two typical
+  /// landmarks (setting scales.evidence_typical_sigmas, default 2): where every landmark is
+  /// vaguer than the spacing (a dense desk map), vagueness is the map's norm and tells no pose
+  /// from another; only the vague tail is weighed down.
+  double evidence_typical_sigmas = 2.0;
+  /// Each map's evidence scale, in its own units (EvidenceScales; off when evidence_spacings is
+  /// 0): e = max(evidence_spacings x its landmark spacing, evidence_typical_sigmas x sqrt(2) x
+  /// sqrt(sigma^2 + floor^2)), sigma its typical landmark standard deviation
+  /// (DataScales::sigma_m) and floor its own (DataScales::floor_m): a pair of two typical
+  /// landmarks of alike maps has sqrt(2) times one's standard deviation. Rescaling a map
+  /// rescales its e with its covariances, so a pair's weight does not depend on the scale.
+  EvidenceScales evidence() const {
+    EvidenceScales e;
+    if (!(evidence_spacings > 0.0)) return e;
+    auto of = [&](const DataScales& d) {
+      const double typical = std::sqrt(d.sigma_m * d.sigma_m + d.floor_m * d.floor_m);
+      return std::max(evidence_spacings * d.spacing_m,
+                      evidence_typical_sigmas * std::sqrt(2.0) * typical);
+    };
+    e.source_m = of(source);
+    e.target_m = of(target);
+    e.floor_source_m = source.floor_m;
+    e.floor_target_m = target.floor_m;
+    return e;
   }
 };
 

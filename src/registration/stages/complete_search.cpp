@@ -34,8 +34,9 @@ std::vector<double> scores(const CompleteSearchInput& in, const std::vector<Sear
       PoseSigma s = sigma;
       s.pivot_m = T * in.source_centre_m;
       std::vector<GatedPair> pairs;
-      gate_correspondences(in.source, *in.target, T, in.floor_m, s, in.gate, &subset, &pairs);
-      out[static_cast<std::size_t>(i)] = gated_inlier_score(pairs, in.gate, in.evidence_m);
+      gate_correspondences(in.source, *in.target, T, in.floor_m, s, in.gate, &subset, &pairs,
+                           nullptr, &in.evidence);
+      out[static_cast<std::size_t>(i)] = gated_inlier_score(pairs, in.gate);
     });
   }
   error.rethrow();

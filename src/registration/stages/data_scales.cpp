@@ -102,8 +102,9 @@ DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* 
   s.spacing_m = median_of(nn);
   if (!(s.spacing_m > 0.0)) s.spacing_m = smallest_positive > 0.0 ? smallest_positive : 1e-6;
 
-  // Floor: the median smallest-axis standard deviation of the covariances present.
-  std::vector<double> sd_min;
+  // Floor: the median smallest-axis standard deviation of the covariances present; the typical
+  // standard deviation: the median geometric mean of the axes' (det^(1/6)).
+  std::vector<double> sd_min, sd_geo;
   std::size_t nonzero = 0;
   if (with_cov) {
     for (std::size_t j = 0; j < m; ++j) {
@@ -112,10 +113,13 @@ DataScales estimate_data_scales(const Points3& points, const std::vector<Mat3>* 
       ++nonzero;
       const Eigen::SelfAdjointEigenSolver<Mat3> es(0.5 * (c + c.transpose()),
                                                    Eigen::EigenvaluesOnly);
-      sd_min.push_back(std::sqrt(std::max(es.eigenvalues()[0], 0.0)));
+      const Vec3 l = es.eigenvalues().cwiseMax(0.0);
+      sd_min.push_back(std::sqrt(l[0]));
+      sd_geo.push_back(std::cbrt(std::sqrt(l[0]) * std::sqrt(l[1]) * std::sqrt(l[2])));
     }
   }
   s.has_covariances = with_cov && 2 * nonzero >= m;
+  s.sigma_m = s.has_covariances ? median_of(sd_geo) : 0.0;
   const double cov_floor = s.has_covariances ? median_of(sd_min) : 0.0;
   s.floor_m = cov_floor > 0.0 ? cov_floor : 0.5 * s.spacing_m;
   return s;

@@ -134,10 +134,9 @@ class P2DStepEstimator : public Estimator {
                                      const Pairs& pairs, std::vector<double>* buffer) const {
     if (!loop.free_scale) return pairs.weights;
     buffer->clear();
-    const double e = c.scales != nullptr ? c.scales->evidence_m() : 0.0;
-    if (!(e > 0.0)) return *buffer;
+    if (c.scales == nullptr || !c.scales->evidence().on()) return *buffer;
     buffer->reserve(pairs.gated.size());
-    for (const GatedPair& g : pairs.gated) buffer->push_back(evidence_weight(g, e));
+    for (const GatedPair& g : pairs.gated) buffer->push_back(evidence_weight(g));
     return *buffer;
   }
 

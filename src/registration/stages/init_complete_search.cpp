@@ -282,7 +282,7 @@ class CompleteSearchInit : public Initialiser {
     in.source_radius_m = sc.source.radius_m;
     in.cell_m = cell;
     in.gate = o_.gate;
-    in.evidence_m = sc.evidence_m();
+    in.evidence = sc.evidence();
     in.coarse_sigma.translation_m = o_.start_sigma_factor * 2.0 * cell;
     in.coarse_sigma.rotation_rad = o_.start_sigma_factor * step_rad;
     CompleteSearchOptions so = o_.search;

@@ -124,9 +124,9 @@ std::size_t nearest(const Vec3& x, const PreparedTarget& target, std::size_t k, 
 // `view_t`: the target's viewing directions (null: none); `view_s`: the source landmark's,
 // rotated into the target frame (zero: unknown); `min_cos`: the cosine of the largest angle.
 bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
-              const std::vector<Mat3>* C_t, double floor_m2, double iso_base_m2,
-              const PoseSigma& sigma, int k, double chi2, const std::vector<Vec3>* view_t,
-              const Vec3& view_s, double min_cos, GatedPair* out, CacheSlot* slot) {
+              const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
+              double chi2, const std::vector<Vec3>* view_t, const Vec3& view_s, double min_cos,
+              const EvidenceScales* evidence, GatedPair* out, CacheSlot* slot) {
   const Vec3 x = T * p_s;
   PointIndex idx[kMaxWidth + 1];
   double d2e[kMaxWidth + 1];
@@ -160,11 +160,17 @@ bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const Prepar
     }
   }
   if (!(best < chi2)) return false;
-  // The pair's own combined covariance, without the pose term (pair_evidence).
-  Mat3 S = S_src;
-  if (C_t != nullptr) S += (*C_t)[out->target_index];
-  S.diagonal().array() += floor_m2;
-  out->covariance_det_m6 = S.determinant();
+  // The pair's own combined covariance, without the pose term, each map's part in units of its
+  // evidence scale (pair_evidence).
+  if (evidence != nullptr) {
+    const double is2 = 1.0 / (evidence->source_m * evidence->source_m);
+    const double it2 = 1.0 / (evidence->target_m * evidence->target_m);
+    Mat3 S = S_src * is2;
+    if (C_t != nullptr) S += (*C_t)[out->target_index] * it2;
+    S.diagonal().array() += evidence->floor_source_m * evidence->floor_source_m * is2 +
+                            evidence->floor_target_m * evidence->floor_target_m * it2;
+    out->evidence_det = S.determinant();
+  }
   return true;
 }
 
@@ -189,8 +195,9 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
                           const Isometry3& T_target_source, double floor_m,
                           const PoseSigma& pose_sigma, const MahalanobisGateOptions& options,
                           const std::vector<std::uint32_t>* subset, std::vector<GatedPair>* pairs,
-                          GateNeighbourCache* cache) {
+                          GateNeighbourCache* cache, const EvidenceScales* evidence) {
   check_inputs(source, target, floor_m, pose_sigma, options);
+  if (evidence != nullptr && !evidence->on()) evidence = nullptr;
   if (cache != nullptr &&
       (cache->k != options.k || cache->counts.size() != source.points->size())) {
     cache->k = options.k;
@@ -230,10 +237,9 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
                            &cache->at_m[i], w};
       }
       if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
-                   tgt_cov, floor_m * floor_m, iso_base, pose_sigma, options.k,
-                   options.chi2_threshold, view_t,
-                   views ? Vec3(R * (*source.view_directions)[i]) : Vec3::Zero(), min_cos, &g,
-                   cache != nullptr ? &cached : nullptr)) {
+                   tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, view_t,
+                   views ? Vec3(R * (*source.view_directions)[i]) : Vec3::Zero(), min_cos, evidence,
+                   &g, cache != nullptr ? &cached : nullptr)) {
         slot[static_cast<std::size_t>(j)] = g;
         kept[static_cast<std::size_t>(j)] = 1;
       }
@@ -254,25 +260,24 @@ double gated_inlier_score(const GateSide& source, const PreparedTarget& target,
   gate_correspondences(source, target, T_target_source, floor_m, PoseSigma{}, options, subset,
                        &pairs);
   if (num_inliers != nullptr) *num_inliers = pairs.size();
-  return gated_inlier_score(pairs, options, 0.0);
+  return gated_inlier_score(pairs, options);
 }
 
-double evidence_weight(const GatedPair& pair, double evidence_m) {
-  if (!(evidence_m > 0.0)) return 1.0;
-  // (evidence_m / sigma)^3 = evidence_m^3 / sqrt(det), sigma = det^(1/6).
-  const double det = pair.covariance_det_m6;
+double evidence_weight(const GatedPair& pair) {
+  // rho^-3 = 1 / sqrt(det), rho = det^(1/6).
+  const double det = pair.evidence_det;
   if (!(det > 0.0) || !std::isfinite(det)) return 1.0;
-  return std::min(1.0, evidence_m * evidence_m * evidence_m / std::sqrt(det));
+  return std::min(1.0, 1.0 / std::sqrt(det));
 }
 
-double pair_evidence(const GatedPair& pair, double chi2_threshold, double evidence_m) {
-  return (1.0 - pair.d2 / chi2_threshold) * evidence_weight(pair, evidence_m);
+double pair_evidence(const GatedPair& pair, double chi2_threshold) {
+  return (1.0 - pair.d2 / chi2_threshold) * evidence_weight(pair);
 }
 
 double gated_inlier_score(const std::vector<GatedPair>& pairs,
-                          const MahalanobisGateOptions& options, double evidence_m) {
+                          const MahalanobisGateOptions& options) {
   double score = 0.0;
-  for (const GatedPair& g : pairs) score += pair_evidence(g, options.chi2_threshold, evidence_m);
+  for (const GatedPair& g : pairs) score += pair_evidence(g, options.chi2_threshold);
   return score;
 }
 

@@ -67,9 +67,10 @@ class GateMatcher : public Matcher {
     if (loop.scoring) side.view_directions = c.source.view_directions;  // (LoopState::scoring)
     pairs->kind = Pairs::Kind::kDistributions;
     pairs->chi2_threshold = options_.chi2_threshold;
-    gate_correspondences(side, *c.target, T, c.scales->floor_m, loop.sigma, options_, nullptr,
-                         &pairs->gated,
-                         state != nullptr ? &static_cast<State*>(state)->cache : nullptr);
+    const EvidenceScales evidence = c.scales->evidence();
+    gate_correspondences(
+        side, *c.target, T, c.scales->floor_m, loop.sigma, options_, nullptr, &pairs->gated,
+        state != nullptr ? &static_cast<State*>(state)->cache : nullptr, &evidence);
   }
 
  private:

@@ -1,6 +1,6 @@
 // Scorer "gated_inliers": a hypothesis' covariance-gated inlier score, the sum over the pairs the
 // matcher keeps at zero pose uncertainty of their evidence, 1 - d^2 / chi2 less for vague pairs
-// (pair_evidence, stages/mahalanobis_gate.hpp; Scales::evidence_m), on score.samples evenly
+// (pair_evidence, stages/mahalanobis_gate.hpp; Scales::evidence), on score.samples evenly
 // strided source landmarks.
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "stage.hpp"
@@ -35,11 +35,8 @@ class GatedScorer : public Scorer {
                const Isometry3& T) const override {
     Pairs pairs;
     pipeline.matcher().match(c, nullptr, T, LoopState::for_scoring(), &pairs);
-    const double evidence_m = c.scales->evidence_m();
     double score = 0.0;
-    for (const GatedPair& g : pairs.gated) {
-      score += pair_evidence(g, pairs.chi2_threshold, evidence_m);
-    }
+    for (const GatedPair& g : pairs.gated) score += pair_evidence(g, pairs.chi2_threshold);
     return score;
   }
 

@@ -135,10 +135,10 @@ std::vector<double> view_angles_rad(const RefineContext& c, const Mat3& R,
 // The gated score of the pairs whose viewing directions agree within `limit_rad` (pairs with an
 // unknown direction count: nothing tells them apart), each its evidence (pair_evidence).
 double score_within_view(const std::vector<GatedPair>& pairs, const std::vector<double>& angles,
-                         double limit_rad, double chi2, double evidence_m) {
+                         double limit_rad, double chi2) {
   double score = 0.0;
   for (std::size_t i = 0; i < pairs.size(); ++i) {
-    if (angles[i] <= limit_rad) score += pair_evidence(pairs[i], chi2, evidence_m);
+    if (angles[i] <= limit_rad) score += pair_evidence(pairs[i], chi2);
   }
   return score;
 }
@@ -162,7 +162,7 @@ class GatedJudge : public TrustJudge {
       double sum_d2 = 0.0;
       std::vector<double> d2;
       for (const GatedPair& g : inliers.gated) {
-        v.score += pair_evidence(g, inliers.chi2_threshold, sc.evidence_m());
+        v.score += pair_evidence(g, inliers.chi2_threshold);
         sum_d2 += g.d2;
         d2.push_back(g.d2);
       }
@@ -202,8 +202,8 @@ class GatedJudge : public TrustJudge {
         const double limit = known[q] + o_.view_rival_margin_deg * kPi / 180.0;
         if (limit < 0.5 * kPi) {
           view_limit_rad = limit;
-          answer_view_score = score_within_view(inliers.gated, answer_angles, limit,
-                                                inliers.chi2_threshold, sc.evidence_m());
+          answer_view_score =
+              score_within_view(inliers.gated, answer_angles, limit, inliers.chi2_threshold);
         }
       }
     }
@@ -233,8 +233,7 @@ class GatedJudge : public TrustJudge {
         j.pipeline->matcher().match(c, nullptr, h[i].T_refined, LoopState::for_scoring(),
                                     &at_rival);
         const std::vector<double> a = view_angles_rad(c, h[i].T_refined.linear(), at_rival.gated);
-        share = score_within_view(at_rival.gated, a, view_limit_rad, at_rival.chi2_threshold,
-                                  sc.evidence_m()) /
+        share = score_within_view(at_rival.gated, a, view_limit_rad, at_rival.chi2_threshold) /
                 answer_view_score;
         by_view = true;
       }

@@ -80,9 +80,9 @@ struct CompleteSearchInput : SearchMaps {
   /// The coarse vote's cell, metres (> 0).
   double cell_m = 0.0;
   MahalanobisGateOptions gate;
-  /// The gated score's evidence scale, metres (Scales::evidence_m(); pair_evidence); 0: every
-  /// gated pair counts fully.
-  double evidence_m = 0.0;
+  /// The gated score's evidence scales (Scales::evidence(); pair_evidence); off: every gated
+  /// pair counts fully.
+  EvidenceScales evidence;
   /// The pose uncertainty of the coarse resolution (the gate's start from a coarse candidate);
   /// the fine one is a third of it.
   PoseSigma coarse_sigma;

@@ -30,6 +30,10 @@ struct DataScales {
   /// eigenvectors about the mean; for an even count the mean of the two middle values), metres,
   /// in the map's frame: it turns and moves with the map, as the coordinate-wise median did not.
   Vec3 centre_m = Vec3::Zero();
+  /// The map's typical landmark standard deviation, metres: the median over landmarks of the
+  /// geometric mean of their covariance's axes, det(C)^(1/6) (an isotropic C = s^2 I gives s).
+  /// 0 when the map carries no covariances (has_covariances false). Scales::evidence uses it.
+  double sigma_m = 0.0;
   /// True when at least half of the landmarks have a non-zero covariance.
   bool has_covariances = false;
 };

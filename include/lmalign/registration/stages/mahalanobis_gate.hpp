@@ -62,9 +62,24 @@ struct GatedPair {
   double d2 = 0.0;                     ///< Mahalanobis distance squared at the current estimate
   Vec3 moved_source_m = Vec3::Zero();  ///< T p_s, target frame
   Mat3 information = Mat3::Zero();     ///< S^-1, 1/m^2
-  /// det(C_t + R C_s R^T + floor^2 I), m^6: the determinant of the pair's own combined
-  /// covariance, S without the pose-uncertainty term (pair_evidence); 0: unknown.
-  double covariance_det_m6 = 0.0;
+  /// det(C_t / e_t^2 + R C_s R^T / e_s^2 + (f_t^2 / e_t^2 + f_s^2 / e_s^2) I), dimensionless:
+  /// the pair's own combined covariance (without the pose-uncertainty term), each map's part
+  /// in units of that map's evidence scale e (EvidenceScales; f its floor). Its sixth root is
+  /// the pair's vagueness (pair_evidence). 0: not recorded (no EvidenceScales), counts fully.
+  double evidence_det = 0.0;
+};
+
+/// Each map's evidence scale, in its own units (Scales::evidence()): the standard deviation up
+/// to which a pair's landmarks count fully in the gated score (pair_evidence), and each map's
+/// covariance floor. Because each map's covariances are measured against its own scale, a
+/// pair's weight does not change when either map is rescaled (a free scale). All > 0 to weigh;
+/// else (the default) no pair's evidence is recorded and every pair counts fully.
+struct EvidenceScales {
+  double source_m = 0.0;
+  double target_m = 0.0;
+  double floor_source_m = 0.0;
+  double floor_target_m = 0.0;
+  bool on() const { return source_m > 0.0 && target_m > 0.0; }
 };
 
 /// The landmarks of one side as the gate needs them. `covariances_m2` may be empty (no
@@ -113,39 +128,40 @@ struct GateNeighbourCache {
 /// Pairs and gates the source landmarks `subset` (indices into source.points; nullptr = all)
 /// against `target` at T_target_source. Writes the kept pairs, in increasing source index, to
 /// *pairs. `cache`, optional: seeds the searches with the previous call's neighbours (the result
-/// is identical with or without it; GateNeighbourCache). Throws InvalidArgument on invalid options,
-/// a negative or non-finite floor or sigma, or covariance counts that do not match the points.
+/// is identical with or without it; GateNeighbourCache). `evidence`, optional: each kept pair's
+/// GatedPair::evidence_det is recorded against these scales (null or off: 0, every pair counts
+/// fully). Throws InvalidArgument on invalid options, a negative or non-finite floor or sigma, or
+/// covariance counts that do not match the points.
 void gate_correspondences(const GateSide& source, const PreparedTarget& target,
                           const Isometry3& T_target_source, double floor_m,
                           const PoseSigma& pose_sigma, const MahalanobisGateOptions& options,
                           const std::vector<std::uint32_t>* subset, std::vector<GatedPair>* pairs,
-                          GateNeighbourCache* cache = nullptr);
+                          GateNeighbourCache* cache = nullptr,
+                          const EvidenceScales* evidence = nullptr);
 
 /// One gated pair's evidence, its term of the gated score (dimensionless, in [0, 1]):
-/// 1 - d^2 / chi2_threshold times min(1, (evidence_m / sigma)^3), sigma =
-/// pair.covariance_det_m6^(1/6) the geometric mean of the standard deviations of the pair's own
-/// combined covariance (the two landmarks' and the floor, not the pose term of a wide gate). A
-/// gate that wide holds about (sigma / spacing)^3 landmarks of a map with that spacing by
-/// chance, so a vague landmark tells that much less; evidence_m is Scales::evidence_m() (one
-/// landmark spacing by default). evidence_m <= 0, or an unknown determinant (0): 1 - d^2 /
-/// chi2_threshold alone. Issue 39: on simulated streets of 15,000 and 60,000 landmarks (median
-/// landmark standard deviation 3-5 m) a pose 40-190 m from the truth outscored it by 5-40% on
-/// vague landmarks alone; weighted, the truth scores 1.5-3.4 times as much.
-double pair_evidence(const GatedPair& pair, double chi2_threshold, double evidence_m);
+/// 1 - d^2 / chi2_threshold times evidence_weight(pair). Issue 39: on simulated streets of
+/// 15,000 and 60,000 landmarks (median landmark standard deviation 3-5 m) a pose 40-190 m from
+/// the truth outscored it by 5-40% on vague landmarks alone; weighted, the truth scores 1.5-2.4
+/// times as much (docs/accuracy.md, "A pair counts what it can tell").
+double pair_evidence(const GatedPair& pair, double chi2_threshold);
 
-/// pair_evidence's weight alone: min(1, (evidence_m / sigma)^3), in (0, 1]; 1 when evidence_m
-/// <= 0 or the determinant is unknown.
-double evidence_weight(const GatedPair& pair, double evidence_m);
+/// pair_evidence's weight alone, in (0, 1]: min(1, rho^-3), rho = pair.evidence_det^(1/6) the
+/// geometric mean of the standard deviations of the pair's own combined covariance, each map's
+/// part in units of its evidence scale (EvidenceScales). A gate of standard deviation sigma holds
+/// about (sigma / spacing)^3 landmarks of a map by chance, so a pair vaguer than its scale tells
+/// that much less. 1 when the determinant was not recorded (0) or is not finite.
+double evidence_weight(const GatedPair& pair);
 
 /// The covariance-aware inlier score of an estimate: sum over the gated pairs (zero pose
-/// sigma) of their evidence (pair_evidence with evidence_m). Each source landmark adds at most
-/// 1, more the better its best target landmark agrees with it under both covariances, and less
-/// the vaguer the two are against evidence_m. The overload of maps (below) gates them first and
-/// counts every pair fully (evidence_m 0); it also returns the number of gated pairs in
-/// *num_inliers if not null. Same arguments and errors as gate_correspondences.
+/// sigma) of their evidence (pair_evidence). Each source landmark adds at most 1, more the
+/// better its best target landmark agrees with it under both covariances, and less the vaguer
+/// the two are (when the gate recorded their evidence). The overload of maps (below) gates them
+/// first without evidence scales (every pair counts fully); it also returns the number of gated
+/// pairs in *num_inliers if not null. Same arguments and errors as gate_correspondences.
 /// The score of pairs already gated at the estimate (zero pose sigma).
 double gated_inlier_score(const std::vector<GatedPair>& pairs,
-                          const MahalanobisGateOptions& options, double evidence_m);
+                          const MahalanobisGateOptions& options);
 
 /// E[d^2 | d^2 < chi2_threshold] for d^2 ~ chi-square with 3 dof: the mean NIS of a gate's
 /// inliers when the covariances hold (2.894 at kChi2Dof3P99). Uses
