@@ -360,7 +360,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   detail::PipelineRun run(*this, source, target, request);
   run.validate();
   if (!run.begin_search(1.0)) return run.unanswered();
-  Summary first = run.conclude(1.0);
+  Summary first = run.conclude(1.0, true);  // may be kept for settle()
   int attempts = 1;
   int searches = 1;
   // The initialiser's deeper passes (docs/accuracy.md, "The first pass"): the first pass (the
@@ -377,21 +377,28 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // searches and attempts.
   while (run.first_pass()) {
     const bool checks = first.verdict.trustworthy;
-    const bool deeper = checks ? run.prior_unconfirmed() || first.verdict.rivals_needed
-                               : !first.verdict.trusted_but_for_prior_window &&
-                                     run.deeper_if_untrusted() &&
-                                     !(run.deeper_needs_evidence() && first.verdict.no_evidence);
-    if (!deeper) break;
+    if (!run.goes_deeper(first)) break;
+    const bool deferred = run.deferred();
     // The answer stays among the next pass's hypotheses, trusted (then checked) or not: the
     // next pass may find its rivals, never lose it. (Untrusted answers were dropped until
     // 2026-11-26: on a simulated road with 25% overlap the first pass found the truth, refused
     // for a rival at 85%, and the complete search then answered 47 m off, scoring 13% less.)
     run.deepen(first.registration.T_target_source);
-    if (!run.begin_search(1.0)) break;
-    first = run.conclude(1.0);
+    if (!run.begin_search(1.0)) {
+      first = run.settle(std::move(first));  // its verdict with the covariance's resampling
+      break;
+    }
+    first = run.conclude(1.0, true);
+    // A previous pass judged without the covariance's half samples (PipelineRun::
+    // deeper_either_way: this pass replaces it whatever they would have said) was trusted only
+    // as far as the tests before them go.
     first.initialisation.notes.emplace_back(
-        checks ? "deeper pass to check a trusted answer" : "deeper pass after an untrusted answer",
+        !checks    ? "deeper pass after an untrusted answer"
+        : deferred ? "deeper pass to check an answer trusted without half samples"
+                   : "deeper pass to check a trusted answer",
         1.0);
+    if (deferred)
+      first.initialisation.notes.emplace_back("previous pass without half samples", 1.0);
   }
   const bool judged = trust_ != nullptr && run.scale_free();
   if (!judged || first.verdict.trustworthy) return run.finish(std::move(first), 1, 1);

@@ -100,6 +100,8 @@ PipelineRun::PipelineRun(const Pipeline& pipeline, const SourceView& source,
       start_(std::chrono::steady_clock::now()),
       guess_(request.initial_guess.value_or(Isometry3::Identity())) {}
 
+PipelineRun::~PipelineRun() = default;
+
 void PipelineRun::validate() const {
   if (source_.positions == nullptr || source_.positions->empty()) {
     throw InvalidArgument("registration: the source has no landmarks");
@@ -255,8 +257,12 @@ Summary PipelineRun::unanswered() const {
   return s;
 }
 
-Summary PipelineRun::conclude(double rung) const {
-  Conclusion c;
+Summary PipelineRun::conclude(double rung, bool may_defer) {
+  // On the heap: the conclusion's contexts point into it, and it may be kept (provisional_).
+  provisional_.reset();
+  before_verdict_.reset();
+  auto kept = std::make_unique<Conclusion>();
+  Conclusion& c = *kept;
   c.s = base_;
   c.all.target = &target_;
   c.all.init = &c.s.initialisation;
@@ -287,8 +293,50 @@ Summary PipelineRun::conclude(double rung) const {
   }
   refine_best(&c);
   end_pass(&c);
+  if (may_defer && first_pass()) {
+    // The resampling (several refinements on every landmark) only where this conclusion may be
+    // the result: not where the next pass replaces it whatever the resampling would say.
+    auto before = std::make_unique<Summary>(c.s);
+    judge(&c, false);
+    if (deeper_either_way(c.s)) {
+      Summary out = c.s;
+      provisional_ = std::move(kept);
+      before_verdict_ = std::move(before);
+      return out;
+    }
+    c.s = std::move(*before);
+  }
   judge(&c);
   return std::move(c.s);
+}
+
+bool PipelineRun::goes_deeper(const Summary& first) const {
+  if (!first_pass()) return false;
+  const Verdict& v = first.verdict;
+  if (v.trustworthy) return prior_unconfirmed() || v.rivals_needed;
+  return !v.trusted_but_for_prior_window && deeper_if_untrusted() &&
+         !(deeper_needs_evidence() && v.no_evidence);
+}
+
+bool PipelineRun::deeper_either_way(const Summary& first) const {
+  // Untrusted without the resampling: untrusted with it, for the same reason or an earlier one
+  // (it runs in the verdict's last test and only raises the covariance), and no
+  // trusted_but_for_prior_window either way. Trusted without it: with it, trusted (the same
+  // answer to goes_deeper) or refused as too uncertain (no evidence is missing from a trusted
+  // answer), which goes deeper when the search goes deeper after an untrusted answer.
+  if (!goes_deeper(first)) return false;
+  return !first.verdict.trustworthy || deeper_if_untrusted();
+}
+
+Summary PipelineRun::settle(Summary concluded) {
+  if (!provisional_) return concluded;
+  Conclusion& c = *provisional_;
+  c.s = std::move(*before_verdict_);
+  judge(&c);
+  Summary out = std::move(c.s);
+  provisional_.reset();
+  before_verdict_.reset();
+  return out;
 }
 
 std::unique_ptr<ScaledSource> PipelineRun::scaled_search_source(double factor) const {
@@ -539,7 +587,7 @@ void PipelineRun::resample_covariance(Conclusion* c) const {
   if (s.estimator_covariance.has_scale) c->scale_covariance = s.estimator_covariance;
 }
 
-void PipelineRun::judge(Conclusion* c) const {
+void PipelineRun::judge(Conclusion* c, bool resample) const {
   Summary& s = c->s;
   if (const TrustJudge* judge = pipeline_.trust()) {
     JudgeContext jc;
@@ -549,10 +597,12 @@ void PipelineRun::judge(Conclusion* c) const {
     jc.hypotheses = &s.hypotheses;
     jc.init = &s.initialisation;
     jc.covariance = &s.estimator_covariance;
-    jc.resampled_covariance = [this, c]() -> const PoseCovariance& {
-      resample_covariance(c);
-      return c->s.estimator_covariance;
-    };
+    if (resample) {
+      jc.resampled_covariance = [this, c]() -> const PoseCovariance& {
+        resample_covariance(c);
+        return c->s.estimator_covariance;
+      };
+    }
     if (request_.prior && request_.initial_guess) {
       jc.initial_guess = request_.initial_guess;
       jc.prior_sigma_deg_m =
@@ -560,10 +610,10 @@ void PipelineRun::judge(Conclusion* c) const {
     }
     s.verdict = judge->judge(jc);
     // A trusted answer carries the resampled covariance, whichever judge trusted it.
-    if (s.verdict.trustworthy) resample_covariance(c);
+    if (resample && s.verdict.trustworthy) resample_covariance(c);
     if (s.verdict.covariance) s.covariance = *s.verdict.covariance;
     check_prior_window(c);
-  } else {
+  } else if (resample) {
     resample_covariance(c);
   }
   if (c->source) {

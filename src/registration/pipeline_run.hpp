@@ -9,7 +9,8 @@
 //                   7 DoF too when the scale is free (refine_best), the covariance and the
 //                   diagnostics (end_pass), the verdict with its caveats (judge; the
 //                   covariance's costly resampling only where the verdict asks for it or
-//                   trusts the answer: resample_covariance)
+//                   trusts the answer, never for a pass the next one replaces whatever it
+//                   says: resample_covariance, deeper_either_way, settle)
 //   finish          the times
 //
 // Frames: T_target_source, p_target = T_target_source * (scale * p_source).
@@ -75,6 +76,7 @@ class PipelineRun {
  public:
   PipelineRun(const Pipeline& pipeline, const SourceView& source, const PreparedTarget& target,
               const PipelineRequest& request);
+  ~PipelineRun();
 
   /// Throws InvalidArgument as Pipeline::run documents.
   void validate() const;
@@ -103,8 +105,21 @@ class PipelineRun {
   /// The result without an answer (begin_search() false): not trusted, the pose the initial
   /// guess, the reason the initialiser's (InitialiserReport::declined) or too few landmarks.
   Summary unanswered() const;
-  /// The hypotheses of the current search concluded at `rung` times its initial scale.
-  Summary conclude(double rung) const;
+  /// The hypotheses of the current search concluded at `rung` times its initial scale. With
+  /// `may_defer` (Pipeline::run's passes, not the scale axis' rungs), a first pass's conclusion
+  /// that goes deeper whatever the covariance's resampling says (deeper_either_way) is judged
+  /// without the resampling and kept: the next pass's result replaces it, or settle() finishes
+  /// it when that pass cannot begin. Either way the result is the one a conclusion with the
+  /// resampling gives.
+  Summary conclude(double rung, bool may_defer = false);
+  /// Whether the run goes on to the next pass after `first`, the current search's conclusion
+  /// (Pipeline::run, docs/accuracy.md "The first pass").
+  bool goes_deeper(const Summary& first) const;
+  /// The conclusion conclude() kept, judged with the covariance's resampling; the summary it
+  /// returned when it kept none.
+  Summary settle(Summary concluded);
+  /// True when the last conclude() kept its conclusion (judged without the resampling).
+  bool deferred() const { return provisional_ != nullptr; }
   /// The summary with the run's times and the scale search's counts.
   Summary finish(Summary s, int attempts, int searches) const;
 
@@ -121,7 +136,13 @@ class PipelineRun {
   /// The estimator's covariance raised by its resampling (Estimator::resampled_covariance;
   /// several refinements): once, and only where a verdict asks for it or trusts the answer.
   void resample_covariance(Conclusion* c) const;
-  void judge(Conclusion* c) const;
+  /// The verdict; `resample`: the covariance's resampling where the verdict asks for it or trusts
+  /// the answer (false: the estimator's covariance alone, for a conclusion the next pass replaces).
+  void judge(Conclusion* c, bool resample = true) const;
+  /// True when `first` goes deeper whether or not the covariance is resampled: the resampling
+  /// only ever refuses a trusted answer as too uncertain, which goes deeper too when the
+  /// current search goes deeper after an untrusted answer.
+  bool deeper_either_way(const Summary& first) const;
   /// With a prior and a guess: an answer outside the prior's window is not trusted (issue 41).
   void check_prior_window(Conclusion* c) const;
   /// The verdict's caveats: a confidence 0 everywhere, landmarks left out, covariances assumed.
@@ -137,6 +158,10 @@ class PipelineRun {
   std::optional<ScaleSearch> scale_search_;
   int pass_ = 0;
   std::optional<Isometry3> keep_;
+  /// conclude()'s conclusion judged without the resampling, with the summary as it was before
+  /// the verdict (settle() judges it again); null when none is kept.
+  std::unique_ptr<Conclusion> provisional_;
+  std::unique_ptr<Summary> before_verdict_;
   /// The current search: its source (copied at its initial scale when the scale is free), the
   /// summary every conclusion starts from (preset, settings, scales, initialiser report), its
   /// hypotheses.

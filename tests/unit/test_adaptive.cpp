@@ -1507,7 +1507,12 @@ TEST(Adaptive, APriorsCheckRunsTheMapsCompleteSearchOnlyOnATrustedAnswer) {
   EXPECT_TRUE(off.verdict.trustworthy) << off.verdict.reason;  // why the maps must check it
   EXPECT_TRUE(voted(rescue));
   EXPECT_FALSE(voted(check));
-  EXPECT_TRUE(note(check, "deeper pass to check a trusted answer"));
+  // (A pass the next one follows whatever its half samples say is trusted without them.)
+  auto checked_note = [&](const Summary& r) {
+    return note(r, "deeper pass to check a trusted answer") ||
+           note(r, "deeper pass to check an answer trusted without half samples");
+  };
+  EXPECT_TRUE(checked_note(check));
   EXPECT_NE(check.verdict.reason.find("ambiguous"), std::string::npos) << check.verdict.reason;
 
   const Room room = make_room(far_truth(), 43);
@@ -1516,7 +1521,7 @@ TEST(Adaptive, APriorsCheckRunsTheMapsCompleteSearchOnlyOnATrustedAnswer) {
   const Summary checked = test::align_with("adaptive", room.source, room_target,
                                            {{"init.prior_complete_search=check"}, guess, prior});
   EXPECT_TRUE(checked.verdict.trustworthy) << checked.verdict.reason;
-  EXPECT_TRUE(note(checked, "deeper pass to check a trusted answer"));
+  EXPECT_TRUE(checked_note(checked));
   EXPECT_TRUE(note(checked, "first pass correspondence poses"));
   EXPECT_LT(transform_error(checked.registration.T_target_source, room.T_true).rotation_deg, 0.5);
 }
@@ -1676,6 +1681,27 @@ TEST(Adaptive, HalfSamplesRunOnlyWhereTheVerdictWeighsThem) {
   EXPECT_TRUE(early.registration.T_target_source.isApprox(
       early_sandwich.registration.T_target_source, 1e-12));
   EXPECT_TRUE(early.covariance.covariance.isApprox(early_sandwich.covariance.covariance, 1e-12));
+
+  // A first pass the complete search follows whatever its half samples say is judged without
+  // them (PipelineRun::deeper_either_way): refused before they are weighed, its answer goes
+  // deeper, and the deeper pass's verdict is the result.
+  auto has_note = [](const Summary& r, const std::string& key) {
+    for (const auto& [name, value] : r.initialisation.notes) {
+      if (name == key) return true;
+    }
+    return false;
+  };
+  EXPECT_TRUE(has_note(early, "deeper pass after an untrusted answer"));
+  EXPECT_TRUE(has_note(early, "previous pass without half samples"));
+  // Refused by its half samples alone: whether it went deeper with or without them, the result
+  // weighed them (the deferral never trusts what they refuse).
+  EXPECT_TRUE(has_note(refused, "deeper pass after an untrusted answer") ||
+              has_note(refused, "previous pass without half samples"));
+  // Trusted and settled by its first pass: judged with them, nothing deferred.
+  if (!has_note(halves, "deeper pass to check a trusted answer") &&
+      !has_note(halves, "deeper pass to check an answer trusted without half samples")) {
+    EXPECT_FALSE(has_note(halves, "previous pass without half samples"));
+  }
 }
 
 // With a prior, the search also votes from the guess tilted so that the maps' up axes agree

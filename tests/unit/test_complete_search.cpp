@@ -114,7 +114,7 @@ TEST(CompleteSearch, AnAliasTheFirstPassTrustsIsCheckedByTheCompleteSearch) {
   EXPECT_TRUE(r.verdict.rivals_needed);
   bool checked = false;
   for (const auto& [name, value] : r.initialisation.notes) {
-    checked = checked || name == "deeper pass to check a trusted answer";
+    checked = checked || name.rfind("deeper pass to check", 0) == 0;
   }
   EXPECT_TRUE(checked);
   EXPECT_GT(transform_error(r.registration.T_target_source, pair.T_target_source).translation_m,
