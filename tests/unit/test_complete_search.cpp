@@ -121,6 +121,30 @@ TEST(CompleteSearch, AnAliasTheFirstPassTrustsIsCheckedByTheCompleteSearch) {
             10.0);
 }
 
+// A road without overlap whose own score prefers a wrong slide: the accuracy benchmark's
+// road_ovl0 (road scene, seed 11, no shared frame). Measured 2026-11-27: no search proposes a
+// pose within 35 m of the truth; the answer, 91 m along the road, has a gated score of 330
+// against the truth's 318 refined from the truth, its residuals 1.35 times their covariances, a
+// rival slide at 72% of it on the scorer's samples (66% when refined and scored on every
+// landmark) and an inlier ratio of 0.21 (the truth's 0.35); a slide 61 m off scores 391. Only the
+// verdict protects it (the truth as a rival would refuse any slide), and two changes that
+// measured better elsewhere trusted a wrong slide here (docs/accuracy.md, "The precise sub-map
+// and rivals on every landmark: measured, not kept"): a trusted answer must be the truth.
+TEST(CompleteSearch, ARoadWhoseScorePrefersAWrongSlideIsNeverTrustedWrong) {
+  sim::RoadSimOptions o;
+  o.seed = 11;
+  o.overlap = 0.0;
+  o.num_landmarks = 3000;
+  const sim::SlamMapPair pair = sim::simulate_road_pair(o);
+  const PreparedTarget target(pair.target);
+  const Summary r = test::align_with("adaptive", SourceLandmarks::from_map(pair.source), target);
+  const TransformError e = transform_error(r.registration.T_target_source, pair.T_target_source);
+  if (r.verdict.trustworthy) {
+    EXPECT_LT(e.rotation_deg, 2.0) << r.verdict.reason;
+    EXPECT_LT(e.translation_m, 1.0) << r.verdict.reason;
+  }
+}
+
 TEST(CompleteSearch, ModesAreDistinctAndBestFirst) {
   const sim::SlamMapPair pair = street(33);
   const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
