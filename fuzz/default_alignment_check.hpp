@@ -47,7 +47,7 @@ inline constexpr std::size_t kFuzzMaxAlignLandmarks = 64;
 
 /// The complete search's budget in the targets, smaller than the preset's (a yaw step of 12
 /// degrees, not 3; search.peaks_per_yaw 1, not 4; vote_source_samples and screen_samples 32, not
-/// 128; pool 32, not 768; rank_keep 8, not 48; round1_keep 4, not 16): each yaw costs a 3-D
+/// 128; pool 32, not 768; rank_keep 8, not 96; round1_keep 4, not 16): each yaw costs a 3-D
 /// vote, each candidate a score, each pooled one a finer 3-D vote, each kept one a refinement;
 /// about 20 ms in all in Release, but several seconds per input under the sanitizers and
 /// libFuzzer's comparison tracing, whatever the maps' size (docs/robustness.md). The same stages

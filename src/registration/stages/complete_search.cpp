@@ -232,7 +232,10 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
     // The vote's candidates are ranked by the fine score and the best rank_keep go on; the
     // extra candidates all go on to the first round. (Measured on simulated streets, issue 39:
     // a correspondence pose within 0.4 deg and 0.3 m of the truth ranked below the 48 best of
-    // 768 snapped vote candidates by this score, and above all of them once refined.)
+    // 768 snapped vote candidates by this score, and above all of them once refined. The fine
+    // score's widened gate lets most landmarks pair anywhere: on street seed 1 a vote candidate
+    // 0.6 deg / 0.3 m from the truth ranked 74th, hence rank_keep 96; docs/accuracy.md, "The
+    // first round refines 96".)
     const std::size_t extras = std::min(in.extra_candidates.size(), pool.size());
     std::vector<SearchMode> extra(pool.end() - static_cast<std::ptrdiff_t>(extras), pool.end());
     pool.resize(pool.size() - extras);

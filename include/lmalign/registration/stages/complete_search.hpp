@@ -58,7 +58,7 @@ struct CompleteSearchOptions {
   std::size_t snap_samples = 256;          ///< >= 16
   std::size_t snap_neighbours = 32;        ///< [1, 256]
   std::size_t rank_samples = 256;          ///< >= 16
-  std::size_t rank_keep = 48;              ///< >= 1
+  std::size_t rank_keep = 96;              ///< >= 1
   int round1_iterations = 15;              ///< >= 1
   std::size_t round1_samples = 256;        ///< >= 16
   std::size_t round1_keep = 16;            ///< >= 1
