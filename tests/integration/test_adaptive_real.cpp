@@ -389,9 +389,11 @@ TEST(AdaptiveDeskWindows, TheCompleteSearchFindsShortWindowsTheVotesMissed) {
 // the two maps saw their shared landmarks from directions within a few degrees; the rivals are
 // turned by more than they spread, and counting only the pairs seen from directions within the
 // answer's limit the strongest (18.5 m / 28 deg) scores 71%: trusted. Measured on the 2-core AMD
-// EPYC guest, 2026-11-27, with every gated pair counting alike (scales.evidence_spacings=0): since
-// the gated score weighs each pair by what it can tell (the default from 2026-11-27), that rival
-// falls below the margin by the geometry alone as well (the last check).
+// EPYC guest, 2026-11-27, with every gated pair counting alike (scales.evidence_spacings=0). The
+// gated score that weighs each pair by what it can tell (the default from 2026-11-27) lowers the
+// rivals' share (the last check), but not below the margin: since the complete search's first
+// round refines 96 candidates (search.rank_keep), it finds one 18.4 m / 48 deg away at 86% of
+// it (83% before). The viewing directions are what separate it.
 TEST(AdaptiveKittiWindows, ViewingDirectionsSeparateARivalTheGeometryCannot) {
   const std::string file = test::data_file("kitti_stereo_vo/kitti_vo_full.txt");
   LMALIGN_REQUIRE_FILE(file);
@@ -412,10 +414,10 @@ TEST(AdaptiveKittiWindows, ViewingDirectionsSeparateARivalTheGeometryCannot) {
   EXPECT_FALSE(without.verdict.trustworthy);
   EXPECT_NE(without.verdict.reason.find("ambiguous"), std::string::npos) << without.verdict.reason;
   EXPECT_LT(error_of(without, Isometry3::Identity()).translation_m, 0.2);  // the same answer
-  // The viewing test off, the evidence weight on: trusted by the geometry alone.
+  // The viewing test off, the evidence weight on: the rival's share is lower than the plain
+  // score's (measured 86% against 90%: refused, within the margin).
   const Summary weighed =
       test::align_with("adaptive", source, target, {{"trust.view_rival_margin_deg=180"}});
-  EXPECT_TRUE(weighed.verdict.trustworthy) << weighed.verdict.reason;
   EXPECT_LT(weighed.verdict.ambiguity, without.verdict.ambiguity);
   EXPECT_LT(error_of(weighed, Isometry3::Identity()).translation_m, 0.2);
 }
