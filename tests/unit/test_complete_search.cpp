@@ -151,8 +151,8 @@ TEST(CompleteSearch, ARoadWhoseScorePrefersAWrongSlideIsNeverTrustedWrong) {
 // candidate 0.6 deg / 0.3 m from the truth, but the fine score (unrefined, its gate widened by a
 // third of two cells) ranks it 74th, and until 2026-11-27 the first round refined the 48
 // best: the answer was a slide 32.6 m along the street, refused, whose gated score (119) is
-// under half the truth's (258). With search.rank_keep 96 it is refined, second best after the
-// first round, and the answer is the truth (measured: 0.04 deg / 3 cm, trusted).
+// under half the truth's (258). With search.rank_keep 96 it is refined, and the answer is the
+// truth (measured: 0.04 deg / 3 cm, trusted).
 TEST(CompleteSearch, RefinesATruthCandidateTheFineScoreRanksBelowTheFirstFortyEight) {
   sim::StreetSimOptions o;
   o.seed = 1;
