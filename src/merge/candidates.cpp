@@ -218,6 +218,7 @@ CorrespondenceSearchOptions verification_options() {
   o.oriented = false;
   o.seeds = 16;
   o.hypotheses = 4;
+  o.refits = 0;  // only the clique's size counts here, not its pose
   return o;
 }
 

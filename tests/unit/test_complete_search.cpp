@@ -96,14 +96,16 @@ TEST(CompleteSearch, FindsAShortStreetOverlapOnTheFlankOfTheVotesRidge) {
 // Two windows of the simulated road with no overlap (its facades' window grid, lane dashes and
 // ground texture repeat every 1.5-12 m): every pose is wrong, and sliding the source tens of
 // metres along the road gates hundreds of landmarks. The first pass (the correspondence poses)
-// found one such slide with no rival among its poses and trusted it, 61 m off (seed 8, from
-// the transform below and from (-35, 12, 0 m, yaw -75 deg) alike; measured 2026-11-26). Its
-// residuals exceed their covariances (mean NIS 1.36 times its expectation), so the alias test
-// needs every rival (Verdict::rivals_needed): the complete search runs as a deeper pass, finds
-// the other slides (one at 72-83% of the answer), and the answer is refused.
+// finds such a slide with no rival among its poses and trusts it. Its residuals exceed their
+// covariances, so the alias test needs every rival (Verdict::rivals_needed): the complete search
+// runs as a deeper pass, finds the other slides, and the answer is refused. (Seed 8 until
+// 2026-11-27: 61 m off, mean NIS 1.36 times its expectation, a rival at 72-83%. The refitted
+// clique poses changed which slides the first pass proposes: of 16 roads (seeds 1-16, this
+// transform) seeds 8, 11 and 14 were checked this way before, seed 11 now; every answer of the
+// 16 is refused either way.)
 TEST(CompleteSearch, AnAliasTheFirstPassTrustsIsCheckedByTheCompleteSearch) {
   sim::RoadSimOptions o;
-  o.seed = 8;
+  o.seed = 11;
   o.overlap = 0.0;
   o.num_landmarks = 3000;
   o.T_target_source = pose_from_xyz_rpy_deg(20, 5, 0, 0, 0, 120);
@@ -174,23 +176,34 @@ TEST(CompleteSearch, RefinesATruthCandidateTheFineScoreRanksBelowTheFirstFortyEi
   EXPECT_TRUE(complete);
 }
 
+// The complete search's input for a pair's maps, as the default sets it (a 3 deg yaw step).
+struct StreetSearch {
+  SourceLandmarks source;
+  PreparedTarget target;
+  CompleteSearchInput in;
+  StreetSearch(const StreetSearch&) = delete;  // `in` points into the maps above
+  StreetSearch& operator=(const StreetSearch&) = delete;
+  explicit StreetSearch(const sim::SlamMapPair& pair)
+      : source(SourceLandmarks::from_map(pair.source)), target(pair.target) {
+    const DataScales ss = estimate_data_scales(source.positions, &source.covariances_m2);
+    const DataScales ts = estimate_data_scales(target.points(), &target.covariances_m2());
+    in.source = GateSide{&source.positions, &source.covariances_m2};
+    in.target = &target;
+    in.ups_source = {*source.up};
+    in.ups_target = {*target.up_axis()};
+    in.source_centre_m = ss.centre_m;
+    in.source_radius_m = ss.radius_m;
+    in.cell_m = 1.5 * std::max(ts.spacing_m, 2.0 * std::sin(1.5 * kPi / 180.0) * ss.radius_m);
+    in.floor_m = std::max(ss.floor_m, ts.floor_m);
+    in.coarse_sigma.translation_m = 0.6 * in.cell_m;
+    in.coarse_sigma.rotation_rad = 0.9 * kPi / 180.0;
+  }
+};
+
 TEST(CompleteSearch, ModesAreDistinctAndBestFirst) {
   const sim::SlamMapPair pair = street(33);
-  const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
-  const PreparedTarget target(pair.target);
-  const DataScales ss = estimate_data_scales(source.positions, &source.covariances_m2);
-  const DataScales ts = estimate_data_scales(target.points(), &target.covariances_m2());
-  CompleteSearchInput in;
-  in.source = GateSide{&source.positions, &source.covariances_m2};
-  in.target = &target;
-  in.ups_source = {*source.up};
-  in.ups_target = {*target.up_axis()};
-  in.source_centre_m = ss.centre_m;
-  in.source_radius_m = ss.radius_m;
-  in.cell_m = 1.5 * std::max(ts.spacing_m, 2.0 * std::sin(1.5 * kPi / 180.0) * ss.radius_m);
-  in.floor_m = std::max(ss.floor_m, ts.floor_m);
-  in.coarse_sigma.translation_m = 0.6 * in.cell_m;
-  in.coarse_sigma.rotation_rad = 0.9 * kPi / 180.0;
+  StreetSearch search(pair);
+  CompleteSearchInput& in = search.in;
   CompleteSearchOptions o;
   o.pool = 64;
   int refinements = 0;
@@ -229,6 +242,42 @@ TEST(CompleteSearch, ModesAreDistinctAndBestFirst) {
   CompleteSearchInput no_ups = in;
   no_ups.ups_target.clear();
   EXPECT_THROW(complete_search(no_ups, o, no_refinement), InvalidArgument);
+}
+
+// More extra candidates (the correspondence poses, by clique size) than extra_keep: the pool
+// takes extra_keep of them, from their own order and by the sharp score, in turn. On a street's
+// repeated facades the largest cliques are often wrong, and a pose near the truth ranks low by
+// size (28th-40th on issue 39's street seeds 27, 30 and 33).
+TEST(CompleteSearch, ExtraCandidatesBeyondTheKeepAreChosenByTheSharpScoreToo) {
+  const sim::SlamMapPair pair = street(33);
+  StreetSearch search(pair);
+  CompleteSearchInput& in = search.in;
+  // 30 wrong poses (slides of 6-180 m and turns of 7-210 deg), then the truth: 31st.
+  for (int i = 1; i <= 30; ++i) {
+    in.extra_candidates.push_back(pose_from_xyz_rpy_deg(6.0 * i, 0.0, 0.0, 0.0, 0.0, 7.0 * i) *
+                                  pair.T_target_source);
+  }
+  in.extra_candidates.push_back(pair.T_target_source);
+  CompleteSearchOptions o;
+  o.vote = false;
+  const SearchRefineFn no_refinement = [](const Isometry3& start, const PoseSigma&,
+                                          const std::vector<std::uint32_t>&, int) { return start; };
+  const CompleteSearchResult r = complete_search(in, o, no_refinement);
+  EXPECT_EQ(r.candidates, 0u);
+  EXPECT_EQ(r.pooled, o.extra_keep);
+  ASSERT_FALSE(r.modes.empty());
+  // The best mode is the truth, snapped (measured 1.5 deg / 1.5 m off; unrefined here); every
+  // wrong candidate is at least 6 m and 7 deg away.
+  const TransformError e = transform_error(r.modes[0].T_target_source, pair.T_target_source);
+  EXPECT_LT(e.rotation_deg, 3.0);
+  EXPECT_LT(e.translation_m, 3.0);
+  // At most extra_keep: all of them, in their own order, and the truth is not among them.
+  o.extra_keep = 40;
+  in.extra_candidates.pop_back();
+  EXPECT_EQ(complete_search(in, o, no_refinement).pooled, 30u);
+  CompleteSearchOptions bad = o;
+  bad.extra_keep = 0;
+  EXPECT_THROW(complete_search(in, bad, no_refinement), InvalidArgument);
 }
 
 TEST(LocalVote, SnapsAnOffCandidateToTheTrueTranslationAndYaw) {

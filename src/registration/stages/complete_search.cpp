@@ -65,6 +65,41 @@ std::vector<std::size_t> by_decreasing(const std::vector<double>& values) {
   return order;
 }
 
+// The indices of `by_score` (a permutation of 0..n-1) and 0..n-1 itself taken in turn, each once:
+// the own order's first, then the score's first, then the own order's second, ...
+std::vector<std::size_t> in_turn(const std::vector<std::size_t>& by_score) {
+  std::vector<std::size_t> order;
+  std::vector<char> used(by_score.size(), 0);
+  for (std::size_t k = 0; k < by_score.size(); ++k) {
+    for (std::size_t i : {k, by_score[k]}) {
+      if (!used[i]) {
+        used[i] = 1;
+        order.push_back(i);
+      }
+    }
+  }
+  return order;
+}
+
+// The input's extra candidates that join the pool (step 2): all of them when there are at most
+// o.extra_keep; else that many, from their own order (the correspondence search's, by clique
+// size) and by the sharp gated score on rank_samples landmarks, in turn. (On a street's repeated
+// facades the largest cliques are often wrong ones; a clique pose near the truth ranks 28th-40th
+// by size and among the first by this score: docs/accuracy.md, "Clique poses refitted".)
+std::vector<Isometry3> extras_kept(const CompleteSearchInput& in, const CompleteSearchOptions& o) {
+  if (in.extra_candidates.size() <= o.extra_keep) return in.extra_candidates;
+  std::vector<SearchMode> poses;
+  for (const Isometry3& T : in.extra_candidates) poses.push_back({T, 0.0});
+  const std::vector<double> sharp =
+      scores(in, poses, PoseSigma{}, strided_indices(in.source.points->size(), o.rank_samples));
+  std::vector<Isometry3> out;
+  for (std::size_t i : in_turn(by_decreasing(sharp))) {
+    if (out.size() == o.extra_keep) break;
+    out.push_back(in.extra_candidates[i]);
+  }
+  return out;
+}
+
 // The first `keep` of `order` that are not within `distance_m` of one kept before.
 std::vector<SearchMode> keep_distinct(const CompleteSearchInput& in,
                                       const std::vector<SearchMode>& poses,
@@ -109,8 +144,8 @@ bool CompleteSearchOptions::is_valid(std::string* why) const {
     return fail("vote_source_samples and vote_target_samples must be >= 3");
   }
   if (peaks_per_yaw < 1 || peaks_per_yaw > 64) return fail("peaks_per_yaw must be in [1, 64]");
-  if (pool < 1 || rank_keep < 1 || round1_keep < 1 || modes < 1) {
-    return fail("pool, rank_keep, round1_keep and modes must be >= 1");
+  if (pool < 1 || rank_keep < 1 || round1_keep < 1 || modes < 1 || extra_keep < 1) {
+    return fail("pool, rank_keep, round1_keep, modes and extra_keep must be >= 1");
   }
   if (screen_samples < 16 || snap_samples < 16 || rank_samples < 16 || round1_samples < 16 ||
       round2_samples < 16) {
@@ -189,20 +224,12 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
   if (!candidates.empty()) {
     const std::vector<double> coarse =
         scores(in, candidates, in.coarse_sigma, strided_indices(P.size(), o.screen_samples));
-    const std::vector<std::size_t> by_score = by_decreasing(coarse);
-    std::vector<std::size_t> order;  // candidates are already by decreasing votes
-    std::vector<char> used(candidates.size(), 0);
-    for (std::size_t k = 0; k < candidates.size(); ++k) {
-      for (std::size_t i : {k, by_score[k]}) {
-        if (!used[i]) {
-          used[i] = 1;
-          order.push_back(i);
-        }
-      }
-    }
-    pool = keep_distinct(in, candidates, order, votes, o.pool, 0.5 * in.cell_m);
+    // (candidates are already by decreasing votes)
+    pool = keep_distinct(in, candidates, in_turn(by_decreasing(coarse)), votes, o.pool,
+                         0.5 * in.cell_m);
   }
-  for (const Isometry3& T : in.extra_candidates) pool.push_back({T, 0.0});
+  const std::vector<Isometry3> extras_in = extras_kept(in, o);
+  for (const Isometry3& T : extras_in) pool.push_back({T, 0.0});
   out.pooled = pool.size();
 
   // --- 3. snap each to the peak of a finer vote about it
@@ -236,7 +263,7 @@ CompleteSearchResult complete_search(const CompleteSearchInput& in, const Comple
     // score's widened gate lets most landmarks pair anywhere: on street seed 1 a vote candidate
     // 0.6 deg / 0.3 m from the truth ranked 74th, hence rank_keep 96; docs/accuracy.md, "The
     // first round refines 96".)
-    const std::size_t extras = std::min(in.extra_candidates.size(), pool.size());
+    const std::size_t extras = std::min(extras_in.size(), pool.size());
     std::vector<SearchMode> extra(pool.end() - static_cast<std::ptrdiff_t>(extras), pool.end());
     pool.resize(pool.size() - extras);
     const std::vector<std::uint32_t> samples = strided_indices(P.size(), o.rank_samples);

@@ -35,6 +35,7 @@ bool CorrespondenceSearchOptions::is_valid(std::string* why) const {
     return fail("seeds and hypotheses must be >= 1, min_inliers >= 3");
   }
   if (scale_steps < 0 || scale_steps > 64) return fail("scale_steps must be in [0, 64]");
+  if (refits < 0 || refits > 16) return fail("refits must be in [0, 16]");
   if (!(scale_ratio > 1.0) || !std::isfinite(scale_ratio)) {
     return fail("scale_ratio must be > 1 and finite");
   }
@@ -463,6 +464,53 @@ CorrespondenceHypothesis clique_pose(const std::vector<std::size_t>& clique,
   return {T, clique.size(), scale};
 }
 
+// A rigid clique pose refitted `refits` times (step 4; LO-RANSAC's local optimisation): the
+// 4-DoF pose (after R_up turns the source's up onto the target's, `ut`) from every match whose
+// source landmark the pose puts within `sigmas` standard deviations (both landmarks' sigma_m) of
+// its target landmark, the nearest such match of each source keypoint (a keypoint's matches are
+// consecutive in `matches`). Stops, keeping the last pose, when fewer than 3 matches agree.
+Isometry3 refit_pose(Isometry3 T, const std::vector<Match>& matches, const Side& src,
+                     const Side& tgt, const Mat3& R_up, const Vec3& ut, double sigmas, int refits) {
+  const Points3& P = *src.points;
+  const Points3& Q = *tgt.points;
+  const double sigmas2 = sigmas * sigmas;
+  Points3 s_pts, t_pts;
+  Correspondences corr;
+  for (int it = 0; it < refits; ++it) {
+    s_pts.clear();
+    t_pts.clear();
+    corr.clear();
+    for (std::size_t a = 0; a < matches.size();) {
+      const PointIndex si = matches[a].s;
+      const Vec3 p = T * P[si];
+      const double ss2 = src.sigma_m[si] * src.sigma_m[si];
+      std::size_t b = a;
+      std::size_t pick = matches.size();
+      double best2 = std::numeric_limits<double>::infinity();
+      for (; b < matches.size() && matches[b].s == si; ++b) {
+        const PointIndex ti = matches[b].t;
+        const double d2 = (p - Q[ti]).squaredNorm();
+        const double tol2 = sigmas2 * (ss2 + tgt.sigma_m[ti] * tgt.sigma_m[ti]);
+        if (d2 < tol2 && d2 < best2) {
+          best2 = d2;
+          pick = b;
+        }
+      }
+      if (pick < matches.size()) {
+        corr.push_back(
+            {static_cast<PointIndex>(s_pts.size()), static_cast<PointIndex>(t_pts.size()), 0.0});
+        s_pts.push_back(R_up * P[si]);
+        t_pts.push_back(Q[matches[pick].t]);
+      }
+      a = b;
+    }
+    if (s_pts.size() < 3) break;
+    T = estimate_4dof_transform(s_pts, t_pts, corr, nullptr, ut);
+    T.linear() = T.linear() * R_up;
+  }
+  return T;
+}
+
 // One side's descriptors of one kind about one up axis: keys x dims floats, and whether each is
 // valid (described, and the landmark not vague).
 struct Described {
@@ -497,6 +545,10 @@ std::vector<CorrespondenceHypothesis> poses_of_pair(
       found.push_back(clique_pose(clique, matches, *src.points, *tgt.points, R_up, ut, factors[k],
                                   o.scale_steps > 0));
       found.back().oriented = oriented;
+      if (o.scale_steps == 0 && o.refits > 0) {
+        found.back().T_target_source = refit_pose(found.back().T_target_source, matches, src, tgt,
+                                                  R_up, ut, o.consistency_sigmas, o.refits);
+      }
     }
   }
   return distinct_poses(found, *src.points, radius, std::sqrt(o.scale_ratio), o.hypotheses);

@@ -195,6 +195,9 @@ class CompleteSearchInit : public Initialiser {
     co.scale_steps = steps;
     co.scale_ratio = ratio;
     co.seeds = std::min<std::size_t>(co.seeds, 16);  // only the largest clique counts here
+    // The margin below was measured on 16 poses: more admit more cliques at other scales (the
+    // real desk's Sim(3) split was no longer decisive with 64).
+    co.hypotheses = std::min<std::size_t>(co.hypotheses, 16);
     const CorrespondenceSearchResult cr = correspondence_search(ci, co);
     const CorrespondenceHypothesis* best = nullptr;
     for (const CorrespondenceHypothesis& h : cr.hypotheses) {
@@ -437,8 +440,19 @@ const SettingsBinding<CompleteInitOptions>& binding() {
                SettingBound::closed(16, 1000000), "count", "source landmarks of the second round")
           .add("search.correspondence_poses", LMALIGN_FIELD(correspondences.hypotheses),
                SettingBound::closed(0, 4096), "count",
-               "poses of the correspondence search (descriptors, a consistency graph, cliques) "
-               "added to the pool; 0 = none")
+               "poses of the correspondence search (descriptors, a consistency graph, cliques); "
+               "0 = none; it grows 4 cliques per pose")
+          .add("search.correspondence_keep", LMALIGN_FIELD(search.extra_keep),
+               SettingBound::closed(1, 4096), "count",
+               "correspondence poses refined: when there are more, that many from their order by "
+               "clique size and by the sharp gated score on search.rank_samples landmarks, in "
+               "turn")
+          .add(
+              "search.correspondence_refits", LMALIGN_FIELD(correspondences.refits),
+              SettingBound::closed(0, 16), "count",
+              "each rigid clique's pose re-estimated from every match it carries within "
+              "search.consistency_sigmas standard deviations (LO-RANSAC's local optimisation); 0 = "
+              "the clique's own pose")
           .flag("search.first_pass", LMALIGN_FIELD(first_pass),
                 "the correspondence poses alone are refined and judged first (with a prior, beside "
                 "the prior's own search when none lies inside its window); the complete search "

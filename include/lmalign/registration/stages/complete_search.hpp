@@ -16,7 +16,9 @@
 //   2. Pool. The candidates are ranked twice, by prominence and by the gated score at the coarse
 //      resolution on screen_samples landmarks; the pool takes them from the two rankings in
 //      turn, dropping near-duplicates, up to `pool`; then the input's extra candidates (the
-//      correspondence search's poses) join it. (Indoors, repeated structure spreads the
+//      correspondence search's poses) join it: all of them when there are at most extra_keep,
+//      else extra_keep of them, from their own order (by clique size) and the sharp gated score
+//      on rank_samples landmarks, in turn. (Indoors, repeated structure spreads the
 //      votes and the score ranks best; on a street the score at the coarse resolution is flatter
 //      than the true peak is narrow, and the prominence ranks best.)
 //   3. Snap. Each pooled candidate moves to the peak of a finer vote about it: yaws within one
@@ -66,6 +68,9 @@ struct CompleteSearchOptions {
   std::size_t round2_samples = 512;        ///< >= 16
   std::size_t modes = 6;                   ///< >= 1
   double distinct_cells = 4.0;             ///< > 0
+  /// Extra candidates kept (step 2), >= 1: on a street's repeated facades the largest cliques
+  /// are often wrong, and the truth's clique pose ranks lower by size than by the sharp score.
+  std::size_t extra_keep = 16;
   /// False: no coarse vote (steps 1 and 2); the pool is the input's extra candidates alone,
   /// snapped and refined in the rounds (the correspondence search's first pass).
   bool vote = true;
@@ -86,8 +91,9 @@ struct CompleteSearchInput : SearchMaps {
   /// The pose uncertainty of the coarse resolution (the gate's start from a coarse candidate);
   /// the fine one is a third of it.
   PoseSigma coarse_sigma;
-  /// Poses found otherwise (the correspondence search's, correspondence_search.hpp), added to
-  /// the pool after the coarse vote's candidates: snapped, ranked and refined like them.
+  /// Poses found otherwise (the correspondence search's, correspondence_search.hpp), best first,
+  /// added to the pool after the coarse vote's candidates (at most options.extra_keep of them,
+  /// step 2): snapped and refined like them.
   std::vector<Isometry3> extra_candidates;
 };
 
