@@ -464,11 +464,12 @@ CorrespondenceHypothesis clique_pose(const std::vector<std::size_t>& clique,
   return {T, clique.size(), scale};
 }
 
-// A rigid clique pose refitted `refits` times (step 4; LO-RANSAC's local optimisation): the
-// 4-DoF pose (after R_up turns the source's up onto the target's, `ut`) from every match whose
-// source landmark the pose puts within `sigmas` standard deviations (both landmarks' sigma_m) of
-// its target landmark, the nearest such match of each source keypoint (a keypoint's matches are
-// consecutive in `matches`). Stops, keeping the last pose, when fewer than 3 matches agree.
+// A rigid clique pose refitted (step 4; LO-RANSAC's local optimisation): the 4-DoF pose (after
+// R_up turns the source's up onto the target's, `ut`) from every match whose source landmark the
+// pose puts within `sigmas` standard deviations (both landmarks' sigma_m) of its target landmark,
+// the nearest such match of each source keypoint (a keypoint's matches are consecutive in
+// `matches`); again until those matches repeat (a fixed point), at most `refits` times. Stops,
+// keeping the last pose, when fewer than 3 matches agree.
 Isometry3 refit_pose(Isometry3 T, const std::vector<Match>& matches, const Side& src,
                      const Side& tgt, const Mat3& R_up, const Vec3& ut, double sigmas, int refits) {
   const Points3& P = *src.points;
@@ -476,10 +477,12 @@ Isometry3 refit_pose(Isometry3 T, const std::vector<Match>& matches, const Side&
   const double sigmas2 = sigmas * sigmas;
   Points3 s_pts, t_pts;
   Correspondences corr;
+  std::vector<std::size_t> picked, last;
   for (int it = 0; it < refits; ++it) {
     s_pts.clear();
     t_pts.clear();
     corr.clear();
+    picked.clear();
     for (std::size_t a = 0; a < matches.size();) {
       const PointIndex si = matches[a].s;
       const Vec3 p = T * P[si];
@@ -501,10 +504,12 @@ Isometry3 refit_pose(Isometry3 T, const std::vector<Match>& matches, const Side&
             {static_cast<PointIndex>(s_pts.size()), static_cast<PointIndex>(t_pts.size()), 0.0});
         s_pts.push_back(R_up * P[si]);
         t_pts.push_back(Q[matches[pick].t]);
+        picked.push_back(pick);
       }
       a = b;
     }
-    if (s_pts.size() < 3) break;
+    if (s_pts.size() < 3 || picked == last) break;
+    last.swap(picked);
     T = estimate_4dof_transform(s_pts, t_pts, corr, nullptr, ut);
     T.linear() = T.linear() * R_up;
   }

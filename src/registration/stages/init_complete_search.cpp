@@ -447,12 +447,11 @@ const SettingsBinding<CompleteInitOptions>& binding() {
                "correspondence poses refined: when there are more, that many from their order by "
                "clique size and by the sharp gated score on search.rank_samples landmarks, in "
                "turn")
-          .add(
-              "search.correspondence_refits", LMALIGN_FIELD(correspondences.refits),
-              SettingBound::closed(0, 16), "count",
-              "each rigid clique's pose re-estimated from every match it carries within "
-              "search.consistency_sigmas standard deviations (LO-RANSAC's local optimisation); 0 = "
-              "the clique's own pose")
+          .add("search.correspondence_refits", LMALIGN_FIELD(correspondences.refits),
+               SettingBound::closed(0, 16), "count",
+               "each rigid clique's pose re-estimated from every match it carries within "
+               "search.consistency_sigmas standard deviations, until those matches repeat, at most "
+               "this many times (LO-RANSAC's local optimisation); 0 = the clique's own pose")
           .flag("search.first_pass", LMALIGN_FIELD(first_pass),
                 "the correspondence poses alone are refined and judged first (with a prior, beside "
                 "the prior's own search when none lies inside its window); the complete search "

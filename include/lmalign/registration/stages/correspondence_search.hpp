@@ -24,10 +24,11 @@
 //      `seeds`, a clique grows greedily (the candidate with the most neighbours among the
 //      remaining candidates first). Each clique of at least `min_inliers` matches gives a 4-DoF
 //      pose (estimate_4dof_transform after turning the source's up onto the target's), then,
-//      when rigid, `refits` times the pose again from every match that pose carries within
+//      when rigid, the pose again from every match that pose carries within
 //      `consistency_sigmas` standard deviations (the two landmarks' together; the nearest one
-//      per source keypoint): LO-RANSAC's local optimisation (Chum, Matas and Kittler 2003). A
-//      greedy clique is a few of the true matches; the refit takes in the others. Each
+//      per source keypoint), until those matches repeat, at most `refits` times: LO-RANSAC's
+//      local optimisation (Chum, Matas and Kittler 2003). A greedy clique is a few of the true
+//      matches; the refit takes in the others. Each
 //      descriptor kind and pair of up axes ranks its distinct poses by decreasing clique size;
 //      the hypotheses are those lists taken in turn, `hypotheses` in all.
 //   5. Scale (free-scale runs only). The pairwise test compares the target's distances with the
@@ -64,8 +65,8 @@ struct CorrespondenceSearchOptions {
   std::size_t seeds = 128;      ///< cliques grown, >= 1
   std::size_t min_inliers = 5;  ///< >= 3
   std::size_t hypotheses = 64;  ///< poses at most, over every pair of up axes, >= 1
-  /// Refits of each clique's pose from the matches it carries (step 4), [0, 16]; rigid runs
-  /// only (scale_steps 0). 0: the clique's own pose.
+  /// Refits of each clique's pose from the matches it carries (step 4) at most, [0, 16]; fewer
+  /// when those matches repeat. Rigid runs only (scale_steps 0). 0: the clique's own pose.
   int refits = 2;
   /// Free scale (issue 39, item 4): the graph is also built at scale factors
   /// scale_ratio^k, |k| <= scale_steps (target units per source unit, relative to the source
