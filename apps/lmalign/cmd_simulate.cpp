@@ -34,6 +34,7 @@ struct SimulateArgs {
   std::string prior_sigma = "3,0.5";
   unsigned long long frames = 30;  // street: keyframes per window
   unsigned long long windows = 0;  // street: 0 = a pair; else that many windows + a manifest
+  std::string views = "ring";      // fleet: the keyframes' layout (FleetViews)
 };
 
 std::string to_text(double value) {
@@ -68,6 +69,10 @@ int run_simulate_fleet(const SimulateArgs& a) {
     throw InvalidArgument("--maps " + std::to_string(a.maps) + ": must be in [2, 100000]");
   }
   if (a.twins > 1000ULL) throw InvalidArgument("--twins: must be <= 1000");
+  if (a.views != "ring" && a.views != "roaming") {
+    throw InvalidArgument("--views " + a.views + ": expected 'ring' or 'roaming'");
+  }
+  o.views = a.views == "roaming" ? sim::FleetViews::kRoaming : sim::FleetViews::kRing;
   if (a.prior_sigma != "none") {
     const std::vector<double> ps =
         parse_number_list("--prior-sigma", a.prior_sigma, 2, "ROT_DEG,TRANS_M, e.g. 3,0.5");
@@ -102,7 +107,7 @@ int run_simulate_fleet(const SimulateArgs& a) {
   // The manifest last: its presence marks a complete scene.
   write_output((dir / "manifest.yaml").string(), [&](std::ostream& os) {
     os << "# lmalign simulate --scene fleet --maps " << a.maps << " --seed " << a.seed
-       << " (docs/merge.md)\nmaps:\n";
+       << (a.views == "ring" ? "" : " --views " + a.views) << " (docs/merge.md)\nmaps:\n";
     for (std::size_t i = 0; i < scene.maps.size(); ++i) {
       os << "  - name: " << scene.names[i] << "\n    path: maps/" << scene.names[i] << ".txt\n";
       if (priors) {
@@ -291,6 +296,12 @@ CommandRunner add_simulate_command(CLI::App& root) {
   cmd->add_option("--maps", args->maps, "fleet: number of mini-maps")->capture_default_str();
   cmd->add_option("--twins", args->twins, "fleet: look-alike map pairs planted")
       ->capture_default_str();
+  cmd->add_option("--views", args->views,
+                  "fleet: 'ring' (8 keyframes on a ring about each map's centre, looking out; a "
+                  "box's wall is seen from behind too) or 'roaming' (24 keyframes anywhere within "
+                  "0.7 map radii, any heading; surfaces seen from the front only)")
+      ->capture_default_str()
+      ->type_name("ring|roaming");
   cmd->add_option(
          "--prior-sigma", args->prior_sigma,
          "fleet: noisy priors in the manifest (GPS-like), ROT_DEG,TRANS_M, or 'none' (global "

@@ -17,10 +17,16 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kFocalPx = 500.0;  // pinhole of the keyframes (640 x 480 px, centred)
+constexpr int kRingKeyframes = 8;
+constexpr int kRoamingKeyframes = 24;
+// FleetViews::kRoaming: a keyframe sees a landmark at most about 84 deg from its surface's
+// normal (cosine 0.1).
+constexpr double kMinFacing = 0.1;
 
 struct WorldPoint {
   Vec3 p;
   Id id;
+  Vec3 n = Vec3::UnitZ();  ///< outward unit normal of the surface the landmark lies on
 };
 
 Isometry3 yaw_pose(double yaw_rad, const Vec3& t) {
@@ -64,6 +70,9 @@ bool FleetSimOptions::is_valid(std::string* why) const {
                      std::isfinite(prior_sigma_deg) && std::isfinite(prior_sigma_m);
   if (!no_prior && !prior) return bad("prior_sigma_deg and prior_sigma_m must both be 0 or > 0");
   if (!(min_overlap > 0.0 && min_overlap <= 1.0)) return bad("min_overlap must be in (0, 1]");
+  if (views != FleetViews::kRing && views != FleetViews::kRoaming) {
+    return bad("views must be kRing or kRoaming");
+  }
   return true;
 }
 
@@ -117,7 +126,7 @@ std::vector<WorldPoint> world_points(const FleetSimOptions& o, const std::vector
   for (std::size_t k = 0; k < num_ground; ++k) {
     const double x = x0 + d.u01() * (x1 - x0);
     const double y = y0 + d.u01() * (y1 - y0);
-    world.push_back({Vec3(x, y, terrain(x, y)), next_id++});
+    world.push_back({Vec3(x, y, terrain(x, y)), next_id++, Vec3::UnitZ()});
   }
   const double ph1 = 2.0 * kPi * d.u01(), ph2 = 2.0 * kPi * d.u01();
   const double ph3 = 2.0 * kPi * d.u01();
@@ -143,25 +152,30 @@ std::vector<WorldPoint> world_points(const FleetSimOptions& o, const std::vector
           static_cast<std::size_t>(faces[f] * o.surface_density_per_m2 + d.u01());
       for (std::size_t k = 0; k < count; ++k) {
         const double a = d.u01() - 0.5, c = d.u01();
-        Vec3 q;
+        Vec3 q, normal;
         switch (f) {
           case 0:
             q = Vec3(a * sx, -0.5 * sy, c * h);
+            normal = -Vec3::UnitY();
             break;
           case 1:
             q = Vec3(a * sx, 0.5 * sy, c * h);
+            normal = Vec3::UnitY();
             break;
           case 2:
             q = Vec3(-0.5 * sx, a * sy, c * h);
+            normal = -Vec3::UnitX();
             break;
           case 3:
             q = Vec3(0.5 * sx, a * sy, c * h);
+            normal = Vec3::UnitX();
             break;
           default:
             q = Vec3(a * sx, (c - 0.5) * sy, h);
+            normal = Vec3::UnitZ();
             break;
         }
-        world.push_back({Vec3(cx, cy, base) + R * q, next_id++});
+        world.push_back({Vec3(cx, cy, base) + R * q, next_id++, R * normal});
       }
     }
   }
@@ -203,7 +217,7 @@ void plant_twins(const FleetSimOptions& o, const std::vector<Vec3>& centres, Dra
         if (da <= twin_radius) {
           Vec3 q = R * (w.p - ca) + cb;
           q.z() = w.p.z();
-          copies.push_back({q, next_id++});
+          copies.push_back({q, next_id++, R * w.n});
         }
       }
       kept.insert(kept.end(), copies.begin(), copies.end());
@@ -240,17 +254,29 @@ void observe_maps(const FleetSimOptions& o, const std::vector<Vec3>& centres,
     scene.T_world_map[i] = T_world_map;
     const Isometry3 T_map_world = T_world_map.inverse();
     Map& m = scene.maps[i];
-    std::vector<Isometry3> cameras(8, Isometry3::Identity());  // T_world_camera
-    for (int k = 0; k < 8; ++k) {
-      const double a = 2.0 * kPi * k / 8.0;
-      const Vec3 d(std::cos(a), std::sin(a), 0.0);
+    const bool roaming = o.views == FleetViews::kRoaming;
+    const int num_keyframes = roaming ? kRoamingKeyframes : kRingKeyframes;
+    std::vector<Isometry3> cameras(num_keyframes, Isometry3::Identity());  // T_world_camera
+    for (int k = 0; k < num_keyframes; ++k) {
+      // kRing: on a circle of 0.3 r, looking out; kRoaming: uniform over the disc of 0.7 r,
+      // any heading (three draws per keyframe).
+      const double a = 2.0 * kPi * k / num_keyframes;
+      Vec3 at = c + 0.3 * r * Vec3(std::cos(a), std::sin(a), 0.0);
+      Vec3 heading(std::cos(a), std::sin(a), 0.0);
+      if (roaming) {
+        const double rho = 0.7 * r * std::sqrt(d.u01());
+        const double phi = 2.0 * kPi * d.u01();
+        const double yaw = 2.0 * kPi * d.u01();
+        at = c + rho * Vec3(std::cos(phi), std::sin(phi), 0.0);
+        heading = Vec3(std::cos(yaw), std::sin(yaw), 0.0);
+      }
       Mat3 R;  // camera axes in the world: x right, y down, z forward
-      R.col(2) = d;
+      R.col(2) = heading;
       R.col(1) = -Vec3::UnitZ();
       R.col(0) = R.col(1).cross(R.col(2));
       Frame f;
       f.id = k;
-      const Vec3 p = c + 0.3 * r * d + Vec3(0, 0, terrain(c.x(), c.y()) + 1.5);
+      const Vec3 p = at + Vec3(0, 0, terrain(c.x(), c.y()) + 1.5);
       cameras[k].linear() = R;
       cameras[k].translation() = p;
       f.p_world_camera = T_map_world * p;
@@ -267,11 +293,15 @@ void observe_maps(const FleetSimOptions& o, const std::vector<Vec3>& centres,
       l.p_world = T_map_world * (w.p + o.position_sigma_m * noise);
       l.cov_world_m2 = T_map_world.linear() * cov * T_map_world.linear().transpose();
       // Two observations: the two keyframes looking most directly at it (pinhole pixels of the
-      // true point; maps need >= 2 observations per landmark to be read).
+      // true point; maps need >= 2 observations per landmark to be read). kRoaming: a keyframe
+      // sees it only from the front of its surface.
       std::vector<std::pair<double, int>> facing;
-      for (int k = 0; k < 8; ++k) {
+      for (int k = 0; k < num_keyframes; ++k) {
         const Vec3 q = cameras[k].inverse() * w.p;
-        if (q.z() > 0.1) facing.emplace_back(-q.z() / q.norm(), k);
+        if (!(q.z() > 0.1)) continue;
+        const Vec3 to_camera = cameras[k].translation() - w.p;
+        if (roaming && !(to_camera.dot(w.n) > kMinFacing * to_camera.norm())) continue;
+        facing.emplace_back(-q.z() / q.norm(), k);
       }
       if (facing.size() < 2) continue;
       std::partial_sort(facing.begin(), facing.begin() + 2, facing.end());

@@ -102,6 +102,37 @@ TEST_F(CliMerge, SimulatedFleetMergesEndToEndAndResumeReusesEveryEdge) {
   EXPECT_EQ(count_lines(bad.err), 1u) << bad.err;
 }
 
+// --views roaming: 24 keyframes per map (FRAME lines), the manifest says how it was made; the
+// default ring keeps 8; a bad value is one line naming the option, and nothing is written.
+TEST_F(CliMerge, SimulateFleetViewsRoamingOrRing) {
+  const std::string roaming = path("roaming"), ring = path("ring"), bad_dir = path("bad");
+  ASSERT_EQ(
+      run("simulate --scene fleet --maps 3 --twins 0 --views roaming --out " + shell_quote(roaming))
+          .exit_code,
+      0);
+  ASSERT_EQ(run("simulate --scene fleet --maps 3 --twins 0 --out " + shell_quote(ring)).exit_code,
+            0);
+  auto frames = [](const std::string& file) {
+    std::ifstream f(file);
+    std::size_t n = 0;
+    for (std::string line; std::getline(f, line);) n += line.rfind("FRAME ", 0) == 0 ? 1 : 0;
+    return n;
+  };
+  EXPECT_EQ(frames(roaming + "/maps/map_000.txt"), 24u);
+  EXPECT_EQ(frames(ring + "/maps/map_000.txt"), 8u);
+  std::ifstream manifest(roaming + "/manifest.yaml");
+  std::string first_line;
+  std::getline(manifest, first_line);
+  EXPECT_NE(first_line.find("--views roaming"), std::string::npos) << first_line;
+  const test::CliRun bad =
+      run("simulate --scene fleet --maps 3 --views sideways --out " + shell_quote(bad_dir));
+  EXPECT_NE(bad.exit_code, 0);
+  EXPECT_NE(bad.err.find("--views sideways: expected 'ring' or 'roaming'"), std::string::npos)
+      << bad.err;
+  EXPECT_EQ(count_lines(bad.err), 1u) << bad.err;
+  EXPECT_FALSE(std::filesystem::exists(bad_dir + "/manifest.yaml"));
+}
+
 // Maps that no kept edge joins (here: two fleet maps whose only edge cannot be trusted, their
 // landmarks moved far apart) are reported alone in their parts, not placed, 0% within.
 TEST_F(CliMerge, MapsAloneInTheirPartsAreReportedNotPlaced) {

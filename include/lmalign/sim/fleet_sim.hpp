@@ -14,7 +14,12 @@
 // the ground, looking outwards (camera axes x right, y down, z forward: estimate_up_axis() finds
 // world z). Each landmark has 2 observations: pinhole pixels (f = 500 px, centre (320, 240)) of
 // the true point in the 2 keyframes looking most directly at it. Landmark ids are the world ids
-// (the same physical landmark has the same id in every map).
+// (the same physical landmark has the same id in every map). That is `views` = kRing, the
+// default. With kRoaming each map has 24 keyframes anywhere within 0.7 map_radius_m of its centre
+// (uniform over the disc), 1.5 m above the ground, each with its own heading, and a keyframe sees
+// a landmark only from the front of the surface it lies on: a box's wall is not seen through the
+// box (kRing sees it from behind too, so two neighbouring maps see the landmarks between their
+// centres from opposite sides; docs/merge.md, "Why the look-alikes win on the fleet").
 //
 // Planted false candidates: num_twins pairs of maps (a, b) far apart (centres more than
 // 3.2 map_radius_m apart, twin regions disjoint from each other); the world around b (within 1.6
@@ -43,6 +48,12 @@
 
 namespace lmalign::sim {
 
+/// How each map's keyframes see the world (see the file comment).
+enum class FleetViews {
+  kRing,     ///< 8 keyframes on a ring about the centre, looking out; walls seen from behind too
+  kRoaming,  ///< 24 keyframes anywhere near the centre, any heading; surfaces seen from the front
+};
+
 struct FleetSimOptions {
   /// Mini-maps, in [2, 100000].
   std::size_t num_maps = 50;
@@ -65,6 +76,8 @@ struct FleetSimOptions {
   /// A pair of maps counts as truly overlapping when they share at least this fraction of the
   /// smaller map's landmarks, in (0, 1].
   double min_overlap = 0.05;
+  /// The keyframes' layout and what they see. kRing draws the same scene as before the option.
+  FleetViews views = FleetViews::kRing;
   /// Ceres-style check: false and the bad field named in *why.
   bool is_valid(std::string* why = nullptr) const;
 };
