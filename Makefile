@@ -221,7 +221,9 @@ bench-priors: build
 # seeded fleet of MERGE_MAPS mini-maps with GPS-like priors, merged with ground truth (time and
 # per-map errors on stdout), then the same world without priors: the candidate pre-filter's
 # recall (plan only, no alignment) and the whole merge (time, edge precision and recall, map
-# errors; docs/merge.md, "Pairs without priors"). Writes $(BUILD_DIR)/bench-merge/.
+# errors; docs/merge.md, "Pairs without priors"); last, the whole merge without priors of the same
+# fleet with roaming keyframes that see surfaces from the front only (--views roaming; docs/
+# merge.md, "Why the look-alikes win on the fleet"). Writes $(BUILD_DIR)/bench-merge/.
 MERGE_MAPS ?= 200
 .PHONY: bench-merge
 bench-merge: build
@@ -239,6 +241,11 @@ bench-merge: build
 	$(LMALIGN) merge $(BUILD_DIR)/bench-merge/fleet_no_priors/manifest.yaml \
 	  -o $(BUILD_DIR)/bench-merge/out_no_priors --threads 2 --thresholds 1,0.1 \
 	  --ground-truth $(BUILD_DIR)/bench-merge/fleet_no_priors/ground_truth.yaml
+	$(LMALIGN) simulate --scene fleet --maps $(MERGE_MAPS) --twins 4 --seed 1 --prior-sigma none \
+	  --views roaming --out $(BUILD_DIR)/bench-merge/fleet_roaming_no_priors
+	$(LMALIGN) merge $(BUILD_DIR)/bench-merge/fleet_roaming_no_priors/manifest.yaml \
+	  -o $(BUILD_DIR)/bench-merge/out_roaming_no_priors --threads 2 --thresholds 1,0.1 \
+	  --ground-truth $(BUILD_DIR)/bench-merge/fleet_roaming_no_priors/ground_truth.yaml
 
 # `make bench-merge-real`: configs/merge_desk.yaml, merge_kitti.yaml, merge_kitti_retri.yaml and
 # merge_streets.yaml through bench/merge_real.py (real maps cut with `lmalign split`, or windows
