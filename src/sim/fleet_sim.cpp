@@ -299,8 +299,10 @@ void observe_maps(const FleetSimOptions& o, const std::vector<Vec3>& centres,
       for (int k = 0; k < num_keyframes; ++k) {
         const Vec3 q = cameras[k].inverse() * w.p;
         if (!(q.z() > 0.1)) continue;
-        const Vec3 to_camera = cameras[k].translation() - w.p;
-        if (roaming && !(to_camera.dot(w.n) > kMinFacing * to_camera.norm())) continue;
+        if (roaming) {
+          const Vec3 to_camera = cameras[k].translation() - w.p;
+          if (!(to_camera.dot(w.n) > kMinFacing * to_camera.norm())) continue;
+        }
         facing.emplace_back(-q.z() / q.norm(), k);
       }
       if (facing.size() < 2) continue;

@@ -227,20 +227,16 @@ TEST(FleetSim, DeterministicWithKnownFramesOverlapsAndDisjointTwins) {
   EXPECT_THROW(sim::simulate_fleet(bad), InvalidArgument);
 }
 
-// The angles (degrees) between the world viewing directions of the landmarks that two maps
-// share: each map's mean over its observations of the unit ray from the keyframe's centre.
+// The angles (degrees) between the world viewing directions (Map::view_directions()) of the
+// landmarks that two maps share, where both are known.
 std::vector<double> shared_view_angles_deg(const sim::FleetScene& scene, std::size_t a,
                                            std::size_t b) {
   auto directions = [&](std::size_t i) {
     std::map<Id, Vec3> out;
-    const Map& m = scene.maps[i];
-    std::map<Id, Vec3> centre;
-    for (const Frame& f : m.frames) centre[f.id] = f.p_world_camera;
-    for (const Landmark& l : m.landmarks) {
-      Vec3 v = Vec3::Zero();
-      for (const Observation& o : l.observations)
-        v += (l.p_world - centre[o.frame_id]).normalized();
-      out[l.id] = scene.T_world_map[i].linear() * v.normalized();
+    const std::vector<Vec3> views = scene.maps[i].view_directions();
+    for (std::size_t k = 0; k < views.size(); ++k) {
+      if (!views[k].isZero())
+        out[scene.maps[i].landmarks[k].id] = scene.T_world_map[i].linear() * views[k];
     }
     return out;
   };
