@@ -17,6 +17,7 @@
 #include "lmalign/core/supported_range.hpp"
 #include "lmalign/io/output_file.hpp"
 #include "lmalign/merge/evaluation.hpp"
+#include "lmalign/merge/folds.hpp"
 #include "lmalign/merge/merge.hpp"
 #include "lmalign/merge/output.hpp"
 #include "lmalign/registration/presets.hpp"
@@ -220,6 +221,17 @@ void print_merge_summary(const std::vector<Map>& maps, const std::vector<std::st
   }
   for (std::size_t i = 0; i < maps.size(); ++i) {
     if (!notes[i].alone.empty()) say("alone: %s: %s\n", names[i].c_str(), notes[i].alone.c_str());
+  }
+  // Folds it could not rule out (merge/folds.hpp): a look-alike may have placed part of a
+  // component twice over.
+  for (const SuspectedFold& f : suspected_folds(maps, run.edges, run.result)) {
+    std::string fold_maps;
+    for (const std::size_t i : f.maps) fold_maps += (fold_maps.empty() ? "" : ", ") + names[i];
+    say("look-alike? %zu trusted edges that the graph rejected agree on moving part of component "
+        "%zu by %.3g m / %.3g deg (maps %s): a place that looks like another may have folded "
+        "part of this merge; see suspected_folds in summary.json (docs/merge.md)\n",
+        f.edges.size(), run.result.maps[f.maps.front()].component, f.motion_m, f.motion_deg,
+        fold_maps.c_str());
   }
 }
 

@@ -17,6 +17,7 @@
 #include "lmalign/io/output_file.hpp"
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/map/transform.hpp"
+#include "lmalign/merge/folds.hpp"
 
 namespace lmalign {
 
@@ -301,6 +302,23 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
       same.push_back({names[i], names[*notes[i].same_landmarks_as]});
     }
   }
+  json folds = json::array();
+  for (const SuspectedFold& f : suspected_folds(maps, edges, result)) {
+    json fold_maps = json::array(), fold_edges = json::array();
+    for (const std::size_t i : f.maps) fold_maps.push_back(names[i]);
+    for (const std::size_t e : f.edges) {
+      fold_edges.push_back({names[edges[e].source], names[edges[e].target]});
+    }
+    json S = json::array();
+    const Mat4 M = f.S_world_moved.matrix();
+    for (int r = 0; r < 4; ++r) S.push_back({M(r, 0), M(r, 1), M(r, 2), M(r, 3)});
+    folds.push_back({{"component", result.maps[f.maps.front()].component},
+                     {"maps", fold_maps},
+                     {"edges", fold_edges},
+                     {"motion_m", f.motion_m},
+                     {"motion_deg", f.motion_deg},
+                     {"S_world_moved", S}});
+  }
   json rejected = json::array();
   std::size_t used = 0;
   for (std::size_t e = 0; e < edges.size(); ++e) {
@@ -343,6 +361,7 @@ void write_merge_outputs(const std::string& out_dir, const std::vector<std::stri
                         {"landmarks_left_out", left_out},
                         {"maps_alone", alone},
                         {"same_landmarks", same},
+                        {"suspected_folds", folds},
                         {"overlap_check", check}};
   write_output((dir / "summary.json").string(),
                [&](std::ostream& os) { os << summary.dump(2) << "\n"; });

@@ -15,6 +15,7 @@
 #include "lmalign/map/map_io.hpp"
 #include "lmalign/merge/candidates.hpp"
 #include "lmalign/merge/evaluation.hpp"
+#include "lmalign/merge/folds.hpp"
 #include "lmalign/merge/manifest.hpp"
 #include "lmalign/merge/output.hpp"
 #include "lmalign/merge/pose_graph.hpp"
@@ -681,6 +682,101 @@ TEST(MergeOutput, EdgeFileRoundTripsExactly) {
   EXPECT_EQ(back->inlier_ratio, e.inlier_ratio);
   std::ofstream(path) << "{\"key\": 1";
   EXPECT_THROW(read_edge_file(path), ParseError);
+}
+
+// A look-alike fold (docs/merge.md, "Folds the merge reports"). Maps 0-7 lie along a line, with
+// true edges between neighbours and second neighbours (50 inliers each). Maps 5-7 also get false
+// edges to maps 1-3 (300 inliers each), as a turned copy of that place would give: they put
+// maps 5-7 moved by W (60 deg, 33 m). The cycle check keeps the stronger false edges and rejects
+// the three true edges at the fold's border, each of which asks for W to be undone:
+// suspected_folds reports one fold of those three edges, with W's angle. The merge itself is
+// unchanged. Without the false edges, or with one rejected outlier alone, there is no fold.
+TEST(MergeFolds, RejectedEdgesThatAgreeOnOneMotionAreReportedAsAFold) {
+  std::mt19937_64 rng(8);
+  std::vector<Isometry3> truth;
+  for (int i = 0; i < 8; ++i) {
+    truth.push_back(pose_from_xyz_rpy_deg(8.0 * i, 0.5 * i, 0.0, 0, 0, 20.0 * i));
+  }
+  Points3 world;
+  std::uniform_real_distribution<double> ux(-6.0, 62.0), uy(-6.0, 6.0), uz(0.0, 3.0);
+  for (int k = 0; k < 2000; ++k) world.emplace_back(ux(rng), uy(rng), uz(rng));
+  std::vector<Map> maps;
+  for (int i = 0; i < 8; ++i) {
+    maps.push_back(scene_map(world, truth[i].translation(), 6.0, truth[i]));
+    ASSERT_GT(maps.back().landmarks.size(), 50u) << i;
+  }
+  std::vector<Edge> edges;
+  for (std::size_t i = 0; i < 8; ++i) {
+    for (std::size_t d : {1u, 2u}) {
+      if (i + d >= 8) continue;
+      edges.push_back(make_edge(i, i + d, truth, rng, 0.01, 0.003));
+      edges.back().num_inliers = 50;
+    }
+  }
+  const std::size_t num_true = edges.size();
+  const Isometry3 W = pose_from_xyz_rpy_deg(-32.0, 3.0, 0.0, 0, 0, 60.0);
+  for (const auto& [f, a] :
+       std::vector<std::pair<std::size_t, std::size_t>>{{5, 1}, {6, 2}, {7, 3}, {5, 2}, {6, 3}}) {
+    Edge e = make_edge(f, a, truth, rng, 0.01, 0.003);
+    e.T_target_source = truth[a].inverse() * W * truth[f];  // f placed at W X_f
+    e.num_inliers = 300;
+    edges.push_back(e);
+  }
+  const std::vector<std::optional<MapPrior>> none(8);
+  const MergeResult r = solve_pose_graph(8, none, edges);
+  ASSERT_EQ(r.num_components, 1u);
+  std::vector<std::size_t> rejected;
+  for (std::size_t e = 0; e < edges.size(); ++e) {
+    if (r.edges[e].rejected) rejected.push_back(e);
+  }
+  ASSERT_EQ(rejected.size(), 3u);  // the true edges 3-5, 4-5 and 4-6
+  for (std::size_t e : rejected) EXPECT_LT(e, num_true) << e;
+  const std::vector<SuspectedFold> folds = suspected_folds(maps, edges, r);
+  ASSERT_EQ(folds.size(), 1u);
+  const SuspectedFold& f = folds.front();
+  EXPECT_EQ(f.edges.size(), 3u);
+  EXPECT_EQ(f.maps, (std::vector<std::size_t>{3, 4, 5, 6}));
+  EXPECT_NEAR(f.motion_deg, 60.0, 0.5);
+  // W or its inverse, as the graph's gauge (map 0) holds the world frame of the truth.
+  const Isometry3 got = f.S_world_moved.rigid;
+  const double to_w = transform_error(got, W).translation_m;
+  const double to_inverse = transform_error(got, W.inverse()).translation_m;
+  EXPECT_LT(std::min(to_w, to_inverse), 0.5) << to_w << " " << to_inverse;
+  EXPECT_GT(f.motion_m, 5.0);
+  // summary.json carries it, by map names.
+  test::ScratchDir dir("merge_folds");
+  const std::vector<std::string> names{"m0", "m1", "m2", "m3", "m4", "m5", "m6", "m7"};
+  write_merge_outputs(dir.path(), names, std::vector<std::string>(8), maps, edges, r);
+  std::ifstream in(dir.file("summary.json"));
+  const nlohmann::json summary = nlohmann::json::parse(in);
+  ASSERT_EQ(summary["suspected_folds"].size(), 1u);
+  EXPECT_EQ(summary["suspected_folds"][0]["maps"], nlohmann::json::array({"m3", "m4", "m5", "m6"}));
+  EXPECT_EQ(summary["suspected_folds"][0]["component"], 0);
+  EXPECT_EQ(summary["suspected_folds"][0]["edges"].size(), 3u);
+  EXPECT_NEAR(summary["suspected_folds"][0]["motion_deg"].get<double>(), 60.0, 0.5);
+  // The true edges alone: nothing rejected, no fold.
+  const std::vector<Edge> clean(edges.begin(),
+                                edges.begin() + static_cast<std::ptrdiff_t>(num_true));
+  const MergeResult c = solve_pose_graph(8, none, clean);
+  EXPECT_TRUE(suspected_folds(maps, clean, c).empty());
+  // One rejected outlier is no fold: at least two edges must agree. (A false edge weaker than
+  // the true ones is the one the cycle check rejects.)
+  std::vector<Edge> one = clean;
+  one.push_back(edges[num_true]);
+  one.back().num_inliers = 10;
+  const MergeResult o = solve_pose_graph(8, none, one);
+  std::size_t rejected_one = 0;
+  for (const EdgeReport& e : o.edges) rejected_one += e.rejected ? 1 : 0;
+  ASSERT_EQ(rejected_one, 1u);
+  EXPECT_TRUE(suspected_folds(maps, one, o).empty());
+  // Bad options and sizes.
+  FoldOptions bad;
+  bad.min_edges = 1;
+  EXPECT_THROW(suspected_folds(maps, edges, r, bad), InvalidArgument);
+  bad = FoldOptions{};
+  bad.tolerance = 0.0;
+  EXPECT_THROW(suspected_folds(maps, edges, r, bad), InvalidArgument);
+  EXPECT_THROW(suspected_folds(maps, clean, r), InvalidArgument);
 }
 
 }  // namespace

@@ -9,7 +9,9 @@
 //   edges.csv                one row per candidate edge
 //   summary.json             counts, final chi^2, the edge covariance scale, rejected edges,
 //                            the maps alone in their part and why, maps of the same landmarks
-//                            (map_notes), the overlap check's counts (overlap_check.hpp)
+//                            (map_notes), the folds the merge could not rule out
+//                            (suspected_folds, folds.hpp), the overlap check's counts
+//                            (overlap_check.hpp)
 //   overlap_check.csv        with the check: one row per judged pair of maps
 //   merged_map.txt           (one component) or merged_map_component<k>.txt (one per
 //                            component, each in its own frame): every map's frames and
