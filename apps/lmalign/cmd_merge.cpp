@@ -222,14 +222,15 @@ void print_merge_summary(const std::vector<Map>& maps, const std::vector<std::st
   for (std::size_t i = 0; i < maps.size(); ++i) {
     if (!notes[i].alone.empty()) say("alone: %s: %s\n", names[i].c_str(), notes[i].alone.c_str());
   }
-  // Folds it could not rule out (merge/folds.hpp): a look-alike may have placed part of a
-  // component twice over.
+  // Folds it could not rule out (merge/folds.hpp): part of a component placed twice over, by a
+  // look-alike place or a wrong prior.
   for (const SuspectedFold& f : suspected_folds(maps, run.edges, run.result)) {
     std::string fold_maps;
     for (const std::size_t i : f.maps) fold_maps += (fold_maps.empty() ? "" : ", ") + names[i];
-    say("look-alike? %zu trusted edges that the graph rejected agree on moving part of component "
-        "%zu by %.3g m / %.3g deg (maps %s): a place that looks like another may have folded "
-        "part of this merge; see suspected_folds in summary.json (docs/merge.md)\n",
+    say("suspected fold: %zu trusted edges that the graph rejected agree on moving part of "
+        "component %zu by %.3g m / %.3g deg (maps %s): a look-alike place, or a wrong prior, may "
+        "have put those maps in the wrong place; see suspected_folds in summary.json "
+        "(docs/merge.md)\n",
         f.edges.size(), run.result.maps[f.maps.front()].component, f.motion_m, f.motion_deg,
         fold_maps.c_str());
   }

@@ -91,9 +91,10 @@ def main(argv=None):
         print("alone: %s: %s" % (m["name"], m["reason"]))
     # Folds the merge could not rule out (merge/folds.hpp), as the CLI prints them.
     for f in summary.get("suspected_folds", []):
-        print("look-alike? %d trusted edges that the graph rejected agree on moving part of "
-              "component %d by %.3g m / %.3g deg (maps %s): a place that looks like another may "
-              "have folded part of this merge; see suspected_folds in summary.json (docs/merge.md)"
+        print("suspected fold: %d trusted edges that the graph rejected agree on moving part of "
+              "component %d by %.3g m / %.3g deg (maps %s): a look-alike place, or a wrong prior, "
+              "may have put those maps in the wrong place; see suspected_folds in summary.json "
+              "(docs/merge.md)"
               % (len(f["edges"]), f["component"], f["motion_m"], f["motion_deg"],
                  ", ".join(f["maps"])))
     if run.evaluation is not None:

@@ -54,7 +54,7 @@ TEST_F(CliMerge, SimulatedFleetMergesEndToEndAndResumeReusesEveryEdge) {
   EXPECT_NE(r.out.find("1 part(s), the largest of 5 map(s)"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("false kept 0"), std::string::npos) << r.out;
   // No look-alike here: no fold reported (merge/folds.hpp), and none in summary.json.
-  EXPECT_EQ(r.out.find("look-alike?"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("suspected fold"), std::string::npos) << r.out;
   EXPECT_NE(read_text(out + "/summary.json").find("\"suspected_folds\": []"), std::string::npos);
   for (const char* f :
        {"poses.yaml", "poses.json", "edges.csv", "summary.json", "merged_map.txt"}) {
