@@ -4,9 +4,11 @@
 //   validate        the inputs and the request (throws)
 //   begin_search    the source at the search's initial scale (free scale), the data's scales,
 //                   the initialiser's hypotheses (from its first pass; deepen() for the next)
-//   conclude        at one place of the scale axis: the hypotheses refined and scored on the
-//                   scorer's samples (score_hypotheses), the best refined on every landmark, in
-//                   7 DoF too when the scale is free (refine_best), the covariance and the
+//   conclude        at one place of the scale axis: the hypotheses refined on the scorer's
+//                   samples and scored on its scoring samples, every landmark by default
+//                   (score_hypotheses), the best refined on every landmark, in 7 DoF too when
+//                   the scale is free (refine_best), the answer scored where the rivals were
+//                   (score_answer), the covariance and the
 //                   diagnostics (end_pass), the verdict with its caveats (judge; the
 //                   covariance's costly resampling only where the verdict asks for it or
 //                   trusts the answer, never for a pass the next one replaces whatever it
@@ -130,6 +132,10 @@ class PipelineRun {
   std::vector<RefinedHypothesis> score_hypotheses(double rung) const;
   void refine_best(Conclusion* c) const;
   void refine_scale(Conclusion* c) const;
+  /// The answer (c->fin.T) scored on the scorer's scoring samples; it replaces the best
+  /// hypothesis' pose and score when it scores higher, so that the trust judge measures each
+  /// rival's share against the answer itself.
+  void score_answer(Conclusion* c) const;
   /// The last level's pairs re-made at the estimate and weighted (*loop: their loop state).
   Pairs pairs_at_estimate(const RefineContext& all, const Refinement& fin, LoopState* loop) const;
   void end_pass(Conclusion* c) const;

@@ -259,6 +259,25 @@ TEST_F(ComposedPipelines, ResultsDoNotDependOnTheThreadCount) {
   EXPECT_LT(error_of(one).rotation_deg, 0.05);
 }
 
+// Each hypothesis is refined on the scorer's samples and scored on every landmark
+// (score.every_landmark), and the answer, refined on every landmark, is scored there too: the
+// best hypothesis' score is then the verdict's gated score, the denominator of every rival's
+// share. On the samples alone (false) the scores are sums over 256 of the 1,500 landmarks.
+TEST_F(ComposedPipelines, HypothesesAreScoredOnEveryLandmarkAndTheAnswerAmongThem) {
+  PipelineSpec spec = adaptive_after("yaw_vote");
+  spec.settings = {{"score.samples", 256LL}};
+  const Summary every = Pipeline(spec).run(source_.view(), *target_);
+  ASSERT_GE(every.hypotheses.size(), 2u);
+  EXPECT_LT(error_of(every).rotation_deg, 0.05);
+  EXPECT_GT(every.verdict.score, 0.0);
+  EXPECT_DOUBLE_EQ(every.hypotheses.front().score, every.verdict.score);
+  spec.settings.push_back({"score.every_landmark", false});
+  const Summary sampled = Pipeline(spec).run(source_.view(), *target_);
+  ASSERT_GE(sampled.hypotheses.size(), 2u);
+  EXPECT_LT(sampled.hypotheses.front().score, 0.5 * sampled.verdict.score);
+  EXPECT_LT(error_of(sampled).rotation_deg, 0.05);
+}
+
 TEST_F(ComposedPipelines, APriorIsRefusedByAnInitialiserThatUsesNone) {
   PipelineSpec spec;
   PipelineRequest r;

@@ -4,7 +4,8 @@
 //
 //   scales        measured when a stage needs them (data_scales.hpp)
 //   initialiser   hypotheses, each with the pose uncertainty its gate starts from
-//   with a scorer each hypothesis is refined on the scorer's samples and scored; the best wins
+//   with a scorer each hypothesis is refined on the scorer's samples and scored on its scoring
+//                 samples (every landmark by default); the best wins
 //   refinement    per iteration: match -> reject -> (weigh -> estimate) x re-weightings ->
 //                 schedule (level changes, termination), from the best hypothesis, every
 //                 landmark

@@ -540,7 +540,9 @@ struct Refinement {
 struct RefinedHypothesis {
   Hypothesis start;
   Isometry3 T_refined = Isometry3::Identity();
-  double score = 0.0;  ///< the scorer's, on the samples
+  /// The scorer's, on its scoring samples (Scorer::scoring_samples: every landmark for the
+  /// gated scorer by default); the best hypothesis' becomes the answer's own when that is higher.
+  double score = 0.0;
   int iterations = 0;
   TerminationReason termination = TerminationReason::kNotTerminated;
   /// The guess' refinement from its own gate (start_sigma_*) scored below the guess, and this
@@ -552,9 +554,15 @@ struct RefinedHypothesis {
 
 class Scorer : public Stage {
  public:
-  /// The source landmarks (indices, increasing) on which hypotheses are refined and scored.
+  /// The source landmarks (indices, increasing) on which hypotheses are refined.
   virtual std::vector<std::uint32_t> samples(std::size_t num_landmarks) const = 0;
-  /// The score of T on the refinement's landmarks (larger is better).
+  /// The source landmarks (indices, increasing) on which a refined hypothesis is scored: the
+  /// score that ranks the hypotheses and that the trust judge's rival test compares. By default
+  /// the refinement's own samples.
+  virtual std::vector<std::uint32_t> scoring_samples(std::size_t num_landmarks) const {
+    return samples(num_landmarks);
+  }
+  /// The score of T on the context's landmarks (larger is better).
   virtual double score(const RefineContext& context, const Pipeline& pipeline,
                        const Isometry3& T) const = 0;
 };

@@ -1,7 +1,10 @@
 // Scorer "gated_inliers": a hypothesis' covariance-gated inlier score, the sum over the pairs the
 // matcher keeps at zero pose uncertainty of their evidence, 1 - d^2 / chi2 less for vague pairs
-// (pair_evidence, stages/mahalanobis_gate.hpp; Scales::evidence), on score.samples evenly
-// strided source landmarks.
+// (pair_evidence, stages/mahalanobis_gate.hpp; Scales::evidence). Each hypothesis is refined on
+// score.samples evenly strided source landmarks and scored on every landmark (score.every_landmark;
+// false: on the same samples). A pose refined on a sample fits that sample: scored there, a
+// wrong hypothesis's rivals and the answer's score move with the draw (docs/accuracy.md, "Refined
+// on samples, scored on every landmark").
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "stage.hpp"
 
@@ -13,11 +16,13 @@ namespace {
 
 struct GatedScoreOptions {
   int samples = 1024;
+  bool every_landmark = true;
 };
 
 class GatedScorer : public Scorer {
  public:
-  explicit GatedScorer(std::size_t samples) : samples_(samples) {}
+  GatedScorer(std::size_t samples, bool every_landmark)
+      : samples_(samples), every_landmark_(every_landmark) {}
   bool needs_scales() const override { return true; }
   bool accepts(int kind) const override {
     return kind == static_cast<int>(Pairs::Kind::kDistributions);
@@ -28,6 +33,13 @@ class GatedScorer : public Scorer {
     const std::size_t m = std::min(n, samples_);
     out.reserve(m);
     for (std::size_t i = 0; i < m; ++i) out.push_back(static_cast<std::uint32_t>(i * n / m));
+    return out;
+  }
+
+  std::vector<std::uint32_t> scoring_samples(std::size_t n) const override {
+    if (!every_landmark_) return samples(n);
+    std::vector<std::uint32_t> out(n);
+    for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::uint32_t>(i);
     return out;
   }
 
@@ -42,6 +54,7 @@ class GatedScorer : public Scorer {
 
  private:
   std::size_t samples_;
+  bool every_landmark_;
 };
 
 }  // namespace
@@ -49,12 +62,17 @@ class GatedScorer : public Scorer {
 std::vector<SettingRow> score_gated_settings() {
   return {int_setting("score.samples", "GatedScoreOptions::samples", GatedScoreOptions{}.samples,
                       SettingBound::closed(16, 2147483647), "count",
-                      "source landmarks (evenly strided) on which each hypothesis is refined and "
-                      "scored; the best is then refined on all")};
+                      "source landmarks (evenly strided) on which each hypothesis is refined; the "
+                      "best is then refined on all"),
+          bool_setting("score.every_landmark", "GatedScoreOptions::every_landmark",
+                       GatedScoreOptions{}.every_landmark,
+                       "each refined hypothesis is scored, ranked and compared with its rivals on "
+                       "every source landmark (false: on the samples it was refined on)")};
 }
 
 std::unique_ptr<Stage> make_score_gated(const Settings& s) {
-  return std::make_unique<GatedScorer>(static_cast<std::size_t>(s.integer("score.samples")));
+  return std::make_unique<GatedScorer>(static_cast<std::size_t>(s.integer("score.samples")),
+                                       s.boolean("score.every_landmark"));
 }
 
 }  // namespace lmalign::stages
