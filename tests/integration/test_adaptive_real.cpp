@@ -329,11 +329,11 @@ TEST(AdaptiveDeskWindows, AShortHandHeldWindowsUpAxisIsRescuedByItsLandmarkPlane
 // onto 120-239, bench/accuracy.yaml's desk_retri_120_ovl0), a right prior (1 deg and 2 cm off,
 // sigma 2 deg / 5 cm): the answer is right and trusted, although a pose 11 deg away, outside the
 // prior's window, scores more than trust.alias_ambiguity of it while the residuals exceed their
-// covariances. Until 2026-11-27 the prior told that alias apart (prior_tells_apart, trust_gated.cpp).
-// Since the viewing-direction rival test, that turned rival is measured on the pairs seen from
-// compatible directions. Since 2026-11-28 the rivals are scored on every landmark against the
-// answer itself, and the best distinct rival inside the window scores 69%. A rival within
-// trust.max_ambiguity would still refuse it. Measured 2026-11-28: the prior sweep's 10 right
+// covariances. Until 2026-11-27 the prior told that alias apart (prior_tells_apart,
+// trust_gated.cpp). Since the viewing-direction rival test, that turned rival is measured on the
+// pairs seen from compatible directions. Since 2026-11-28 the rivals are scored on every landmark
+// against the answer itself, and the best distinct rival inside the window scores 69%. A rival
+// within trust.max_ambiguity would still refuse it. Measured 2026-11-28: the prior sweep's 10 right
 // priors trusted, 0 of 20 wrong ones.
 TEST(AdaptiveDeskWindows, ARightPriorOnAnAliasGivesATrustedRightAnswer) {
   const std::string file = test::data_file("tum_fr1_desk/ground_truth_pair/map_fr1_desk_gt.txt");
@@ -366,6 +366,42 @@ TEST(AdaptiveDeskWindows, ARightPriorOnAnAliasGivesATrustedRightAnswer) {
   EXPECT_TRUE(outside_alias);
   EXPECT_GT(r.verdict.mean_nis,
             test::preset_setting("adaptive", "trust.alias_nis_ratio") * r.verdict.expected_nis);
+}
+
+// Issue 41: a right prior tells an alias outside its window apart (prior_tells_apart,
+// trust_gated.cpp). Re-triangulated desk windows of 30 frames with no shared frame (100-129
+// onto 130-159, bench/accuracy.yaml's desk_retri_30_ovl0), a right prior (1 deg and 2 cm off,
+// sigma 2 deg / 5 cm). A pose turned 124 deg from the answer scores 72% of it while the
+// residuals are 1.5 times their covariances: the alias test alone refuses that (without a prior
+// the answer is refused so). The rival lies outside the prior's window and the answer inside
+// it, so the prior tells them apart: trusted. Measured 2026-11-28: 3.6 deg / 5.7 cm off; the
+// prior sweep's 10 right priors trusted, 0 of 20 wrong ones.
+TEST(AdaptiveDeskWindows, ARightPriorTellsAnAliasOutsideItsWindowApart) {
+  const std::string file = test::data_file("tum_fr1_desk/ground_truth_pair/map_fr1_desk_gt.txt");
+  LMALIGN_REQUIRE_FILE(file);
+  const Map full = read_map(file);
+  const Map a = desk_window(full, 100, 129);
+  const Map b = desk_window(full, 130, 159);
+  const PreparedTarget target(b);
+  PriorSigma prior;
+  prior.rotation_deg = 2.0;
+  prior.translation_m = 0.05;
+  const Isometry3 guess = pose_from_xyz_rpy_deg(0.02, 0.0, 0.0, 0.0, 0.0, 1.0);
+  const Summary r =
+      test::align_with("adaptive", SourceLandmarks::from_map(a), target, {{}, guess, prior});
+  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  const TransformError e = transform_error(r.registration.T_target_source, Isometry3::Identity());
+  EXPECT_LT(e.rotation_deg, 5.0);
+  EXPECT_LT(e.translation_m, 0.1);
+  // What the alias test alone would refuse: a distinct pose at least trust.alias_ambiguity of
+  // the answer while the residuals exceed their covariances; that pose outside the window.
+  EXPECT_GE(r.verdict.ambiguity, test::preset_setting("adaptive", "trust.alias_ambiguity"));
+  EXPECT_LT(r.verdict.ambiguity, test::preset_setting("adaptive", "trust.max_ambiguity"));
+  EXPECT_GT(r.verdict.mean_nis,
+            test::preset_setting("adaptive", "trust.alias_nis_ratio") * r.verdict.expected_nis);
+  ASSERT_TRUE(r.verdict.rival_T_target_source.has_value());
+  EXPECT_GT(transform_error(*r.verdict.rival_T_target_source, guess).rotation_deg,
+            3.0 * prior.rotation_deg);
 }
 
 // Re-triangulated windows of the desk map whose votes never proposed the truth (the search kept
