@@ -297,10 +297,7 @@ Summary PipelineRun::conclude(double rung, bool may_defer) {
   // right prior the answer's own hypothesis, refined on the samples, put a rival at 70.1%
   // where the answer puts it at 69.2% (docs/accuracy.md, "Refined on samples, scored on every
   // landmark").
-  if (pipeline_.scorer() != nullptr && !c.source &&
-      pipeline_.scorer()->scoring_samples(c.all.source.size()).size() == c.all.source.size()) {
-    score_answer(&c);
-  }
+  if (!c.source) score_answer(&c, true);
   end_pass(&c);
   if (may_defer && first_pass()) {
     // The resampling (several refinements on every landmark) only where this conclusion may be
@@ -500,16 +497,24 @@ void PipelineRun::refine_scale(Conclusion* c) const {
   // The best hypothesis scored again at the refined scale, on the same landmarks as the others:
   // its rung may be 6% off, and the trust judge's margin to the rivals must not count that
   // against it.
-  score_answer(c);
+  score_answer(c, false);
 }
 
-void PipelineRun::score_answer(Conclusion* c) const {
+void PipelineRun::score_answer(Conclusion* c, bool every_landmark_only) const {
   const Scorer* scorer = pipeline_.scorer();
   if (scorer == nullptr || c->s.hypotheses.empty()) return;
-  const OwnedPart part = part_of(c->all.source, scorer->scoring_samples(c->all.source.size()));
-  RefineContext sub = c->all;
-  sub.source = part.view(c->all.source);
-  const double at_estimate = scorer->score(sub, pipeline_, c->fin.T);
+  const std::size_t n = c->all.source.size();
+  const std::vector<std::uint32_t> at = scorer->scoring_samples(n);
+  double at_estimate = 0.0;
+  if (at.size() == n) {
+    at_estimate = scorer->score(c->all, pipeline_, c->fin.T);  // every landmark: no copy
+  } else {
+    if (every_landmark_only) return;
+    const OwnedPart part = part_of(c->all.source, at);
+    RefineContext sub = c->all;
+    sub.source = part.view(c->all.source);
+    at_estimate = scorer->score(sub, pipeline_, c->fin.T);
+  }
   RefinedHypothesis& front = c->s.hypotheses.front();
   if (at_estimate > front.score) {
     front.score = at_estimate;

@@ -134,8 +134,9 @@ class PipelineRun {
   void refine_scale(Conclusion* c) const;
   /// The answer (c->fin.T) scored on the scorer's scoring samples; it replaces the best
   /// hypothesis' pose and score when it scores higher, so that the trust judge measures each
-  /// rival's share against the answer itself.
-  void score_answer(Conclusion* c) const;
+  /// rival's share against the answer itself. `every_landmark_only`: only when the scoring
+  /// samples are every landmark (then scored on c->all without a copy).
+  void score_answer(Conclusion* c, bool every_landmark_only) const;
   /// The last level's pairs re-made at the estimate and weighted (*loop: their loop state).
   Pairs pairs_at_estimate(const RefineContext& all, const Refinement& fin, LoopState* loop) const;
   void end_pass(Conclusion* c) const;
