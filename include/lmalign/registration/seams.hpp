@@ -545,10 +545,11 @@ struct RefinedHypothesis {
   double score = 0.0;
   int iterations = 0;
   TerminationReason termination = TerminationReason::kNotTerminated;
-  /// The guess' refinement from its own gate (start_sigma_*) scored below the guess, and this
-  /// is the refinement from the guess with a sharp gate instead (zero pose uncertainty), which
-  /// scored higher (PipelineRun::score_hypotheses: the guess is never traded for a pose the
-  /// score rates lower). Always false for a search's hypotheses.
+  /// The refinement from the start's own gate (start_sigma_*) scored below the start, and this
+  /// is the refinement from the start with a sharp gate instead (zero pose uncertainty), which
+  /// scored higher (PipelineRun::score_hypotheses): the guess always (it is never traded for a
+  /// pose the score rates lower), a search's hypothesis when its start scores at least
+  /// Scorer::sharp_restart_share of the best refined hypothesis.
   bool sharp_restart = false;
 };
 
@@ -565,6 +566,12 @@ class Scorer : public Stage {
   /// The score of T on the context's landmarks (larger is better).
   virtual double score(const RefineContext& context, const Pipeline& pipeline,
                        const Isometry3& T) const = 0;
+  /// A search's hypothesis whose refinement scores below its own start on the samples, and
+  /// whose start scores at least this share of the best refined hypothesis on the scoring
+  /// samples, is refined again from its start with a sharp gate (zero pose uncertainty), and the
+  /// better of the two is kept (PipelineRun::score_hypotheses; docs/accuracy.md, "A hypothesis
+  /// that loses to its start"). 0: never. Dimensionless, in [0, 1].
+  virtual double sharp_restart_share() const { return 0.0; }
 };
 
 /// The trust verdict and what it was decided on.

@@ -4,7 +4,8 @@
 // score.samples evenly strided source landmarks and scored on every landmark (score.every_landmark;
 // false: on the same samples). A pose refined on a sample fits that sample: scored there, a
 // wrong hypothesis's rivals and the answer's score move with the draw (docs/accuracy.md, "Refined
-// on samples, scored on every landmark").
+// on samples, scored on every landmark"). A hypothesis that loses to its own start is refined
+// again from it with a sharp gate when its start could matter (score.sharp_restart_share).
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "stage.hpp"
 
@@ -17,12 +18,15 @@ namespace {
 struct GatedScoreOptions {
   int samples = 1024;
   bool every_landmark = true;
+  double sharp_restart_share = 0.7;
 };
 
 class GatedScorer : public Scorer {
  public:
-  GatedScorer(std::size_t samples, bool every_landmark)
-      : samples_(samples), every_landmark_(every_landmark) {}
+  GatedScorer(std::size_t samples, bool every_landmark, double sharp_restart_share)
+      : samples_(samples),
+        every_landmark_(every_landmark),
+        sharp_restart_share_(sharp_restart_share) {}
   bool needs_scales() const override { return true; }
   bool accepts(int kind) const override {
     return kind == static_cast<int>(Pairs::Kind::kDistributions);
@@ -52,9 +56,12 @@ class GatedScorer : public Scorer {
     return score;
   }
 
+  double sharp_restart_share() const override { return sharp_restart_share_; }
+
  private:
   std::size_t samples_;
   bool every_landmark_;
+  double sharp_restart_share_;
 };
 
 }  // namespace
@@ -67,12 +74,18 @@ std::vector<SettingRow> score_gated_settings() {
           bool_setting("score.every_landmark", "GatedScoreOptions::every_landmark",
                        GatedScoreOptions{}.every_landmark,
                        "each refined hypothesis is scored, ranked and compared with its rivals on "
-                       "every source landmark (false: on the samples it was refined on)")};
+                       "every source landmark (false: on the samples it was refined on)"),
+          real_setting("score.sharp_restart_share", "GatedScoreOptions::sharp_restart_share",
+                       GatedScoreOptions{}.sharp_restart_share, SettingBound::closed(0.0, 1.0), "1",
+                       "a search's hypothesis whose refinement scores below its start on the "
+                       "samples, and whose start scores this share of the best refined "
+                       "hypothesis, is refined again from its start with a sharp gate; 0: never")};
 }
 
 std::unique_ptr<Stage> make_score_gated(const Settings& s) {
   return std::make_unique<GatedScorer>(static_cast<std::size_t>(s.integer("score.samples")),
-                                       s.boolean("score.every_landmark"));
+                                       s.boolean("score.every_landmark"),
+                                       s.real("score.sharp_restart_share"));
 }
 
 }  // namespace lmalign::stages
