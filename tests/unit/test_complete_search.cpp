@@ -41,6 +41,18 @@ sim::SlamMapPair street(std::uint64_t seed) {
   return sim::simulate_street_pair(o);
 }
 
+// Issue 39's street pairs (`lmalign simulate --scene street --overlap 0.25 --frames 30
+// --landmarks 3000 --seed SEED --transform ...`): windows sharing a quarter of their keyframes.
+sim::SlamMapPair quarter_street(std::uint64_t seed, const Isometry3& T_target_source) {
+  sim::StreetSimOptions o;
+  o.seed = seed;
+  o.overlap = 0.25;
+  o.window_frames = 30;
+  o.num_landmarks = 3000;
+  o.T_target_source = T_target_source;
+  return sim::simulate_street_pair(o);
+}
+
 TEST(CompleteSearch, FindsTheStreetPoseAndIsIndependentOfTheThreadCount) {
   // Measured: the complete search ends within 0.05 deg and 2 cm of the truth; the earlier
   // default (the vote's best yaw peaks, refined from the search's coarse resolution) ends tens
@@ -184,13 +196,7 @@ TEST(CompleteSearch, ARoadAnswerIsTrustedWhenItsRivalsAreScoredOnEveryLandmark) 
 // the restart the answer is that drifted pose, about 1 m off (docs/accuracy.md, "A hypothesis
 // that loses to its start").
 TEST(CompleteSearch, AHypothesisThatLosesToItsStartIsRefinedAgainWithASharpGate) {
-  sim::StreetSimOptions o;
-  o.seed = 84;
-  o.overlap = 0.25;
-  o.window_frames = 30;
-  o.num_landmarks = 3000;
-  o.T_target_source = pose_from_xyz_rpy_deg(-35, 12, 0, 0, 0, -75);
-  const sim::SlamMapPair pair = sim::simulate_street_pair(o);
+  const sim::SlamMapPair pair = quarter_street(84, pose_from_xyz_rpy_deg(-35, 12, 0, 0, 0, -75));
   const PreparedTarget target(pair.target);
   const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
   const Summary r = test::align_with("adaptive", source, target);
@@ -219,13 +225,7 @@ TEST(CompleteSearch, AHypothesisThatLosesToItsStartIsRefinedAgainWithASharpGate)
 // under half the truth's (258). With search.rank_keep 96 it is refined, and the answer is the
 // truth (measured: 0.04 deg / 3 cm, trusted).
 TEST(CompleteSearch, RefinesATruthCandidateTheFineScoreRanksBelowTheFirstFortyEight) {
-  sim::StreetSimOptions o;
-  o.seed = 1;
-  o.overlap = 0.25;
-  o.window_frames = 30;
-  o.num_landmarks = 3000;
-  o.T_target_source = pose_from_xyz_rpy_deg(20, 5, 0, 0, 0, 120);
-  const sim::SlamMapPair pair = sim::simulate_street_pair(o);
+  const sim::SlamMapPair pair = quarter_street(1, pose_from_xyz_rpy_deg(20, 5, 0, 0, 0, 120));
   const PreparedTarget target(pair.target);
   const Summary r = test::align_with("adaptive", SourceLandmarks::from_map(pair.source), target,
                                      {{"estimate.half_sample_planes=0"}});
