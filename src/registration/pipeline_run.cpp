@@ -217,6 +217,7 @@ bool PipelineRun::begin_search(double factor) {
     ic.pipeline = &pipeline_;
     ic.refine_context = &all;
     ic.pass = pass_;
+    ic.checking = checking_;
     if (measure) {
       std::optional<ScaleMeasurement> m = pipeline_.initialiser().measure_scale(
           ic, scale_search_->measure_steps(), scale_search_->rung_ratio(),

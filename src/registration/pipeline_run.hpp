@@ -99,10 +99,13 @@ class PipelineRun {
   /// InitialiserReport::deeper_needs_evidence of the current search.
   bool deeper_needs_evidence() const { return base_.initialisation.deeper_needs_evidence; }
   /// The next pass; `keep`: a pose the next pass's hypotheses include ("previous pass": the
-  /// previous pass's answer, so that the next one finds its rivals without losing it).
-  void deepen(std::optional<Isometry3> keep = std::nullopt) {
+  /// previous pass's answer, so that the next one finds its rivals without losing it);
+  /// `checking`: that answer was trusted, and the next pass checks it
+  /// (InitialiserContext::checking).
+  void deepen(std::optional<Isometry3> keep = std::nullopt, bool checking = false) {
     ++pass_;
     keep_ = keep;
+    checking_ = checking;
   }
   /// The result without an answer (begin_search() false): not trusted, the pose the initial
   /// guess, the reason the initialiser's (InitialiserReport::declined) or too few landmarks.
@@ -165,6 +168,7 @@ class PipelineRun {
   std::optional<ScaleSearch> scale_search_;
   int pass_ = 0;
   std::optional<Isometry3> keep_;
+  bool checking_ = false;
   /// conclude()'s conclusion judged without the resampling, with the summary as it was before
   /// the verdict (settle() judges it again); null when none is kept.
   std::unique_ptr<Conclusion> provisional_;

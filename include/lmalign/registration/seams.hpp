@@ -276,6 +276,10 @@ struct InitialiserContext {
   /// InitialiserReport::deeper_pass); each later pass, 1, 2, ..., runs after the previous pass's
   /// answer did not settle the alignment (Pipeline::run), until a pass reports no deeper one.
   int pass = 0;
+  /// True when this pass checks the previous pass's trusted answer (Pipeline::run: its
+  /// verdict needs every rival, or a prior's window is unconfirmed): the answer is among the
+  /// hypotheses, and the pass need only find its rivals.
+  bool checking = false;
   /// Free scale: the poses the scale's measurement found at the measured scale
   /// (ScaleMeasurement::poses: T_target_source of context.source, which is then at that
   /// scale); a first pass may take them instead of searching again. Empty otherwise.
