@@ -441,6 +441,16 @@ void bind_alignment_verdict(AlignmentResultClass& c) {
           "gated inliers' residuals (robust, from their median d^2; 1 when they hold). The "
           "reported covariance includes it when it is above 1.")
       .def_property_readonly(
+          "alias_waived_by_prior",
+          [](const python::AlignOutcome& o) -> py::object {
+            if (!(o.summary.verdict.expected_nis > 0.0)) return py::none();
+            return py::bool_(o.summary.verdict.alias_waived_by_prior);
+          },
+          "Judge 'gated' only (else None): with a prior, True when the alias test would have "
+          "refused the answer (a rival at trust.alias_ambiguity, the residuals above their "
+          "covariances) but the prior told that rival apart (the answer inside its window, the "
+          "rival outside): trusted on the prior's word, and checked by the complete search.")
+      .def_property_readonly(
           "rival_T_target_source",
           [](const python::AlignOutcome& o) -> py::object {
             if (!o.summary.verdict.rival_T_target_source) return py::none();

@@ -203,6 +203,8 @@ def test_adaptive_reports_its_verdict_as_the_cli_does(desk_pair, cli, tmp_path):
     assert r.T_target_source.tolist() == cli_result["T_target_source"]
     assert r.covariance_scale == cli_result["covariance_scale"]
     assert r.ambiguity == cli_result["ambiguity"]
+    assert r.alias_waived_by_prior is False  # no prior: nothing waived
+    assert cli_result["alias_waived_by_prior"] is False
     assert 0.0 < r.covariance_scale < 3.0
     assert r.rival_T_target_source is not None
     assert r.rival_T_target_source.tolist() == cli_result["rival"]["T_target_source"]

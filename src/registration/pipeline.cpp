@@ -383,7 +383,10 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     // next pass may find its rivals, never lose it. (Untrusted answers were dropped until
     // 2026-11-26: on a simulated road with 25% overlap the first pass found the truth, refused
     // for a rival at 85%, and the complete search then answered 47 m off, scoring 13% less.)
-    run.deepen(first.registration.T_target_source, checks);
+    // A check (of a trusted answer) that the maps' own poses confirmed, not on the prior's word
+    // alone: InitialiserContext::checking.
+    run.deepen(first.registration.T_target_source,
+               checks && !run.prior_unconfirmed() && !first.verdict.alias_waived_by_prior);
     if (!run.begin_search(1.0)) {
       first = run.settle(std::move(first));  // its verdict with the covariance's resampling
       break;

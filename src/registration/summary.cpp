@@ -226,6 +226,7 @@ std::string to_json(const Summary& s, int indent) {
     e["mean_nis"] = s.verdict.mean_nis;
     e["expected_nis"] = s.verdict.expected_nis;
     e["covariance_scale"] = s.verdict.covariance_scale;
+    e["alias_waived_by_prior"] = s.verdict.alias_waived_by_prior;
     if (s.verdict.rival_T_target_source) {
       e["rival"] = {{"T_target_source", matrix4(*s.verdict.rival_T_target_source)},
                     {"distance_m", s.verdict.rival_distance_m},

@@ -276,8 +276,10 @@ struct InitialiserContext {
   /// InitialiserReport::deeper_pass); each later pass, 1, 2, ..., runs after the previous pass's
   /// answer did not settle the alignment (Pipeline::run), until a pass reports no deeper one.
   int pass = 0;
-  /// True when this pass checks the previous pass's trusted answer (Pipeline::run: its
-  /// verdict needs every rival, or a prior's window is unconfirmed): the answer is among the
+  /// True when this pass checks the previous pass's trusted answer for its rivals (Pipeline::run:
+  /// its verdict needs every rival), an answer the maps' own poses found (not a prior's
+  /// unconfirmed window, InitialiserReport::prior_unconfirmed) and trusted without a prior's
+  /// waiver of the alias test (Verdict::alias_waived_by_prior): the answer is among the
   /// hypotheses, and the pass need only find its rivals.
   bool checking = false;
   /// Free scale: the poses the scale's measurement found at the measured scale
@@ -618,6 +620,11 @@ struct Verdict {
   /// answer of an initialiser's first pass, whose few poses may miss them, is checked by its
   /// deeper pass (Pipeline::run).
   bool rivals_needed = false;
+  /// With a prior (judge "gated"): the alias test would refuse the answer (a rival at
+  /// trust.alias_ambiguity with residuals above their covariances), but the prior tells that
+  /// rival apart (the answer inside its window, the rival outside): the answer is trusted on the
+  /// prior's word, and a deeper pass that checks it searches completely (search.check).
+  bool alias_waived_by_prior = false;
   /// Nothing in the maps supports the answer (judge "gated": no gated correspondence, or fewer
   /// gated inliers than trust.min_inliers): with InitialiserReport::deeper_needs_evidence, no
   /// deeper pass is tried.

@@ -258,6 +258,8 @@ class GatedJudge : public TrustJudge {
     // its expectation; the truth, which the complete search finds, scores 1.7 times as much.
     const bool aliased_residuals = v.mean_nis > o_.alias_nis_ratio * v.expected_nis;
     v.rivals_needed = aliased_residuals || plain_ambiguity >= o_.alias_ambiguity;
+    v.alias_waived_by_prior = v.ambiguity >= o_.alias_ambiguity && v.ambiguity < o_.max_ambiguity &&
+                              aliased_residuals && prior_tells_apart(j, v);
     const TerminationReason end = j.final->termination;
     v.no_evidence = end == TerminationReason::kNoCorrespondences || v.num_inliers < o_.min_inliers;
     if (end == TerminationReason::kNoCorrespondences) {
