@@ -7,8 +7,8 @@
 // refined with the pipeline's own refinement in rounds. When the first pass's answer was trusted
 // and the deeper pass only checks it for rivals (InitialiserContext::checking; with a prior, an
 // answer the maps' own first pass confirmed and trusted without the prior's waiver of the alias
-// test), search.check "correspondences" makes that pass a second correspondence search, at the finer
-// search.descriptor_neighbours, its poses snapped and refined beside the answer without the
+// test), search.check "correspondences" makes that pass a second correspondence search, at the
+// finer search.descriptor_neighbours, its poses snapped and refined beside the answer without the
 // vote (the vote runs when it finds none); "complete", the complete search. The distinct modes are
 // the hypotheses, plus the initial guess if given. Each map's up-axis candidates are its frames'
 // axis, its landmark plane's normal when that disagrees by more than init.second_up_min_angle_deg,
@@ -80,14 +80,15 @@ struct CompleteInitOptions {
   std::string complete_search = "rescue";
   /// The deeper pass that checks a trusted first-pass answer for rivals
   /// (InitialiserContext::checking: with a prior, only an answer the maps' own poses confirmed,
-  /// trusted without the prior's waiver of the alias test): "correspondences", a second correspondence search at the
-  /// finer descriptor radius (correspondences.neighbours) whose poses are snapped and refined
-  /// beside the answer, without the vote (the vote runs when it finds no pose); "complete", the
-  /// complete search. Measured (docs/accuracy.md, "The check by correspondences"): the same
-  /// answers and no verdict lost on the streets, roads, the accuracy benchmark, the prior sweep
-  /// and the merges, at a third to a quarter of the check's time. An answer trusted on a prior's
-  /// waiver is always checked completely: on real desk windows that share no frame, the
-  /// correspondence search kept a first-pass answer 6.8 deg off that the vote improves to 3.6.
+  /// trusted without the prior's waiver of the alias test): "correspondences", a second
+  /// correspondence search at the finer descriptor radius (correspondences.neighbours) whose poses
+  /// are snapped and refined beside the answer, without the vote (the vote runs when it finds no
+  /// pose); "complete", the complete search. Measured (docs/accuracy.md, "The check by
+  /// correspondences"): the same answers and no verdict lost on the streets, roads, the accuracy
+  /// benchmark, the prior sweep and the merges, at a third to a quarter of the check's time. An
+  /// answer trusted on a prior's waiver is always checked completely: on real desk windows that
+  /// share no frame, the correspondence search kept a first-pass answer 6.8 deg off that the vote
+  /// improves to 3.6.
   std::string check = "correspondences";
   /// The gate the search's votes are scored with: the matcher's (match.*).
   MahalanobisGateOptions gate;
@@ -103,9 +104,9 @@ class CompleteSearchInit : public Initialiser {
   std::vector<Hypothesis> propose(const InitialiserContext& c,
                                   InitialiserReport* report) const override {
     if (c.pipeline == nullptr || c.refine_context == nullptr) return bounded_->propose(c, report);
+    const bool check_by_correspondences = c.checking && o_.check == "correspondences";
     if (!c.prior_sigma_deg_m.has_value()) {
       const bool rescue = o_.complete_search == "rescue";
-      const bool check_by_correspondences = c.checking && o_.check == "correspondences";
       std::vector<Hypothesis> out = global(c, report, rescue, check_by_correspondences);
       if (out.empty()) {
         report->declined =
@@ -148,8 +149,7 @@ class CompleteSearchInit : public Initialiser {
     // (With "check" the maps' first pass is pass 1, their complete search pass 2.)
     open.pass = rescue ? c.pass : c.pass - 1;
     InitialiserReport global_report;
-    std::vector<Hypothesis> modes =
-        global(open, &global_report, rescue, c.checking && o_.check == "correspondences");
+    std::vector<Hypothesis> modes = global(open, &global_report, rescue, check_by_correspondences);
     std::vector<Hypothesis> inside, outside;
     auto split = [&] {
       inside.clear();

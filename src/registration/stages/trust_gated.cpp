@@ -258,8 +258,11 @@ class GatedJudge : public TrustJudge {
     // its expectation; the truth, which the complete search finds, scores 1.7 times as much.
     const bool aliased_residuals = v.mean_nis > o_.alias_nis_ratio * v.expected_nis;
     v.rivals_needed = aliased_residuals || plain_ambiguity >= o_.alias_ambiguity;
-    v.alias_waived_by_prior = v.ambiguity >= o_.alias_ambiguity && v.ambiguity < o_.max_ambiguity &&
-                              aliased_residuals && prior_tells_apart(j, v);
+    // The alias test, and whether a prior tells its rival apart (Verdict::alias_waived_by_prior
+    // when nothing else makes the answer ambiguous).
+    const bool alias = v.ambiguity >= o_.alias_ambiguity && aliased_residuals;
+    const bool waived = alias && prior_tells_apart(j, v);
+    v.alias_waived_by_prior = waived && v.ambiguity < o_.max_ambiguity;
     const TerminationReason end = j.final->termination;
     v.no_evidence = end == TerminationReason::kNoCorrespondences || v.num_inliers < o_.min_inliers;
     if (end == TerminationReason::kNoCorrespondences) {
@@ -277,8 +280,7 @@ class GatedJudge : public TrustJudge {
                  " times what their covariances say (at most " +
                  short_number(std::sqrt(o_.max_covariance_scale)) +
                  "): the maps disagree beyond their uncertainty";
-    } else if (v.ambiguity >= o_.max_ambiguity || (v.ambiguity >= o_.alias_ambiguity &&
-                                                   aliased_residuals && !prior_tells_apart(j, v))) {
+    } else if (v.ambiguity >= o_.max_ambiguity || (alias && !waived)) {
       v.reason = "ambiguous: another pose " + short_number(v.rival_distance_m) + " m / " +
                  short_number(v.rival_angle_deg) + " deg away scores " +
                  std::to_string(static_cast<int>(std::lround(100.0 * v.ambiguity))) +
