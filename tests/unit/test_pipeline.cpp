@@ -333,6 +333,54 @@ TEST(SigmaSchedule, ATwoCycleAtZeroUncertaintyEndsTheRunAsSettled) {
             TerminationReason::kNotTerminated);
 }
 
+TEST(SigmaSchedule, ALongerCycleAtZeroUncertaintyEndsTheRunAsSettled) {
+  // Three steps of 1 mm at 120 degrees to one another bring the estimate back to where it was:
+  // a 3-cycle (pairs that switch their target landmark and switch back), which the 2-cycle test
+  // does not see (any two of the steps move the source's centre by 1 mm, well above the settle
+  // threshold of 1e-3 x the 1 cm floor). The third step ends the run, converged, unless
+  // schedule.cycle_length is 2; three steps that do not come back (a creep) never end it.
+  Scales scales;
+  scales.floor_m = 0.01;
+  scales.source.radius_m = 1.0;
+  scales.source.centre_m = Vec3(0.5, 0.0, 0.0);
+  RefineContext c;
+  c.scales = &scales;
+  const Pairs pairs;
+  const double s = 0.001;
+  const std::vector<Vec3> cycle = {Vec3(s, 0, 0), Vec3(-0.5 * s, 0.866 * s, 0),
+                                   Vec3(-0.5 * s, -0.866 * s, 0)};
+  const std::vector<Vec3> creep = {Vec3(s, 0, 0), Vec3(0, s, 0), Vec3(s, 0, 0),
+                                   Vec3(0, s, 0), Vec3(s, 0, 0), Vec3(0, s, 0)};
+  auto run = [&](long long cycle_length, const std::vector<Vec3>& steps) {
+    PipelineSpec spec;
+    spec.matcher = "mahalanobis_gate";
+    spec.estimator = "p2d_step";
+    spec.schedule = "sigma_anneal";
+    spec.settings.push_back({"schedule.cycle_length", cycle_length});
+    const Pipeline p(spec);
+    LoopState loop;
+    loop.phase = Phase::kFinal;
+    const std::unique_ptr<StageState> state = p.schedule().begin(c, Hypothesis{}, &loop);
+    Isometry3 estimate = Isometry3::Identity();
+    std::vector<TerminationReason> out;
+    for (const Vec3& t_m : steps) {
+      Step step;
+      step.increment.translation() = t_m;
+      estimate = step.increment * estimate;
+      step.estimate.T_target_source = estimate;
+      out.push_back(p.schedule().after_step(c, state.get(), step, pairs, &loop));
+    }
+    return out;
+  };
+  const std::vector<TerminationReason> cycled = run(8, cycle);
+  ASSERT_EQ(cycled.size(), 3u);
+  EXPECT_EQ(cycled[0], TerminationReason::kNotTerminated);
+  EXPECT_EQ(cycled[1], TerminationReason::kNotTerminated);
+  EXPECT_EQ(cycled[2], TerminationReason::kTransform);
+  for (const TerminationReason r : run(2, cycle)) EXPECT_EQ(r, TerminationReason::kNotTerminated);
+  for (const TerminationReason r : run(8, creep)) EXPECT_EQ(r, TerminationReason::kNotTerminated);
+}
+
 TEST_F(ComposedPipelines, AHypothesisCapsItsOwnRefinement) {
   // A search refines many candidates briefly (complete_search): Hypothesis::max_iterations and
   // max_iterations_per_level cap one refinement below the schedule's own budget.
