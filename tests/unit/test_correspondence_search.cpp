@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <omp.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -17,6 +18,7 @@
 #include "lmalign/registration/stages/correspondence_search.hpp"
 #include "lmalign/registration/stages/data_scales.hpp"
 #include "lmalign/registration/stages/landmark_descriptors.hpp"
+#include "lmalign/search/kdtree.hpp"
 #include "lmalign/sim/fleet_sim.hpp"
 #include "lmalign/sim/street_sim.hpp"
 #include "support/align_preset.hpp"
@@ -230,6 +232,117 @@ TEST(LandmarkDescriptors, TheOrientedOneIsInvariantToYawAndTranslation) {
 // (LO-RANSAC's local optimisation), it takes in the others. Measured on issue 39's street seed
 // 33: no clique pose within 3 deg / 3 m of the truth without refits, the nearest 4.2 deg / 3.7 m
 // off; with 2 refits one, 0.41 deg / 0.43 m off.
+TEST(LandmarkDescriptors, TheYawInvariantOneIsThatOfItsKNearestWithinTheRadius) {
+  // describe_landmark takes the landmarks within the radius in the kd-tree's total order, at
+  // most max_neighbours + 1 of them: bit for bit the histogram of the (max_neighbours + 1)
+  // nearest that lie within the radius, summed in their order. Checked against that histogram
+  // built here, on a lattice (exact distance ties) and on random points, with the cap reached
+  // (a wide radius) and not.
+  auto reference = [](const Points3& pts, const KdTree& tree, std::size_t i, const Vec3& up,
+                      double radius, std::size_t cap, float* out) {
+    const int dims = kLandmarkDescriptorDims;
+    std::fill(out, out + dims, 0.0f);
+    std::vector<PointIndex> idx(cap + 1);
+    std::vector<double> d2(cap + 1);
+    const std::size_t found = tree.knn(pts[i], cap + 1, idx.data(), d2.data());
+    double total = 0.0;
+    for (std::size_t j = 0; j < found; ++j) {
+      if (idx[j] == i || d2[j] > radius * radius) continue;
+      const Vec3 d = pts[idx[j]] - pts[i];
+      const double h = d.dot(up);
+      const double r = std::sqrt(std::max(d.squaredNorm() - h * h, 0.0));
+      const double fr = std::clamp(r / radius * 4 - 0.5, 0.0, 3.0);
+      const double fh = std::clamp((h / radius + 1.0) * 0.5 * 5 - 0.5, 0.0, 4.0);
+      const int r0 = std::min(static_cast<int>(fr), 3), h0 = std::min(static_cast<int>(fh), 4);
+      const int r1 = std::min(r0 + 1, 3), h1 = std::min(h0 + 1, 4);
+      const double ar = fr - r0, ah = fh - h0;
+      out[r0 * 5 + h0] += static_cast<float>((1 - ar) * (1 - ah));
+      out[r1 * 5 + h0] += static_cast<float>(ar * (1 - ah));
+      out[r0 * 5 + h1] += static_cast<float>((1 - ar) * ah);
+      out[r1 * 5 + h1] += static_cast<float>(ar * ah);
+      total += 1.0;
+    }
+    if (total < 4.0) {
+      std::fill(out, out + dims, 0.0f);
+      return false;
+    }
+    for (int b = 0; b < dims; ++b) out[b] = std::sqrt(out[b] / static_cast<float>(total));
+    return true;
+  };
+  Points3 lattice, random;
+  for (int x = 0; x < 12; ++x)
+    for (int y = 0; y < 12; ++y)
+      for (int z = 0; z < 6; ++z) lattice.emplace_back(0.1 * x, 0.1 * y, 0.1 * z);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(0.0, 2.0);
+  for (int i = 0; i < 800; ++i) random.emplace_back(u(rng), u(rng), 0.5 * u(rng));
+  const Vec3 up = Vec3(0.1, 0.0, 1.0).normalized();
+  int described = 0;
+  for (const Points3* pts : {&lattice, &random}) {
+    const KdTree tree(*pts);
+    for (const double radius : {0.15, 0.25, 0.6}) {
+      for (const std::size_t cap : {std::size_t{16}, std::size_t{192}}) {
+        for (std::size_t i = 0; i < pts->size(); i += 37) {
+          std::vector<float> a(kLandmarkDescriptorDims), b(kLandmarkDescriptorDims);
+          const bool ok = describe_landmark(*pts, tree, i, up, radius, cap, a.data());
+          const bool ok_ref = reference(*pts, tree, i, up, radius, cap, b.data());
+          ASSERT_EQ(ok, ok_ref) << "landmark " << i << ", radius " << radius << ", cap " << cap;
+          for (int k = 0; k < kLandmarkDescriptorDims; ++k) {
+            ASSERT_EQ(a[k], b[k]) << "landmark " << i << ", radius " << radius << ", cap " << cap;
+          }
+          described += ok ? 1 : 0;
+        }
+      }
+    }
+  }
+  EXPECT_GT(described, 100);
+}
+
+TEST(CorrespondenceSearch, DescriptorMatchesAreTheBruteForceNearest) {
+  // match_descriptors sums four targets at a time where SSE2 is available and stops a sum once
+  // it exceeds the m-th best: its matches must be the brute-force m nearest (ties by the earlier
+  // target). Components are multiples of 1/4 up to 2, so every sum is exact in single
+  // precision whatever its order and the ties are exact; about a tenth of either side is
+  // invalid; key counts that are not multiples of 4.
+  std::mt19937 rng(3);
+  std::uniform_int_distribution<int> level(0, 8), pick(0, 9);
+  for (const int dims : {1, 5, 21, 97}) {
+    for (const std::size_t m : {std::size_t{1}, std::size_t{3}, std::size_t{7}}) {
+      const std::size_t ns = 53, nt = 203;
+      std::vector<std::uint32_t> skeys(ns), tkeys(nt);
+      for (std::size_t a = 0; a < ns; ++a) skeys[a] = static_cast<std::uint32_t>(3 * a + 1);
+      for (std::size_t b = 0; b < nt; ++b) tkeys[b] = static_cast<std::uint32_t>(2 * b);
+      std::vector<float> sd(ns * dims), td(nt * dims);
+      for (float& v : sd) v = 0.25f * static_cast<float>(level(rng));
+      for (float& v : td) v = 0.25f * static_cast<float>(level(rng) / 3);  // many ties
+      std::vector<char> sok(ns), tok(nt);
+      for (char& f : sok) f = pick(rng) != 0;
+      for (char& f : tok) f = pick(rng) != 0;
+      const auto got = match_descriptors(skeys, sd, sok, tkeys, td, tok, dims, m);
+      std::vector<std::pair<std::uint32_t, std::uint32_t>> want;
+      for (std::size_t a = 0; a < ns; ++a) {
+        if (!sok[a]) continue;
+        std::vector<std::pair<float, std::size_t>> all;
+        for (std::size_t b = 0; b < nt; ++b) {
+          if (!tok[b]) continue;
+          float d = 0.0f;
+          for (int x = 0; x < dims; ++x) {
+            const float e = sd[a * dims + x] - td[b * dims + x];
+            d += e * e;
+          }
+          all.emplace_back(d, b);
+        }
+        std::sort(all.begin(), all.end());
+        for (std::size_t r = 0; r < std::min(m, all.size()); ++r) {
+          want.emplace_back(skeys[a], tkeys[all[r].second]);
+        }
+      }
+      EXPECT_EQ(got, want) << "dims " << dims << ", m " << m;
+    }
+  }
+  EXPECT_THROW(match_descriptors({1}, {0.0f}, {1}, {2}, {0.0f, 1.0f}, {1}, 1, 1), InvalidArgument);
+}
+
 TEST(CorrespondenceSearch, RefitsBringTheCliquePosesNearTheTruthCloser) {
   const sim::SlamMapPair pair = street(33);
   const Search s(pair);

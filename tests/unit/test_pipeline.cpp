@@ -286,19 +286,33 @@ TEST_F(ComposedPipelines, APriorIsRefusedByAnInitialiserThatUsesNone) {
                        "the initialiser 'guess' of 'custom' uses no prior"));
 }
 
-TEST(SigmaSchedule, ATwoCycleAtZeroUncertaintyEndsTheRunAsSettled) {
-  // A final refinement (zero pose uncertainty): steps of 1 mm, well above the settle threshold
-  // (1e-3 x the 1 cm floor), alternate back and forth: the second one ends the run (the two
-  // together do not move the source's centre). Two steps the same way do not.
+// A pipeline with the sigma_anneal schedule (and the gate and estimator it goes with), and
+// `settings` on top of the defaults.
+Pipeline sigma_pipeline(std::vector<std::pair<std::string, SettingValue>> settings = {}) {
   PipelineSpec spec;
   spec.matcher = "mahalanobis_gate";
   spec.estimator = "p2d_step";
   spec.schedule = "sigma_anneal";
-  const Pipeline p(spec);
+  spec.settings = std::move(settings);
+  return Pipeline(spec);
+}
+
+// Scales for the schedule's tests: a 1 cm covariance floor (the settle threshold is 1e-3 of it)
+// and a source of radius 1 m centred at (0.5, 0, 0).
+Scales centimetre_scales() {
   Scales scales;
   scales.floor_m = 0.01;
   scales.source.radius_m = 1.0;
   scales.source.centre_m = Vec3(0.5, 0.0, 0.0);
+  return scales;
+}
+
+TEST(SigmaSchedule, ATwoCycleAtZeroUncertaintyEndsTheRunAsSettled) {
+  // A final refinement (zero pose uncertainty): steps of 1 mm, well above the settle threshold
+  // (1e-3 x the 1 cm floor), alternate back and forth: the second one ends the run (the two
+  // together do not move the source's centre). Two steps the same way do not.
+  const Pipeline p = sigma_pipeline();
+  const Scales scales = centimetre_scales();
   RefineContext c;
   c.scales = &scales;
   const Schedule& schedule = p.schedule();
@@ -339,10 +353,7 @@ TEST(SigmaSchedule, ALongerCycleAtZeroUncertaintyEndsTheRunAsSettled) {
   // does not see (any two of the steps move the source's centre by 1 mm, well above the settle
   // threshold of 1e-3 x the 1 cm floor). The third step ends the run, converged, unless
   // schedule.cycle_length is 2; three steps that do not come back (a creep) never end it.
-  Scales scales;
-  scales.floor_m = 0.01;
-  scales.source.radius_m = 1.0;
-  scales.source.centre_m = Vec3(0.5, 0.0, 0.0);
+  const Scales scales = centimetre_scales();
   RefineContext c;
   c.scales = &scales;
   const Pairs pairs;
@@ -352,12 +363,7 @@ TEST(SigmaSchedule, ALongerCycleAtZeroUncertaintyEndsTheRunAsSettled) {
   const std::vector<Vec3> creep = {Vec3(s, 0, 0), Vec3(0, s, 0), Vec3(s, 0, 0),
                                    Vec3(0, s, 0), Vec3(s, 0, 0), Vec3(0, s, 0)};
   auto run = [&](long long cycle_length, const std::vector<Vec3>& steps) {
-    PipelineSpec spec;
-    spec.matcher = "mahalanobis_gate";
-    spec.estimator = "p2d_step";
-    spec.schedule = "sigma_anneal";
-    spec.settings.push_back({"schedule.cycle_length", cycle_length});
-    const Pipeline p(spec);
+    const Pipeline p = sigma_pipeline({{"schedule.cycle_length", cycle_length}});
     LoopState loop;
     loop.phase = Phase::kFinal;
     const std::unique_ptr<StageState> state = p.schedule().begin(c, Hypothesis{}, &loop);

@@ -16,6 +16,10 @@
 #include "lmalign/registration/stages/yaw_vote_search.hpp"
 #include "lmalign/search/kdtree.hpp"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace lmalign {
 
 bool CorrespondenceSearchOptions::is_valid(std::string* why) const {
@@ -147,6 +151,63 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
   std::vector<Match> matches;
   std::vector<std::pair<float, std::uint32_t>> best;
   constexpr int kBlock = 16;  // components summed between two tests of the bound
+  // Offers target b's distance d (complete, or partial and already beyond the bound it was
+  // summed against, which is never below the current one).
+  auto offer = [&](float d, std::size_t b) {
+    if (best.size() < m || d < best.back().first) {
+      const std::pair<float, std::uint32_t> e{d, static_cast<std::uint32_t>(b)};
+      best.insert(std::upper_bound(best.begin(), best.end(), e), e);
+      if (best.size() > m) best.pop_back();
+    }
+  };
+  auto bound_now = [&] {
+    return best.size() < m ? std::numeric_limits<float>::infinity() : best.back().first;
+  };
+#if defined(__SSE2__)
+  // Four targets at a time, one per lane, from a copy laid out component by component (lane l
+  // of block j holds target 4 j + l). Each lane sums its components in the scalar loop's order
+  // with the same single-precision operations, so a complete sum is bit for bit the scalar one.
+  // A block stops when every lane exceeds the bound of the block's start; the bound only
+  // falls, so a stopped lane could never have been kept (the scalar loop would have stopped it
+  // too), and a lane summed further than the scalar loop would go is beyond the bound anyway.
+  // The matches are exactly the scalar loop's (issue 39, time).
+  const std::size_t blocks = (tkeys.size() + 3) / 4;
+  std::vector<float> lanes(blocks * static_cast<std::size_t>(dims) * 4, 0.0f);
+  std::vector<char> any_ok(blocks, 0);
+  for (std::size_t b = 0; b < tkeys.size(); ++b) {
+    for (int x = 0; x < dims; ++x) {
+      lanes[((b / 4) * static_cast<std::size_t>(dims) + static_cast<std::size_t>(x)) * 4 + b % 4] =
+          td[b * dims + x];
+    }
+    any_ok[b / 4] = any_ok[b / 4] || tok[b];
+  }
+  for (std::size_t a = 0; a < skeys.size(); ++a) {
+    if (!sok[a]) continue;
+    best.clear();
+    const float* q = &sd[a * dims];
+    for (std::size_t j = 0; j < blocks; ++j) {
+      if (!any_ok[j]) continue;
+      const __m128 bound = _mm_set1_ps(bound_now());
+      const float* t = &lanes[j * static_cast<std::size_t>(dims) * 4];
+      __m128 d = _mm_setzero_ps();
+      for (int x0 = 0; x0 < dims; x0 += kBlock) {
+        const int x1 = std::min(dims, x0 + kBlock);
+        for (int x = x0; x < x1; ++x) {
+          const __m128 e = _mm_sub_ps(_mm_set1_ps(q[x]), _mm_loadu_ps(t + 4 * x));
+          d = _mm_add_ps(d, _mm_mul_ps(e, e));
+        }
+        if (_mm_movemask_ps(_mm_cmpgt_ps(d, bound)) == 0xF) break;
+      }
+      float sums[4];
+      _mm_storeu_ps(sums, d);
+      for (std::size_t l = 0; l < 4; ++l) {
+        const std::size_t b = 4 * j + l;
+        if (b < tkeys.size() && tok[b]) offer(sums[l], b);
+      }
+    }
+    for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
+  }
+#else
   for (std::size_t a = 0; a < skeys.size(); ++a) {
     if (!sok[a]) continue;
     best.clear();
@@ -154,8 +215,7 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
     for (std::size_t b = 0; b < tkeys.size(); ++b) {
       if (!tok[b]) continue;
       const float* t = &td[b * dims];
-      const float bound =
-          best.size() < m ? std::numeric_limits<float>::infinity() : best.back().first;
+      const float bound = bound_now();
       float d = 0.0f;
       for (int x0 = 0; x0 < dims && d <= bound; x0 += kBlock) {
         const int x1 = std::min(dims, x0 + kBlock);
@@ -164,14 +224,11 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
           d += e * e;
         }
       }
-      if (best.size() < m || d < best.back().first) {
-        const std::pair<float, std::uint32_t> e{d, static_cast<std::uint32_t>(b)};
-        best.insert(std::upper_bound(best.begin(), best.end(), e), e);
-        if (best.size() > m) best.pop_back();
-      }
+      offer(d, b);
     }
     for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
   }
+#endif
   return matches;
 }
 
@@ -601,6 +658,24 @@ double radius_of(const Points3& Q, const KdTree& tree, const CorrespondenceSearc
 }
 
 }  // namespace
+
+std::vector<std::pair<std::uint32_t, std::uint32_t>> match_descriptors(
+    const std::vector<std::uint32_t>& source_keys, const std::vector<float>& source,
+    const std::vector<char>& source_ok, const std::vector<std::uint32_t>& target_keys,
+    const std::vector<float>& target, const std::vector<char>& target_ok, int dims, std::size_t m) {
+  if (dims < 1 || m < 1) throw InvalidArgument("match_descriptors: dims and m must be >= 1");
+  const auto d = static_cast<std::size_t>(dims);
+  if (source.size() != source_keys.size() * d || source_ok.size() != source_keys.size() ||
+      target.size() != target_keys.size() * d || target_ok.size() != target_keys.size()) {
+    throw InvalidArgument("match_descriptors: sizes disagree with the keys and dims");
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> out;
+  for (const Match& x : nearest_descriptors(source_keys, source, source_ok, target_keys, target,
+                                            target_ok, dims, m)) {
+    out.emplace_back(x.s, x.t);
+  }
+  return out;
+}
 
 CorrespondenceSearchResult correspondence_search(const CorrespondenceSearchInput& in,
                                                  const CorrespondenceSearchOptions& o) {

@@ -56,14 +56,21 @@ bool describe_landmark(const Points3& points, const KdTree& tree, std::size_t i,
   const int dims = kLandmarkDescriptorDims + (view_direction != nullptr ? 1 : 0);
   std::fill(out, out + dims, 0.0f);
   if (!(radius_m > 0.0)) return false;
-  std::vector<PointIndex> idx(max_neighbours + 1);
-  std::vector<double> d2(max_neighbours + 1);
-  const std::size_t found = tree.knn(points[i], max_neighbours + 1, idx.data(), d2.data());
+  // The landmarks within the radius, in the tree's total order (squared distance, then index),
+  // at most max_neighbours + 1 of them: exactly the (max_neighbours + 1)-nearest query's points
+  // within the radius, in its order (the histogram's float sums depend on the order), for a
+  // fraction of its cost (a query of 193 nearest with about 48 within the radius; issue 39).
+  std::vector<PointIndex> within;
+  tree.within(points[i], radius_m, &within);
+  std::vector<std::pair<double, PointIndex>> near;
+  near.reserve(within.size());
+  for (const PointIndex j : within) near.emplace_back(squared_distance(points[i], points[j]), j);
+  std::sort(near.begin(), near.end());
+  if (near.size() > max_neighbours + 1) near.resize(max_neighbours + 1);
   double total = 0.0;
-  const double r2 = radius_m * radius_m;
-  for (std::size_t j = 0; j < found; ++j) {
-    if (idx[j] == i || d2[j] > r2) continue;
-    const Vec3 d = points[idx[j]] - points[i];
+  for (const auto& [d2, j] : near) {
+    if (j == i) continue;
+    const Vec3 d = points[j] - points[i];
     const double h = d.dot(up);
     const double r = std::sqrt(std::max(d.squaredNorm() - h * h, 0.0));
     // Bilinear (soft) assignment between bin centres.

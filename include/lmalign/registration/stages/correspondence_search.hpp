@@ -43,6 +43,7 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lmalign/core/types.hpp"
@@ -149,5 +150,19 @@ DescribedLandmarks describe_search_landmarks(const Points3& points,
 CorrespondenceSearchResult correspondence_search_described(
     const CorrespondenceSearchInput& input, const DescribedLandmarks& source,
     const DescribedLandmarks& target, const CorrespondenceSearchOptions& options);
+
+/// Step 2 alone: each valid source descriptor's `m` nearest valid target descriptors
+/// (Euclidean over `dims` floats; ties by the earlier target), source by source, nearest first,
+/// as (source key, target key). `source` and `target` hold source_keys.size() x dims and
+/// target_keys.size() x dims floats; `source_ok` and `target_ok` one flag per key (0: invalid,
+/// matched with nothing). The components are summed in decreasing order of their variance over
+/// the valid targets, and a sum stops once it exceeds the m-th best so far; where SSE2 is
+/// available four targets are summed at once, one per lane, with the same single-precision
+/// operations in the same order: the result is the same on every build. Throws
+/// InvalidArgument if a size disagrees, dims < 1 or m < 1.
+std::vector<std::pair<std::uint32_t, std::uint32_t>> match_descriptors(
+    const std::vector<std::uint32_t>& source_keys, const std::vector<float>& source,
+    const std::vector<char>& source_ok, const std::vector<std::uint32_t>& target_keys,
+    const std::vector<float>& target, const std::vector<char>& target_ok, int dims, std::size_t m);
 
 }  // namespace lmalign
