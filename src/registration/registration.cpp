@@ -37,22 +37,6 @@ PreparedTarget::PreparedTarget(const Map& target, const WeightOptions& weight_op
   covariances_ = target.covariances_m2();
   up_axis_ = estimate_up_axis(target);
   view_directions_ = target.view_directions();
-  build_gate_records();
-}
-
-void PreparedTarget::build_gate_records() {
-  const std::vector<PointIndex>& order = tree_.leaf_order();
-  const Points3& points = tree_.points();
-  gate_records_.resize(order.size());
-  gate_slot_.resize(order.size());
-  for (std::size_t s = 0; s < order.size(); ++s) {
-    const PointIndex i = order[s];
-    GateRecord& r = gate_records_[s];
-    r.point_m = points[i];
-    r.covariance_m2 = covariances_.empty() ? Mat3::Zero() : covariances_[i];
-    r.view_direction = view_directions_.empty() ? Vec3::Zero() : view_directions_[i];
-    gate_slot_[i] = static_cast<PointIndex>(s);
-  }
 }
 
 void PreparedTarget::set_view_directions(std::vector<Vec3> directions) {
@@ -68,7 +52,6 @@ void PreparedTarget::set_view_directions(std::vector<Vec3> directions) {
     }
   }
   view_directions_ = std::move(directions);
-  build_gate_records();
 }
 
 void PreparedTarget::set_up_axis(std::optional<Vec3> up) {
@@ -83,7 +66,6 @@ void PreparedTarget::set_up_axis(std::optional<Vec3> up) {
 
 PreparedTarget::PreparedTarget(Points3 points) : tree_(std::move(points)) {
   weights_[WeightKind::kUniform] = std::vector<double>(tree_.size(), 1.0);
-  build_gate_records();
 }
 
 void PreparedTarget::set_weights(WeightKind kind, std::vector<double> weights) {
@@ -111,7 +93,6 @@ void PreparedTarget::set_covariances(std::vector<Mat3> covariances_m2) {
     }
   }
   covariances_ = std::move(covariances_m2);
-  build_gate_records();
 }
 
 const std::vector<Mat3>& PreparedTarget::covariances_m2() const {

@@ -93,7 +93,6 @@ class Best {
 struct KdTree::Impl {
   Points3 points;
   std::vector<PointIndex> perm;           // leaf slots -> point index
-  Points3 slot_points;                    // the points in leaf-slot order (points[perm[s]])
   std::vector<Node> nodes;                // 2^depth - 1 internal nodes, heap order
   std::vector<std::uint32_t> leaf_begin;  // 2^depth + 1 slot offsets
   int depth = 0;
@@ -201,7 +200,7 @@ struct KdTree::Impl {
     auto offer_slot = [&](std::uint32_t s) {
       const PointIndex i = perm[s];
       if (Q.is_seed(i)) return;
-      const double d = squared_distance(Q.q, slot_points[s]);
+      const double d = squared_distance(Q.q, points[i]);
       if (d <= bound) {
         best.offer(d, i);
         bound = best.bound();
@@ -340,8 +339,6 @@ struct KdTree::Impl {
     fx.assign(n + 4, pad);
     fy.assign(n + 4, pad);
     fz.assign(n + 4, pad);
-    slot_points.resize(n);
-    for (std::size_t s = 0; s < n; ++s) slot_points[s] = points[perm[s]];
     if (!(rel_max <= kFilterMax)) return;
     for (std::size_t s = 0; s < n; ++s) {
       const Vec3 rel = points[perm[s]] - centre;
@@ -359,7 +356,7 @@ struct KdTree::Impl {
     if (level == depth) {
       const std::uint32_t leaf = node - static_cast<std::uint32_t>(nodes.size());
       for (std::uint32_t s = leaf_begin[leaf]; s < leaf_begin[leaf + 1]; ++s) {
-        if (squared_distance(q, slot_points[s]) <= r2) out->push_back(perm[s]);
+        if (squared_distance(q, points[perm[s]]) <= r2) out->push_back(perm[s]);
       }
       return;
     }
@@ -446,7 +443,6 @@ KdTree& KdTree::operator=(KdTree&&) noexcept = default;
 
 std::size_t KdTree::size() const { return impl_->points.size(); }
 const Points3& KdTree::points() const { return impl_->points; }
-const std::vector<PointIndex>& KdTree::leaf_order() const { return impl_->perm; }
 
 std::size_t KdTree::knn(const Vec3& query, std::size_t k, PointIndex* indices,
                         double* distances_sq_m2) const {
@@ -465,16 +461,14 @@ std::size_t KdTree::seed_mark_words() const { return (impl_->points.size() + 63)
 
 void KdTree::within(const Vec3& query, double radius_m, std::vector<PointIndex>* out) const {
   out->clear();
-  if (impl_->points.empty() || !query.allFinite() || !(radius_m >= 0.0) ||
-      !std::isfinite(radius_m)) {
+  if (impl_->points.empty() || !query.allFinite() || !(radius_m >= 0.0) || !std::isfinite(radius_m)) {
     return;
   }
   double off[3];
   for (int d = 0; d < 3; ++d) {
     const double q = query[d];
-    off[d] = q < impl_->box_min[d]   ? q - impl_->box_min[d]
-             : q > impl_->box_max[d] ? q - impl_->box_max[d]
-                                     : 0.0;
+    off[d] = q < impl_->box_min[d] ? q - impl_->box_min[d]
+                                   : q > impl_->box_max[d] ? q - impl_->box_max[d] : 0.0;
   }
   impl_->within(0, 0, off, radius_m * radius_m, query, out);
   std::sort(out->begin(), out->end());
@@ -485,8 +479,8 @@ bool KdTree::nearest(const Vec3& query, PointIndex* index, double* distance_sq_m
 }
 
 std::size_t KdTree::memory_bytes() const {
-  return (impl_->points.capacity() + impl_->slot_points.capacity()) * sizeof(Vec3) +
-         impl_->perm.capacity() * sizeof(PointIndex) + impl_->nodes.capacity() * sizeof(Node) +
+  return impl_->points.capacity() * sizeof(Vec3) + impl_->perm.capacity() * sizeof(PointIndex) +
+         impl_->nodes.capacity() * sizeof(Node) +
          impl_->leaf_begin.capacity() * sizeof(std::uint32_t) +
          (impl_->fx.capacity() + impl_->fy.capacity() + impl_->fz.capacity()) * sizeof(float);
 }

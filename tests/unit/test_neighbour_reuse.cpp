@@ -114,60 +114,6 @@ TEST(KdTreeTotalOrder, FloatPrefilterKeepsEveryPointWithinTheBound) {
   }
 }
 
-TEST(KdTreeLeafOrder, APermutationThatKeepsNeighboursTogether) {
-  // leaf_order() lists every point once, leaf by leaf: consecutive entries are near one another
-  // (median gap well under that of the points' own, shuffled order).
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<double> u(0.0, 10.0);
-  Points3 pts;
-  for (int i = 0; i < 4000; ++i) pts.emplace_back(u(rng), u(rng), u(rng));
-  const KdTree tree(pts);
-  std::vector<PointIndex> order = tree.leaf_order();
-  ASSERT_EQ(order.size(), pts.size());
-  auto median_gap = [&](const std::vector<PointIndex>& o) {
-    std::vector<double> gaps;
-    for (std::size_t j = 1; j < o.size(); ++j) gaps.push_back((pts[o[j]] - pts[o[j - 1]]).norm());
-    std::nth_element(gaps.begin(), gaps.begin() + gaps.size() / 2, gaps.end());
-    return gaps[gaps.size() / 2];
-  };
-  std::vector<PointIndex> given(pts.size());
-  std::iota(given.begin(), given.end(), 0);
-  EXPECT_LT(median_gap(order), 0.2 * median_gap(given));
-  std::sort(order.begin(), order.end());
-  EXPECT_EQ(order, given);
-  EXPECT_TRUE(KdTree(Points3{}).leaf_order().empty());
-}
-
-TEST(PreparedTargetGateRecords, EachRecordIsItsLandmarks) {
-  // The gate's records (kept in the tree's leaf order) hold each landmark's position, covariance
-  // and viewing direction, also after the covariances and directions are set again, and zero
-  // where the target has none.
-  std::mt19937 rng(11);
-  std::uniform_real_distribution<double> u(-5.0, 5.0);
-  Points3 pts;
-  std::vector<Mat3> cov;
-  std::vector<Vec3> views;
-  for (int i = 0; i < 500; ++i) {
-    pts.emplace_back(u(rng), u(rng), u(rng));
-    const Vec3 a(u(rng), u(rng), u(rng));
-    cov.push_back(a * a.transpose() + 0.01 * Mat3::Identity());
-    views.push_back(i % 7 == 0 ? Vec3::Zero() : Vec3(a.normalized()));
-  }
-  PreparedTarget target(pts);
-  for (PointIndex i = 0; i < pts.size(); ++i) {
-    EXPECT_EQ(target.gate_record(i).point_m, pts[i]);
-    EXPECT_TRUE(target.gate_record(i).covariance_m2.isZero());
-    EXPECT_TRUE(target.gate_record(i).view_direction.isZero());
-  }
-  target.set_covariances(cov);
-  target.set_view_directions(views);
-  for (PointIndex i = 0; i < pts.size(); ++i) {
-    EXPECT_EQ(target.gate_record(i).point_m, pts[i]);
-    EXPECT_EQ(target.gate_record(i).covariance_m2, cov[i]);
-    EXPECT_EQ(target.gate_record(i).view_direction, views[i]);
-  }
-}
-
 TEST(KdTreeTotalOrder, FirstKOfAWiderQueryAreTheKQuery) {
   const Points3 pts = test::room_points(4000, 41);
   const KdTree tree(pts);

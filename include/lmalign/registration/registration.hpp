@@ -87,27 +87,8 @@ class PreparedTarget {
   const Points3& points() const { return tree_.points(); }
   std::size_t size() const { return tree_.size(); }
 
-  /// One landmark as the Mahalanobis gate reads it, in the target frame: its position (m), its
-  /// covariance (m^2; zero when the target has none) and its viewing direction (unit, zero where
-  /// unknown or when the target has none).
-  struct GateRecord {
-    Vec3 point_m = Vec3::Zero();
-    Mat3 covariance_m2 = Mat3::Zero();
-    Vec3 view_direction = Vec3::Zero();
-  };
-  /// The record of landmark i (< size()). The records are copies kept in the kd-tree's leaf
-  /// order (KdTree::leaf_order()), so that a landmark's nearest neighbours lie near one another
-  /// in memory: the gate reads several of them for every source landmark, and at 15,000
-  /// landmarks the scattered reads were most of its time (docs/performance.md).
-  const GateRecord& gate_record(PointIndex i) const { return gate_records_[gate_slot_[i]]; }
-
  private:
-  // Copies the positions, covariances and viewing directions into the records.
-  void build_gate_records();
-
   KdTree tree_;
-  std::vector<GateRecord> gate_records_;  // in leaf order
-  std::vector<PointIndex> gate_slot_;     // landmark index -> its record
   std::map<WeightKind, std::vector<double>> weights_;
   std::vector<Mat3> covariances_;
   std::optional<Vec3> up_axis_;

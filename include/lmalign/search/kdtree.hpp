@@ -54,9 +54,6 @@ class KdTree {
   std::size_t size() const;
   /// The points, in the order given to the constructor (indices refer to this order).
   const Points3& points() const;
-  /// The point indices in the tree's leaf order (leaf by leaf, each leaf's points together):
-  /// points near one another in space are near one another in this order. Empty for no points.
-  const std::vector<PointIndex>& leaf_order() const;
 
   /// The k nearest points to `query` (metres). Writes min(k, size()) results into `indices` and
   /// `distances_sq_m2` (squared distances, m^2), in the total order above, and returns how many.

@@ -83,7 +83,7 @@ std::size_t nearest(const Vec3& x, const PreparedTarget& target, std::size_t k, 
     // index).
     for (std::size_t c = 0; c < n; ++c) {
       idx[c] = slot->indices[c];
-      d2e[c] = squared_distance(x, target.gate_record(idx[c]).point_m);
+      d2e[c] = squared_distance(x, target.points()[idx[c]]);
     }
     for (std::size_t a = 1; a < n; ++a) {
       const PointIndex ia = idx[a];
@@ -121,14 +121,12 @@ std::size_t nearest(const Vec3& x, const PreparedTarget& target, std::size_t k, 
 
 // The best target landmark of one source landmark; false when none passes the gate.
 // `slot` (may be null): the landmark's GateNeighbourCache slot.
-// The target landmarks are read from their gate records (PreparedTarget::gate_record);
-// `cov_t`: add their covariances; `view_t`: test their viewing directions against `view_s`, the
-// source landmark's, rotated into the target frame (zero: unknown); `min_cos`: the cosine of the
-// largest angle.
+// `view_t`: the target's viewing directions (null: none); `view_s`: the source landmark's,
+// rotated into the target frame (zero: unknown); `min_cos`: the cosine of the largest angle.
 bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const PreparedTarget& target,
-              bool cov_t, double iso_base_m2, const PoseSigma& sigma, int k, double chi2,
-              bool view_t, const Vec3& view_s, double min_cos, const EvidenceScales* evidence,
-              GatedPair* out, CacheSlot* slot) {
+              const std::vector<Mat3>* C_t, double iso_base_m2, const PoseSigma& sigma, int k,
+              double chi2, const std::vector<Vec3>* view_t, const Vec3& view_s, double min_cos,
+              const EvidenceScales* evidence, GatedPair* out, CacheSlot* slot) {
   const Vec3 x = T * p_s;
   PointIndex idx[kMaxWidth + 1];
   double d2e[kMaxWidth + 1];
@@ -139,17 +137,16 @@ bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const Prepar
   Mat3 S_src = Mat3::Zero();
   if (C_s != nullptr) S_src = T.linear() * (*C_s) * T.linear().transpose();
   double best = std::numeric_limits<double>::infinity();
-  const bool check_view = view_t && !view_s.isZero();
+  const bool check_view = view_t != nullptr && !view_s.isZero();
   for (std::size_t c = 0; c < found; ++c) {
-    const PreparedTarget::GateRecord& rec = target.gate_record(idx[c]);
     // Seen from incompatible directions (an unknown target direction, zero, passes).
     if (check_view) {
-      const Vec3& v_t = rec.view_direction;
+      const Vec3& v_t = (*view_t)[idx[c]];
       if (!v_t.isZero() && view_s.dot(v_t) < min_cos) continue;
     }
-    const Vec3 r = rec.point_m - x;
+    const Vec3 r = target.points()[idx[c]] - x;
     Mat3 S = S_src;
-    if (cov_t) S += rec.covariance_m2;
+    if (C_t != nullptr) S += (*C_t)[idx[c]];
     S.diagonal().array() += iso;
     Mat3 info;
     if (!invert_spd(S, &info)) continue;
@@ -169,7 +166,7 @@ bool gate_one(const Vec3& p_s, const Mat3* C_s, const Isometry3& T, const Prepar
     const double is2 = 1.0 / (evidence->source_m * evidence->source_m);
     const double it2 = 1.0 / (evidence->target_m * evidence->target_m);
     Mat3 S = S_src * is2;
-    if (cov_t) S += target.gate_record(out->target_index).covariance_m2 * it2;
+    if (C_t != nullptr) S += (*C_t)[out->target_index] * it2;
     S.diagonal().array() += evidence->floor_source_m * evidence->floor_source_m * is2 +
                             evidence->floor_target_m * evidence->floor_target_m * it2;
     out->evidence_det = S.determinant();
@@ -213,12 +210,14 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
   }
   const Points3& P = *source.points;
   const bool src_cov = source.covariances_m2 != nullptr && !source.covariances_m2->empty();
-  const bool tgt_cov = target.has_covariances() && target.size() > 0;
+  const std::vector<Mat3>* tgt_cov =
+      target.has_covariances() && target.size() > 0 ? &target.covariances_m2() : nullptr;
   const std::size_t n = subset != nullptr ? subset->size() : P.size();
   const double iso_base = floor_m * floor_m + pose_sigma.translation_m * pose_sigma.translation_m;
   // The viewing-direction test, when both sides have directions and it is on.
   const bool views = options.max_view_angle_deg < 180.0 && source.view_directions != nullptr &&
                      !source.view_directions->empty() && !target.view_directions().empty();
+  const std::vector<Vec3>* view_t = views ? &target.view_directions() : nullptr;
   const double min_cos = std::cos(options.max_view_angle_deg * kPi / 180.0);
   const Mat3 R = T_target_source.linear();
   std::vector<GatedPair> slot(n);
@@ -238,7 +237,7 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
                            &cache->at_m[i], w};
       }
       if (gate_one(P[i], src_cov ? &(*source.covariances_m2)[i] : nullptr, T_target_source, target,
-                   tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, views,
+                   tgt_cov, iso_base, pose_sigma, options.k, options.chi2_threshold, view_t,
                    views ? Vec3(R * (*source.view_directions)[i]) : Vec3::Zero(), min_cos, evidence,
                    &g, cache != nullptr ? &cached : nullptr)) {
         slot[static_cast<std::size_t>(j)] = g;
