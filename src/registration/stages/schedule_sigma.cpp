@@ -3,9 +3,8 @@
 // estimate settles (or after max_iterations_per_level), down to zero once below the covariance
 // floor: the gate is never unbounded. The run ends when a step settles at zero uncertainty (a
 // step below settle_ratio x the floor, and that over the source's radius in rotation), or after
-// max_iterations; a 2-cycle at zero uncertainty (two steps that together settle) ends it too, and
-// so does a longer cycle (the estimate back within the settle threshold of where it was 3 to
-// cycle_length steps before: pairs that change their target landmark and change it back).
+// max_iterations; a cycle at zero uncertainty (2 to cycle_length steps that together settle:
+// pairs that change their target landmark and change it back) ends it too.
 // Final and resampled refinements start at zero. The covariance comes from the last step's
 // normal equations.
 #include <algorithm>
@@ -34,12 +33,9 @@ class SigmaSchedule : public Schedule {
   bool needs_scales() const override { return true; }
   EndPass end_pass() const override { return EndPass::kLastStep; }
 
-  // The last step at zero pose uncertainty (a 2-cycle test, below).
+  // The last cycle_length steps at zero pose uncertainty, newest last: increment and log scale
+  // step (the cycle test, below).
   struct State : StageState {
-    bool has_previous = false;
-    Isometry3 previous = Isometry3::Identity();
-    double previous_log_scale = 0.0;
-    // The last steps at zero uncertainty (newest last): increment and log scale step.
     std::vector<std::pair<Isometry3, double>> recent;
   };
 
@@ -87,51 +83,31 @@ class SigmaSchedule : public Schedule {
         scale_move < std::max(settle_t, o_.level_settle_ratio * sigma.translation_m);
     if (settled && at_zero) return TerminationReason::kTransform;
     if (at_zero && state != nullptr) {
-      // A 2-cycle: the estimate alternates between two poses (a pair that changes its target
-      // landmark, or leaves the gate, at each step and changes it back at the next), each step
-      // large, both together below the settle threshold at the source's centre. It has settled
-      // as far as the data allow: converged (measured on the real desk pair from a right prior:
-      // 2,423 pairs, the estimate alternating to the iteration limit).
+      // A cycle: the last 2 to cycle_length steps together move the source's centre, turn and
+      // scale it less than the settle threshold, each step large: a pair that changes its
+      // target landmark, or leaves the gate, and changes it back. The estimate has settled as
+      // far as the data allow: converged. Measured: 2-cycles on the real desk pair from a right
+      // prior (2,423 pairs, the estimate alternating to the iteration limit); 3-cycles in 2 of a
+      // 15,000-landmark street's 18 half-sample refinements (163 of their 610 iterations, run to
+      // the limit) and in street seed 10's final refinement, whose right answer was refused as
+      // not converged (2026-11-28).
       auto& st = static_cast<State&>(*state);
-      if (st.has_previous) {
-        const Isometry3 both = step.increment * st.previous;
-        const Vec3 pivot = step.estimate.T_target_source * c.scales->source.centre_m;
+      st.recent.emplace_back(step.increment, step.xi(6));
+      if (st.recent.size() > static_cast<std::size_t>(o_.cycle_length)) {
+        st.recent.erase(st.recent.begin());
+      }
+      const Vec3 pivot = step.estimate.T_target_source * c.scales->source.centre_m;
+      const std::size_t n = st.recent.size();
+      Isometry3 both = st.recent[n - 1].first;  // the last `back` steps composed
+      double log_scale = st.recent[n - 1].second;
+      for (std::size_t back = 2; back <= n; ++back) {
+        both = both * st.recent[n - back].first;
+        log_scale += st.recent[n - back].second;
         const double moved = (both * pivot - pivot).norm();
         const double turned = Eigen::AngleAxisd(both.linear()).angle();
-        const double scaled =
-            std::abs(step.xi(6) + st.previous_log_scale) * c.scales->source.radius_m;
+        const double scaled = std::abs(log_scale) * c.scales->source.radius_m;
         if (moved < settle_t && turned < settle_r && scaled < settle_t) {
           return TerminationReason::kTransform;
-        }
-      }
-      st.has_previous = true;
-      st.previous = step.increment;
-      st.previous_log_scale = step.xi(6);
-      // A longer cycle (3 to cycle_length steps): the last steps together move the source's
-      // centre, turn and scale it less than the settle threshold. Measured 2026-11-28 on a
-      // 15,000-landmark street: 2 of the half-sample covariance's 18 halves were in 3-cycles
-      // and ran to the iteration limit (163 of 610 iterations); on street seed 10 (3,000
-      // landmarks) the final refinement was in one, and a right answer was refused as not
-      // converged.
-      if (o_.cycle_length > 2) {
-        st.recent.emplace_back(step.increment, step.xi(6));
-        if (st.recent.size() > static_cast<std::size_t>(o_.cycle_length)) {
-          st.recent.erase(st.recent.begin());
-        }
-        const Vec3 pivot = step.estimate.T_target_source * c.scales->source.centre_m;
-        Isometry3 both = Isometry3::Identity();
-        double log_scale = 0.0;
-        const std::size_t n = st.recent.size();
-        for (std::size_t back = 1; back <= n; ++back) {
-          both = both * st.recent[n - back].first;
-          log_scale += st.recent[n - back].second;
-          if (back < 3) continue;
-          const double moved = (both * pivot - pivot).norm();
-          const double turned = Eigen::AngleAxisd(both.linear()).angle();
-          const double scaled = std::abs(log_scale) * c.scales->source.radius_m;
-          if (moved < settle_t && turned < settle_r && scaled < settle_t) {
-            return TerminationReason::kTransform;
-          }
         }
       }
     }
@@ -177,9 +153,8 @@ const SettingsBinding<SigmaOptions>& binding() {
                "also counts as settled")
           .add("schedule.cycle_length", LMALIGN_FIELD(cycle_length), SettingBound::closed(2, 64),
                "count",
-               "at zero pose uncertainty, an estimate back within the settle threshold of where it "
-               "was 3 to this many steps before ends the refinement, converged (a limit cycle); 2: "
-               "only the 2-cycle test");
+               "at zero pose uncertainty, 2 to this many steps that together settle end the "
+               "refinement, converged (a limit cycle); 2: 2-cycles only");
   return b;
 }
 
