@@ -386,8 +386,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     // A check (of a trusted answer) that the maps' own poses confirmed, not on the prior's word
     // alone: InitialiserContext::checking.
     run.deepen(first.registration.T_target_source,
-               checks && !run.prior_unconfirmed() && !first.verdict.alias_waived_by_prior,
-               first.registration.termination);
+               checks && !run.prior_unconfirmed() && !first.verdict.alias_waived_by_prior);
     if (!run.begin_search(1.0)) {
       first = run.settle(std::move(first));  // its verdict with the covariance's resampling
       break;

@@ -156,7 +156,6 @@ void PipelineRun::validate() const {
 }
 
 bool PipelineRun::begin_search(double factor) {
-  kept_index_.reset();
   const std::vector<Mat3>* target_cov =
       target_.has_covariances() ? &target_.covariances_m2() : nullptr;
   const bool first = request_.free_scale && !scale_search_;
@@ -241,7 +240,6 @@ bool PipelineRun::begin_search(double factor) {
       kept.search_score = 0.0;
       kept.origin = "previous pass";
       kept.rival_only = false;
-      kept_index_ = hypotheses_.size();
       hypotheses_.push_back(kept);
     }
     return true;
@@ -391,8 +389,6 @@ std::vector<RefinedHypothesis> PipelineRun::score_hypotheses(double rung) const 
   RefineContext scoring = context;
   scoring.source = scoring_part.view(src);
   std::vector<RefinedHypothesis> refined(tried.size());
-  // The previous pass's answer is a refined pose of this source (rigid, at its own scale).
-  const bool kept_refined = kept_index_.has_value() && rung == 1.0 && !search_source_;
   // Refines `h` again from its start with a sharp gate (zero pose uncertainty) and keeps that
   // refinement when it scores higher.
   const auto restart_sharp = [&](const Hypothesis& h, RefinedHypothesis* out) {
@@ -424,22 +420,6 @@ std::vector<RefinedHypothesis> PipelineRun::score_hypotheses(double rung) const 
       out.iterations = r.iterations;
       out.termination = r.termination;
       out.score = scorer.score(scoring, pipeline_, r.T);
-      if (kept_refined && kept_index_ == static_cast<std::size_t>(i)) {
-        // The previous pass's answer was refined there on every landmark: refined again here
-        // from the search's pose uncertainty it may find a higher score (measured: 89.9 ->
-        // 93.2 on a real desk pair), else it stays as it was refined, scored as it is (not
-        // refined again sharply on the samples, as a search's hypothesis that loses to its
-        // start is: that cost a refinement and a score, and the answer's refinement on every
-        // landmark then needed about 20 iterations to come back; docs/accuracy.md, "The
-        // previous pass's answer, kept as refined").
-        const double as_refined = scorer.score(scoring, pipeline_, h.T_target_source);
-        if (!(out.score >= as_refined)) {
-          out.T_refined = h.T_target_source;
-          out.termination = kept_termination_;
-          out.score = as_refined;
-        }
-        return;
-      }
       // The user's guess is never traded for a pose the score rates below it. A gate widened by
       // the start's pose uncertainty lets more landmarks pair and may carry the pose there
       // (measured: from the exact truth of a simulated street with a prior of 2 deg / 1 m, the
@@ -470,7 +450,6 @@ std::vector<RefinedHypothesis> PipelineRun::score_hypotheses(double rung) const 
         const Hypothesis& h = tried[static_cast<std::size_t>(i)];
         RefinedHypothesis& out = refined[static_cast<std::size_t>(i)];
         if (h.origin == "guess" || !widened(h)) return;
-        if (kept_refined && kept_index_ == static_cast<std::size_t>(i)) return;  // (above)
         if (!(scorer.score(context, pipeline_, out.T_refined) <
               scorer.score(context, pipeline_, h.T_target_source))) {
           return;

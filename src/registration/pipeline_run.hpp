@@ -102,13 +102,9 @@ class PipelineRun {
   /// previous pass's answer, so that the next one finds its rivals without losing it);
   /// `checking`: that answer was trusted, and the next pass checks it
   /// (InitialiserContext::checking).
-  /// `kept_termination`: how the refinement that ended at `keep` ended (on every landmark:
-  /// score_hypotheses keeps the pose as it is when refining it again scores lower).
-  void deepen(std::optional<Isometry3> keep = std::nullopt, bool checking = false,
-              TerminationReason kept_termination = TerminationReason::kNotTerminated) {
+  void deepen(std::optional<Isometry3> keep = std::nullopt, bool checking = false) {
     ++pass_;
     keep_ = keep;
-    kept_termination_ = kept_termination;
     checking_ = checking;
   }
   /// The result without an answer (begin_search() false): not trusted, the pose the initial
@@ -172,9 +168,6 @@ class PipelineRun {
   std::optional<ScaleSearch> scale_search_;
   int pass_ = 0;
   std::optional<Isometry3> keep_;
-  TerminationReason kept_termination_ = TerminationReason::kNotTerminated;
-  /// hypotheses_'s index of keep_'s hypothesis ("previous pass"); none when it has none.
-  std::optional<std::size_t> kept_index_;
   bool checking_ = false;
   /// conclude()'s conclusion judged without the resampling, with the summary as it was before
   /// the verdict (settle() judges it again); null when none is kept.
