@@ -119,29 +119,30 @@ std::size_t nearest(const Vec3& x, const PreparedTarget& target, std::size_t k, 
   return std::min(k, found);
 }
 
+// A hint that *address will be read soon (nothing on compilers without the builtin).
+inline void prefetch(const void* address) {
+#if defined(__GNUC__)
+  __builtin_prefetch(address);
+#else
+  (void)address;
+#endif
+}
+
 // Asks the memory for the target landmarks (positions, covariances) that source landmark i's
 // GateNeighbourCache slot holds, a few landmarks before the gate reaches it: the gate waits on
 // them more than it computes (docs/performance.md, "The gate's memory"). Changes no result.
 constexpr std::size_t kPrefetchAhead = 2;
 void prefetch_cached(const GateNeighbourCache& cache, std::size_t i, const PreparedTarget& target,
                      const std::vector<Mat3>* C_t) {
-  const std::size_t w = static_cast<std::size_t>(cache.width);
-  const PointIndex* ids = &cache.indices[i * w];
-  const Vec3* points = target.points().data();
-#if defined(__GNUC__)
+  const PointIndex* ids = &cache.indices[i * static_cast<std::size_t>(cache.width)];
   for (std::size_t c = 0; c < cache.counts[i]; ++c) {
-    __builtin_prefetch(points + ids[c]);
+    prefetch(&target.points()[ids[c]]);
     if (C_t != nullptr) {
-      const char* cov = reinterpret_cast<const char*>(C_t->data() + ids[c]);
-      __builtin_prefetch(cov);
-      __builtin_prefetch(cov + 64);  // a Mat3 spans two cache lines
+      const char* cov = reinterpret_cast<const char*>(&(*C_t)[ids[c]]);
+      prefetch(cov);
+      prefetch(cov + 64);  // a Mat3 (72 bytes) spans two cache lines
     }
   }
-#else
-  (void)ids;
-  (void)points;
-  (void)C_t;
-#endif
 }
 
 // The best target landmark of one source landmark; false when none passes the gate.
@@ -256,11 +257,11 @@ void gate_correspondences(const GateSide& source, const PreparedTarget& target,
       GatedPair g;
       g.source_index = static_cast<std::uint32_t>(i);
       CacheSlot cached{};
-      const std::size_t ahead = static_cast<std::size_t>(j) + kPrefetchAhead;
-      if (cache != nullptr && ahead < n) {
-        prefetch_cached(*cache, subset != nullptr ? (*subset)[ahead] : ahead, target, tgt_cov);
-      }
       if (cache != nullptr) {
+        const std::size_t ahead = static_cast<std::size_t>(j) + kPrefetchAhead;
+        if (ahead < n) {
+          prefetch_cached(*cache, subset != nullptr ? (*subset)[ahead] : ahead, target, tgt_cov);
+        }
         const std::size_t w = static_cast<std::size_t>(cache->width);
         cached = CacheSlot{&cache->indices[i * w], &cache->counts[i], &cache->reach_m2[i],
                            &cache->at_m[i], w};
