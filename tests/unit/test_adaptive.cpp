@@ -551,6 +551,84 @@ TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
   }
 }
 
+// The gate's rule, written out: among each source landmark's k nearest target landmarks
+// (Euclidean), the one of least d^2 = r' S^-1 r, S = R C_s R' + C_t + (floor^2 + sigma_t^2 +
+// (sigma_r |x - pivot|)^2) I, kept when d^2 < chi2. gate_one drops most candidates before
+// inverting their S (may_be_below); this checks that it drops none that the rule would keep.
+// Covariances stretched 30:1 in random directions make the Euclidean nearest often lose.
+TEST(MahalanobisGate, KeepsTheCandidateOfLeastMahalanobisDistanceAsTheRuleWrittenOutDoes) {
+  std::mt19937_64 rng(61);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  std::uniform_real_distribution<double> sd(0.005, 0.03);
+  Points3 tgt, src;
+  std::vector<Mat3> tcov, scov;
+  for (int i = 0; i < 2000; ++i) {
+    tgt.emplace_back(u(rng), u(rng), 0.2 * u(rng));
+    const double s = sd(rng);
+    tcov.push_back(covariance(random_rotation(rng), s, s, 30.0 * s));
+  }
+  for (int i = 0; i < 1500; ++i) {
+    src.emplace_back(u(rng), u(rng), 0.2 * u(rng));
+    scov.push_back(covariance(random_rotation(rng), sd(rng), sd(rng), sd(rng)));
+  }
+  const PreparedTarget target = make_target(tgt, tcov);
+  GateSide side;
+  side.points = &src;
+  side.covariances_m2 = &scov;
+  PoseSigma sigma;
+  sigma.translation_m = 0.01;
+  sigma.rotation_rad = 0.003;
+  sigma.pivot_m = Vec3(0.3, -0.2, 0.0);
+  const double floor = 0.004;
+  const Isometry3 T = pose_from_xyz_rpy_deg(0.05, -0.02, 0.01, 0.5, -1.0, 2.0);
+  MahalanobisGateOptions o;
+  std::vector<GatedPair> pairs;
+  gate_correspondences(side, target, T, floor, sigma, o, nullptr, &pairs);
+
+  std::size_t kept = 0, not_nearest = 0, first_outside = 0;
+  std::size_t at = 0;  // the next pair in `pairs`
+  for (std::size_t i = 0; i < src.size(); ++i) {
+    const Vec3 x = T * src[i];
+    std::vector<std::pair<double, std::size_t>> by_distance;
+    for (std::size_t t = 0; t < tgt.size(); ++t)
+      by_distance.emplace_back((tgt[t] - x).squaredNorm(), t);
+    std::partial_sort(by_distance.begin(), by_distance.begin() + o.k, by_distance.end());
+    const Mat3 S_src = T.linear() * scov[i] * T.linear().transpose();
+    const double lever = sigma.rotation_rad * (x - sigma.pivot_m).norm();
+    const double iso = floor * floor + sigma.translation_m * sigma.translation_m + lever * lever;
+    double best = std::numeric_limits<double>::infinity();
+    std::size_t best_t = 0;
+    for (int c = 0; c < o.k; ++c) {
+      const std::size_t t = by_distance[static_cast<std::size_t>(c)].second;
+      const Mat3 S = S_src + tcov[t] + iso * Mat3::Identity();
+      const Vec3 r = tgt[t] - x;
+      const double d2 = r.dot(S.inverse() * r);
+      if (c == 0 && d2 >= o.chi2_threshold) ++first_outside;
+      if (d2 < best) {
+        best = d2;
+        best_t = t;
+      }
+    }
+    if (!(best < o.chi2_threshold)) {
+      EXPECT_TRUE(at == pairs.size() || pairs[at].source_index != i) << "landmark " << i;
+      continue;
+    }
+    ++kept;
+    if (best_t != by_distance[0].second) ++not_nearest;
+    ASSERT_LT(at, pairs.size()) << "landmark " << i << " missing";
+    ASSERT_EQ(pairs[at].source_index, i);
+    EXPECT_EQ(pairs[at].target_index, best_t) << "landmark " << i;
+    EXPECT_NEAR(pairs[at].d2, best, 1e-9 * std::max(1.0, best)) << "landmark " << i;
+    ++at;
+  }
+  EXPECT_EQ(at, pairs.size());
+  // The case is one where the prefilter matters: many kept pairs, many of them not with the
+  // Euclidean nearest, and many landmarks whose nearest lies outside the gate.
+  EXPECT_GT(kept, 300u);
+  EXPECT_GT(not_nearest, 50u);
+  EXPECT_GT(first_outside, 300u);
+}
+
 TEST(MahalanobisGate, NeighbourCacheGivesTheSamePairsAsFreshSearches) {
   // A sequence of poses, as in a refinement (small steps, then a jump), gated with and without
   // the seeded-neighbour cache: the same pairs, bit for bit; a changed k resets the cache.
