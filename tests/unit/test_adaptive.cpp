@@ -549,6 +549,37 @@ TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
       EXPECT_LT(one[i - 1].source_index, one[i].source_index);  // increasing order
     }
   }
+  // A subset (every third landmark, last first): its pairs in the subset's order, the same for
+  // one thread, two, and a call from inside a parallel region (one range: no nested team).
+  std::vector<std::uint32_t> subset;
+  for (std::uint32_t i = 0; i < src.size(); i += 3) subset.insert(subset.begin(), i);
+  std::vector<GatedPair> sub_one, sub_two, sub_nested;
+  omp_set_num_threads(1);
+  gate_correspondences(side, target, T, 0.01, sigma, MahalanobisGateOptions{}, &subset, &sub_one);
+  omp_set_num_threads(2);
+  gate_correspondences(side, target, T, 0.01, sigma, MahalanobisGateOptions{}, &subset, &sub_two);
+#pragma omp parallel num_threads(2)
+  {
+#pragma omp single
+    gate_correspondences(side, target, T, 0.01, sigma, MahalanobisGateOptions{}, &subset,
+                         &sub_nested);
+  }
+  ASSERT_GT(sub_one.size(), 30u);
+  ASSERT_EQ(sub_one.size(), sub_two.size());
+  ASSERT_EQ(sub_one.size(), sub_nested.size());
+  std::size_t in_one = 0;
+  for (const GatedPair& g : one) in_one += g.source_index % 3 == 0 ? 1 : 0;
+  EXPECT_EQ(sub_one.size(), in_one);  // the same landmarks' pairs as gating every landmark
+  for (std::size_t i = 0; i < sub_one.size(); ++i) {
+    EXPECT_EQ(sub_one[i].source_index, sub_two[i].source_index);
+    EXPECT_EQ(sub_one[i].target_index, sub_two[i].target_index);
+    EXPECT_EQ(sub_one[i].d2, sub_two[i].d2);
+    EXPECT_EQ(sub_one[i].source_index, sub_nested[i].source_index);
+    EXPECT_EQ(sub_one[i].d2, sub_nested[i].d2);
+    if (i > 0) {
+      EXPECT_GT(sub_one[i - 1].source_index, sub_one[i].source_index);  // the subset's order
+    }
+  }
 }
 
 // The gate's rule, written out: among each source landmark's k nearest target landmarks
