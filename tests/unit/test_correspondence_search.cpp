@@ -299,11 +299,18 @@ TEST(LandmarkDescriptors, TheYawInvariantOneIsThatOfItsKNearestWithinTheRadius) 
 }
 
 TEST(CorrespondenceSearch, DescriptorMatchesAreTheBruteForceNearest) {
-  // match_descriptors sums four targets at a time where SSE2 is available and stops a sum once
-  // it exceeds the m-th best: its matches must be the brute-force m nearest (ties by the earlier
-  // target). Components are multiples of 1/4 up to 2, so every sum is exact in single
-  // precision whatever its order and the ties are exact; about a tenth of either side is
-  // invalid; key counts that are not multiples of 4.
+  // match_descriptors sums 1, 4 (SSE2) or 8 (AVX) targets at a time and stops a sum once it
+  // exceeds the m-th best: its matches must be the brute-force m nearest (ties by the earlier
+  // target), for every width this machine runs. Components are multiples of 1/4 up to 2, so
+  // every sum is exact in single precision whatever its order and the ties are exact; about a
+  // tenth of either side is invalid; key counts that are not multiples of 4 or 8.
+  std::vector<std::size_t> widths = {0, 1};
+#if defined(__SSE2__)
+  widths.push_back(4);
+#endif
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (__builtin_cpu_supports("avx")) widths.push_back(8);
+#endif
   std::mt19937 rng(3);
   std::uniform_int_distribution<int> level(0, 8), pick(0, 9);
   for (const int dims : {1, 5, 21, 97}) {
@@ -318,7 +325,10 @@ TEST(CorrespondenceSearch, DescriptorMatchesAreTheBruteForceNearest) {
       std::vector<char> sok(ns), tok(nt);
       for (char& f : sok) f = pick(rng) != 0;
       for (char& f : tok) f = pick(rng) != 0;
-      const auto got = match_descriptors(skeys, sd, sok, tkeys, td, tok, dims, m);
+      std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> got;
+      for (const std::size_t lanes : widths) {
+        got.push_back(match_descriptors(skeys, sd, sok, tkeys, td, tok, dims, m, lanes));
+      }
       std::vector<std::pair<std::uint32_t, std::uint32_t>> want;
       for (std::size_t a = 0; a < ns; ++a) {
         if (!sok[a]) continue;
@@ -337,10 +347,13 @@ TEST(CorrespondenceSearch, DescriptorMatchesAreTheBruteForceNearest) {
           want.emplace_back(skeys[a], tkeys[all[r].second]);
         }
       }
-      EXPECT_EQ(got, want) << "dims " << dims << ", m " << m;
+      for (std::size_t w = 0; w < widths.size(); ++w) {
+        EXPECT_EQ(got[w], want) << "dims " << dims << ", m " << m << ", lanes " << widths[w];
+      }
     }
   }
   EXPECT_THROW(match_descriptors({1}, {0.0f}, {1}, {2}, {0.0f, 1.0f}, {1}, 1, 1), InvalidArgument);
+  EXPECT_THROW(match_descriptors({1}, {0.0f}, {1}, {2}, {0.0f}, {1}, 1, 1, 3), InvalidArgument);
 }
 
 TEST(CorrespondenceSearch, RefitsBringTheCliquePosesNearTheTruthCloser) {

@@ -19,6 +19,9 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace lmalign {
 
@@ -136,6 +139,72 @@ std::vector<float> permuted(const std::vector<float>& d, const std::vector<int>&
   return out;
 }
 
+// The sums of squared differences between q and `lanes` targets at once, one target per lane,
+// from a copy laid out component by component (t[x * lanes + l] is component x of target l),
+// each lane's single-precision operations in the scalar loop's order, so that a complete sum is
+// bit for bit the scalar one. The sums stop after a block of kBlock components in which every
+// lane exceeds `bound` (the partial sums are then all beyond it). Written to sums[0, lanes).
+constexpr int kBlock = 16;  // components summed between two tests of the bound
+using LaneSums = void (*)(const float* q, const float* t, int dims, float bound, float* sums);
+
+#if defined(__SSE2__)
+void lane_sums_sse2(const float* q, const float* t, int dims, float bound, float* sums) {
+  const __m128 b = _mm_set1_ps(bound);
+  __m128 d = _mm_setzero_ps();
+  for (int x0 = 0; x0 < dims; x0 += kBlock) {
+    const int x1 = std::min(dims, x0 + kBlock);
+    for (int x = x0; x < x1; ++x) {
+      const __m128 e = _mm_sub_ps(_mm_set1_ps(q[x]), _mm_loadu_ps(t + 4 * x));
+      d = _mm_add_ps(d, _mm_mul_ps(e, e));
+    }
+    if (_mm_movemask_ps(_mm_cmpgt_ps(d, b)) == 0xF) break;
+  }
+  _mm_storeu_ps(sums, d);
+}
+#endif
+
+#if defined(__x86_64__) && defined(__GNUC__)
+// Eight lanes where the CPU has AVX (x86-64's baseline has SSE2 only): the same products and
+// sums per lane (no fused multiply-add), so the same matches.
+__attribute__((target("avx"))) void lane_sums_avx(const float* q, const float* t, int dims,
+                                                  float bound, float* sums) {
+  const __m256 b = _mm256_set1_ps(bound);
+  __m256 d = _mm256_setzero_ps();
+  for (int x0 = 0; x0 < dims; x0 += kBlock) {
+    const int x1 = std::min(dims, x0 + kBlock);
+    for (int x = x0; x < x1; ++x) {
+      const __m256 e = _mm256_sub_ps(_mm256_set1_ps(q[x]), _mm256_loadu_ps(t + 8 * x));
+      d = _mm256_add_ps(d, _mm256_mul_ps(e, e));
+    }
+    if (_mm256_movemask_ps(_mm256_cmp_ps(d, b, _CMP_GT_OQ)) == 0xFF) break;
+  }
+  _mm256_storeu_ps(sums, d);
+}
+#endif
+
+// The summing kernel of `lanes` lanes (0: the widest this CPU runs, chosen once), or null when
+// this build or CPU has none of that width (1: the scalar loop, always).
+LaneSums lane_sums(std::size_t* lanes) {
+#if defined(__x86_64__) && defined(__GNUC__)
+  static const bool avx = __builtin_cpu_supports("avx");
+#else
+  static const bool avx = false;
+#endif
+#if defined(__SSE2__)
+  constexpr bool sse2 = true;
+#else
+  constexpr bool sse2 = false;
+#endif
+  if (*lanes == 0) *lanes = avx ? 8 : sse2 ? 4 : 1;
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (*lanes == 8 && avx) return &lane_sums_avx;
+#endif
+#if defined(__SSE2__)
+  if (*lanes == 4) return &lane_sums_sse2;
+#endif
+  return nullptr;
+}
+
 // Each valid source descriptor's `m` nearest valid target descriptors (Euclidean; ties by the
 // earlier target keypoint), as matches of landmark indices. Exact: a candidate's sum stops once
 // it exceeds the m-th best so far, which it can then never beat (the components are summed in
@@ -145,12 +214,17 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
                                        const std::vector<char>& sok,
                                        const std::vector<std::uint32_t>& tkeys,
                                        const std::vector<float>& td_in,
-                                       const std::vector<char>& tok, int dims, std::size_t m) {
+                                       const std::vector<char>& tok, int dims, std::size_t m,
+                                       std::size_t W = 0) {
+  const LaneSums kernel = lane_sums(&W);
+  if (kernel == nullptr && W != 1) {
+    throw InvalidArgument("match_descriptors: no " + std::to_string(W) +
+                          "-lane kernel in this build or on this CPU");
+  }
   const std::vector<int> order = by_variance(td_in, tok, dims);
   const std::vector<float> sd = permuted(sd_in, order), td = permuted(td_in, order);
   std::vector<Match> matches;
   std::vector<std::pair<float, std::uint32_t>> best;
-  constexpr int kBlock = 16;  // components summed between two tests of the bound
   // Offers target b's distance d (complete, or partial and already beyond the bound it was
   // summed against, which is never below the current one).
   auto offer = [&](float d, std::size_t b) {
@@ -163,51 +237,39 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
   auto bound_now = [&] {
     return best.size() < m ? std::numeric_limits<float>::infinity() : best.back().first;
   };
-#if defined(__SSE2__)
-  // Four targets at a time, one per lane, from a copy laid out component by component (lane l
-  // of block j holds target 4 j + l). Each lane sums its components in the scalar loop's order
-  // with the same single-precision operations, so a complete sum is bit for bit the scalar one.
-  // A block stops when every lane exceeds the bound of the block's start; the bound only
-  // falls, so a stopped lane could never have been kept (the scalar loop would have stopped it
-  // too), and a lane summed further than the scalar loop would go is beyond the bound anyway.
-  // The matches are exactly the scalar loop's (issue 39, time).
-  const std::size_t blocks = (tkeys.size() + 3) / 4;
-  std::vector<float> lanes(blocks * static_cast<std::size_t>(dims) * 4, 0.0f);
-  std::vector<char> any_ok(blocks, 0);
-  for (std::size_t b = 0; b < tkeys.size(); ++b) {
-    for (int x = 0; x < dims; ++x) {
-      lanes[((b / 4) * static_cast<std::size_t>(dims) + static_cast<std::size_t>(x)) * 4 + b % 4] =
-          td[b * dims + x];
+  if (kernel != nullptr) {
+    // W targets at a time (4 with SSE2, 8 with AVX), one per lane (lane_sums_sse2). A block of
+    // targets stops when every lane exceeds the bound of the block's start; the bound only
+    // falls, so a stopped lane could never have been kept (the scalar loop would have stopped it
+    // too), and a lane summed further than the scalar loop would go is beyond the bound anyway.
+    // The matches are exactly the scalar loop's for every width (issue 39, time).
+    const std::size_t blocks = (tkeys.size() + W - 1) / W;
+    std::vector<float> lanes(blocks * static_cast<std::size_t>(dims) * W, 0.0f);
+    std::vector<char> any_ok(blocks, 0);
+    for (std::size_t b = 0; b < tkeys.size(); ++b) {
+      for (int x = 0; x < dims; ++x) {
+        lanes[((b / W) * static_cast<std::size_t>(dims) + static_cast<std::size_t>(x)) * W +
+              b % W] = td[b * dims + x];
+      }
+      any_ok[b / W] = any_ok[b / W] || tok[b];
     }
-    any_ok[b / 4] = any_ok[b / 4] || tok[b];
-  }
-  for (std::size_t a = 0; a < skeys.size(); ++a) {
-    if (!sok[a]) continue;
-    best.clear();
-    const float* q = &sd[a * dims];
-    for (std::size_t j = 0; j < blocks; ++j) {
-      if (!any_ok[j]) continue;
-      const __m128 bound = _mm_set1_ps(bound_now());
-      const float* t = &lanes[j * static_cast<std::size_t>(dims) * 4];
-      __m128 d = _mm_setzero_ps();
-      for (int x0 = 0; x0 < dims; x0 += kBlock) {
-        const int x1 = std::min(dims, x0 + kBlock);
-        for (int x = x0; x < x1; ++x) {
-          const __m128 e = _mm_sub_ps(_mm_set1_ps(q[x]), _mm_loadu_ps(t + 4 * x));
-          d = _mm_add_ps(d, _mm_mul_ps(e, e));
+    float sums[8];
+    for (std::size_t a = 0; a < skeys.size(); ++a) {
+      if (!sok[a]) continue;
+      best.clear();
+      const float* q = &sd[a * dims];
+      for (std::size_t j = 0; j < blocks; ++j) {
+        if (!any_ok[j]) continue;
+        kernel(q, &lanes[j * static_cast<std::size_t>(dims) * W], dims, bound_now(), sums);
+        for (std::size_t l = 0; l < W; ++l) {
+          const std::size_t b = W * j + l;
+          if (b < tkeys.size() && tok[b]) offer(sums[l], b);
         }
-        if (_mm_movemask_ps(_mm_cmpgt_ps(d, bound)) == 0xF) break;
       }
-      float sums[4];
-      _mm_storeu_ps(sums, d);
-      for (std::size_t l = 0; l < 4; ++l) {
-        const std::size_t b = 4 * j + l;
-        if (b < tkeys.size() && tok[b]) offer(sums[l], b);
-      }
+      for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
     }
-    for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
+    return matches;
   }
-#else
   for (std::size_t a = 0; a < skeys.size(); ++a) {
     if (!sok[a]) continue;
     best.clear();
@@ -228,7 +290,6 @@ std::vector<Match> nearest_descriptors(const std::vector<std::uint32_t>& skeys,
     }
     for (const auto& e : best) matches.push_back({skeys[a], tkeys[e.second]});
   }
-#endif
   return matches;
 }
 
@@ -662,7 +723,8 @@ double radius_of(const Points3& Q, const KdTree& tree, const CorrespondenceSearc
 std::vector<std::pair<std::uint32_t, std::uint32_t>> match_descriptors(
     const std::vector<std::uint32_t>& source_keys, const std::vector<float>& source,
     const std::vector<char>& source_ok, const std::vector<std::uint32_t>& target_keys,
-    const std::vector<float>& target, const std::vector<char>& target_ok, int dims, std::size_t m) {
+    const std::vector<float>& target, const std::vector<char>& target_ok, int dims, std::size_t m,
+    std::size_t lanes) {
   if (dims < 1 || m < 1) throw InvalidArgument("match_descriptors: dims and m must be >= 1");
   const auto d = static_cast<std::size_t>(dims);
   if (source.size() != source_keys.size() * d || source_ok.size() != source_keys.size() ||
@@ -671,7 +733,7 @@ std::vector<std::pair<std::uint32_t, std::uint32_t>> match_descriptors(
   }
   std::vector<std::pair<std::uint32_t, std::uint32_t>> out;
   for (const Match& x : nearest_descriptors(source_keys, source, source_ok, target_keys, target,
-                                            target_ok, dims, m)) {
+                                            target_ok, dims, m, lanes)) {
     out.emplace_back(x.s, x.t);
   }
   return out;

@@ -156,13 +156,16 @@ CorrespondenceSearchResult correspondence_search_described(
 /// as (source key, target key). `source` and `target` hold source_keys.size() x dims and
 /// target_keys.size() x dims floats; `source_ok` and `target_ok` one flag per key (0: invalid,
 /// matched with nothing). The components are summed in decreasing order of their variance over
-/// the valid targets, and a sum stops once it exceeds the m-th best so far; where SSE2 is
-/// available four targets are summed at once, one per lane, with the same single-precision
-/// operations in the same order: the result is the same on every build. Throws
-/// InvalidArgument if a size disagrees, dims < 1 or m < 1.
+/// the valid targets, and a sum stops once it exceeds the m-th best so far. `lanes` targets are
+/// summed at once, one per lane, with the same single-precision operations in the same order,
+/// so the result is the same for every width: 0 (the default) the widest this CPU runs (8 with
+/// AVX, chosen at run time; else 4 with SSE2, x86-64's baseline; else 1), or 1, 4 or 8 to ask
+/// for one (tests compare them). Throws InvalidArgument if a size disagrees, dims < 1, m < 1,
+/// or `lanes` is a width this build or CPU lacks.
 std::vector<std::pair<std::uint32_t, std::uint32_t>> match_descriptors(
     const std::vector<std::uint32_t>& source_keys, const std::vector<float>& source,
     const std::vector<char>& source_ok, const std::vector<std::uint32_t>& target_keys,
-    const std::vector<float>& target, const std::vector<char>& target_ok, int dims, std::size_t m);
+    const std::vector<float>& target, const std::vector<char>& target_ok, int dims, std::size_t m,
+    std::size_t lanes = 0);
 
 }  // namespace lmalign
