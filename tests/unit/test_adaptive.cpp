@@ -508,24 +508,36 @@ TEST(MahalanobisGate, PairsOnlyLandmarksSeenFromCompatibleDirections) {
   EXPECT_THROW(target.set_view_directions({Vec3::UnitX()}), InvalidArgument);
 }
 
+/// Random landmarks for the gate's tests (seeded): positions uniform in [-half_m, half_m]^2 x
+/// [-height_m, height_m]; each covariance turned at random, its three standard deviations drawn
+/// from [sd_min_m, sd_max_m], a target's third times `stretch`.
+struct RandomGateScene {
+  Points3 target, source;
+  std::vector<Mat3> target_cov, source_cov;
+  RandomGateScene(std::uint64_t seed, int num_target, int num_source, double half_m,
+                  double height_m, double sd_min_m, double sd_max_m, double stretch) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), sd(sd_min_m, sd_max_m);
+    auto draw = [&](Points3* points, std::vector<Mat3>* cov, int n, double third) {
+      for (int i = 0; i < n; ++i) {
+        const double x = u(rng), y = u(rng), z = u(rng);
+        points->emplace_back(half_m * x, half_m * y, height_m * z);
+        const Mat3 R = random_rotation(rng);
+        const double s0 = sd(rng), s1 = sd(rng), s2 = sd(rng);
+        cov->push_back(covariance(R, s0, s1, third * s2));
+      }
+    };
+    draw(&target, &target_cov, num_target, stretch);
+    draw(&source, &source_cov, num_source, 1.0);
+  }
+};
+
 TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
-  std::mt19937_64 rng(5);
-  std::uniform_real_distribution<double> u(-5.0, 5.0);
-  std::uniform_real_distribution<double> sd(0.005, 0.05);
-  Points3 tgt, src;
-  std::vector<Mat3> tcov, scov;
-  for (int i = 0; i < 3000; ++i) {
-    tgt.emplace_back(u(rng), u(rng), 0.3 * u(rng));
-    tcov.push_back(covariance(random_rotation(rng), sd(rng), sd(rng), sd(rng)));
-  }
-  for (int i = 0; i < 2000; ++i) {
-    src.emplace_back(u(rng), u(rng), 0.3 * u(rng));
-    scov.push_back(covariance(random_rotation(rng), sd(rng), sd(rng), sd(rng)));
-  }
-  const PreparedTarget target = make_target(tgt, tcov);
+  const RandomGateScene scene(5, 3000, 2000, 5.0, 1.5, 0.005, 0.05, 1.0);
+  const PreparedTarget target = make_target(scene.target, scene.target_cov);
   GateSide side;
-  side.points = &src;
-  side.covariances_m2 = &scov;
+  side.points = &scene.source;
+  side.covariances_m2 = &scene.source_cov;
   PoseSigma sigma;
   sigma.translation_m = 0.02;
   sigma.rotation_rad = 0.002;
@@ -538,7 +550,7 @@ TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
   omp_set_num_threads(2);
   gate_correspondences(side, target, T, 0.01, sigma, MahalanobisGateOptions{}, nullptr, &two);
   ASSERT_GT(one.size(), 100u);
-  ASSERT_LT(one.size(), src.size());  // the gate drops some
+  ASSERT_LT(one.size(), scene.source.size());  // the gate drops some
   ASSERT_EQ(one.size(), two.size());
   for (std::size_t i = 0; i < one.size(); ++i) {
     EXPECT_EQ(one[i].source_index, two[i].source_index);
@@ -552,7 +564,7 @@ TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
   // A subset (every third landmark, last first): its pairs in the subset's order, the same for
   // one thread, two, and a call from inside a parallel region (one range: no nested team).
   std::vector<std::uint32_t> subset;
-  for (std::uint32_t i = 0; i < src.size(); i += 3) subset.insert(subset.begin(), i);
+  for (std::uint32_t i = 0; i < scene.source.size(); i += 3) subset.insert(subset.begin(), i);
   std::vector<GatedPair> sub_one, sub_two, sub_nested;
   omp_set_num_threads(1);
   gate_correspondences(side, target, T, 0.01, sigma, MahalanobisGateOptions{}, &subset, &sub_one);
@@ -588,20 +600,11 @@ TEST(MahalanobisGate, IdenticalForOneAndTwoThreads) {
 // inverting their S (may_be_below); this checks that it drops none that the rule would keep.
 // Covariances stretched 30:1 in random directions make the Euclidean nearest often lose.
 TEST(MahalanobisGate, KeepsTheCandidateOfLeastMahalanobisDistanceAsTheRuleWrittenOutDoes) {
-  std::mt19937_64 rng(61);
-  std::uniform_real_distribution<double> u(-3.0, 3.0);
-  std::uniform_real_distribution<double> sd(0.005, 0.03);
-  Points3 tgt, src;
-  std::vector<Mat3> tcov, scov;
-  for (int i = 0; i < 2000; ++i) {
-    tgt.emplace_back(u(rng), u(rng), 0.2 * u(rng));
-    const double s = sd(rng);
-    tcov.push_back(covariance(random_rotation(rng), s, s, 30.0 * s));
-  }
-  for (int i = 0; i < 1500; ++i) {
-    src.emplace_back(u(rng), u(rng), 0.2 * u(rng));
-    scov.push_back(covariance(random_rotation(rng), sd(rng), sd(rng), sd(rng)));
-  }
+  const RandomGateScene scene(61, 2000, 1500, 3.0, 0.6, 0.005, 0.03, 30.0);
+  const Points3& tgt = scene.target;
+  const Points3& src = scene.source;
+  const std::vector<Mat3>& tcov = scene.target_cov;
+  const std::vector<Mat3>& scov = scene.source_cov;
   const PreparedTarget target = make_target(tgt, tcov);
   GateSide side;
   side.points = &src;
