@@ -320,15 +320,25 @@ std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const S
   }
   const double c2 = sigmas * sigmas;
   auto var = [](double s) { return s * s; };
-  // The test of matches a < b at every factor.
-  auto test = [&](std::size_t a, std::size_t b) {
-    const Match& x = matches[a];
-    const Match& y = matches[b];
+  // Each match's landmarks and variances side by side, so that the loops below read them in
+  // sequence rather than through the landmark indices.
+  struct Row {
+    Vec3 ps, pt;
+    double vs = 0.0, vt = 0.0;  // variance of the source and of the target landmark
+    PointIndex s = 0, t = 0;
+    std::size_t index = 0;  // the match's
+  };
+  auto row_of = [&](std::size_t a) {
+    const Match& m = matches[a];
+    return Row{P[m.s], Q[m.t], var(src.sigma_m[m.s]), var(tgt.sigma_m[m.t]), m.s, m.t, a};
+  };
+  // The test of matches x < y (by index) at every factor.
+  auto test = [&](const Row& x, const Row& y) {
     if (x.s == y.s || x.t == y.t) return;
-    const Vec3 ds = P[y.s] - P[x.s], dt = Q[y.t] - Q[x.t];
+    const Vec3 ds = y.ps - x.ps, dt = y.pt - x.pt;
     const double hs = ds.dot(us), ht = dt.dot(ut);
-    const double vs = var(src.sigma_m[x.s]) + var(src.sigma_m[y.s]);
-    const double vtx = var(tgt.sigma_m[x.t]), vty = var(tgt.sigma_m[y.t]);
+    const double vs = x.vs + y.vs;
+    const double vtx = x.vt, vty = y.vt;
     const double dt2 = dt.squaredNorm();
     const double rs = std::sqrt(std::max(ds.squaredNorm() - hs * hs, 0.0));
     const double rt = std::sqrt(std::max(dt2 - ht * ht, 0.0));
@@ -338,6 +348,7 @@ std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const S
       const double tol2 = relative > 0.0 ? noise2 + var(relative) * dt2 : noise2;
       if ((f * hs - ht) * (f * hs - ht) > tol2) continue;
       if ((f * rs - rt) * (f * rs - rt) > tol2) continue;
+      const std::size_t a = x.index, b = y.index;
       Graph& g = graphs[k];
       g.adj[a][b / 64] |= std::uint64_t{1} << (b % 64);
       g.adj[b][a / 64] |= std::uint64_t{1} << (a % 64);
@@ -346,8 +357,10 @@ std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const S
     }
   };
   if (factors.size() != 1 || relative > 0.0) {
+    std::vector<Row> rows(n);
+    for (std::size_t a = 0; a < n; ++a) rows[a] = row_of(a);
     for (std::size_t a = 0; a < n; ++a) {
-      for (std::size_t b = a + 1; b < n; ++b) test(a, b);
+      for (std::size_t b = a + 1; b < n; ++b) test(rows[a], rows[b]);
     }
     return graphs;
   }
@@ -366,12 +379,21 @@ std::vector<Graph> consistency_graphs(const std::vector<Match>& matches, const S
   std::iota(order.begin(), order.end(), 0);
   std::stable_sort(order.begin(), order.end(),
                    [&](std::size_t a, std::size_t b) { return u[a] < u[b]; });
+  std::vector<Row> rows(n);
+  std::vector<double> sorted_u(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    rows[i] = row_of(order[i]);
+    sorted_u[i] = u[order[i]];
+  }
   for (std::size_t i = 0; i < n; ++i) {
     const std::size_t a = order[i];
     const double reach = u[a] + std::sqrt(e[a] + e_max) + margin;
-    for (std::size_t j = i + 1; j < n && u[order[j]] <= reach; ++j) {
-      const std::size_t b = order[j];
-      test(std::min(a, b), std::max(a, b));
+    for (std::size_t j = i + 1; j < n && sorted_u[j] <= reach; ++j) {
+      if (rows[i].index < rows[j].index) {
+        test(rows[i], rows[j]);
+      } else {
+        test(rows[j], rows[i]);
+      }
     }
   }
   // The neighbour lists in increasing order, as the loop over every pair leaves them.
