@@ -165,7 +165,8 @@ void lane_sums_sse2(const float* q, const float* t, int dims, float bound, float
 
 #if defined(__x86_64__) && defined(__GNUC__)
 // Eight lanes where the CPU has AVX (x86-64's baseline has SSE2 only): the same products and
-// sums per lane (no fused multiply-add), so the same matches.
+// sums per lane (no fused multiply-add), so the same matches. lane_sums_sse2's loop at twice
+// the width; a function of its own because only it may use AVX (its target attribute).
 __attribute__((target("avx"))) void lane_sums_avx(const float* q, const float* t, int dims,
                                                   float bound, float* sums) {
   const __m256 b = _mm256_set1_ps(bound);
