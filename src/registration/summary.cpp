@@ -265,6 +265,7 @@ std::string to_json(const Summary& s, int indent) {
                     {"iterations", h.iterations},
                     {"termination", to_string(h.termination)},
                     {"sharp_restart", h.sharp_restart},
+                    {"refined_again", h.refined_again},
                     {"T_start", matrix4(h.start.T_target_source)},
                     {"T_refined", matrix4(h.T_refined)}});
   }

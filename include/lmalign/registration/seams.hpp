@@ -557,6 +557,9 @@ struct RefinedHypothesis {
   /// pose the score rates lower), a search's hypothesis when its start scores at least
   /// Scorer::sharp_restart_share of the best refined hypothesis.
   bool sharp_restart = false;
+  /// A contender of a deeper pass (Scorer::contenders): refined again from its refined pose with
+  /// a sharp gate on Scorer::contender_samples landmarks, and that refinement scored higher.
+  bool refined_again = false;
 };
 
 class Scorer : public Stage {
@@ -578,6 +581,20 @@ class Scorer : public Stage {
   /// better of the two is kept (PipelineRun::score_hypotheses; docs/accuracy.md, "A hypothesis
   /// that loses to its start"). 0: never. Dimensionless, in [0, 1].
   virtual double sharp_restart_share() const { return 0.0; }
+  /// In a deeper pass (the complete search, or the check of a trusted answer), the contenders:
+  /// at most this many of the best refined hypotheses, each scoring at least
+  /// contender_share() of the best, are refined again from their refined poses with a sharp
+  /// gate on contender_samples() landmarks, and each keeps the better of its two poses
+  /// (PipelineRun::score_hypotheses; docs/accuracy.md, "Contenders refined again"). A pose
+  /// refined on a sample can stop short where the sample holds too few of the overlap's
+  /// landmarks. 0: never.
+  virtual std::size_t contenders() const { return 0; }
+  /// See contenders(). Dimensionless, in [0, 1].
+  virtual double contender_share() const { return 1.0; }
+  /// The source landmarks (indices, increasing) on which the contenders are refined again.
+  virtual std::vector<std::uint32_t> contender_samples(std::size_t num_landmarks) const {
+    return scoring_samples(num_landmarks);
+  }
 };
 
 /// The trust verdict and what it was decided on.

@@ -5,7 +5,10 @@
 // false: on the same samples). A pose refined on a sample fits that sample: scored there, a
 // wrong hypothesis's rivals and the answer's score move with the draw (docs/accuracy.md, "Refined
 // on samples, scored on every landmark"). A hypothesis that loses to its own start is refined
-// again from it with a sharp gate when its start could matter (score.sharp_restart_share).
+// again from it with a sharp gate when its start could matter (score.sharp_restart_share). In a
+// deeper pass the contenders (score.contenders, within score.contender_share of the best) are
+// refined again from their refined poses on score.contender_samples landmarks.
+#include "lmalign/registration/stages/complete_search.hpp"  // strided_indices
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "stage.hpp"
 
@@ -19,32 +22,25 @@ struct GatedScoreOptions {
   int samples = 1024;
   bool every_landmark = true;
   double sharp_restart_share = 0.7;
+  int contenders = 3;
+  double contender_share = 0.7;
+  int contender_samples = 4096;
 };
 
 class GatedScorer : public Scorer {
  public:
-  GatedScorer(std::size_t samples, bool every_landmark, double sharp_restart_share)
-      : samples_(samples),
-        every_landmark_(every_landmark),
-        sharp_restart_share_(sharp_restart_share) {}
+  explicit GatedScorer(const GatedScoreOptions& o) : o_(o) {}
   bool needs_scales() const override { return true; }
   bool accepts(int kind) const override {
     return kind == static_cast<int>(Pairs::Kind::kDistributions);
   }
 
   std::vector<std::uint32_t> samples(std::size_t n) const override {
-    std::vector<std::uint32_t> out;
-    const std::size_t m = std::min(n, samples_);
-    out.reserve(m);
-    for (std::size_t i = 0; i < m; ++i) out.push_back(static_cast<std::uint32_t>(i * n / m));
-    return out;
+    return strided_indices(n, static_cast<std::size_t>(o_.samples));
   }
 
   std::vector<std::uint32_t> scoring_samples(std::size_t n) const override {
-    if (!every_landmark_) return samples(n);
-    std::vector<std::uint32_t> out(n);
-    for (std::size_t i = 0; i < n; ++i) out[i] = static_cast<std::uint32_t>(i);
-    return out;
+    return o_.every_landmark ? strided_indices(n, n) : samples(n);
   }
 
   double score(const RefineContext& c, const Pipeline& pipeline,
@@ -56,12 +52,15 @@ class GatedScorer : public Scorer {
     return score;
   }
 
-  double sharp_restart_share() const override { return sharp_restart_share_; }
+  double sharp_restart_share() const override { return o_.sharp_restart_share; }
+  std::size_t contenders() const override { return static_cast<std::size_t>(o_.contenders); }
+  double contender_share() const override { return o_.contender_share; }
+  std::vector<std::uint32_t> contender_samples(std::size_t n) const override {
+    return strided_indices(n, static_cast<std::size_t>(o_.contender_samples));
+  }
 
  private:
-  std::size_t samples_;
-  bool every_landmark_;
-  double sharp_restart_share_;
+  GatedScoreOptions o_;
 };
 
 }  // namespace
@@ -79,13 +78,32 @@ std::vector<SettingRow> score_gated_settings() {
                        GatedScoreOptions{}.sharp_restart_share, SettingBound::closed(0.0, 1.0), "1",
                        "a search's hypothesis whose refinement scores below its start on the "
                        "samples, and whose start scores this share of the best refined "
-                       "hypothesis, is refined again from its start with a sharp gate; 0: never")};
+                       "hypothesis, is refined again from its start with a sharp gate; 0: never"),
+          int_setting("score.contenders", "GatedScoreOptions::contenders",
+                      GatedScoreOptions{}.contenders, SettingBound::closed(0, 64), "count",
+                      "in a deeper pass, at most this many of the best refined hypotheses (each "
+                      "scoring score.contender_share of the best) are refined again from their "
+                      "poses with a sharp gate on score.contender_samples landmarks; 0: never"),
+          real_setting("score.contender_share", "GatedScoreOptions::contender_share",
+                       GatedScoreOptions{}.contender_share, SettingBound::closed(0.0, 1.0), "1",
+                       "a refined hypothesis is a contender when it scores at least this share "
+                       "of the best (score.contenders)"),
+          int_setting("score.contender_samples", "GatedScoreOptions::contender_samples",
+                      GatedScoreOptions{}.contender_samples, SettingBound::closed(16, 2147483647),
+                      "count",
+                      "source landmarks (evenly strided; every landmark of a smaller map) on "
+                      "which the contenders are refined again")};
 }
 
 std::unique_ptr<Stage> make_score_gated(const Settings& s) {
-  return std::make_unique<GatedScorer>(static_cast<std::size_t>(s.integer("score.samples")),
-                                       s.boolean("score.every_landmark"),
-                                       s.real("score.sharp_restart_share"));
+  GatedScoreOptions o;
+  o.samples = static_cast<int>(s.integer("score.samples"));
+  o.every_landmark = s.boolean("score.every_landmark");
+  o.sharp_restart_share = s.real("score.sharp_restart_share");
+  o.contenders = static_cast<int>(s.integer("score.contenders"));
+  o.contender_share = s.real("score.contender_share");
+  o.contender_samples = static_cast<int>(s.integer("score.contender_samples"));
+  return std::make_unique<GatedScorer>(o);
 }
 
 }  // namespace lmalign::stages
