@@ -53,6 +53,28 @@ sim::SlamMapPair quarter_street(std::uint64_t seed, const Isometry3& T_target_so
   return sim::simulate_street_pair(o);
 }
 
+// A held-out street seed (`lmalign simulate --scene street --overlap 0.25 --frames 30
+// --landmarks 3000 --transform=-35,12,0,0,0,-75 --seed SEED`), ready to align.
+struct HeldOutStreet {
+  explicit HeldOutStreet(std::uint64_t seed)
+      : pair(quarter_street(seed, pose_from_xyz_rpy_deg(-35, 12, 0, 0, 0, -75))),
+        target(pair.target),
+        source(SourceLandmarks::from_map(pair.source)) {}
+  Summary align(const std::vector<std::string>& settings = {}) const {
+    return test::align_with("adaptive", source, target, {settings});
+  }
+  // Right within 0.2 deg / 0.1 m, and trusted.
+  void expect_right_and_trusted(const Summary& r) const {
+    const TransformError e = transform_error(r.registration.T_target_source, pair.T_target_source);
+    EXPECT_LT(e.rotation_deg, 0.2) << r.verdict.reason;
+    EXPECT_LT(e.translation_m, 0.1) << r.verdict.reason;
+    EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  }
+  sim::SlamMapPair pair;
+  PreparedTarget target;
+  SourceLandmarks source;
+};
+
 TEST(CompleteSearch, FindsTheStreetPoseAndIsIndependentOfTheThreadCount) {
   // Measured: the complete search ends within 0.05 deg and 2 cm of the truth; the earlier
   // default (the vote's best yaw peaks, refined from the search's coarse resolution) ends tens
@@ -208,21 +230,15 @@ TEST(CompleteSearch, ARoadAnswerIsTrustedWhenItsRivalsAreScoredOnEveryLandmark) 
 // the restart the answer is that drifted pose, about 1 m off (docs/accuracy.md, "A hypothesis
 // that loses to its start").
 TEST(CompleteSearch, AHypothesisThatLosesToItsStartIsRefinedAgainWithASharpGate) {
-  const sim::SlamMapPair pair = quarter_street(84, pose_from_xyz_rpy_deg(-35, 12, 0, 0, 0, -75));
-  const PreparedTarget target(pair.target);
-  const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
-  const Summary r = test::align_with("adaptive", source, target);
-  const TransformError e = transform_error(r.registration.T_target_source, pair.T_target_source);
-  EXPECT_LT(e.rotation_deg, 0.2) << r.verdict.reason;
-  EXPECT_LT(e.translation_m, 0.1) << r.verdict.reason;
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  const HeldOutStreet street(84);
+  const Summary r = street.align();
+  street.expect_right_and_trusted(r);
   bool restarted = false;
   for (const RefinedHypothesis& h : r.hypotheses) restarted = restarted || h.sharp_restart;
   EXPECT_TRUE(restarted);
-  const Summary off =
-      test::align_with("adaptive", source, target, {{"score.sharp_restart_share=0"}});
+  const Summary off = street.align({"score.sharp_restart_share=0"});
   const TransformError e_off =
-      transform_error(off.registration.T_target_source, pair.T_target_source);
+      transform_error(off.registration.T_target_source, street.pair.T_target_source);
   EXPECT_GT(e_off.translation_m, 0.5);
   EXPECT_LT(off.verdict.score, r.verdict.score);
   for (const RefinedHypothesis& h : off.hypotheses) EXPECT_FALSE(h.sharp_restart);
@@ -236,20 +252,15 @@ TEST(CompleteSearch, AHypothesisThatLosesToItsStartIsRefinedAgainWithASharpGate)
 // truth (341) and is the answer, trusted. Without the contenders the answer is the slide
 // (docs/accuracy.md, "Contenders refined again").
 TEST(CompleteSearch, TheDeeperPassRefinesItsContendersAgainOnMoreLandmarks) {
-  const sim::SlamMapPair pair = quarter_street(79, pose_from_xyz_rpy_deg(-35, 12, 0, 0, 0, -75));
-  const PreparedTarget target(pair.target);
-  const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
-  const Summary r = test::align_with("adaptive", source, target);
-  const TransformError e = transform_error(r.registration.T_target_source, pair.T_target_source);
-  EXPECT_LT(e.rotation_deg, 0.2) << r.verdict.reason;
-  EXPECT_LT(e.translation_m, 0.1) << r.verdict.reason;
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  const HeldOutStreet street(79);
+  const Summary r = street.align();
+  street.expect_right_and_trusted(r);
   bool again = false;
   for (const RefinedHypothesis& h : r.hypotheses) again = again || h.refined_again;
   EXPECT_TRUE(again);
-  const Summary off = test::align_with("adaptive", source, target, {{"score.contenders=0"}});
+  const Summary off = street.align({"score.contenders=0"});
   const TransformError e_off =
-      transform_error(off.registration.T_target_source, pair.T_target_source);
+      transform_error(off.registration.T_target_source, street.pair.T_target_source);
   EXPECT_GT(e_off.translation_m, 5.0);
   EXPECT_FALSE(off.verdict.trustworthy);
   EXPECT_LT(off.verdict.score, 0.7 * r.verdict.score);
@@ -264,9 +275,7 @@ TEST(CompleteSearch, TheDeeperPassRefinesItsContendersAgainOnMoreLandmarks) {
 // same answer, trusted, that the complete search as the check (search.check = complete) keeps,
 // at about half the time (measured 2026-11-28: 0.9 s against 1.9 s in Release).
 TEST(CompleteSearch, ACheckByCorrespondencesKeepsTheAnswerTheCompleteSearchKeeps) {
-  const sim::SlamMapPair pair = quarter_street(64, pose_from_xyz_rpy_deg(-35, 12, 0, 0, 0, -75));
-  const PreparedTarget target(pair.target);
-  const SourceLandmarks source = SourceLandmarks::from_map(pair.source);
+  const HeldOutStreet street(64);
   // A note of the initialiser's report: its value, or -1 when it has none.
   auto note = [](const Summary& r, const std::string& key) {
     for (const auto& [name, value] : r.initialisation.notes) {
@@ -274,16 +283,13 @@ TEST(CompleteSearch, ACheckByCorrespondencesKeepsTheAnswerTheCompleteSearchKeeps
     }
     return -1.0;
   };
-  const Summary r = test::align_with("adaptive", source, target);
-  const TransformError e = transform_error(r.registration.T_target_source, pair.T_target_source);
-  EXPECT_LT(e.rotation_deg, 0.2) << r.verdict.reason;
-  EXPECT_LT(e.translation_m, 0.1) << r.verdict.reason;
-  EXPECT_TRUE(r.verdict.trustworthy) << r.verdict.reason;
+  const Summary r = street.align();
+  street.expect_right_and_trusted(r);
   EXPECT_EQ(note(r, "deeper pass to check an answer trusted without half samples"), 1.0);
   EXPECT_EQ(note(r, "check by correspondences"), 1.0);
   EXPECT_EQ(note(r, "search candidates"), 0.0);  // no vote
 
-  const Summary full = test::align_with("adaptive", source, target, {{"search.check=complete"}});
+  const Summary full = street.align({"search.check=complete"});
   EXPECT_TRUE(full.verdict.trustworthy) << full.verdict.reason;
   EXPECT_EQ(note(full, "check by correspondences"), -1.0);
   EXPECT_GT(note(full, "search candidates"), 0.0);  // the vote's
