@@ -460,14 +460,16 @@ std::vector<RefinedHypothesis> PipelineRun::score_hypotheses(double rung) const 
     }
     error.rethrow();
   }
-  // The contenders of a deeper pass refined again (Scorer::contenders; docs/accuracy.md,
-  // "Contenders refined again"): a pose refined on the samples can stop short where they hold
-  // too few of the overlap's landmarks. Measured on a held-out street (seed 79, 3,000 landmarks):
-  // a hypothesis 0.27 deg / 0.87 m from the truth stopped there at 186, below a slide 40 m along
-  // the street at 187; refined again on every landmark it reaches the truth at 341. Not in the
-  // first pass: the contenders' higher scores made rivals of them there, and trusted answers
-  // paid for the deeper pass without a different answer (a simulated road: 0.86 -> 2.15 s).
-  if (pass_ > 0 && scorer.contenders() > 0) {
+  // The contenders refined again (Scorer::contenders; docs/accuracy.md, "Contenders refined
+  // again"): a pose refined on the samples can stop short where they hold too few of the
+  // overlap's landmarks. Measured on a held-out street (seed 79, 3,000 landmarks): a hypothesis
+  // 0.27 deg / 0.87 m from the truth stopped there at 186, below a slide 40 m along the street
+  // at 187; refined again on every landmark it reaches the truth at 341. In every search but a
+  // first pass that a deeper one may follow (first_pass(): the complete search, with or without
+  // a first pass before it, a check, a prior's search): in the first pass the contenders'
+  // higher scores made rivals of them, and trusted answers paid for the deeper pass without a
+  // different answer (a simulated road: 0.86 -> 2.15 s).
+  if (!first_pass() && scorer.contenders() > 0) {
     std::vector<std::size_t> order(refined.size());
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
     std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {

@@ -557,8 +557,8 @@ struct RefinedHypothesis {
   /// pose the score rates lower), a search's hypothesis when its start scores at least
   /// Scorer::sharp_restart_share of the best refined hypothesis.
   bool sharp_restart = false;
-  /// A contender of a deeper pass (Scorer::contenders): refined again from its refined pose with
-  /// a sharp gate on Scorer::contender_samples landmarks, and that refinement scored higher.
+  /// A contender (Scorer::contenders; not in a first pass): refined again from its refined pose
+  /// with a sharp gate on Scorer::contender_samples landmarks, and that refinement scored higher.
   bool refined_again = false;
 };
 
@@ -581,8 +581,9 @@ class Scorer : public Stage {
   /// better of the two is kept (PipelineRun::score_hypotheses; docs/accuracy.md, "A hypothesis
   /// that loses to its start"). 0: never. Dimensionless, in [0, 1].
   virtual double sharp_restart_share() const { return 0.0; }
-  /// In a deeper pass (the complete search, or the check of a trusted answer), the contenders:
-  /// at most this many of the best refined hypotheses, each scoring at least
+  /// In every search but a first pass that a deeper one may follow (InitialiserReport::
+  /// deeper_pass: so in the complete search, a check of a trusted answer, a prior's search), the
+  /// contenders: at most this many of the best refined hypotheses, each scoring at least
   /// contender_share() of the best, are refined again from their refined poses with a sharp
   /// gate on contender_samples() landmarks, and each keeps the better of its two poses
   /// (PipelineRun::score_hypotheses; docs/accuracy.md, "Contenders refined again"). A pose

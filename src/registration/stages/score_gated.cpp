@@ -5,9 +5,9 @@
 // false: on the same samples). A pose refined on a sample fits that sample: scored there, a
 // wrong hypothesis's rivals and the answer's score move with the draw (docs/accuracy.md, "Refined
 // on samples, scored on every landmark"). A hypothesis that loses to its own start is refined
-// again from it with a sharp gate when its start could matter (score.sharp_restart_share). In a
-// deeper pass the contenders (score.contenders, within score.contender_share of the best) are
-// refined again from their refined poses on score.contender_samples landmarks.
+// again from it with a sharp gate when its start could matter (score.sharp_restart_share).
+// Except in a first pass, the contenders (score.contenders, within score.contender_share of the
+// best) are refined again from their refined poses on score.contender_samples landmarks.
 #include "lmalign/registration/stages/complete_search.hpp"  // strided_indices
 #include "lmalign/registration/stages/mahalanobis_gate.hpp"
 #include "stage.hpp"
@@ -81,9 +81,10 @@ std::vector<SettingRow> score_gated_settings() {
                        "hypothesis, is refined again from its start with a sharp gate; 0: never"),
           int_setting("score.contenders", "GatedScoreOptions::contenders",
                       GatedScoreOptions{}.contenders, SettingBound::closed(0, 64), "count",
-                      "in a deeper pass, at most this many of the best refined hypotheses (each "
-                      "scoring score.contender_share of the best) are refined again from their "
-                      "poses with a sharp gate on score.contender_samples landmarks; 0: never"),
+                      "except in a first pass, at most this many of the best refined "
+                      "hypotheses (each scoring score.contender_share of the best) are refined "
+                      "again from their poses with a sharp gate on score.contender_samples "
+                      "landmarks; 0: never"),
           real_setting("score.contender_share", "GatedScoreOptions::contender_share",
                        GatedScoreOptions{}.contender_share, SettingBound::closed(0.0, 1.0), "1",
                        "a refined hypothesis is a contender when it scores at least this share "
