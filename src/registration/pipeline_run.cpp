@@ -389,21 +389,24 @@ std::vector<RefinedHypothesis> PipelineRun::score_hypotheses(double rung) const 
   RefineContext scoring = context;
   scoring.source = scoring_part.view(src);
   std::vector<RefinedHypothesis> refined(tried.size());
-  // Refines `h` again from its start with a sharp gate (zero pose uncertainty) and keeps that
-  // refinement when it scores higher.
-  const auto restart_sharp = [&](const Hypothesis& h, RefinedHypothesis* out) {
-    Hypothesis sharp = h;
-    sharp.start_sigma_m = 0.0;
-    sharp.start_sigma_rad = 0.0;
-    const Refinement again = pipeline_.refine(context, sharp, Phase::kHypothesis);
+  // Refines `from` with a sharp gate (zero pose uncertainty) on the landmarks of `on`, scores
+  // it on the scoring samples, and keeps that refinement in *out when it scores higher (true).
+  const auto refine_sharply = [&](const RefineContext& on, Hypothesis from,
+                                  RefinedHypothesis* out) {
+    from.start_sigma_m = 0.0;
+    from.start_sigma_rad = 0.0;
+    const Refinement again = pipeline_.refine(on, from, Phase::kHypothesis);
     const double score = scorer.score(scoring, pipeline_, again.T);
     out->iterations += again.iterations;
-    if (score > out->score) {
-      out->T_refined = again.T;
-      out->termination = again.termination;
-      out->score = score;
-      out->sharp_restart = true;
-    }
+    if (!(score > out->score)) return false;
+    out->T_refined = again.T;
+    out->termination = again.termination;
+    out->score = score;
+    return true;
+  };
+  // Refines `h` again from its start with a sharp gate, kept when it scores higher.
+  const auto restart_sharp = [&](const Hypothesis& h, RefinedHypothesis* out) {
+    if (refine_sharply(context, h, out)) out->sharp_restart = true;
   };
   const auto widened = [](const Hypothesis& h) {
     return h.start_sigma_m > 0.0 || h.start_sigma_rad > 0.0;
@@ -493,17 +496,7 @@ std::vector<RefinedHypothesis> PipelineRun::score_hypotheses(double rung) const 
         RefinedHypothesis& out = refined[chosen[static_cast<std::size_t>(c)]];
         Hypothesis from = out.start;
         from.T_target_source = out.T_refined;
-        from.start_sigma_m = 0.0;
-        from.start_sigma_rad = 0.0;
-        const Refinement again = pipeline_.refine(contender, from, Phase::kHypothesis);
-        const double score = scorer.score(scoring, pipeline_, again.T);
-        out.iterations += again.iterations;
-        if (score > out.score) {
-          out.T_refined = again.T;
-          out.termination = again.termination;
-          out.score = score;
-          out.refined_again = true;
-        }
+        if (refine_sharply(contender, from, &out)) out.refined_again = true;
       });
     }
     error.rethrow();
