@@ -148,8 +148,10 @@ def forward_direction(frames, up):
 class Aligner:
     """Runs `lmalign align --json` for one dataset, each result cached under `folder`."""
 
-    def __init__(self, lmalign, source, target, truth, thresholds, folder, log):
+    def __init__(self, lmalign, source, target, truth, thresholds, folder, log, strategy=None):
+        """strategy: a preset name for `--strategy` (None: the binary's default)."""
         self.lmalign, self.source, self.target = lmalign, source, target
+        self.strategy = strategy
         self.truth_arg = truth  # 'identity' or a 4x4 file
         self.thresholds = thresholds
         self.folder = folder
@@ -166,6 +168,8 @@ class Aligner:
         args = [self.source, self.target, "--ground-truth", self.truth_arg,
                 "--success-rotation-deg", "%g" % self.thresholds[0],
                 "--success-translation-m", "%g" % self.thresholds[1]]
+        if self.strategy is not None:
+            args += ["--strategy", self.strategy]
         key_parts = list(args)
         if displace is not None:
             args += ["--displace", ",".join("%.17g" % v for v in displace)]
@@ -256,10 +260,10 @@ def truth_refined(aligner, priors):
     return best[0], best[1], tried
 
 
-def regret_report(aligner, rows, truth_priors):
-    """The default from every start of rows, against its truth-refined score (truth_refined()
-    over `truth_priors`)."""
-    truth_run, used, tried = truth_refined(aligner, truth_priors)
+def regret_report(aligner, rows, truth_priors, truth=None):
+    """The default (or the aligner's strategy) from every start of rows, against its
+    truth-refined score: truth_refined() over `truth_priors`, or `truth`, a result of it."""
+    truth_run, used, tried = truth if truth is not None else truth_refined(aligner, truth_priors)
     truth_score = truth_run.get("gated_score")
     runs = []
     for experiment, value, D in starts_of(rows):
@@ -316,6 +320,45 @@ def regret_report(aligner, rows, truth_priors):
                         "rotation_error_deg": w.get("rotation_error_deg"),
                         "translation_error_m": w.get("translation_error_m")},
     }
+    return out
+
+
+def pose_distance(A, B):
+    """(rotation deg, translation m) between two 4x4 poses."""
+    R = [[sum(A[k][r] * B[k][c] for k in range(3)) for c in range(3)] for r in range(3)]
+    cos = max(-1.0, min(1.0, (R[0][0] + R[1][1] + R[2][2] - 1.0) / 2.0))
+    return math.degrees(math.acos(cos)), math.sqrt(sum((A[r][3] - B[r][3]) ** 2 for r in range(3)))
+
+
+def reference_report(reference, default, rows, truth):
+    """The reference search (issue 39, item 2: the complete search at once, `exhaustive`) from
+    the starts of rows, against the same truth-refined score (`truth`, a truth_refined() result)
+    as the default's: its regret_report(), and per start how its answer compares with the
+    default's (`default`, the default's Aligner; its runs are cached): the same answer (within
+    the dataset's right-basin thresholds of each other), and which scores higher by more than
+    REGRET_TOLERANCE of the truth-refined score."""
+    out = regret_report(reference, rows, None, truth=truth)
+    out["strategy"] = reference.strategy
+    scale = max(abs(truth[0].get("gated_score") or 0.0), 1e-12)
+    same = default_higher = reference_higher = 0
+    ratios = []
+    starts = starts_of(rows)
+    for _, _, D in starts:
+        a, b = default.run(displace=D), reference.run(displace=D)
+        rot, tr = pose_distance(a["T_target_source"], b["T_target_source"])
+        if rot <= reference.thresholds[0] and tr <= reference.thresholds[1]:
+            same += 1
+        sa, sb = a.get("gated_score"), b.get("gated_score")
+        if sa is not None and sb is not None:
+            default_higher += sa - sb > REGRET_TOLERANCE * scale
+            reference_higher += sb - sa > REGRET_TOLERANCE * scale
+        if a.get("wall_time_s") and b.get("wall_time_s"):
+            ratios.append(a["wall_time_s"] / b["wall_time_s"])
+    out["same_answer_rate"] = same / len(starts) if starts else None
+    out["default_scores_higher"] = default_higher
+    out["reference_scores_higher"] = reference_higher
+    out["median_time_ratio_default_over_reference"] = (statistics.median(ratios) if ratios
+                                                       else None)
     return out
 
 

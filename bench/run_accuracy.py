@@ -179,6 +179,10 @@ def load_config(path, data_dir):
             not all(isinstance(v, (int, float)) and v > 0 for v in prior)):
         raise BenchError("%s: default.truth_prior_sigma: expected [ROT_DEG, TRANS_M], both > 0"
                          % path)
+    ref = dflt.setdefault("reference_strategy", None)
+    if ref is not None and (not isinstance(ref, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+", ref)):
+        raise BenchError("%s: default.reference_strategy: expected a strategy name, got %r"
+                         % (path, ref))
     return cfg
 
 
@@ -574,15 +578,26 @@ def plot_dataset(path, name, rep):
 # --------------------------------------------------------------------------- the default
 
 def default_report(lmalign, d, source, target, truth, rows, folder, log, spec, a):
-    """The default strategy's regret, basin and time on dataset d (bench/accuracy_default.py)."""
+    """The default strategy's regret, basin and time on dataset d (bench/accuracy_default.py),
+    and the reference search's (default.reference_strategy) from the same starts."""
     aligner = accuracy_default.Aligner(lmalign, source, target, truth,
                                        (float(d["rotation_deg"]), float(d["translation_m"])),
                                        os.path.join(folder, "default"), log)
     try:
         out = {}
         if not a.no_regret:
-            out = accuracy_default.regret_report(
-                aligner, rows, [spec["truth_prior_sigma"], d["basin_prior_sigma"]])
+            refined = accuracy_default.truth_refined(
+                aligner, [spec["truth_prior_sigma"], d["basin_prior_sigma"]])
+            out = accuracy_default.regret_report(aligner, rows, None, truth=refined)
+            if spec.get("reference_strategy") and not a.no_reference:
+                # The reference search from the same starts (issue 39, item 2): its answers,
+                # regrets and times beside the default's, against the same truth-refined score.
+                reference = accuracy_default.Aligner(
+                    lmalign, source, target, truth,
+                    (float(d["rotation_deg"]), float(d["translation_m"])),
+                    os.path.join(folder, "default"), log, strategy=spec["reference_strategy"])
+                out["reference"] = accuracy_default.reference_report(reference, aligner, rows,
+                                                                     refined)
         if not a.no_basin:
             out["basin"] = accuracy_default.basin_report(
                 aligner, d, source, target, d["basin_prior_sigma"], 2 if a.quick else 4,
@@ -612,6 +627,14 @@ def default_line(dflt):
             "-" if not dflt.get("regret") else "max %.3g (%.1f%%), %s of starts > 1%%" % (
                 dflt["regret"]["max"], 100 * dflt["regret"]["max_relative"],
                 _pct(dflt["regret"]["fraction_above_tolerance"]))))
+    ref = dflt.get("reference")
+    if ref and "starts" in ref:
+        parts.append("%s: right basin %s, regret max %s, the same answer %s, time ratio %s" % (
+            ref["strategy"], _pct(ref["right_basin_rate"]),
+            "-" if not ref.get("regret") else "%.3g" % ref["regret"]["max"],
+            _pct(ref["same_answer_rate"]),
+            "-" if ref["median_time_ratio_default_over_reference"] is None
+            else "%.2fx" % ref["median_time_ratio_default_over_reference"]))
     b = dflt.get("basin")
     if b and b.get("directions"):
         parts.append("basin " + ", ".join("%s %s" % (k, _basin_cell(v))
@@ -634,7 +657,12 @@ DEFAULT_COLUMNS = ["dataset", "kind", "source_landmarks", "target_landmarks", "s
                    "median_time_s", "max_time_s", "basin_prior_rotation_deg",
                    "basin_prior_translation_m"] + [
     "basin_%s_%s" % (k, s) for k in ("x_m", "y_m", "z_m", "forward_m", "yaw_deg")
-    for s in ("minus", "plus")]
+    for s in ("minus", "plus")] + [
+    "reference_strategy", "reference_right_basin_rate", "reference_trust_precision",
+    "reference_trust_recall", "reference_regret_max", "reference_search_failures",
+    "reference_score_failures", "reference_median_time_s", "reference_max_time_s",
+    "same_answer_rate", "default_scores_higher", "reference_scores_higher",
+    "median_time_ratio_default_over_reference"]
 
 
 def default_csv_rows(report):
@@ -667,6 +695,24 @@ def default_csv_rows(report):
         for k, v in (b.get("directions") or {}).items():
             row["basin_%s_minus" % k] = v["-"]
             row["basin_%s_plus" % k] = v["+"]
+        ref = dflt.get("reference")
+        if ref:
+            rrg = ref.get("regret") or {}
+            row.update({
+                "reference_strategy": ref.get("strategy"),
+                "reference_right_basin_rate": ref.get("right_basin_rate"),
+                "reference_trust_precision": ref.get("trust_precision"),
+                "reference_trust_recall": ref.get("trust_recall"),
+                "reference_regret_max": rrg.get("max"),
+                "reference_search_failures": rrg.get("search_failures"),
+                "reference_score_failures": rrg.get("score_failures"),
+                "reference_median_time_s": ref.get("median_time_s"),
+                "reference_max_time_s": ref.get("max_time_s"),
+                "same_answer_rate": ref.get("same_answer_rate"),
+                "default_scores_higher": ref.get("default_scores_higher"),
+                "reference_scores_higher": ref.get("reference_scores_higher"),
+                "median_time_ratio_default_over_reference":
+                    ref.get("median_time_ratio_default_over_reference")})
         out.append(row)
     return out
 
@@ -701,6 +747,31 @@ def default_markdown(report):
             "–" if not rg else _pct(rg["fraction_above_tolerance"]),
             "–" if not rg else "%d / %d" % (rg["search_failures"], rg["score_failures"]),
             _num(dflt["median_time_s"], "%.3f"), _num(dflt["max_time_s"], "%.2f")))
+    refs = [(n, rep) for n, rep in rows if (rep["default"].get("reference") or {}).get("starts")]
+    if refs:
+        lines += ["", "The reference search (%s: the complete search at once, issue 39 item 2) "
+                  "from the same starts, against the same truth-refined score: right basin, "
+                  "trust, regret, time; the share of starts where the two answers agree (within "
+                  "the right-basin thresholds of each other), how often each scores higher by "
+                  "more than 1%% of the truth-refined score, and the median ratio of the "
+                  "default's time to the reference's:" % refs[0][1]["default"]["reference"]
+                  ["strategy"], "",
+                  "| dataset | right basin | trust P / R | regret max | search / score failures "
+                  "| time median / max (s) | same answer | default / reference higher "
+                  "| time default / reference |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for n, rep in refs:
+            ref = rep["default"]["reference"]
+            rg = ref.get("regret")
+            lines.append("| %s | %s | %s / %s | %s | %s | %s / %s | %s | %d / %d | %s |" % (
+                n, _pct(ref["right_basin_rate"]), _num(ref["trust_precision"], "%.2f"),
+                _num(ref["trust_recall"], "%.2f"),
+                "–" if not rg else "%.4g (%.1f%%)" % (rg["max"], 100 * rg["max_relative"]),
+                "–" if not rg else "%d / %d" % (rg["search_failures"], rg["score_failures"]),
+                _num(ref["median_time_s"], "%.3f"), _num(ref["max_time_s"], "%.2f"),
+                _pct(ref["same_answer_rate"]), ref["default_scores_higher"],
+                ref["reference_scores_higher"],
+                _num(ref["median_time_ratio_default_over_reference"], "%.2fx")))
     basins = [(n, rep["default"]["basin"]) for n, rep in rows if rep["default"].get("basin")]
     if basins:
         lines += ["", "Basin of the default's refinement alone (`--initial-guess` at an offset "
@@ -737,6 +808,9 @@ def parse_args(argv):
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--no-regret", action="store_true",
                    help="skip the default's search regret (and its own alignment per start)")
+    p.add_argument("--no-reference", action="store_true",
+                   help="skip the reference search (default.reference_strategy of the config: "
+                        "the exhaustive preset) from the default's starts")
     p.add_argument("--no-basin", action="store_true",
                    help="skip the default's refinement basin (bisection along each axis)")
     p.add_argument("--peer", help="Open3D's peer binary (default: "

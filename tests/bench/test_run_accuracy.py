@@ -27,7 +27,9 @@ import size_sweep  # noqa: E402
 # x in (-0.8, 1) m it finds the truth (gated score 100); x >= 1: a wrong pose scoring 60 (a search
 # failure, regret 40); x <= -0.8: a wrong pose scoring 100.5 (a score failure). From an
 # --initial-guess (with --prior-sigma: initialisation "given" only if its rotation sigma is at
-# most 0.5 deg) it reaches the truth when the guess is within 2 m and 11 deg of it. Every call
+# most 0.5 deg) it reaches the truth when the guess is within 2 m and 11 deg of it. With
+# --strategy exhaustive (the reference search) a start with x >= 1 finds the truth too, in 0.5 s
+# instead of 0.2. A right answer's pose is the truth, a wrong one's 5 m from it along x. Every call
 # is appended to CALLS.
 FAKE_LMALIGN = r'''#!/usr/bin/python3
 import json, os, sys
@@ -86,7 +88,8 @@ elif cmd == "align":
     truth = arg("--ground-truth")
     T = ([[float(v) for v in l.split()] for l in open(truth) if l.strip()]
          if truth != "identity" else [[float(r == c) for c in range(4)] for r in range(4)])
-    r = {"strategy": "adaptive", "wall_time_s": 0.2, "total_time_s": 0.2, "scale_mode": "fixed"}
+    strategy = arg("--strategy") or "adaptive"
+    r = {"strategy": strategy, "wall_time_s": 0.2, "total_time_s": 0.2, "scale_mode": "fixed"}
     if open(sys.argv[2]).read().startswith("MAP scale arbitrary"):
         # A Sim(3) source: the truth's scale from the 3x3 block; 1.25x the rigid time.
         det = (T[0][0] * (T[1][1] * T[2][2] - T[1][2] * T[2][1]) -
@@ -104,9 +107,14 @@ elif cmd == "align":
                  gated_score=100.0 if ok else 40.0)
     else:
         x = float(arg("--displace").split(",")[0])
-        ok = -0.8 < x < 1.0
+        ok = -0.8 < x < (1.0 if strategy == "adaptive" else 1e9)
         r.update(initialisation="global",
                  gated_score=100.0 if ok else (60.0 if x >= 1.0 else 100.5))
+        if strategy == "exhaustive":
+            r.update(wall_time_s=0.5, total_time_s=0.5)
+    r["T_target_source"] = [row[:] for row in T]
+    if not ok:
+        r["T_target_source"][0][3] += 5.0
     r.update(right_basin=ok, trustworthy=ok, rotation_error_deg=0.5 if ok else 90.0,
              translation_error_m=0.01 if ok else 5.0, trust_reason="ok")
     json.dump({"results": [r]}, open(arg("--json"), "w"))
@@ -498,6 +506,53 @@ class Driver(unittest.TestCase):
                                          "--datasets", "files", default=True), 0)
         self.assertEqual(len(self.calls_of("align")), n_align)
 
+    def test_reference_search_beside_the_default_from_the_same_starts(self):
+        with open(self.config, "w") as f:
+            f.write(CONFIG + "default: {reference_strategy: exhaustive}\n")
+        self.assertEqual(self.run_driver("--quick", "--no-plots", "--no-basin", "--strategies",
+                                         "good", "--datasets", "files", default=True), 0)
+        with open(os.path.join(self.out, "accuracy.json")) as f:
+            dflt = json.load(f)["datasets"]["files"]["default"]
+        ref = dflt["reference"]
+        # The same 18 starts, the same truth-refined score (refined once, by the default).
+        self.assertEqual(ref["strategy"], "exhaustive")
+        self.assertEqual(ref["starts"], dflt["starts"])
+        self.assertEqual(ref["truth_refined"], dflt["truth_refined"])
+        aligns = self.calls_of("align")
+        exhaustive = [c for c in aligns if "--strategy" in c]
+        default_starts = [c for c in aligns if "--strategy" not in c and "--displace" in c]
+        # One run per distinct start, each strategy (the 18 starts repeat some displacements).
+        self.assertEqual(len(exhaustive), len(default_starts))
+        self.assertGreater(len(exhaustive), 10)
+        self.assertTrue(all(c[c.index("--strategy") + 1] == "exhaustive" for c in exhaustive))
+        self.assertTrue(all("--displace" in c for c in exhaustive))
+        # The reference finds the 8 starts with x >= 1 that the default's search misses.
+        self.assertAlmostEqual(ref["right_basin_rate"], 17 / 18)
+        self.assertEqual(ref["regret"]["search_failures"], 0)
+        self.assertEqual(ref["regret"]["score_failures"], 1)
+        self.assertEqual(ref["reference_scores_higher"], 8)
+        self.assertEqual(ref["default_scores_higher"], 0)
+        # The same answer: 9 right in both, and the score failure (the same wrong pose).
+        self.assertAlmostEqual(ref["same_answer_rate"], 10 / 18)
+        self.assertAlmostEqual(ref["median_time_ratio_default_over_reference"], 0.4)
+        self.assertAlmostEqual(ref["median_time_s"], 0.5)
+        with open(os.path.join(self.out, "default.csv")) as f:
+            row = next(csv.DictReader(f))
+        self.assertEqual(row["reference_strategy"], "exhaustive")
+        self.assertEqual(row["reference_scores_higher"], "8")
+        with open(os.path.join(self.out, "accuracy.md")) as f:
+            md = f.read()
+        self.assertIn("| files | 94% | 1.00 / 1.00 | 0 (0.0%) | 0 / 1 | 0.500 / 0.50 | 56% "
+                      "| 0 / 8 | 0.40x |", md)
+        # --no-reference skips it (the default's own runs are cached).
+        n = len(self.calls_of("align"))
+        self.assertEqual(self.run_driver("--quick", "--no-plots", "--no-basin", "--no-reference",
+                                         "--strategies", "good", "--datasets", "files",
+                                         default=True), 0)
+        self.assertEqual(len(self.calls_of("align")), n)
+        with open(os.path.join(self.out, "accuracy.json")) as f:
+            self.assertNotIn("reference", json.load(f)["datasets"]["files"]["default"])
+
     def test_peer_beside_the_default_right_basin_cpu_ratio_and_cache(self):
         # A stand-in for lmalign_peer_open3d_global: seed 1 finds the truth (identity) in 0.1 s,
         # seed 2 is 10 deg off (0.5 s), seed 3 is 0.2 m off (0.3 s; the threshold is 0.1 m).
@@ -634,6 +689,11 @@ class Driver(unittest.TestCase):
         with self.assertRaises(run_accuracy.BenchError) as e:
             run_accuracy.load_config(self.config, self.data)
         self.assertIn("datasets[2].basin_prior_sigma", str(e.exception))
+        with open(self.config, "w") as f:
+            f.write(CONFIG + "default: {reference_strategy: [exhaustive]}\n")
+        with self.assertRaises(run_accuracy.BenchError) as e:
+            run_accuracy.load_config(self.config, self.data)
+        self.assertIn("default.reference_strategy", str(e.exception))
 
 
 if __name__ == "__main__":
