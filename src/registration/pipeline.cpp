@@ -250,14 +250,19 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
                                                      detail::floor_is_a_setting(settings_), 1.0);
     c = working->context(context);
   }
-  const double scale_settle = free ? settings_.real("scale.settle") : 0.0;
+  // A free scale has settled too before the refinement ends: by the schedule's own measure where
+  // it has one (Schedule::settles_scale), else by scale.settle.
+  const bool settle_here = free && !schedule_->settles_scale();
+  const double scale_settle = settle_here ? settings_.real("scale.settle") : 0.0;
   Refinement out;
   out.T = start.T_target_source;
   LoopState& loop = out.loop;
   loop.phase = phase;
   loop.free_scale = free;
-  // A free-scale refinement matches its rescaled copy with a state of its own.
-  const bool shared = matcher_state != nullptr && !free;
+  // A free-scale refinement matches its rescaled copy with a state of its own, unless the
+  // matcher's state follows the source as it moves (Matcher::state_follows_the_source).
+  const bool follows = matcher_->state_follows_the_source();
+  const bool shared = matcher_state != nullptr && (!free || follows);
   std::unique_ptr<StageState> own_matched = shared ? nullptr : matcher_->begin(c);
   StageState* matched = shared ? matcher_state : own_matched.get();
   std::unique_ptr<StageState> scheduled = schedule_->begin(c, start, &loop);
@@ -305,9 +310,12 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
     if (free && step.estimate.scale != 1.0) {
       out.scale *= step.estimate.scale;
       working->set_scale(out.scale);
-      // The source moved in place: caches keyed by its positions start again.
-      own_matched = matcher_->begin(c);
-      matched = own_matched.get();
+      // The source moved in place: caches keyed by its positions start again, unless they check
+      // every seed against where the landmark now is.
+      if (!follows) {
+        own_matched = matcher_->begin(c);
+        matched = own_matched.get();
+      }
     }
     ++loop.iterations;
     ++loop.level_iterations;
@@ -325,7 +333,7 @@ Refinement Pipeline::refine(const RefineContext& context, const Hypothesis& star
     }
     TerminationReason reason = schedule_->after_step(c, scheduled.get(), step, pairs, &loop);
     // A free scale has settled too before the refinement ends (within the schedule's budget).
-    if (free && reason != TerminationReason::kNotTerminated &&
+    if (settle_here && reason != TerminationReason::kNotTerminated &&
         reason != TerminationReason::kMaxIterations &&
         std::abs(std::log(step.estimate.scale)) > scale_settle && schedule_->may_iterate(loop)) {
       reason = TerminationReason::kNotTerminated;

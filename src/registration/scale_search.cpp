@@ -48,8 +48,10 @@ const SettingsBinding<ScaleSearchOptions>& binding() {
                "free scale: a measured scale counts when its largest clique has this many times "
                "the matches of the largest at a scale more than a rung away")
           .add("scale.settle", LMALIGN_FIELD(settle), SettingBound::above(0.0), "1",
-               "free scale: a refinement goes on while its last step changed the scale by more "
-               "than this (relative)");
+               "free scale, under a schedule that does not judge the scale itself (the "
+               "distance schedules; sigma_anneal holds a scale step to its translation "
+               "threshold at the source's radius): a refinement goes on while its last step "
+               "changed the scale by more than this (relative)");
   return b;
 }
 

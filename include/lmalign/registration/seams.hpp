@@ -404,6 +404,11 @@ class Matcher : public Stage {
     (void)indices;
     return nullptr;
   }
+  /// True when a state stays exact after the source's landmarks move in place (a free scale
+  /// rescales them at every step): its caches check each seed against where the landmark now is
+  /// (the Mahalanobis gate's GateNeighbourCache), so a free-scale refinement keeps its state and
+  /// may start from a whole's. False (the default): it begins a new state after each rescale.
+  virtual bool state_follows_the_source() const { return false; }
   /// PCL's fitness score at T (score.hpp), served from the state's caches where it can be.
   virtual FitnessScore fitness(const RefineContext& context, StageState* state, const Isometry3& T,
                                double max_range_m) const;
@@ -502,6 +507,11 @@ class Schedule : public Stage {
                                             LoopState* loop) const = 0;
   /// Pairs needed to go on.
   virtual std::size_t min_pairs() const { return 1; }
+  /// True when after_step() ends a free-scale refinement only once its scale has settled by the
+  /// schedule's own measure (sigma_anneal: a scale step that moves a landmark at the source's
+  /// radius less than the settle threshold). False (the default): the pipeline also goes on
+  /// while a step changes the scale by more than `scale.settle` (relative).
+  virtual bool settles_scale() const { return false; }
   /// Checked before each iteration: false stops with kMaxIterations.
   virtual bool may_iterate(const LoopState&) const { return true; }
   /// After a step (loop->iterations counts it): kNotTerminated to go on, else why it stops. May

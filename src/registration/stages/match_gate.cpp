@@ -26,6 +26,8 @@ class GateMatcher : public Matcher {
   };
 
   bool needs_scales() const override { return true; }
+  // The cache's searches are exact wherever the landmark now is (nearest(), mahalanobis_gate.cpp).
+  bool state_follows_the_source() const override { return true; }
   Pairs::Kind kind() const override { return Pairs::Kind::kDistributions; }
 
   std::unique_ptr<StageState> begin(const RefineContext&) const override {

@@ -32,6 +32,9 @@ class SigmaSchedule : public Schedule {
   explicit SigmaSchedule(SigmaOptions o) : o_(o) {}
   bool needs_scales() const override { return true; }
   EndPass end_pass() const override { return EndPass::kLastStep; }
+  // A scale step counts in after_step() as the move it gives a landmark at the source's radius,
+  // held to the same settle threshold as the translation.
+  bool settles_scale() const override { return true; }
 
   // The last cycle_length steps at zero pose uncertainty, newest last: increment and log scale
   // step (the cycle test, below).
