@@ -323,11 +323,12 @@ def regret_report(aligner, rows, truth_priors, truth=None):
     return out
 
 
-def pose_distance(A, B):
-    """(rotation deg, translation m) between two 4x4 poses."""
-    R = [[sum(A[k][r] * B[k][c] for k in range(3)) for c in range(3)] for r in range(3)]
-    cos = max(-1.0, min(1.0, (R[0][0] + R[1][1] + R[2][2] - 1.0) / 2.0))
-    return math.degrees(math.acos(cos)), math.sqrt(sum((A[r][3] - B[r][3]) ** 2 for r in range(3)))
+def pose_errors(T, T_true):
+    """(rotation error deg, translation error m) of T against T_true (4x4 lists)."""
+    trace = sum(T[k][i] * T_true[k][i] for i in range(3) for k in range(3))
+    angle = math.degrees(math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0))))
+    dt = math.sqrt(sum((T[i][3] - T_true[i][3]) ** 2 for i in range(3)))
+    return angle, dt
 
 
 def reference_report(reference, default, rows, truth):
@@ -345,7 +346,7 @@ def reference_report(reference, default, rows, truth):
     starts = starts_of(rows)
     for _, _, D in starts:
         a, b = default.run(displace=D), reference.run(displace=D)
-        rot, tr = pose_distance(a["T_target_source"], b["T_target_source"])
+        rot, tr = pose_errors(a["T_target_source"], b["T_target_source"])
         if rot <= reference.thresholds[0] and tr <= reference.thresholds[1]:
             same += 1
         sa, sb = a.get("gated_score"), b.get("gated_score")

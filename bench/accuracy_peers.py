@@ -15,10 +15,11 @@ The ratio is the peer's median CPU time over the default's: above 1, the default
 """
 import hashlib
 import json
-import math
 import os
 import statistics
 import subprocess
+
+import accuracy_default
 
 # RANSAC seeds per dataset: the peer's spread, not one lucky draw.
 PEER_SEEDS = (1, 2, 3)
@@ -37,14 +38,6 @@ def peer_binary(build_dir):
     """The Open3D peer's executable under build_dir, or None when it was not built."""
     path = os.path.join(build_dir, "bench", "lmalign_peer_open3d_global")
     return path if os.access(path, os.X_OK) else None
-
-
-def pose_errors(T, T_true):
-    """(rotation error deg, translation error m) of T against T_true (4x4 lists)."""
-    trace = sum(T[k][i] * T_true[k][i] for i in range(3) for k in range(3))
-    angle = math.degrees(math.acos(max(-1.0, min(1.0, (trace - 1.0) / 2.0))))
-    dt = math.sqrt(sum((T[i][3] - T_true[i][3]) ** 2 for i in range(3)))
-    return angle, dt
 
 
 def run_peer(binary, source, target, seed, cache_dir, log):
@@ -79,7 +72,7 @@ def peer_report(binary, aligner, source, target, thresholds, folder, log):
     runs = []
     for seed in PEER_SEEDS:
         r = run_peer(binary, source, target, seed, os.path.join(folder, "peers"), log)
-        rot, trans = pose_errors(r["T_target_source"], aligner.T_true)
+        rot, trans = accuracy_default.pose_errors(r["T_target_source"], aligner.T_true)
         runs.append({"seed": seed, "right_basin": rot <= rot_max and trans <= trans_max,
                      "rotation_error_deg": rot, "translation_error_m": trans,
                      "cpu_s": r["cpu_s"], "voxel_m": r["voxel_m"]})

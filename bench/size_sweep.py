@@ -86,7 +86,7 @@ def one_run(lmalign, peer, size, seed, transform, folder, log):
            "default_alignment_time_s": d.get("wall_time_s")}
     if peer is not None:
         r = accuracy_peers.run_peer(peer, source, target, 1, os.path.join(folder, "peers"), log)
-        rot, trans = accuracy_peers.pose_errors(r["T_target_source"], aligner.T_true)
+        rot, trans = accuracy_default.pose_errors(r["T_target_source"], aligner.T_true)
         row.update({"peer_right": rot <= THRESHOLDS[0] and trans <= THRESHOLDS[1],
                     "peer_rotation_error_deg": rot, "peer_translation_error_m": trans,
                     "peer_cpu_s": r["cpu_s"]})
