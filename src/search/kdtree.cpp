@@ -48,20 +48,22 @@ float float_at_most(double x) { return -float_at_least(-x); }
 // into the caller's arrays.
 class Best {
  public:
-  // `idx`/`d2` may already hold `n` entries, sorted, distinct (the seeds).
-  Best(PointIndex* idx, double* d2, std::size_t cap, std::size_t n)
-      : idx_(idx), d2_(d2), cap_(cap), n_(std::min(n, cap)) {
+  // `idx`/`d2` may already hold `n` entries, sorted, distinct (the seeds). Only candidates with
+  // d2 <= limit_d2 are kept (a seeded search takes the default, +inf).
+  Best(PointIndex* idx, double* d2, std::size_t cap, std::size_t n,
+       double limit_d2 = std::numeric_limits<double>::infinity())
+      : idx_(idx), d2_(d2), cap_(cap), n_(std::min(n, cap)), bound_(limit_d2) {
     if (n_ == cap_) bound_ = d2_[n_ - 1];
   }
 
   std::size_t size() const { return n_; }
-  // Squared distance a candidate must not exceed to be considered (+inf until full).
+  // Squared distance a candidate must not exceed to be considered (the limit until full).
   double bound() const { return bound_; }
 
-  // Keeps (d, i) if it is among the `cap` first in the total order. An entry already held (same
-  // index, hence the same key) is not added twice.
+  // Keeps (d, i) if it is among the `cap` first in the total order (and within the limit). An
+  // entry already held (same index, hence the same key) is not added twice.
   void offer(double d, PointIndex i) {
-    if (n_ == cap_ && (d > bound_ || (d == bound_ && i >= idx_[n_ - 1]))) return;
+    if (d > bound_ || (n_ == cap_ && d == bound_ && i >= idx_[n_ - 1])) return;
     // Insertion from the back: shift the held entries that come after (d, i) one place down
     // (the last one falls off when full). An entry already held (same index, hence the same key:
     // a seed) stops the insertion. (A branch-free count of the place mispredicts less but costs
@@ -85,7 +87,7 @@ class Best {
   double* d2_;
   std::size_t cap_;
   std::size_t n_ = 0;
-  double bound_ = std::numeric_limits<double>::infinity();
+  double bound_;
 };
 
 }  // namespace
@@ -374,7 +376,8 @@ struct KdTree::Impl {
 
   std::size_t query(const Vec3& q, std::size_t k, const PointIndex* seed_idx, const double* seed_d2,
                     std::size_t num_seeds, PointIndex* indices, double* d2,
-                    std::uint64_t* seed_marks = nullptr) const {
+                    std::uint64_t* seed_marks = nullptr,
+                    double limit_d2 = std::numeric_limits<double>::infinity()) const {
     if (points.empty() || k == 0 || !q.allFinite()) return 0;
     const std::size_t cap = std::min(k, points.size());
     const std::size_t seeded = std::min(num_seeds, cap);
@@ -394,7 +397,7 @@ struct KdTree::Impl {
       seed_marks[marked[j] >> 6] |= std::uint64_t{1} << (marked[j] & 63);
     }
     if (num_marked > 0) Q.seed_marks = seed_marks;
-    Best best(indices, d2, cap, seeded);
+    Best best(indices, d2, cap, seeded, limit_d2);
     double off[3];
     for (int d = 0; d < 3; ++d) {
       off[d] = q[d] < box_min[d] ? q[d] - box_min[d] : q[d] > box_max[d] ? q[d] - box_max[d] : 0.0;
@@ -455,6 +458,13 @@ std::size_t KdTree::knn_seeded(const Vec3& query, std::size_t k, const PointInde
                                std::uint64_t* seed_marks) const {
   return impl_->query(query, k, seed_indices, seed_distances_sq_m2, num_seeds, indices,
                       distances_sq_m2, seed_marks);
+}
+
+std::size_t KdTree::knn_within(const Vec3& query, std::size_t k, double max_distance_m,
+                               PointIndex* indices, double* distances_sq_m2) const {
+  if (!(max_distance_m >= 0.0)) return 0;
+  return impl_->query(query, k, nullptr, nullptr, 0, indices, distances_sq_m2, nullptr,
+                      max_distance_m * max_distance_m);
 }
 
 std::size_t KdTree::seed_mark_words() const { return (impl_->points.size() + 63) / 64; }

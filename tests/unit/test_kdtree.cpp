@@ -99,5 +99,44 @@ TEST(KdTree, WithinIsEveryPointInTheBallInIndexOrder) {
   EXPECT_TRUE(got.empty());
 }
 
+TEST(KdTree, KnnWithinIsTheLeadingPartOfKnnInsideTheLimit) {
+  // For limits from an empty ball to beyond the k-th neighbour: the same indices and squared
+  // distances as knn()'s leading entries within the limit, in the same order; a point exactly on
+  // the limit is kept. A negative or NaN limit finds nothing; +inf is knn().
+  Points3 pts = random_points(3000, 15);
+  pts.push_back(Vec3(0.5, 0.0, 0.0));
+  const KdTree tree(pts);
+  const std::size_t k = 32;
+  std::vector<PointIndex> idx(k), want_idx(k);
+  std::vector<double> d2(k), want_d2(k);
+  std::size_t partial = 0;  // queries whose ball held some but fewer than k of the k nearest
+  for (const double r : {0.0, 0.02, 0.1, 0.3, 5.0, std::numeric_limits<double>::infinity()}) {
+    for (const Vec3& q : random_points(60, 16, 1.5)) {
+      const std::size_t all = tree.knn(q, k, want_idx.data(), want_d2.data());
+      std::size_t inside = 0;
+      while (inside < all && want_d2[inside] <= r * r) ++inside;
+      const std::size_t got = tree.knn_within(q, k, r, idx.data(), d2.data());
+      ASSERT_EQ(got, inside) << "radius " << r;
+      for (std::size_t j = 0; j < got; ++j) {
+        EXPECT_EQ(idx[j], want_idx[j]) << "radius " << r << ", rank " << j;
+        EXPECT_EQ(d2[j], want_d2[j]);
+      }
+      if (inside > 0 && inside < all) ++partial;
+    }
+  }
+  EXPECT_GT(partial, 20u);  // the limits above do cut the lists
+  EXPECT_EQ(tree.knn_within(Vec3(0.5, 0.0, 0.0), 4, 0.0, idx.data(), d2.data()), 1u);
+  EXPECT_EQ(idx[0], static_cast<PointIndex>(pts.size() - 1));
+  const KdTree line(Points3{Vec3(2, 0, 0), Vec3(0, 0, 0), Vec3(1, 0, 0)});
+  ASSERT_EQ(line.knn_within(Vec3::Zero(), 3, 1.0, idx.data(), d2.data()), 2u);
+  EXPECT_EQ(idx[0], 1u);
+  EXPECT_EQ(idx[1], 2u);
+  EXPECT_EQ(d2[1], 1.0);
+  EXPECT_EQ(tree.knn_within(Vec3::Zero(), k, -1.0, idx.data(), d2.data()), 0u);
+  EXPECT_EQ(tree.knn_within(Vec3::Zero(), k, std::nan(""), idx.data(), d2.data()), 0u);
+  const KdTree empty{Points3{}};
+  EXPECT_EQ(empty.knn_within(Vec3::Zero(), k, 1.0, idx.data(), d2.data()), 0u);
+}
+
 }  // namespace
 }  // namespace lmalign

@@ -61,6 +61,13 @@ class KdTree {
   std::size_t knn(const Vec3& query, std::size_t k, PointIndex* indices,
                   double* distances_sq_m2) const;
 
+  /// The k nearest points among those within `max_distance_m` of `query` (squared distance <=
+  /// max_distance_m^2): exactly the leading entries of knn()'s result that lie within it, found
+  /// without visiting what lies beyond (the search's bound starts at the limit). Returns how
+  /// many (0 for a negative or NaN limit; +inf gives knn()).
+  std::size_t knn_within(const Vec3& query, std::size_t k, double max_distance_m,
+                         PointIndex* indices, double* distances_sq_m2) const;
+
   /// Exactly knn(), but starting from `num_seeds` known candidates: seed_indices (distinct, each
   /// < size()) with seed_distances_sq_m2 = squared_distance(query, point), sorted in the total
   /// order above -- e.g. the neighbours of a nearby earlier query, re-evaluated at `query`. The

@@ -566,7 +566,8 @@ YawHypothesis local_vote(const Points3& points, const KdTree& target_tree, const
   // landmark turns by at most |y| |moved - pivot| about the pivot. So a target landmark farther
   // than sqrt(3) reach_m + max |y| |moved - pivot| from a moved landmark never votes, and a
   // moved landmark that far from the targets' bounding box has no neighbour that votes: its query
-  // is skipped (the same votes). The margin covers the rounding of coordinates up to 1e15 m.
+  // is skipped, and the others' searches stop at that distance (the same votes). The margin covers
+  // the rounding of coordinates up to 1e15 m.
   const double reach_m = static_cast<double>(std::max(off - 1, n - 1 - off)) * o.cell_m;
   const double yaw_max_rad = half_n * o.yaw_step_rad;
   Vec3 box_min = q.front(), box_max = q.front();
@@ -587,7 +588,9 @@ YawHypothesis local_vote(const Points3& points, const KdTree& target_tree, const
                                   1e-9 * (box_abs_m + moved[i].cwiseAbs().maxCoeff() + reach_m);
     const Vec3 outside = (box_min - moved[i]).cwiseMax(moved[i] - box_max).cwiseMax(0.0);
     if (outside.norm() > votes_within_m) continue;
-    counts[i] = target_tree.knn(moved[i], k, &nbr[i * k], d2.data());
+    // Only the neighbours within votes_within_m can vote: the k nearest of those are the leading
+    // entries of the k nearest, and the search need not visit what lies beyond.
+    counts[i] = target_tree.knn_within(moved[i], k, votes_within_m, &nbr[i * k], d2.data());
   }
   std::vector<std::uint32_t> grid(static_cast<std::size_t>(n * n * n));
   std::vector<std::uint32_t> box1, box2;
