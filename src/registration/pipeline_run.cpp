@@ -222,11 +222,14 @@ bool PipelineRun::begin_search(double factor) {
       std::optional<ScaleMeasurement> m = pipeline_.initialiser().measure_scale(
           ic, scale_search_->measure_steps(), scale_search_->rung_ratio(),
           scale_search_->measure_margin());
-      if (m) {
+      if (m && m->decisive) {
         scale_search_->set_measured(m->factor);
         if (factor == 1.0) measured_poses = std::move(m->poses);
         continue;
       }
+      // Not decisive: the cliques still say which of the scales the searches go to to try
+      // first; the first search then starts there.
+      if (m && scale_search_->set_evidence(std::move(m->cliques))) continue;
     }
     ic.measured_poses = measured_poses;
     hypotheses_ = pipeline_.initialiser().propose(ic, &s.initialisation);
@@ -721,6 +724,7 @@ void PipelineRun::judge(Conclusion* c, bool resample) const {
     e.scale = c->scale;
     e.initial_scale = scale_search_->initial_scale();
     e.measured_factor = scale_search_->measured_factor();
+    e.lead_factor = scale_search_->lead_factor();
     if (c->scale_covariance && c->scale_covariance->valid && c->scale_covariance->has_scale) {
       Mat7 c7 = c->scale_covariance->covariance_7x7;
       if (s.verdict.covariance_scale > 1.0) c7 *= s.verdict.covariance_scale;

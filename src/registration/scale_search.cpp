@@ -95,16 +95,65 @@ void ScaleSearch::set_measured(double factor) {
   initial_scale_ *= factor;
 }
 
+bool ScaleSearch::set_evidence(std::vector<std::pair<double, std::size_t>> cliques) {
+  if (std::isfinite(measured_factor_) || !matches_.empty()) return false;
+  const int r = o_.researches;
+  const double half_rung = 0.5 * std::log(o_.rung_ratio);
+  matches_.assign(static_cast<std::size_t>(2 * r + 1), 0);
+  for (int k = -r; k <= r; ++k) {
+    const double at = std::pow(o_.rung_ratio, k);
+    for (const auto& c : cliques) {
+      if (!std::isfinite(c.first) || !(c.first > 0.0)) continue;
+      if (std::abs(std::log(c.first / at)) <= half_rung) {
+        std::size_t& m = matches_[static_cast<std::size_t>(k + r)];
+        m = std::max(m, c.second);
+      }
+    }
+  }
+  // The most matches, the initial scale on a tie, then the nearer, the larger first.
+  for (int j = 1; j <= r; ++j) {
+    for (const int k : {j, -j}) {
+      if (matches_[static_cast<std::size_t>(k + r)] >
+          matches_[static_cast<std::size_t>(lead_k_ + r)]) {
+        lead_k_ = k;
+      }
+    }
+  }
+  if (lead_k_ == 0) return false;
+  initial_scale_ *= std::pow(o_.rung_ratio, lead_k_);
+  return true;
+}
+
 std::vector<ScaleAttempt> ScaleSearch::researches(double refined_scale) const {
   if (std::isfinite(measured_factor_)) return {};
   // The side the first result's refined scale leans to first; each step of the ratio, nearest
   // first, beyond the rungs already concluded.
   const double up = refined_scale > initial_scale_ ? o_.rung_ratio : 1.0 / o_.rung_ratio;
   std::vector<ScaleAttempt> out;
-  for (int k = 1; k <= o_.researches; ++k) {
-    out.push_back({std::pow(up, k), true});
-    out.push_back({std::pow(1.0 / up, k), true});
+  if (matches_.empty()) {
+    for (int k = 1; k <= o_.researches; ++k) {
+      out.push_back({std::pow(up, k), true});
+      out.push_back({std::pow(1.0 / up, k), true});
+    }
+    return out;
   }
+  // After a measurement that was not decisive (set_evidence): the same scales as without it,
+  // rung_ratio^k times the spacings' scale for |k| <= researches, but the lead's, by their
+  // cliques' matches (kitti_disjoint_sim3: the truth 1.32 times the spacings' scale, where the
+  // largest clique is; searched fifth before, first now; docs/scale.md), then nearest the lead
+  // first, its lean side first.
+  const int r = o_.researches;
+  const int lean = refined_scale > initial_scale_ ? 1 : -1;
+  std::vector<int> ks;
+  for (int j = 1; j <= 2 * r; ++j) {
+    for (const int k : {lead_k_ + lean * j, lead_k_ - lean * j}) {
+      if (k >= -r && k <= r) ks.push_back(k);
+    }
+  }
+  std::stable_sort(ks.begin(), ks.end(), [&](int a, int b) {
+    return matches_[static_cast<std::size_t>(a + r)] > matches_[static_cast<std::size_t>(b + r)];
+  });
+  for (const int k : ks) out.push_back({std::pow(o_.rung_ratio, k - lead_k_), true});
   return out;
 }
 

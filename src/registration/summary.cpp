@@ -105,6 +105,9 @@ std::string Summary::FullReport() const {
                       (std::isfinite(scale.measured_factor)
                            ? ": the spacings' times " + fmt("%.4g", scale.measured_factor) +
                                  " measured by the correspondences, "
+                       : std::isfinite(scale.lead_factor)
+                           ? ": the spacings' times " + fmt("%.4g", scale.lead_factor) +
+                                 ", where the correspondences' cliques were largest, "
                            : " from the spacings, ") +
                       std::to_string(scale.rounds) + " 7-DoF refinements kept, " +
                       std::to_string(scale.attempts) + " scales concluded over " +
@@ -196,6 +199,8 @@ std::string to_json(const Summary& s, int indent) {
         {"initial_scale", s.scale.initial_scale},
         {"measured_factor",
          std::isfinite(s.scale.measured_factor) ? json(s.scale.measured_factor) : json(nullptr)},
+        {"lead_factor",
+         std::isfinite(s.scale.lead_factor) ? json(s.scale.lead_factor) : json(nullptr)},
         {"rounds", s.scale.rounds},
         {"attempts", s.scale.attempts},
         {"searches", s.scale.searches},

@@ -3,6 +3,7 @@
 // of stages/p2d_step.hpp, map/transform.hpp, io/transform_io.hpp's read_similarity).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -254,6 +255,63 @@ TEST(Similarity, ScaleModes) {
   EXPECT_DOUBLE_EQ(initial_scale_from_spacing(1.0, 100.0), 10.0);
   EXPECT_DOUBLE_EQ(initial_scale_from_spacing(100.0, 1.0), 0.1);
   EXPECT_THROW(initial_scale_from_spacing(0.0, 1.0), InvalidArgument);
+}
+
+TEST(Similarity, AMeasurementThatIsNotDecisiveStartsTheSearchesWhereItsCliquesAre) {
+  // ScaleSearch::set_evidence: the scales searched are the same, rung_ratio^k times the
+  // spacings' scale for |k| <= researches; the cliques of a measurement that was not decisive
+  // pick the first (the most matches within half a rung) and order the others.
+  ScaleSearchOptions o;
+  o.rung_ratio = 1.12;
+  o.researches = 2;
+  const double r = o.rung_ratio;
+  auto absolute = [](const ScaleSearch& s, double refined) {
+    std::vector<double> out{s.initial_scale()};
+    for (const ScaleAttempt& a : s.researches(refined)) {
+      EXPECT_TRUE(a.new_search);
+      out.push_back(s.initial_scale() * a.factor);
+    }
+    return out;
+  };
+  const ScaleSearch plain(o, 2.0);
+  EXPECT_TRUE(std::isnan(plain.lead_factor()));
+  const std::vector<double> before = absolute(plain, 2.5);  // leans up: 1.12 first
+  ASSERT_EQ(before.size(), 5u);
+  EXPECT_NEAR(before[1], 2.0 * r, 1e-12);
+  EXPECT_NEAR(before[2], 2.0 / r, 1e-12);
+
+  ScaleSearch led(o, 2.0);
+  // 0.9 -> k = -1 (30 matches), 1.0 -> k = 0 (20), 1.21 -> k = 2 (40; 1.12 is more than half a
+  // rung away), and factors that are not finite or not positive are ignored.
+  ASSERT_TRUE(led.set_evidence({{0.9, 30}, {1.0, 20}, {1.21, 40}, {-1.0, 99},
+                                {std::nan(""), 99}, {0.0, 99}}));
+  EXPECT_NEAR(led.lead_factor(), r * r, 1e-12);
+  EXPECT_NEAR(led.initial_scale(), 2.0 * r * r, 1e-12);
+  const std::vector<double> after = absolute(led, 3.0);
+  ASSERT_EQ(after.size(), 5u);
+  EXPECT_NEAR(after[1], 2.0 / r, 1e-12);  // 30 matches
+  EXPECT_NEAR(after[2], 2.0, 1e-12);      // 20
+  EXPECT_NEAR(after[3], 2.0 * r, 1e-12);  // none: the nearest to the lead first
+  EXPECT_NEAR(after[4], 2.0 / (r * r), 1e-12);
+  std::vector<double> a = after, b = before;
+  std::sort(a.begin(), a.end());
+  std::sort(b.begin(), b.end());
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i], b[i], 1e-12);
+  EXPECT_FALSE(led.set_evidence({{r * r * r, 1000}}));  // once only
+
+  // A tie keeps the spacings' scale, and the order of the others is the plain one.
+  ScaleSearch tied(o, 2.0);
+  EXPECT_FALSE(tied.set_evidence({{1.0, 25}, {1.0 / r, 25}}));
+  EXPECT_TRUE(std::isnan(tied.lead_factor()));
+  const std::vector<ScaleAttempt> t = tied.researches(2.5);
+  ASSERT_EQ(t.size(), 4u);
+  EXPECT_NEAR(t[0].factor, 1.0 / r, 1e-12);  // 25 matches first, then the plain order
+  EXPECT_NEAR(t[1].factor, r, 1e-12);
+  // A decisive measurement replaces the searches again; evidence then changes nothing.
+  ScaleSearch measured(o, 2.0);
+  measured.set_measured(1.3);
+  EXPECT_TRUE(measured.researches(2.5).empty());
+  EXPECT_FALSE(measured.set_evidence({{r, 50}}));
 }
 
 TEST(Similarity, TransformMapScalesCovariancesBySquare) {

@@ -106,6 +106,10 @@ struct ScaleEstimate {
   /// search (ScaleSearch::set_measured); NaN when none was measured (then the search went on
   /// at other initial scales while none was trusted).
   double measured_factor = std::numeric_limits<double>::quiet_NaN();
+  /// When the measurement was not decisive: the factor, among the searches' scales, where its
+  /// cliques were largest and the first search therefore started (ScaleSearch::set_evidence;
+  /// initial_scale includes it); NaN when none moved it.
+  double lead_factor = std::numeric_limits<double>::quiet_NaN();
   /// 7-DoF refinements kept (their score was at least the rigid refinement's), over every
   /// concluded scale.
   int rounds = 0;

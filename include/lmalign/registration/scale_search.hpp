@@ -9,8 +9,11 @@
 // Frames: p_target = scale * R * p_source + t; scale is target units per source unit.
 #pragma once
 
+#include <cmath>
+#include <cstddef>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lmalign/core/enum_names.hpp"
@@ -42,9 +45,11 @@ struct ScaleSearchOptions {
   /// first) while none is trusted. The search absorbs about 6% either way; 1.12 leaves no gap.
   double rung_ratio = 1.12;
   int rungs = 1;
-  /// Searches again at rung_ratio^k times the initial scale, k = 1 ... researches on each side
-  /// (the side the first result's refined scale leans to first), each concluded at its own
-  /// initial scale alone, while none is trusted.
+  /// Searches again at rung_ratio^k times the initial scale, k = 1 ... researches on each side,
+  /// each concluded at its own initial scale alone, while none is trusted, nearest first, the
+  /// side the first result's refined scale leans to first. A measurement that was not decisive
+  /// reorders the same scales (ScaleSearch::set_evidence): the one with the largest clique
+  /// within half a rung of it is searched first, the others by their cliques.
   int researches = 2;
   /// Before the first search, the initialiser measures the scale from the landmarks'
   /// correspondences (Initialiser::measure_scale: consistent cliques at rung_ratio^k times the
@@ -84,19 +89,35 @@ class ScaleSearch {
   void set_measured(double factor);
   /// The measured factor; NaN when none.
   double measured_factor() const { return measured_factor_; }
+  /// A measurement that was not decisive: each clique's (factor relative to the initial scale,
+  /// matches). Of the scales rung_ratio^k, |k| <= researches, the one with the most matches
+  /// within half a rung (the initial scale on a tie) becomes the initial scale, and researches()
+  /// covers the others, by their matches. Factors that are not finite and > 0 are ignored.
+  /// Returns whether the initial scale moved. Call before the first search, at most once.
+  bool set_evidence(std::vector<std::pair<double, std::size_t>> cliques);
+  /// The factor set_evidence() moved the initial scale by; NaN when it did not.
+  double lead_factor() const {
+    return lead_k_ == 0 ? std::numeric_limits<double>::quiet_NaN()
+                        : std::pow(o_.rung_ratio, lead_k_);
+  }
   int measure_steps() const { return o_.measure_steps; }
   double measure_margin() const { return o_.measure_margin; }
   double rung_ratio() const { return o_.rung_ratio; }
   /// The rungs of the first search, in order: factor 1 first, then the rungs nearest first.
   std::vector<ScaleAttempt> rungs() const;
-  /// The searches again, in order, after the first search's result refined to `refined_scale`
-  /// (its side first); none once a scale was measured.
+  /// The searches again, in order, after the first search's result refined to `refined_scale`:
+  /// by the evidence of set_evidence() (the most matches within half a rung first), then
+  /// nearest first, its side first; none once a scale was measured.
   std::vector<ScaleAttempt> researches(double refined_scale) const;
 
  private:
   ScaleSearchOptions o_;
   double initial_scale_;
   double measured_factor_ = std::numeric_limits<double>::quiet_NaN();
+  // The matches within half a rung of rung_ratio^k (relative to the scale before the lead),
+  // for k = -researches ... researches (index k + researches); empty without evidence.
+  std::vector<std::size_t> matches_;
+  int lead_k_ = 0;
 };
 
 /// The scale that brings the source's typical landmark spacing (median nearest-neighbour

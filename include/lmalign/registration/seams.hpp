@@ -290,10 +290,17 @@ struct InitialiserContext {
 
 /// What Initialiser::measure_scale found: the factor (target units per source unit, relative
 /// to the context's source) and the poses its evidence gives at that factor (T_target_source
-/// of the source multiplied by it), best first.
+/// of the source multiplied by it), best first; whether that evidence is decisive; and the
+/// evidence itself, each consistent clique's scale factor and matches.
 struct ScaleMeasurement {
   double factor = 1.0;
-  std::vector<Isometry3> poses;
+  std::vector<Isometry3> poses;  ///< empty when not decisive
+  /// At least `margin` times the matches of the largest clique at a scale more than a ratio
+  /// away: the factor replaces the searches again. Otherwise the cliques only order them
+  /// (ScaleSearch::set_evidence).
+  bool decisive = true;
+  /// (factor, matches) of every clique found, in the search's order.
+  std::vector<std::pair<double, std::size_t>> cliques;
 };
 
 class Initialiser : public Stage {
@@ -306,9 +313,9 @@ class Initialiser : public Stage {
   /// Free scale (registration/scale_search.hpp): the factor by which the source's lengths
   /// should be multiplied to match the target's, as the maps' own correspondences measure it
   /// (target units per source unit, relative to context.source; tried at ratio^k, |k| <=
-  /// steps). Empty when this initialiser measures nothing (the default), or when its evidence
-  /// is not decisive: fewer than `margin` times the evidence for a scale more than a ratio
-  /// away. Deterministic.
+  /// steps). Empty when this initialiser measures nothing (the default) or found no clique;
+  /// `decisive` false when its evidence is fewer than `margin` times the evidence for a scale
+  /// more than a ratio away (then only its cliques count). Deterministic.
   virtual std::optional<ScaleMeasurement> measure_scale(const InitialiserContext& /*context*/,
                                                         int /*steps*/, double /*ratio*/,
                                                         double /*margin*/) const {

@@ -221,6 +221,10 @@ class CompleteSearchInit : public Initialiser {
       if (best == nullptr || h.inliers > best->inliers) best = &h;
     }
     if (best == nullptr) return std::nullopt;
+    ScaleMeasurement m;
+    m.factor = best->scale;
+    for (const CorrespondenceHypothesis& h : cr.hypotheses)
+      m.cliques.emplace_back(h.scale, h.inliers);
     // Decisive only: at least `margin` times the matches of the largest clique at a scale more
     // than a rung away (on a street's repeated structure the largest cliques are often at
     // wrong scales and poses, and nearly as large as each other).
@@ -231,12 +235,11 @@ class CompleteSearchInit : public Initialiser {
       }
     }
     if (static_cast<double>(best->inliers) < margin * static_cast<double>(other)) {
-      return std::nullopt;
+      m.decisive = false;
+      return m;
     }
     // The poses at the measured scale (within half a rung of it), best first: the first pass's
     // at that scale.
-    ScaleMeasurement m;
-    m.factor = best->scale;
     m.poses.push_back(best->T_target_source);
     for (const CorrespondenceHypothesis& h : cr.hypotheses) {
       if (&h != best && std::abs(std::log(h.scale / best->scale)) <= 0.5 * std::log(ratio)) {
