@@ -416,13 +416,18 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // The scale axis (ScaleSearch, docs/scale.md): the first search's hypotheses concluded at its
   // rungs, then searches again at other initial scales, while none is trusted. The first
   // trusted result wins; none: the first.
+  // An answer at a later scale is weighed against the poses the earlier scales found, as
+  // against its own rivals (PipelineRun::weigh_earlier_scales).
   const ScaleSearch& scales = run.scale_search();
+  std::vector<Summary> earlier{first};
   if (scorer_ != nullptr) {
     for (const ScaleAttempt& a : scales.rungs()) {
       if (a.factor == 1.0) continue;
       Summary tried = run.conclude(a.factor);
       ++attempts;
+      run.weigh_earlier_scales(&tried, earlier);
       if (tried.verdict.trustworthy) return run.finish(std::move(tried), attempts, searches);
+      earlier.push_back(tried);
     }
   }
   for (const ScaleAttempt& a : scales.researches(first.scale.scale)) {
@@ -430,7 +435,9 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     Summary tried = run.conclude(1.0);
     ++attempts;
     ++searches;
+    run.weigh_earlier_scales(&tried, earlier);
     if (tried.verdict.trustworthy) return run.finish(std::move(tried), attempts, searches);
+    earlier.push_back(tried);
   }
   return run.finish(std::move(first), attempts, searches);
 }

@@ -792,6 +792,65 @@ void PipelineRun::add_caveats(Summary* summary) const {
   if (!note.empty()) s.verdict.reason += "; " + note;
 }
 
+void PipelineRun::weigh_earlier_scales(Summary* later, const std::vector<Summary>& earlier) const {
+  const char* keys[] = {"trust.max_ambiguity", "trust.alias_ambiguity", "trust.alias_nis_ratio",
+                        "trust.distinct_cells"};
+  for (const char* k : keys) {
+    if (!settings_.has(k)) return;
+  }
+  Verdict& v = later->verdict;
+  if (!v.trustworthy || earlier.empty() || source_.size() == 0 || !(v.score > 0.0)) return;
+  const double max_ambiguity = settings_.real("trust.max_ambiguity");
+  const double alias_ambiguity = settings_.real("trust.alias_ambiguity");
+  const bool aliased_residuals =
+      v.mean_nis > settings_.real("trust.alias_nis_ratio") * v.expected_nis;
+  const double distinct_m =
+      settings_.real("trust.distinct_cells") * later->initialisation.resolution_m;
+  // The source's centre and radius in its own units; each pose maps them into the target.
+  const DataScales sc = estimate_data_scales(*source_.positions, source_.covariances_m2);
+  const Isometry3& T = later->registration.T_target_source;
+  const Vec3 at_later = later->scale.scale * (T.linear() * sc.centre_m) + T.translation();
+  // Each earlier scale's answer and its best rival, with their scores.
+  struct Rival {
+    Isometry3 T;
+    double scale, score;
+  };
+  std::vector<Rival> rivals;
+  for (const Summary& e : earlier) {
+    rivals.push_back({e.registration.T_target_source, e.scale.scale, e.verdict.score});
+    if (e.verdict.rival_T_target_source) {
+      rivals.push_back(
+          {*e.verdict.rival_T_target_source, e.scale.scale, e.verdict.ambiguity * e.verdict.score});
+    }
+  }
+  for (const Rival& r : rivals) {
+    const double share = r.score / v.score;
+    if (!(share >= max_ambiguity || (share >= alias_ambiguity && aliased_residuals))) continue;
+    // Apart at the source's radius: the centres, the turn and the difference in scale.
+    const double apart_m =
+        (r.scale * (r.T.linear() * sc.centre_m) + r.T.translation() - at_later).norm();
+    const double angle = Eigen::AngleAxisd(r.T.linear() * T.linear().transpose()).angle();
+    const double spread_m =
+        apart_m +
+        (angle * later->scale.scale + std::abs(r.scale - later->scale.scale)) * sc.radius_m;
+    if (spread_m <= distinct_m) continue;
+    v.trustworthy = false;
+    v.ambiguity = share;
+    v.rival_T_target_source = r.T;
+    v.rival_distance_m = apart_m;
+    v.rival_angle_deg = angle * 180.0 / kPi;
+    v.reason = "ambiguous: a pose an earlier scale (" + message_number(r.scale) + ") found, " +
+               message_number(apart_m) + " m / " + message_number(v.rival_angle_deg) +
+               " deg away, scores " + std::to_string(static_cast<int>(std::lround(100.0 * share))) +
+               "% of the best";
+    if (share < max_ambiguity) {
+      v.reason += ", and the inliers' residuals exceed their covariances (mean NIS " +
+                  message_number(v.mean_nis / v.expected_nis) + " times its expectation)";
+    }
+    return;
+  }
+}
+
 Summary PipelineRun::finish(Summary s, int attempts, int searches) const {
   s.scale.attempts = attempts;
   s.scale.searches = searches;

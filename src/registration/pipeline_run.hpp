@@ -127,6 +127,13 @@ class PipelineRun {
   bool deferred() const { return provisional_ != nullptr; }
   /// The summary with the run's times and the scale search's counts.
   Summary finish(Summary s, int attempts, int searches) const;
+  /// A free scale's earlier scales found rivals of a later answer (docs/scale.md, "Limits"): a
+  /// trusted `later` is refused when an earlier scale's answer or best rival, at a distinct
+  /// pose (apart by trust.distinct_cells of the search's resolution at the source's radius,
+  /// counting the turn and the difference in scale), scores trust.max_ambiguity of it, or
+  /// trust.alias_ambiguity with the residuals above their covariances (the gated judge's
+  /// tests). No-op for an untrusted `later`, and for pipelines without those settings.
+  void weigh_earlier_scales(Summary* later, const std::vector<Summary>& earlier) const;
 
  private:
   struct Conclusion;
