@@ -471,14 +471,16 @@ std::size_t KdTree::seed_mark_words() const { return (impl_->points.size() + 63)
 
 void KdTree::within(const Vec3& query, double radius_m, std::vector<PointIndex>* out) const {
   out->clear();
-  if (impl_->points.empty() || !query.allFinite() || !(radius_m >= 0.0) || !std::isfinite(radius_m)) {
+  if (impl_->points.empty() || !query.allFinite() || !(radius_m >= 0.0) ||
+      !std::isfinite(radius_m)) {
     return;
   }
   double off[3];
   for (int d = 0; d < 3; ++d) {
     const double q = query[d];
-    off[d] = q < impl_->box_min[d] ? q - impl_->box_min[d]
-                                   : q > impl_->box_max[d] ? q - impl_->box_max[d] : 0.0;
+    off[d] = q < impl_->box_min[d]   ? q - impl_->box_min[d]
+             : q > impl_->box_max[d] ? q - impl_->box_max[d]
+                                     : 0.0;
   }
   impl_->within(0, 0, off, radius_m * radius_m, query, out);
   std::sort(out->begin(), out->end());

@@ -284,8 +284,8 @@ TEST(Similarity, AMeasurementThatIsNotDecisiveStartsTheSearchesWhereItsCliquesAr
   ScaleSearch led(o, 2.0);
   // 0.9 -> k = -1 (30 matches), 1.0 -> k = 0 (20), 1.21 -> k = 2 (40; 1.12 is more than half a
   // rung away), and factors that are not finite or not positive are ignored.
-  ASSERT_TRUE(led.set_evidence({{0.9, 30}, {1.0, 20}, {1.21, 40}, {-1.0, 99},
-                                {std::nan(""), 99}, {0.0, 99}}));
+  ASSERT_TRUE(led.set_evidence(
+      {{0.9, 30}, {1.0, 20}, {1.21, 40}, {-1.0, 99}, {std::nan(""), 99}, {0.0, 99}}));
   EXPECT_NEAR(led.lead_factor(), r * r, 1e-12);
   EXPECT_NEAR(led.initial_scale(), 2.0 * r * r, 1e-12);
   const std::vector<double> after = absolute(led, 3.0);
