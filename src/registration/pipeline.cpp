@@ -419,7 +419,8 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // An answer at a later scale is weighed against the poses the earlier scales found, as
   // against its own rivals (PipelineRun::weigh_earlier_scales).
   const ScaleSearch& scales = run.scale_search();
-  std::vector<Summary> earlier{first};
+  std::vector<detail::PipelineRun::ScalePose> earlier;
+  detail::PipelineRun::add_scale_poses(first, &earlier);
   if (scorer_ != nullptr) {
     for (const ScaleAttempt& a : scales.rungs()) {
       if (a.factor == 1.0) continue;
@@ -427,7 +428,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
       ++attempts;
       run.weigh_earlier_scales(&tried, earlier);
       if (tried.verdict.trustworthy) return run.finish(std::move(tried), attempts, searches);
-      earlier.push_back(tried);
+      detail::PipelineRun::add_scale_poses(tried, &earlier);
     }
   }
   for (const ScaleAttempt& a : scales.researches(first.scale.scale)) {
@@ -437,7 +438,7 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     ++searches;
     run.weigh_earlier_scales(&tried, earlier);
     if (tried.verdict.trustworthy) return run.finish(std::move(tried), attempts, searches);
-    earlier.push_back(tried);
+    detail::PipelineRun::add_scale_poses(tried, &earlier);
   }
   return run.finish(std::move(first), attempts, searches);
 }

@@ -792,7 +792,16 @@ void PipelineRun::add_caveats(Summary* summary) const {
   if (!note.empty()) s.verdict.reason += "; " + note;
 }
 
-void PipelineRun::weigh_earlier_scales(Summary* later, const std::vector<Summary>& earlier) const {
+void PipelineRun::add_scale_poses(const Summary& concluded, std::vector<ScalePose>* poses) {
+  const Verdict& v = concluded.verdict;
+  poses->push_back({concluded.registration.T_target_source, concluded.scale.scale, v.score});
+  if (v.rival_T_target_source) {
+    poses->push_back({*v.rival_T_target_source, concluded.scale.scale, v.ambiguity * v.score});
+  }
+}
+
+void PipelineRun::weigh_earlier_scales(Summary* later,
+                                       const std::vector<ScalePose>& earlier) const {
   const char* keys[] = {"trust.max_ambiguity", "trust.alias_ambiguity", "trust.alias_nis_ratio",
                         "trust.distinct_cells"};
   for (const char* k : keys) {
@@ -807,36 +816,28 @@ void PipelineRun::weigh_earlier_scales(Summary* later, const std::vector<Summary
   const double distinct_m =
       settings_.real("trust.distinct_cells") * later->initialisation.resolution_m;
   // The source's centre and radius in its own units; each pose maps them into the target.
-  const DataScales sc = estimate_data_scales(*source_.positions, source_.covariances_m2);
+  if (!source_scales_) {
+    source_scales_ = estimate_data_scales(*source_.positions, source_.covariances_m2);
+  }
+  const DataScales& sc = *source_scales_;
   const Isometry3& T = later->registration.T_target_source;
   const Vec3 at_later = later->scale.scale * (T.linear() * sc.centre_m) + T.translation();
-  // Each earlier scale's answer and its best rival, with their scores.
-  struct Rival {
-    Isometry3 T;
-    double scale, score;
-  };
-  std::vector<Rival> rivals;
-  for (const Summary& e : earlier) {
-    rivals.push_back({e.registration.T_target_source, e.scale.scale, e.verdict.score});
-    if (e.verdict.rival_T_target_source) {
-      rivals.push_back(
-          {*e.verdict.rival_T_target_source, e.scale.scale, e.verdict.ambiguity * e.verdict.score});
-    }
-  }
-  for (const Rival& r : rivals) {
+  for (const ScalePose& r : earlier) {
     const double share = r.score / v.score;
     if (!(share >= max_ambiguity || (share >= alias_ambiguity && aliased_residuals))) continue;
     // Apart at the source's radius: the centres, the turn and the difference in scale.
-    const double apart_m =
-        (r.scale * (r.T.linear() * sc.centre_m) + r.T.translation() - at_later).norm();
-    const double angle = Eigen::AngleAxisd(r.T.linear() * T.linear().transpose()).angle();
+    const double apart_m = (r.scale * (r.T_target_source.linear() * sc.centre_m) +
+                            r.T_target_source.translation() - at_later)
+                               .norm();
+    const double angle =
+        Eigen::AngleAxisd(r.T_target_source.linear() * T.linear().transpose()).angle();
     const double spread_m =
         apart_m +
         (angle * later->scale.scale + std::abs(r.scale - later->scale.scale)) * sc.radius_m;
     if (spread_m <= distinct_m) continue;
     v.trustworthy = false;
     v.ambiguity = share;
-    v.rival_T_target_source = r.T;
+    v.rival_T_target_source = r.T_target_source;
     v.rival_distance_m = apart_m;
     v.rival_angle_deg = angle * 180.0 / kPi;
     v.reason = "ambiguous: a pose an earlier scale (" + message_number(r.scale) + ") found, " +

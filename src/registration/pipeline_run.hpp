@@ -133,7 +133,15 @@ class PipelineRun {
   /// counting the turn and the difference in scale), scores trust.max_ambiguity of it, or
   /// trust.alias_ambiguity with the residuals above their covariances (the gated judge's
   /// tests). No-op for an untrusted `later`, and for pipelines without those settings.
-  void weigh_earlier_scales(Summary* later, const std::vector<Summary>& earlier) const;
+  /// A pose a concluded scale found, for weigh_earlier_scales(): its answer or its best rival.
+  struct ScalePose {
+    Isometry3 T_target_source;
+    double scale = 1.0;
+    double score = 0.0;  ///< gated score
+  };
+  /// The answer of `concluded` and its best rival (if any), appended to `poses`.
+  static void add_scale_poses(const Summary& concluded, std::vector<ScalePose>* poses);
+  void weigh_earlier_scales(Summary* later, const std::vector<ScalePose>& earlier) const;
 
  private:
   struct Conclusion;
@@ -184,6 +192,8 @@ class PipelineRun {
   /// summary every conclusion starts from (preset, settings, scales, initialiser report), its
   /// hypotheses.
   std::unique_ptr<ScaledSource> search_source_;
+  /// The source's centre and radius (its own units) for weigh_earlier_scales(), once.
+  mutable std::optional<DataScales> source_scales_;
   Summary base_;
   std::vector<Hypothesis> hypotheses_;
 };
