@@ -237,7 +237,7 @@ bool PipelineRun::begin_search(double factor) {
       if (!s.initialisation.declined.empty()) return false;  // unanswered(): not trusted
       throw Error("initialiser '" + pipeline_.spec().initialiser + "' proposed nothing");
     }
-    if (keep_ && factor == 1.0) {
+    if (keep_ && factor == keep_factor_) {
       Hypothesis kept = hypotheses_.front();
       kept.T_target_source = *keep_;
       kept.search_score = 0.0;

@@ -101,11 +101,21 @@ class PipelineRun {
   /// The next pass; `keep`: a pose the next pass's hypotheses include ("previous pass": the
   /// previous pass's answer, so that the next one finds its rivals without losing it);
   /// `checking`: that answer was trusted, and the next pass checks it
-  /// (InitialiserContext::checking).
-  void deepen(std::optional<Isometry3> keep = std::nullopt, bool checking = false) {
+  /// (InitialiserContext::checking); `keep_factor`: the search factor `keep` was found at (it
+  /// joins the searches at that factor only).
+  void deepen(std::optional<Isometry3> keep = std::nullopt, bool checking = false,
+              double keep_factor = 1.0) {
     ++pass_;
     keep_ = keep;
+    keep_factor_ = keep_factor;
     checking_ = checking;
+  }
+  /// Every later search is a first pass again (Pipeline::run: after the check of a free scale's
+  /// answer at another scale, the first passes at the remaining scales).
+  void restart_first_pass() {
+    pass_ = 0;
+    keep_.reset();
+    checking_ = false;
   }
   /// The result without an answer (begin_search() false): not trusted, the pose the initial
   /// guess, the reason the initialiser's (InitialiserReport::declined) or too few landmarks.
@@ -183,6 +193,7 @@ class PipelineRun {
   std::optional<ScaleSearch> scale_search_;
   int pass_ = 0;
   std::optional<Isometry3> keep_;
+  double keep_factor_ = 1.0;
   bool checking_ = false;
   /// conclude()'s conclusion judged without the resampling, with the summary as it was before
   /// the verdict (settle() judges it again); null when none is kept.

@@ -37,7 +37,9 @@ const SettingsBinding<ScaleSearchOptions>& binding() {
                "hypotheses are concluded again while none is trusted")
           .add("scale.researches", LMALIGN_FIELD(researches), SettingBound::closed(0, 20), "count",
                "free scale: searches again on each side, at rung_ratio^k times the initial scale, "
-               "while none is trusted")
+               "while none is trusted; after a first pass (search.first_pass) that is not "
+               "trusted, their first passes, then the complete search at the scale whose first "
+               "pass scored highest")
           .add("scale.measure_steps", LMALIGN_FIELD(measure_steps), SettingBound::closed(0, 20),
                "count",
                "free scale: the correspondences measure the scale at rung_ratio^k times the "

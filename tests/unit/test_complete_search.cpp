@@ -249,8 +249,9 @@ TEST(CompleteSearch, AHypothesisThatLosesToItsStartIsRefinedAgainWithASharpGate)
 // in the deeper pass a hypothesis refined on the scorer's 1,024 samples stops 0.27 deg / 0.87 m
 // from the truth (gated score 186), below a slide 40 m along the street (187). As one of the
 // deeper pass's contenders (score.contenders) it is refined again on every landmark, reaches the
-// truth (341) and is the answer, trusted. Without the contenders the answer is the slide
-// (docs/accuracy.md, "Contenders refined again").
+// truth (341) and is the answer, trusted. Without the contenders the answer was the slide
+// (docs/accuracy.md, "Contenders refined again"); since the first pass grows 128 poses
+// (search.first_pass_poses, 2026-11-29) it is a pose that stopped 1.1 m short (190), refused.
 TEST(CompleteSearch, TheDeeperPassRefinesItsContendersAgainOnMoreLandmarks) {
   const HeldOutStreet street(79);
   const Summary r = street.align();
@@ -261,7 +262,7 @@ TEST(CompleteSearch, TheDeeperPassRefinesItsContendersAgainOnMoreLandmarks) {
   const Summary off = street.align({"score.contenders=0"});
   const TransformError e_off =
       transform_error(off.registration.T_target_source, street.pair.T_target_source);
-  EXPECT_GT(e_off.translation_m, 5.0);
+  EXPECT_GT(e_off.translation_m, 0.5);
   EXPECT_FALSE(off.verdict.trustworthy);
   EXPECT_LT(off.verdict.score, 0.7 * r.verdict.score);
   for (const RefinedHypothesis& h : off.hypotheses) EXPECT_FALSE(h.refined_again);

@@ -49,7 +49,10 @@ struct ScaleSearchOptions {
   /// each concluded at its own initial scale alone, while none is trusted, nearest first, the
   /// side the first result's refined scale leans to first. A measurement that was not decisive
   /// reorders the same scales (ScaleSearch::set_evidence): the one with the largest clique
-  /// within half a rung of it is searched first, the others by their cliques.
+  /// within half a rung of it is searched first, the others by their cliques. Where the first
+  /// search has a first pass (search.first_pass) that is not trusted, the searches again are
+  /// first passes too, before any complete search; none trusted: the complete search at the
+  /// scale whose first pass scored highest, and its rungs (Pipeline::run).
   int researches = 2;
   /// Before the first search, the initialiser measures the scale from the landmarks'
   /// correspondences (Initialiser::measure_scale: consistent cliques at rung_ratio^k times the

@@ -51,6 +51,10 @@ struct CompleteInitOptions {
   /// pose confirmed, and not when the maps put it outside a prior's window (Pipeline::run).
   bool first_pass = true;
   std::size_t first_pass_neighbours = 48;
+  /// The first pass's correspondence poses at most (the complete search's: search.
+  /// correspondence_poses). More than the complete search's: the first pass has no vote beside
+  /// them, and with a free scale it runs at a scale up to half a rung off (docs/scale.md).
+  std::size_t first_pass_poses = 128;
   std::size_t hypotheses = 6;
   double vote_cell_factor = 1.5;
   double start_sigma_factor = 0.3;
@@ -327,6 +331,7 @@ class CompleteSearchInit : public Initialiser {
       // None found: the complete search at once.
       CorrespondenceSearchOptions first = o_.correspondences;
       first.neighbours = o_.first_pass_neighbours;
+      first.hypotheses = o_.first_pass_poses;
       const CorrespondenceSearchResult cr =
           correspondence_search(CorrespondenceSearchInput{SearchMaps(in)}, first);
       for (const CorrespondenceHypothesis& h : cr.hypotheses) {
@@ -499,6 +504,11 @@ const SettingsBinding<CompleteInitOptions>& binding() {
                SettingBound::closed(4, 256), "count",
                "the first pass's descriptor radius is the target's median distance to this "
                "neighbour")
+          .add("search.first_pass_poses", LMALIGN_FIELD(first_pass_poses),
+               SettingBound::closed(1, 4096), "count",
+               "the first pass's correspondence poses at most (it grows 4 cliques per pose); "
+               "search.correspondence_poses = 0 turns the correspondence search off in both "
+               "passes")
           .add("search.correspondence_keypoints", LMALIGN_FIELD(correspondences.keypoints),
                SettingBound::closed(3, 1000000), "count",
                "source landmarks the correspondence search describes and matches")
