@@ -305,6 +305,20 @@ TEST(ScaleSplitDesk, TheFirstPassesAtOtherScalesComeBeforeAnyCompleteSearch) {
   EXPECT_GE(r.scale.searches, 2);
   EXPECT_TRUE(has_note(r, "first pass correspondence matches"));
   EXPECT_FALSE(has_note(r, "deeper pass after an untrusted answer"));
+  // A trusted answer there is checked as the first scale's would be: with every rival above 20%
+  // calling for the check (trust.alias_ambiguity), the deeper pass runs at that answer's scale
+  // with the answer among its hypotheses ("previous pass"), and keeps it, trusted.
+  AlignRequest checked;
+  checked.scale = ScaleMode::kFree;
+  checked.settings.emplace_back("trust.alias_ambiguity", std::string("0.2"));
+  const Summary c = align(find_preset("adaptive"), moved(desk.a, S).view(), desk.target, checked);
+  EXPECT_TRUE(c.verdict.trustworthy) << c.verdict.reason;
+  EXPECT_LT(similarity_error(c.similarity() * S, Similarity3{}).rotation_deg, 1.0);
+  EXPECT_TRUE(has_note(c, "deeper pass to check a trusted answer"));
+  EXPECT_FALSE(has_note(c, "deeper pass after an untrusted answer"));
+  bool kept = false;
+  for (const RefinedHypothesis& h : c.hypotheses) kept = kept || h.start.origin == "previous pass";
+  EXPECT_TRUE(kept);
 }
 
 // Trust precision with a free scale. Re-triangulated KITTI windows 1-13 and 14-26
