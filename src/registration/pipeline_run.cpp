@@ -218,6 +218,7 @@ bool PipelineRun::begin_search(double factor) {
     ic.refine_context = &all;
     ic.pass = pass_;
     ic.checking = checking_;
+    ic.free_scale = request_.free_scale;
     if (measure) {
       std::optional<ScaleMeasurement> m = pipeline_.initialiser().measure_scale(
           ic, scale_search_->measure_steps(), scale_search_->rung_ratio(),

@@ -282,6 +282,10 @@ struct InitialiserContext {
   /// waiver of the alias test (Verdict::alias_waived_by_prior): the answer is among the
   /// hypotheses, and the pass need only find its rivals.
   bool checking = false;
+  /// True when the scale is free (a similarity): a check then uses the complete search, whatever
+  /// search.check says (docs/scale.md, "Measured": on a real KITTI pair moved by similarities a
+  /// second correspondence search saw a wrong answer's rival at 54%, the complete search at 85%).
+  bool free_scale = false;
   /// Free scale: the poses the scale's measurement found at the measured scale
   /// (ScaleMeasurement::poses: T_target_source of context.source, which is then at that
   /// scale); a first pass may take them instead of searching again. Empty otherwise.

@@ -108,7 +108,8 @@ class CompleteSearchInit : public Initialiser {
   std::vector<Hypothesis> propose(const InitialiserContext& c,
                                   InitialiserReport* report) const override {
     if (c.pipeline == nullptr || c.refine_context == nullptr) return bounded_->propose(c, report);
-    const bool check_by_correspondences = c.checking && o_.check == "correspondences";
+    const bool check_by_correspondences =
+        c.checking && o_.check == "correspondences" && !c.free_scale;
     if (!c.prior_sigma_deg_m.has_value()) {
       const bool rescue = o_.complete_search == "rescue";
       std::vector<Hypothesis> out = global(c, report, rescue, check_by_correspondences);
@@ -435,7 +436,8 @@ const SettingsBinding<CompleteInitOptions>& binding() {
                   "without the vote (the vote runs when it finds no pose); complete = the complete "
                   "search (the vote over every yaw and pair of up axes, and its pool). With a "
                   "prior, an answer no first-pass pose confirmed, or trusted only because the "
-                  "prior told an alias apart, is always checked completely")
+                  "prior told an alias apart, is always checked completely; so is any answer "
+                  "with a free scale")
           .choice("search.complete_search", LMALIGN_FIELD(complete_search), {"rescue", "check"},
                   "without a prior: rescue = the complete search runs whenever the first pass "
                   "does not settle the answer (no pose, or an answer not trusted); check = only "
