@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <optional>
 
 #include "lmalign/core/enum_names.hpp"
 #include "lmalign/core/error.hpp"
@@ -375,6 +376,16 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // A free scale's poses so far, which a later scale's answer is weighed against
   // (PipelineRun::weigh_earlier_scales).
   std::vector<detail::PipelineRun::ScalePose> earlier;
+  // A search again at `factor` (the pass the run is at), concluded at its own initial scale and
+  // weighed against the earlier scales; none when it cannot begin.
+  const auto search_again = [&](double factor) -> std::optional<Summary> {
+    if (!run.begin_search(factor)) return std::nullopt;
+    Summary tried = run.conclude(1.0);
+    ++attempts;
+    ++searches;
+    run.weigh_earlier_scales(&tried, earlier);
+    return tried;
+  };
   // A free scale whose first pass gives no trusted answer, without a prior: the first passes at
   // the other scales of the searches again come before any complete search (docs/scale.md,
   // step 6). A first pass costs a fraction of a complete search, and a wrong initial scale is
@@ -393,15 +404,13 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     double best_score = first.verdict.score;
     Isometry3 best_T = first.registration.T_target_source;
     for (const ScaleAttempt& a : run.scale_search().researches(first.scale.scale)) {
-      if (!run.begin_search(a.factor)) continue;
-      Summary tried = run.conclude(1.0);
-      ++attempts;
-      ++searches;
-      run.weigh_earlier_scales(&tried, earlier);
+      std::optional<Summary> found = search_again(a.factor);
+      if (!found) continue;
+      Summary tried = std::move(*found);
       if (tried.verdict.trustworthy && run.goes_deeper(tried)) {
-        // Its check: the complete search at its scale, the answer among its hypotheses.
-        run.deepen(tried.registration.T_target_source, !tried.verdict.alias_waived_by_prior,
-                   a.factor);
+        // Its check (no prior here): the complete search at its scale, the answer among its
+        // hypotheses. Counted as a pass, not as another search.
+        run.deepen(tried.registration.T_target_source, true, a.factor);
         if (run.begin_search(a.factor)) {
           tried = run.conclude(1.0);
           tried.initialisation.notes.emplace_back("deeper pass to check a trusted answer", 1.0);
@@ -489,13 +498,10 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   }
   for (const ScaleAttempt& a : scales.researches(first.scale.scale)) {
     if (searched_again) break;  // their first passes came first (above)
-    if (!run.begin_search(a.factor)) continue;
-    Summary tried = run.conclude(1.0);
-    ++attempts;
-    ++searches;
-    run.weigh_earlier_scales(&tried, earlier);
-    if (tried.verdict.trustworthy) return run.finish(std::move(tried), attempts, searches);
-    detail::PipelineRun::add_scale_poses(tried, &earlier);
+    std::optional<Summary> tried = search_again(a.factor);
+    if (!tried) continue;
+    if (tried->verdict.trustworthy) return run.finish(std::move(*tried), attempts, searches);
+    detail::PipelineRun::add_scale_poses(*tried, &earlier);
   }
   return run.finish(std::move(first), attempts, searches);
 }
