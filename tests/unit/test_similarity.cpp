@@ -308,6 +308,19 @@ TEST(Similarity, AMeasurementThatIsNotDecisiveStartsTheSearchesWhereItsCliquesAr
   ASSERT_EQ(t.size(), 4u);
   EXPECT_NEAR(t[0].factor, 1.0 / r, 1e-12);  // 25 matches first, then the plain order
   EXPECT_NEAR(t[1].factor, r, 1e-12);
+  // Cliques none of which lies within half a rung of the five scales (desk_retri_60_sim3: all
+  // below, the largest at 0.51): their side goes first, whatever the refined scale leans to.
+  ScaleSearch below(o, 2.0);
+  EXPECT_FALSE(below.set_evidence({{0.73, 34}, {0.51, 36}, {0.24, 33}}));
+  const std::vector<ScaleAttempt> d = below.researches(2.01);  // leans up
+  ASSERT_EQ(d.size(), 4u);
+  EXPECT_NEAR(d[0].factor, 1.0 / r, 1e-12);
+  EXPECT_NEAR(d[1].factor, r, 1e-12);
+  EXPECT_NEAR(d[2].factor, 1.0 / (r * r), 1e-12);
+  // The same cliques above: up first, though it leans down.
+  ScaleSearch above(o, 2.0);
+  EXPECT_FALSE(above.set_evidence({{1.0 / 0.51, 36}, {1.0 / 0.73, 34}}));
+  EXPECT_NEAR(above.researches(1.99)[0].factor, r, 1e-12);
   // A decisive measurement replaces the searches again; evidence then changes nothing.
   ScaleSearch measured(o, 2.0);
   measured.set_measured(1.3);

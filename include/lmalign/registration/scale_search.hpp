@@ -49,7 +49,9 @@ struct ScaleSearchOptions {
   /// each concluded at its own initial scale alone, while none is trusted, nearest first, the
   /// side the first result's refined scale leans to first. A measurement that was not decisive
   /// reorders the same scales (ScaleSearch::set_evidence): the one with the largest clique
-  /// within half a rung of it is searched first, the others by their cliques. Where the first
+  /// within half a rung of it is searched first, the others by their cliques, and among those
+  /// the cliques cannot rank, the side of the largest clique first when it lies more than half
+  /// a rung from the initial scale (else the lean). Where the first
   /// search has a first pass (search.first_pass) that is not trusted, the searches again are
   /// first passes too, before any complete search; none trusted: the complete search at the
   /// scale whose first pass scored highest, and its rungs (Pipeline::run).
@@ -110,7 +112,8 @@ class ScaleSearch {
   std::vector<ScaleAttempt> rungs() const;
   /// The searches again, in order, after the first search's result refined to `refined_scale`:
   /// by the evidence of set_evidence() (the most matches within half a rung first), then
-  /// nearest first, its side first; none once a scale was measured.
+  /// nearest first, the largest clique's side first when it lies more than half a rung from the
+  /// initial scale, else the refined scale's; none once a scale was measured.
   std::vector<ScaleAttempt> researches(double refined_scale) const;
 
  private:
@@ -121,6 +124,8 @@ class ScaleSearch {
   // for k = -researches ... researches (index k + researches); empty without evidence.
   std::vector<std::size_t> matches_;
   int lead_k_ = 0;
+  // log of the largest clique's factor (relative to the scale before the lead); 0 without one.
+  double largest_log_factor_ = 0.0;
 };
 
 /// The scale that brings the source's typical landmark spacing (median nearest-neighbour
