@@ -392,7 +392,9 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // why most first passes of a free scale fail (desk_retri_60_sim3: the initial scale 13% off,
   // the truth's first pass trusted a rung away). A trusted answer there is checked as the first
   // scale's would be (goes_deeper: the complete search at its scale). None: the complete search
-  // at the scale whose first pass scored highest, with that answer among its hypotheses; its
+  // (after one more first pass half a rung from the best, towards its better neighbour:
+  // scale.half_rung) at the scale whose first pass scored highest, with that answer among its
+  // hypotheses; its
   // rungs follow below, and no complete search at the other scales (measured on 55 Sim(3)
   // pairs: none of those searches gave a trusted answer, and they cost 2-8 s a pair).
   bool searched_again = false;
@@ -403,28 +405,42 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
     double best_factor = 1.0;
     double best_score = first.verdict.score;
     Isometry3 best_T = first.registration.T_target_source;
-    for (const ScaleAttempt& a : run.scale_search().researches(first.scale.scale)) {
-      std::optional<Summary> found = search_again(a.factor);
-      if (!found) continue;
+    std::vector<std::pair<double, double>> scored{{1.0, first.verdict.score}};
+    // The first pass at `factor`: its answer when trusted (after its check), else none.
+    const auto first_pass_at = [&](double factor) -> std::optional<Summary> {
+      std::optional<Summary> found = search_again(factor);
+      if (!found) return std::nullopt;
       Summary tried = std::move(*found);
       if (tried.verdict.trustworthy && run.goes_deeper(tried)) {
         // Its check (no prior here): the complete search at its scale, the answer among its
         // hypotheses. Counted as a pass, not as another search.
-        run.deepen(tried.registration.T_target_source, true, a.factor);
-        if (run.begin_search(a.factor)) {
+        run.deepen(tried.registration.T_target_source, true, factor);
+        if (run.begin_search(factor)) {
           tried = run.conclude(1.0);
           tried.initialisation.notes.emplace_back("deeper pass to check a trusted answer", 1.0);
           run.weigh_earlier_scales(&tried, earlier);
         }
         run.restart_first_pass();
       }
-      if (tried.verdict.trustworthy) return run.finish(std::move(tried), attempts, searches);
+      if (tried.verdict.trustworthy) return tried;
       detail::PipelineRun::add_scale_poses(tried, &earlier);
+      scored.emplace_back(factor, tried.verdict.score);
       if (tried.verdict.score > best_score) {
         best_score = tried.verdict.score;
-        best_factor = a.factor;
+        best_factor = factor;
         best_T = tried.registration.T_target_source;
       }
+      return std::nullopt;
+    };
+    for (const ScaleAttempt& a : run.scale_search().researches(first.scale.scale)) {
+      if (std::optional<Summary> t = first_pass_at(a.factor))
+        return run.finish(std::move(*t), attempts, searches);
+    }
+    // None trusted: one more first pass, half a rung from the best towards its better
+    // neighbour (scale.half_rung), before the complete search.
+    if (const std::optional<double> half = run.scale_search().half_rung(scored)) {
+      if (std::optional<Summary> t = first_pass_at(*half))
+        return run.finish(std::move(*t), attempts, searches);
     }
     // Should the complete search not begin, the first pass's answer is the result, judged
     // without the covariance's resampling: it was untrusted without it, so it is with it

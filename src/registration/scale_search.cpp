@@ -40,6 +40,10 @@ const SettingsBinding<ScaleSearchOptions>& binding() {
                "while none is trusted; after a first pass (search.first_pass) that is not "
                "trusted, their first passes, then the complete search at the scale whose first "
                "pass scored highest")
+          .flag("scale.half_rung", LMALIGN_FIELD(half_rung),
+                "free scale: after the first passes at the searches' scales, none trusted, one "
+                "more half a rung from the best-scoring one, towards its better-scoring "
+                "neighbour, before the complete search")
           .add("scale.measure_steps", LMALIGN_FIELD(measure_steps), SettingBound::closed(0, 20),
                "count",
                "free scale: the correspondences measure the scale at rung_ratio^k times the "
@@ -176,6 +180,24 @@ std::vector<ScaleAttempt> ScaleSearch::researches(double refined_scale) const {
   });
   for (const int k : ks) out.push_back({std::pow(o_.rung_ratio, k - lead_k_), true});
   return out;
+}
+
+std::optional<double> ScaleSearch::half_rung(
+    const std::vector<std::pair<double, double>>& scored) const {
+  if (!o_.half_rung || scored.empty()) return std::nullopt;
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < scored.size(); ++i) {
+    if (scored[i].second > scored[best].second) best = i;
+  }
+  const double rung = std::log(o_.rung_ratio);
+  std::optional<std::size_t> toward;
+  for (std::size_t i = 0; i < scored.size(); ++i) {
+    const double apart = std::abs(std::log(scored[i].first / scored[best].first));
+    if (std::abs(apart - rung) > 1e-9 * rung) continue;
+    if (!toward || scored[i].second > scored[*toward].second) toward = i;
+  }
+  if (!toward) return std::nullopt;
+  return std::sqrt(scored[best].first * scored[*toward].first);
 }
 
 double initial_scale_from_spacing(double source_spacing, double target_spacing, double min_scale,

@@ -328,6 +328,28 @@ TEST(Similarity, AMeasurementThatIsNotDecisiveStartsTheSearchesWhereItsCliquesAr
   EXPECT_FALSE(measured.set_evidence({{r, 50}}));
 }
 
+TEST(Similarity, AFirstPassHalfARungAwayGoesTowardsTheBestsBetterNeighbour) {
+  // ScaleSearch::half_rung: sqrt(best x its better-scoring neighbour a rung away).
+  ScaleSearchOptions o;
+  o.rung_ratio = 1.12;
+  const double r = o.rung_ratio;
+  const ScaleSearch s(o, 2.0);
+  // The best at 1 (scores 150), its neighbours 1.12 (149) and 1/1.12 (120): towards 1.12.
+  std::optional<double> h =
+      s.half_rung({{1.0, 150.0}, {r, 149.0}, {1.0 / r, 120.0}, {r * r, 90.0}});
+  ASSERT_TRUE(h.has_value());
+  EXPECT_NEAR(*h, std::sqrt(r), 1e-12);
+  // The best a rung below; its neighbours 1 (130) and 1/1.12^2 (140): further down.
+  h = s.half_rung({{1.0, 130.0}, {1.0 / r, 160.0}, {1.0 / (r * r), 140.0}});
+  ASSERT_TRUE(h.has_value());
+  EXPECT_NEAR(*h, 1.0 / (r * std::sqrt(r)), 1e-12);
+  // No first pass a rung from the best, none at all, or the option off: none.
+  EXPECT_FALSE(s.half_rung({{1.0, 150.0}, {r * r, 149.0}}).has_value());
+  EXPECT_FALSE(s.half_rung({}).has_value());
+  o.half_rung = false;
+  EXPECT_FALSE(ScaleSearch(o, 2.0).half_rung({{1.0, 150.0}, {r, 149.0}}).has_value());
+}
+
 TEST(Similarity, TransformMapScalesCovariancesBySquare) {
   Map m;
   Frame f;

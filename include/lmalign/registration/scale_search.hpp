@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -56,6 +57,12 @@ struct ScaleSearchOptions {
   /// first passes too, before any complete search; none trusted: the complete search at the
   /// scale whose first pass scored highest, and its rungs (Pipeline::run).
   int researches = 2;
+  /// After the first passes at the searches' scales, none trusted: one more first pass half a
+  /// rung from the best-scoring one, towards its better-scoring neighbour a rung away, before
+  /// the complete search. A first pass stands about 5% of scale error, and the truth may lie
+  /// midway between two rungs (6% from each): a held-out desk pair, frames 0-59 and 170-229,
+  /// whose first passes both missed it (docs/scale.md, step 6).
+  bool half_rung = true;
   /// Before the first search, the initialiser measures the scale from the landmarks'
   /// correspondences (Initialiser::measure_scale: consistent cliques at rung_ratio^k times the
   /// initial scale, |k| <= measure_steps); a decisive measurement (measure_margin) becomes the
@@ -115,6 +122,11 @@ class ScaleSearch {
   /// nearest first, the largest clique's side first when it lies more than half a rung from the
   /// initial scale, else the refined scale's; none once a scale was measured.
   std::vector<ScaleAttempt> researches(double refined_scale) const;
+  /// The factor of the first pass half a rung away (ScaleSearchOptions::half_rung), given the
+  /// (factor, score) of each first pass so far: sqrt(best x neighbour), the neighbour being the
+  /// best-scoring factor a rung from the best one (the first of the best on ties). None when
+  /// half_rung is off, or no first pass lies a rung from the best.
+  std::optional<double> half_rung(const std::vector<std::pair<double, double>>& scored) const;
 
  private:
   ScaleSearchOptions o_;
