@@ -394,9 +394,8 @@ Summary Pipeline::run(const SourceView& source, const PreparedTarget& target,
   // scale's would be (goes_deeper: the complete search at its scale). None: the complete search
   // (after one more first pass half a rung from the best, towards its better neighbour:
   // scale.half_rung) at the scale whose first pass scored highest, with that answer among its
-  // hypotheses; its
-  // rungs follow below, and no complete search at the other scales (measured on 55 Sim(3)
-  // pairs: none of those searches gave a trusted answer, and they cost 2-8 s a pair).
+  // hypotheses; its rungs follow below, and no complete search at the other scales (measured on
+  // 55 Sim(3) pairs: none of those searches gave a trusted answer, and they cost 2-8 s a pair).
   bool searched_again = false;
   if (judged && !request.initial_guess && run.first_pass() && !first.verdict.trustworthy &&
       run.goes_deeper(first)) {
