@@ -3,7 +3,7 @@
 
     python3 bench/prior_sweep.py [--build-dir build] [--datasets a,b] [--wrong N] [--right N]
                                  [--check rivals|strict|off] [--complete-search rescue|check]
-                                 [--out DIR] [--jobs N]
+                                 [--out DIR] [--jobs N] [--baseline-runs N]
 
 For each real dataset of bench/accuracy.yaml (the desk pair, re-triangulated desk windows, the
 KITTI pairs and windows cut from the whole drive; maps prepared as `make bench-accuracy` prepares
@@ -19,7 +19,8 @@ An answer is right when its errors against the truth are within the dataset kind
 (`--success-rotation-deg`, `--success-translation-m` of bench/accuracy.yaml's kinds). Reports,
 per dataset: trusted wrong answers from wrong guesses (the target is 0), trusted right answers
 from right guesses (recall, the target is 95%), and the median time with a prior against the
-default's without one. Writes DIR/priors.csv, DIR/priors.json and prints a table; exit 1 when a
+default's without one (the median of --baseline-runs runs, 3 by default), for right and for
+wrong guesses apart. Writes DIR/priors.csv, DIR/priors.json and prints a table; exit 1 when a
 wrong guess gave a trusted wrong answer.
 """
 import argparse
@@ -154,6 +155,9 @@ def main(argv=None):
                         "merge's prior edges)")
     parser.add_argument("--out", default=None, help="output folder (default BUILD/bench-priors)")
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 2)
+    parser.add_argument("--baseline-runs", type=int, default=3,
+                        help="runs without a prior per dataset; the time ratios are against "
+                             "their median (one run's time is too noisy for a few per cent)")
     args = parser.parse_args(argv)
     lmalign = os.path.join(args.build_dir, "apps", "lmalign", "lmalign")
     out = args.out or os.path.join(args.build_dir, "bench-priors")
@@ -175,8 +179,9 @@ def main(argv=None):
         truth = read_matrix(truth_path)
         extent = extent_across(target, up)
         os.makedirs(os.path.join(out, "runs", d["name"]), exist_ok=True)
-        jobs.append((d["name"], kind, "none", None, 0.0, 0.0, source, target, truth_path,
-                     thresholds))
+        for b in range(max(1, args.baseline_runs)):
+            jobs.append((d["name"], kind, "none" if b == 0 else "none%d" % b, None, 0.0, 0.0,
+                         source, target, truth_path, thresholds))
         for label, G, yaw, off in guesses(kind, up, extent, truth, args.wrong, args.right,
                                           args.seed + n):
             path = os.path.join(out, "runs", d["name"], label + ".guess.txt")
@@ -204,26 +209,38 @@ def main(argv=None):
         for r in rows:
             w.writerow({k: r[k] for k in fields})
     summary = []
-    print("%-28s %14s %14s %10s %10s %10s" % ("dataset", "trusted wrong", "right trusted",
-                                              "prior s", "none s", "wrong guesses right"))
+    print("%-28s %14s %14s %10s %10s %10s %10s %10s" % (
+        "dataset", "trusted wrong", "right trusted", "prior s", "none s", "right/none",
+        "wrong/none", "wrong guesses right"))
     bad = 0
     for d in real:
         mine = [r for r in rows if r["dataset"] == d["name"]]
         wrong = [r for r in mine if r["guess"].startswith("wrong")]
         right = [r for r in mine if r["guess"].startswith("right")]
-        none = [r for r in mine if r["guess"] == "none"]
+        none = [r for r in mine if r["guess"].startswith("none")]
         tw = sum(1 for r in wrong + right if r["trusted"] and not r["right"])
         rt = sum(1 for r in right if r["trusted"] and r["right"])
         s = {"dataset": d["name"], "trusted_wrong": tw, "wrong_guesses": len(wrong),
              "right_trusted": rt, "right_guesses": len(right),
              "median_time_prior_s": statistics.median(r["time_s"] for r in wrong + right),
-             "time_without_prior_s": none[0]["time_s"] if none else None,
+             "time_without_prior_s": statistics.median(r["time_s"] for r in none)
+             if none else None,
+             "time_without_prior_runs_s": [r["time_s"] for r in none],
+             "median_time_right_prior_s": statistics.median(r["time_s"] for r in right)
+             if right else None,
+             "median_time_wrong_prior_s": statistics.median(r["time_s"] for r in wrong)
+             if wrong else None,
              "wrong_guesses_answered_right": sum(1 for r in wrong if r["right"])}
         summary.append(s)
         bad += tw
-        print("%-28s %8d of %-3d %8d of %-3d %10.2f %10.2f %10d" % (
+        base = s["time_without_prior_s"] or float("nan")
+        for key, t in (("ratio_right_prior", s["median_time_right_prior_s"]),
+                       ("ratio_wrong_prior", s["median_time_wrong_prior_s"])):
+            s[key] = t / base if t is not None else float("nan")
+        print("%-28s %8d of %-3d %8d of %-3d %10.2f %10.2f %9.2fx %9.2fx %10d" % (
             d["name"], tw, len(wrong) + len(right), rt, len(right), s["median_time_prior_s"],
-            s["time_without_prior_s"] or float("nan"), s["wrong_guesses_answered_right"]))
+            base, s["ratio_right_prior"], s["ratio_wrong_prior"],
+            s["wrong_guesses_answered_right"]))
     with open(os.path.join(out, "priors.json"), "w") as f:
         json.dump({"seed": args.seed, "sigma": SIGMA, "check": args.check, "datasets": summary, "runs": rows}, f,
                   indent=1)
